@@ -1,0 +1,74 @@
+"""Piecewise-constant blade-pitch schedules: the open-loop tests' inputs.
+
+The open-loop verification tests of the thesis (sec. 3.3, Table 3.2) drive the
+vehicle with blade pitches held constant between switching instants, e.g. both
+main thrusters at +35 deg from t = 0 for the surge test. A
+:class:`PitchSchedule` is such an input: switching times and the four pitches
+held from each time on.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from seapup_sim.blade_pitch import check_blade_pitch
+
+__all__ = ["ScheduleError", "PitchSchedule"]
+
+
+class ScheduleError(ValueError):
+    """A schedule whose times or pitches are inconsistent."""
+
+
+class PitchSchedule:
+    """Blade pitches held constant between switching times.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Switching times [s], strictly increasing, starting at 0.
+    pitches : array_like, shape (n, 4) or (4 * n,)
+        Blade pitches [rad] held from ``times[i]`` until ``times[i+1]`` (the
+        last row is held for ever), in ``seapup_msgs/BladePitch`` order.
+    limit : float
+        Blade-pitch limit [rad]; a schedule may not ask for more.
+
+    Examples
+    --------
+    >>> s = PitchSchedule([0.0, 5.0], [[0.6, 0.6, 0, 0], [0, 0, 0, 0]], limit=0.61)
+    >>> s.at(4.9)[0], s.at(5.0)[0]
+    (0.6, 0.0)
+    """
+
+    def __init__(self, times, pitches, limit: float):
+        t = np.asarray(times, dtype=float)
+        p = np.asarray(pitches, dtype=float)
+        if t.ndim != 1 or t.size == 0:
+            raise ScheduleError(f"times must be a non-empty list, got shape {t.shape}")
+        if p.ndim == 1:
+            if p.size != 4 * t.size:
+                raise ScheduleError(
+                    f"{t.size} switching times need {4 * t.size} pitches (4 each), got {p.size}")
+            p = p.reshape(t.size, 4)
+        if p.shape != (t.size, 4):
+            raise ScheduleError(f"pitches must have shape ({t.size}, 4), got {p.shape}")
+        if not np.all(np.isfinite(t)) or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
+            raise ScheduleError(f"times must be finite, start at 0 and increase strictly: {t.tolist()}")
+        for i, row in enumerate(p):
+            _, clipped = check_blade_pitch(row, limit)  # raises on non-finite rows
+            if clipped:
+                raise ScheduleError(
+                    f"row {i} asks for more than the blade limit {limit:.4f} rad: {row.tolist()}")
+        self.times = t
+        self.pitches = p
+
+    def at(self, t: float) -> np.ndarray:
+        """Blade pitches [rad] at time ``t`` >= 0 (a copy)."""
+        if not (np.isfinite(t) and t >= 0.0):
+            raise ScheduleError(f"schedule time must be finite and >= 0, got {t!r}")
+        i = int(np.searchsorted(self.times, t, side="right")) - 1
+        return self.pitches[i].copy()
+
+    @property
+    def duration(self) -> float:
+        """Time of the last switch [s]; the last row is held after it."""
+        return float(self.times[-1])

@@ -1,0 +1,51 @@
+"""Tests of seapup_control.schedule (piecewise-constant blade-pitch inputs)."""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_control.schedule import PitchSchedule, ScheduleError
+
+LIMIT = math.radians(35.0)
+SURGE = [[LIMIT, LIMIT, 0, 0], [0, 0, 0, 0]]  # Table 3.2 style: mains full ahead, then off
+
+
+def test_holds_each_row_until_the_next_switch():
+    s = PitchSchedule([0.0, 10.0], SURGE, LIMIT)
+    np.testing.assert_array_equal(s.at(0.0), SURGE[0])
+    np.testing.assert_array_equal(s.at(9.999), SURGE[0])
+    np.testing.assert_array_equal(s.at(10.0), SURGE[1])
+    np.testing.assert_array_equal(s.at(1e6), SURGE[1])
+    assert s.duration == 10.0
+
+
+def test_flat_pitch_list_as_in_the_yaml():
+    s = PitchSchedule([0.0, 1.0], np.ravel(SURGE), LIMIT)
+    np.testing.assert_array_equal(s.pitches, SURGE)
+
+
+def test_returned_rows_are_copies():
+    s = PitchSchedule([0.0], [[0.1, 0.1, 0.1, 0.1]], LIMIT)
+    s.at(0.0)[:] = 5.0
+    assert s.at(0.0)[0] == 0.1
+
+
+@pytest.mark.parametrize("times,pitches", [
+    ([], []),
+    ([1.0], [0, 0, 0, 0]),              # does not start at 0
+    ([0.0, 0.0], [0] * 8),              # not strictly increasing
+    ([0.0, math.nan], [0] * 8),
+    ([0.0], [0, 0, 0]),                 # wrong count
+    ([0.0, 1.0], [[0, 0, 0, 0]]),
+    ([0.0], [1.0, 0, 0, 0]),            # beyond the blade limit
+    ([0.0], [math.nan, 0, 0, 0]),
+])
+def test_inconsistent_schedules_are_refused(times, pitches):
+    with pytest.raises(ValueError):
+        PitchSchedule(times, pitches, LIMIT)
+
+
+@pytest.mark.parametrize("t", [-0.1, math.nan, math.inf])
+def test_bad_query_time(t):
+    with pytest.raises(ScheduleError):
+        PitchSchedule([0.0], [0, 0, 0, 0], LIMIT).at(t)

@@ -1,0 +1,27 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "seapup_ident"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="seapup developers",
+    maintainer_email="dev@seapup.invalid",
+    description="Seapup system identification and bag recording and replay.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "recorder = seapup_ident.recorder_node:main",
+        ],
+    },
+)

@@ -1,0 +1,123 @@
+"""Blade-pitch commands of the Seapup's four controllable-pitch thrusters.
+
+The Seapup is driven by four fixed-speed, controllable-pitch ducted thrusters
+(thesis sec. 2.3.3): two main thrusters aft (port, starboard) and two vectored
+thrusters on the centreline at 45 deg to the vertical. A command is the vector
+of their four blade pitches in radians, in the index order of
+``seapup_msgs/BladePitch`` (thesis Table 3.2 numbering).
+
+This module is the gate every command passes before it can reach the vehicle
+model: wrong-length or non-finite commands are rejected, pitches beyond the
+blade limit are saturated, and every outcome is counted.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "MAIN_PORT",
+    "MAIN_STARBOARD",
+    "VECTORED_STARBOARD",
+    "VECTORED_PORT",
+    "THRUSTER_NAMES",
+    "InvalidBladePitchError",
+    "check_blade_pitch",
+    "CommandGate",
+]
+
+MAIN_PORT, MAIN_STARBOARD, VECTORED_STARBOARD, VECTORED_PORT = range(4)
+THRUSTER_NAMES = ("main_port", "main_starboard", "vectored_starboard", "vectored_port")
+
+
+class InvalidBladePitchError(ValueError):
+    """A blade-pitch command that must not reach the vehicle model."""
+
+
+def check_blade_pitch(pitch, limit: float) -> tuple[np.ndarray, int]:
+    """Validate a blade-pitch command and saturate it to the blade limits.
+
+    Parameters
+    ----------
+    pitch : array_like
+        Four blade pitches [rad] in ``seapup_msgs/BladePitch`` index order.
+    limit : float
+        Symmetric blade-pitch limit [rad], > 0 (the Seapup's blades stop at
+        +/-35 deg, thesis sec. 3.1).
+
+    Returns
+    -------
+    saturated : ndarray, shape (4,)
+        The command clipped to ``[-limit, limit]`` (a new array).
+    n_saturated : int
+        How many of the four pitches were clipped.
+
+    Raises
+    ------
+    InvalidBladePitchError
+        If the command does not have exactly four elements or any is NaN or
+        infinite. Nothing is clipped or returned in that case.
+    """
+    if not (np.isfinite(limit) and limit > 0.0):
+        raise ValueError(f"blade-pitch limit must be finite and > 0 rad, got {limit!r}")
+    try:
+        values = np.asarray(pitch, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidBladePitchError(f"blade pitch is not numeric: {pitch!r}") from exc
+    if values.shape != (4,):
+        raise InvalidBladePitchError(
+            f"blade pitch needs exactly 4 values (one per thruster), got shape {values.shape}")
+    bad = ~np.isfinite(values)
+    if bad.any():
+        names = ", ".join(THRUSTER_NAMES[i] for i in np.flatnonzero(bad))
+        raise InvalidBladePitchError(f"blade pitch of {names} is not finite: {values.tolist()}")
+    saturated = np.clip(values, -limit, limit)
+    return saturated, int(np.count_nonzero(saturated != values))
+
+
+@dataclass
+class CommandGate:
+    """Counts and filters a stream of blade-pitch commands.
+
+    Parameters
+    ----------
+    limit : float
+        Blade-pitch limit [rad] passed to :func:`check_blade_pitch`.
+
+    Attributes
+    ----------
+    accepted, rejected, saturated : int
+        Commands passed on, commands refused, and individual pitches clipped.
+    last_error : str
+        Message of the most recent rejection ('' if none).
+    """
+
+    limit: float
+    accepted: int = 0
+    rejected: int = 0
+    saturated: int = 0
+    last_error: str = ""
+    _last: np.ndarray | None = field(default=None, repr=False)
+
+    def submit(self, pitch) -> np.ndarray | None:
+        """Return the saturated command, or None (and count it) if it is invalid."""
+        try:
+            value, n_clipped = check_blade_pitch(pitch, self.limit)
+        except InvalidBladePitchError as exc:
+            self.rejected += 1
+            self.last_error = str(exc)
+            return None
+        self.accepted += 1
+        self.saturated += n_clipped
+        self._last = value
+        return value.copy()
+
+    @property
+    def last(self) -> np.ndarray | None:
+        """The most recent accepted command (a copy), or None before the first."""
+        return None if self._last is None else self._last.copy()
+
+    def counters(self) -> dict[str, int]:
+        """The counters as a dict, e.g. for diagnostics."""
+        return {"accepted": self.accepted, "rejected": self.rejected, "saturated": self.saturated}

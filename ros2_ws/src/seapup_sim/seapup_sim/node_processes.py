@@ -1,0 +1,199 @@
+"""Start, isolate and stop ROS 2 node processes without ros2cli or launch.
+
+There are no ros2cli or launch wheels on PyPI, so seapup starts its nodes
+itself: for tests, for ``./seapup demo`` and for SIL scenarios. This module is
+that machinery, with no rclpy import:
+
+- :class:`DomainLease` hands out a ``ROS_DOMAIN_ID`` that no other seapup
+  process on this machine holds (machine-wide lock files), so parallel test
+  runs never hear each other;
+- :func:`ros_environment` builds the environment of a child process: its
+  domain and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` so no DDS traffic
+  leaves loopback;
+- :class:`NodeProcess` runs one node in its own process group, logs to a file
+  and stops it with SIGINT, then SIGTERM, then SIGKILL.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+__all__ = [
+    "DomainLease",
+    "NoFreeDomainError",
+    "ros_environment",
+    "find_executable",
+    "NodeProcess",
+]
+
+#: Domain IDs seapup leases. 0 is left to users; the Linux port mapping of
+#: DDS allows 0-101 (and 215-232) with the default participant limits.
+LEASE_RANGE = range(10, 102)
+
+
+class NoFreeDomainError(RuntimeError):
+    """Every ROS_DOMAIN_ID in the lease range is held by another process."""
+
+
+class DomainLease:
+    """A ROS_DOMAIN_ID held exclusively by this process until released.
+
+    The lease is an exclusive ``flock`` on ``<lock_dir>/domain-<id>.lock``; the
+    kernel drops it if the process dies, so a crashed test never blocks a
+    domain. Use as a context manager.
+
+    Parameters
+    ----------
+    lock_dir : str or Path, optional
+        Directory of the lock files, shared by every seapup process on the
+        machine (default ``$SEAPUP_DOMAIN_LOCK_DIR`` or
+        ``<tmp>/seapup-ros-domains``).
+    candidates : iterable of int, optional
+        Domain IDs to try, in order (default :data:`LEASE_RANGE`).
+    """
+
+    def __init__(self, lock_dir: str | Path | None = None, candidates=LEASE_RANGE):
+        self.lock_dir = Path(lock_dir or os.environ.get("SEAPUP_DOMAIN_LOCK_DIR")
+                             or Path(tempfile.gettempdir()) / "seapup-ros-domains")
+        self.candidates = list(candidates)
+        self.domain_id: int | None = None
+        self._fd: int | None = None
+
+    def acquire(self) -> int:
+        """Take the first free domain; raise :class:`NoFreeDomainError` if none."""
+        if self._fd is not None:
+            raise RuntimeError(f"lease already holds domain {self.domain_id}")
+        self.lock_dir.mkdir(parents=True, exist_ok=True)
+        # Start at a PID-dependent offset so concurrent runs rarely collide.
+        offset = os.getpid() % len(self.candidates)
+        for domain in self.candidates[offset:] + self.candidates[:offset]:
+            fd = os.open(self.lock_dir / f"domain-{domain}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                continue
+            self._fd, self.domain_id = fd, domain
+            return domain
+        raise NoFreeDomainError(
+            f"all ROS domains {self.candidates[0]}-{self.candidates[-1]} are leased "
+            f"(lock files in {self.lock_dir}); wait for other seapup runs to finish")
+
+    def release(self) -> None:
+        """Give the domain back (idempotent)."""
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> "DomainLease":
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def ros_environment(domain_id: int, base: dict[str, str] | None = None) -> dict[str, str]:
+    """Environment for a ROS process on ``domain_id`` that stays on loopback.
+
+    Parameters
+    ----------
+    domain_id : int
+        The ROS_DOMAIN_ID, 0-232.
+    base : dict, optional
+        Environment to start from (default: this process's).
+    """
+    if not 0 <= int(domain_id) <= 232:
+        raise ValueError(f"ROS_DOMAIN_ID must be 0-232, got {domain_id}")
+    env = dict(os.environ if base is None else base)
+    env["ROS_DOMAIN_ID"] = str(int(domain_id))
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_STATIC_PEERS", None)
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def find_executable(package: str, executable: str) -> Path:
+    """Path of ``lib/<package>/<executable>`` on AMENT_PREFIX_PATH (what ``ros2 run`` runs)."""
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    for prefix in prefixes:
+        path = Path(prefix) / "lib" / package / executable
+        if path.is_file() and os.access(path, os.X_OK):
+            return path
+    raise FileNotFoundError(
+        f"no executable {executable!r} of package {package!r} on AMENT_PREFIX_PATH "
+        f"({len(prefixes)} prefixes); run through ./seapup or source the workspace")
+
+
+class NodeProcess:
+    """One node (or any command) in its own process group, logging to a file.
+
+    Parameters
+    ----------
+    command : list of str
+        The command line.
+    env : dict
+        Its environment (see :func:`ros_environment`).
+    log_path : str or Path
+        File that receives the process's stdout and stderr.
+    name : str, optional
+        Name used in messages (default: the command's basename).
+    """
+
+    def __init__(self, command: list[str], env: dict[str, str], log_path: str | Path,
+                 name: str | None = None):
+        self.command = [str(c) for c in command]
+        self.env = env
+        self.log_path = Path(log_path)
+        self.name = name or Path(self.command[0]).name
+        self.popen: subprocess.Popen | None = None
+
+    def start(self) -> "NodeProcess":
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.log_path, "wb") as log:
+            self.popen = subprocess.Popen(self.command, env=self.env, stdout=log,
+                                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                          start_new_session=True)
+        return self
+
+    @property
+    def running(self) -> bool:
+        return self.popen is not None and self.popen.poll() is None
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.popen is None else self.popen.poll()
+
+    def log_text(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except FileNotFoundError:
+            return ""
+
+    def stop(self, grace: float = 5.0) -> int | None:
+        """Stop with SIGINT, then SIGTERM, then SIGKILL; return the exit code."""
+        if self.popen is None:
+            return None
+        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+            if self.popen.poll() is not None:
+                break
+            try:
+                os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                break
+            deadline = time.monotonic() + wait
+            while self.popen.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.02)
+        return self.popen.wait()
+
+    def __enter__(self) -> "NodeProcess":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

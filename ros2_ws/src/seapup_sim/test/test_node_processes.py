@@ -1,0 +1,75 @@
+"""Tests of seapup_sim.node_processes: domain leases and child processes."""
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from seapup_sim.node_processes import (DomainLease, NodeProcess, NoFreeDomainError,
+                                       find_executable, ros_environment)
+
+HOLD_LEASE = textwrap.dedent("""
+    import sys, time
+    from seapup_sim.node_processes import DomainLease
+    lease = DomainLease(sys.argv[1], candidates=[int(x) for x in sys.argv[2:]])
+    print(lease.acquire(), flush=True)
+    time.sleep(60)
+""")
+
+
+def test_two_leases_in_one_process_get_different_domains(tmp_path):
+    with DomainLease(tmp_path, candidates=[40, 41]) as a, DomainLease(tmp_path, candidates=[40, 41]) as b:
+        assert {a.domain_id, b.domain_id} == {40, 41}
+        with pytest.raises(NoFreeDomainError, match="40-41"):
+            DomainLease(tmp_path, candidates=[40, 41]).acquire()
+
+
+def test_lease_is_exclusive_across_processes_and_freed_when_holder_dies(tmp_path):
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LEASE, str(tmp_path), "50"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "50"
+        with pytest.raises(NoFreeDomainError):
+            DomainLease(tmp_path, candidates=[50]).acquire()
+    finally:
+        holder.kill()
+        holder.wait()
+    with DomainLease(tmp_path, candidates=[50]) as lease:  # the kernel dropped the lock
+        assert lease.domain_id == 50
+
+
+def test_release_is_idempotent_and_allows_reacquire(tmp_path):
+    lease = DomainLease(tmp_path, candidates=[60])
+    assert lease.acquire() == 60
+    lease.release()
+    lease.release()
+    assert DomainLease(tmp_path, candidates=[60]).acquire() == 60
+
+
+def test_ros_environment_is_loopback_only():
+    env = ros_environment(17, {"ROS_STATIC_PEERS": "10.0.0.1", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"})
+    assert env["ROS_DOMAIN_ID"] == "17"
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    assert "ROS_STATIC_PEERS" not in env
+    with pytest.raises(ValueError):
+        ros_environment(233)
+
+
+def test_stop_escalates_when_sigint_is_ignored(tmp_path):
+    stubborn = "import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nprint('up', flush=True)\ntime.sleep(60)"
+    proc = NodeProcess([sys.executable, "-c", stubborn], {}, tmp_path / "p.log").start()
+    for _ in range(200):
+        if "up" in proc.log_text():
+            break
+        import time
+        time.sleep(0.02)
+    assert proc.running
+    code = proc.stop(grace=0.3)
+    assert code == -15  # SIGINT ignored, SIGTERM ended it
+    assert not proc.running
+
+
+def test_find_executable_reports_what_is_missing():
+    assert find_executable("seapup_sim", "simulator").name == "simulator"
+    with pytest.raises(FileNotFoundError, match="no executable 'nope'"):
+        find_executable("seapup_sim", "nope")

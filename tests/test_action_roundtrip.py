@@ -1,0 +1,53 @@
+"""An action round trip on seapup_msgs/action/SelfTest in a private context.
+
+Server and client live in one process on the test's own domain; the server
+sends feedback for each of the four thrusters and succeeds with a result the
+client checks field by field.
+"""
+import rclpy
+from rclpy.action import ActionClient, ActionServer, CancelResponse
+from rclpy.executors import SingleThreadedExecutor
+from seapup_msgs.action import SelfTest
+
+
+async def execute(goal_handle):
+    for i in range(4):
+        goal_handle.publish_feedback(SelfTest.Feedback(thruster_index=i, progress=(i + 1) / 4,
+                                                       stage="stepping"))
+    goal_handle.succeed()
+    result = SelfTest.Result(success=True, message=f"stepped by {goal_handle.request.step_amplitude}")
+    result.b1_inverse = [goal_handle.request.surge_speed] * 16
+    return result
+
+
+def test_self_test_action_round_trip(ros_context, spin):
+    server_node = rclpy.create_node("self_test_server", context=ros_context)
+    client_node = rclpy.create_node("self_test_client", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(server_node)
+    executor.add_node(client_node)
+    ActionServer(server_node, SelfTest, "/seapup/self_test", execute_callback=execute,
+                 cancel_callback=lambda _: CancelResponse.ACCEPT)
+    client = ActionClient(client_node, SelfTest, "/seapup/self_test")
+    assert spin(executor, client.server_is_ready, 10.0)
+    # server_is_ready covers the services only; feedback is a volatile topic that
+    # is lost until the client's feedback subscription has matched.
+    assert spin(executor, lambda: server_node.count_subscribers("/seapup/self_test/_action/feedback") > 0, 10.0)
+
+    feedback = []
+    send = client.send_goal_async(SelfTest.Goal(surge_speed=0.5, step_amplitude=0.14, sample_period=0.2),
+                                  feedback_callback=lambda fb: feedback.append(fb.feedback))
+    assert spin(executor, send.done, 10.0)
+    handle = send.result()
+    assert handle.accepted
+    # rclpy stops delivering feedback once the result has arrived, so take the
+    # feedback first; the server keeps the result until it is asked for.
+    assert spin(executor, lambda: len(feedback) == 4, 10.0)
+    result_future = handle.get_result_async()
+    assert spin(executor, result_future.done, 10.0)
+    response = result_future.result()
+    assert response.result.success and response.result.message == "stepped by 0.14"
+    assert list(response.result.b1_inverse) == [0.5] * 16
+    assert [f.thruster_index for f in feedback] == [0, 1, 2, 3]
+    assert feedback[-1].progress == 1.0
+    executor.shutdown()
