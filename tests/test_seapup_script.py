@@ -45,3 +45,52 @@ def test_second_bootstrap_neither_reinstalls_nor_rebuilds():
     r = run("setup")
     assert r.returncode == 0, r.stderr
     assert "installing" not in r.stderr and "building" not in r.stderr
+
+
+def scratch_copy(tmp_path, lock_text):
+    """A copy of the entry script with its own (empty) workspace and a given lock."""
+    import shutil
+    root = tmp_path / "repo"
+    (root / "requirements").mkdir(parents=True)
+    (root / "cmake").mkdir()
+    shutil.copy(SEAPUP, root / "seapup")
+    shutil.copy(REPO / "cmake" / "fix_ros_wheel_paths.cmake", root / "cmake")
+    (root / "requirements" / "lock.txt").write_text(lock_text)
+    return root
+
+
+def clean_env(**extra):
+    import os
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "AMENT_PREFIX_PATH", "VIRTUAL_ENV", "LD_LIBRARY_PATH")}
+    env.update(extra)
+    return env
+
+
+def test_wrong_python_version_is_named(tmp_path):
+    fake = tmp_path / "python3.10"
+    fake.write_text("#!/bin/sh\necho 3.10\n")
+    fake.chmod(0o755)
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    r = subprocess.run([str(root / "seapup"), "setup"], capture_output=True, text=True,
+                       env=clean_env(SEAPUP_PYTHON=str(fake)))
+    assert r.returncode == 1
+    assert "is Python 3.10; seapup needs exactly Python 3.11" in r.stderr
+    assert not (root / ".venv").exists()
+
+
+def test_missing_python_says_what_to_install(tmp_path):
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    r = subprocess.run([str(root / "seapup"), "setup"], capture_output=True, text=True,
+                       env=clean_env(SEAPUP_PYTHON="no-such-python3.11"))
+    assert r.returncode == 1 and "apt-get install python3.11" in r.stderr
+
+
+def test_failed_pip_install_explains_and_keeps_nothing(tmp_path):
+    root = scratch_copy(tmp_path, "seapup-no-such-distribution==0.0.1\n")
+    r = subprocess.run([str(root / "seapup"), "setup"], capture_output=True, text=True,
+                       env=clean_env(PIP_NO_INDEX="1", PIP_FIND_LINKS=str(tmp_path)))
+    assert r.returncode == 1
+    assert "pip could not install requirements/lock.txt" in r.stderr
+    assert "PyPI is reachable" in r.stderr
+    assert not (root / ".venv").exists()
