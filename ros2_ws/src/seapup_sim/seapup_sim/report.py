@@ -1,0 +1,115 @@
+"""Tables and plots of a verification run, from the same results dict.
+
+The table rows come from :func:`seapup_sim.verification.check_targets` and the
+plots from the time histories returned with those results, so the printed
+numbers and the pictures cannot disagree.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["format_rows", "write_plots"]
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "n/a"
+    if abs(v) >= 100 or v == int(v):
+        return f"{v:.1f}" if abs(v) < 1e4 else f"{v:.3g}"
+    return f"{v:.4g}"
+
+
+def format_rows(rows: list[dict], title: str) -> str:
+    """A fixed-width table: target, simulated, thesis, accepted range, PASS/FAIL."""
+    lines = [title, f"{'':2}{'quantity':<42}{'simulated':>11}{'thesis':>10}  {'accepted':<21}{'':6}source"]
+    for r in rows:
+        rng = f"[{_fmt(r['low'])}, {_fmt(r['high'])}]"
+        status = "PASS" if r["pass"] else "FAIL"
+        tag = "P" if r["primary"] else "s"
+        lines.append(f"{tag:<2}{r['label']:<42}{_fmt(r['value']):>11}{_fmt(r['thesis']):>10}  "
+                     f"{rng:<21}{status:<6}{r['source']}")
+    n_p = sum(r["primary"] for r in rows)
+    ok_p = sum(r["primary"] and r["pass"] for r in rows)
+    ok_s = sum((not r["primary"]) and r["pass"] for r in rows)
+    lines.append(f"primary {ok_p}/{n_p} PASS, secondary {ok_s}/{len(rows) - n_p} PASS "
+                 "(P = primary target, s = secondary)")
+    return "\n".join(lines)
+
+
+def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Path]:
+    """PNG plots like thesis figs 3.2-3.6 and 3.8/3.10; returns the paths."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = results.get("config", "")
+    paths = []
+    deg = math.degrees
+
+    def panel(name, title, series):
+        fig, axes = plt.subplots(len(series), 1, figsize=(7, 2.2 * len(series)), sharex=True)
+        axes = np.atleast_1d(axes)
+        for ax, (label, t, y) in zip(axes, series):
+            ax.plot(t, y, lw=1.4)
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+        axes[-1].set_xlabel("time [s]")
+        axes[0].set_title(f"{title} ({cfg})")
+        fig.tight_layout()
+        path = out / f"{name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
+    t, x = histories["roll_release"]
+    panel("fig3_2_roll_release", "Autonomous roll test (Table 3.2 no. 1)",
+          [("roll [deg]", t, np.degrees(x[:, 3])), ("pitch [deg]", t, np.degrees(x[:, 4])),
+           ("yaw rate [deg/s]", t, np.degrees(x[:, 11]))])
+    t, x = histories["pitch_release"]
+    panel("fig3_3_pitch_release", "Autonomous pitch test (no. 2)",
+          [("pitch [deg]", t, np.degrees(x[:, 4])), ("pitch rate [deg/s]", t, np.degrees(x[:, 10])),
+           ("surge [m/s]", t, x[:, 6])])
+    t, x = histories["surge"]
+    panel("fig3_4_surge", "Surge test (no. 3)",
+          [("surge u [m/s]", t, x[:, 6]), ("pitch [deg]", t, np.degrees(x[:, 4])),
+           ("pitch rate [deg/s]", t, np.degrees(x[:, 10]))])
+    td, xd = histories["heave_down"]
+    tu, xu = histories["heave_up"]
+    panel("fig3_5_heave", "Heave tests (nos. 5a, 5b)",
+          [("heave w down [m/s]", td, xd[:, 8]), ("heave w up [m/s]", tu, -xu[:, 8])])
+    t, x = histories["sway_4a"]
+    panel("fig3_6_sway", "Sway test (no. 4a)",
+          [("sway v [m/s]", t, x[:, 7]), ("roll [deg]", t, np.degrees(x[:, 3])),
+           ("roll rate [deg/s]", t, np.degrees(x[:, 9]))])
+
+    loci = histories.get("loci") or []
+    if loci:
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))
+        speeds = [p["surge_speed"] for p in loci]
+        cmap = plt.get_cmap("viridis")
+        for k, p in enumerate(loci):
+            colour = cmap(k / max(len(loci) - 1, 1))
+            ev = np.array(p["eigenvalues"])
+            ax1.scatter(ev[:, 0], ev[:, 1], s=10, color=colour)
+            z = np.array(p["transmission_zeros"]).reshape(-1, 2)
+            if z.size:
+                ax2.scatter(z[:, 0], z[:, 1], s=14, color=colour)
+        for ax, what in ((ax1, "Open-loop eigenvalues (fig. 3.8)"), (ax2, "Transmission zeros (fig. 3.10)")):
+            ax.axvline(0.0, color="k", lw=0.8)
+            ax.set_xlabel("real [1/s]")
+            ax.set_ylabel("imaginary [rad/s]")
+            ax.set_title(f"{what}, u = {speeds[0]:.1f}-{speeds[-1]:.1f} m/s")
+            ax.grid(alpha=0.3)
+        sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(speeds[0], speeds[-1]))
+        fig.colorbar(sm, ax=[ax1, ax2], label="surge speed [m/s]")
+        path = out / "fig3_8_3_10_loci.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    del deg
+    return paths

@@ -1,0 +1,307 @@
+"""The thesis's open-loop verification of the Seapup model (sec. 3.3-3.7).
+
+:func:`verify` runs the tests of Table 3.2 and the linear analyses on one
+configuration and returns a JSON-ready dict (units: m/s, deg, deg/s, rad/s for
+eigenvalues) together with the time histories for plots. :data:`TARGETS`
+holds the thesis values and tolerances that :func:`check_targets` turns into
+PASS/FAIL rows; the same rows are printed by ``./seapup verify`` and plotted,
+so numbers and pictures never disagree.
+
+Table 3.2 (thruster order main port, main starboard, vectored starboard,
+vectored port):
+
+===========  =====================================  ==============================
+test         inputs                                 outputs
+===========  =====================================  ==============================
+1 roll       thrusters disabled, roll(0) = 24 deg   transient (stable, oscillatory)
+2 pitch      thrusters disabled, pitch(0) = 22 deg  transient
+3 surge      mains +35, vectored 0                  top speed, impulsive-start pitch
+4a / 4b      vectored +35/-35 (4b: -35/+35)         max roll, roll rate, sway speed
+5a / 5b      vectored +35/+35 (5b: -35/-35)         max heave speed down / up
+===========  =====================================  ==============================
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from seapup_sim.analysis import (OUTPUTS, TrimError, linearise, output_matrix, system_zeros,
+                                 trim)
+from seapup_sim.integrator import VehicleIntegrator
+from seapup_sim.vehicle import VehicleModel
+
+__all__ = ["run_open_loop", "rest_trim", "step_gains", "verify", "Target", "TARGETS",
+           "check_targets", "mode_nearest"]
+
+D = math.radians
+
+
+def run_open_loop(model: VehicleModel, command, duration: float, state0=None, pitch0=None,
+                  thrusters_on: bool = True, dt: float = 0.1):
+    """Integrate with a constant blade-pitch command; return (t, states, pitches)."""
+    n = int(round(duration / dt))
+    sim = VehicleIntegrator(model, dt=dt, state=state0,
+                            pitch=command if pitch0 is None else pitch0)
+    sim.thrusters_on = thrusters_on
+    t = np.arange(n + 1) * dt
+    states = np.empty((n + 1, 12))
+    pitches = np.empty((n + 1, 4))
+    states[0], pitches[0] = sim.state, sim.pitch
+    for k in range(1, n + 1):
+        states[k] = sim.step(command)
+        pitches[k] = sim.pitch
+    return t, states, pitches
+
+
+def rest_trim(model: VehicleModel) -> float:
+    """Pitch angle [rad] at rest with thrusters disabled: the hydrostatic pitch
+    moment about the body origin vanishes (sec. 3.6: 0.0 deg baseline,
+    -6.3 deg with the camera)."""
+    mp = model.mass
+    moment_x = mp.cg[0] * model.weight - mp.cb[0] * model.buoyancy
+    moment_z = mp.cg[2] * model.weight - mp.cb[2] * model.buoyancy
+    return math.atan2(-moment_x, moment_z)
+
+
+def step_gains(model: VehicleModel, hover: np.ndarray, step_deg: float = 8.0,
+               sample_period: float = 0.2, samples: int = 51, dt: float = 0.05):
+    """B0^-1 and B1^-1 of eq. 5.3 from open-loop steps about the hover setting.
+
+    As in sec. 5.3.1: start at rest with u = u0 (hover), step thruster j by
+    ``step_deg``; B0^-1[i, j] is output i one sample period after the step,
+    B1^-1[i, j] its value at the end of the test (``samples`` samples at 5 Hz:
+    10 s, the self-test length), both per degree of blade pitch. Outputs
+    u, v, w [m/s] and r [deg/s]. ``dt`` divides the sample period.
+    """
+    per_sample = int(round(sample_period / dt))
+    b0, b1 = np.zeros((4, 4)), np.zeros((4, 4))
+    for j in range(4):
+        cmd = hover.copy()
+        cmd[j] += D(step_deg)
+        _, x, _ = run_open_loop(model, cmd, (samples - 1) * sample_period, pitch0=hover, dt=dt)
+        y = x[:, list(OUTPUTS)].copy()
+        y[:, 3] = np.degrees(y[:, 3])
+        b0[:, j] = y[per_sample] / step_deg
+        b1[:, j] = y[-1] / step_deg
+    return b0, b1
+
+
+def mode_nearest(eigenvalues, target: complex) -> complex:
+    """The eigenvalue (upper half plane) nearest to ``target``."""
+    ev = np.asarray(eigenvalues)
+    ev = ev[ev.imag >= 0]
+    return complex(ev[np.argmin(np.abs(ev - target))])
+
+
+def _mode_of(a: np.ndarray, state_index: int) -> complex:
+    """The oscillatory eigenvalue whose eigenvector is dominated by one state."""
+    w, v = np.linalg.eig(a)
+    best, score = 0j, -1.0
+    for k in range(len(w)):
+        if w[k].imag <= 1e-9:
+            continue
+        col = np.abs(v[:, k])
+        share = col[state_index] / (col[3:].sum() + 1e-300)
+        if share > score:
+            best, score = complex(w[k]), share
+    return best
+
+
+def _release_test(model, index: int, angle_deg: float, duration: float = 40.0):
+    x0 = np.zeros(12)
+    x0[index] = D(angle_deg)
+    t, x, _ = run_open_loop(model, np.zeros(4), duration, state0=x0, thrusters_on=False)
+    a, _ = linearise(model, np.zeros(12), np.zeros(4), thrusters_on=False)
+    ev = _mode_of(a, index)
+    tail = np.abs(x[t >= duration - 10.0, index]).max()
+    stable = bool(tail < 0.2 * D(angle_deg) and np.all(np.isfinite(x)))
+    return {"stable": stable, "eigenvalue": [ev.real, ev.imag],
+            "final_deg": float(np.degrees(x[-1, index]))}, (t, x)
+
+
+def _rise_time(t, y, fraction=0.95):
+    final = y[-1]
+    above = np.flatnonzero(y >= fraction * final)
+    return float(t[above[0]]) if above.size else float("nan")
+
+
+def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tuple[dict, dict]:
+    """Run the verification; return (results JSON dict, time histories)."""
+    res: dict = {"config": model.config_name}
+    hist: dict = {}
+    res["rest_trim_deg"] = math.degrees(rest_trim(model))
+    res["roll_release"], hist["roll_release"] = _release_test(model, 3, 24.0)
+    res["pitch_release"], hist["pitch_release"] = _release_test(model, 4, 22.0)
+
+    lim = D(35.0)
+    t, x, _ = run_open_loop(model, np.array([lim, lim, 0.0, 0.0]), duration)
+    hist["surge"] = (t, x)
+    u = x[:, 6]
+    res["surge"] = {"max_u": float(u.max()), "steady_pitch_deg": float(np.degrees(x[-1, 4])),
+                    "max_pitch_deg": float(np.degrees(x[:, 4].max())),
+                    "max_pitch_rate_dps": float(np.degrees(x[:, 10].max())),
+                    "rise95_s": _rise_time(t, u)}
+    for name, cmd in (("sway_4a", [0.0, 0.0, lim, -lim]), ("sway_4b", [0.0, 0.0, -lim, lim])):
+        t, x, _ = run_open_loop(model, np.array(cmd), duration)
+        hist[name] = (t, x)
+        res[name] = {"max_v": float(np.abs(x[:, 7]).max()),
+                     "max_roll_deg": float(np.degrees(np.abs(x[:, 3]).max())),
+                     "max_roll_rate_dps": float(np.degrees(np.abs(x[:, 9]).max()))}
+    for name, cmd, sign in (("heave_down", [0.0, 0.0, lim, lim], 1.0),
+                            ("heave_up", [0.0, 0.0, -lim, -lim], -1.0)):
+        t, x, _ = run_open_loop(model, np.array(cmd), duration)
+        hist[name] = (t, x)
+        res[name] = {"max_w": float((sign * x[:, 8]).max())}
+    mirror = np.array([1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1], float)
+    res["sway_mirror_error"] = float(np.abs(hist["sway_4a"][1] - mirror * hist["sway_4b"][1]).max())
+
+    hover = trim(model, 0.0)
+    res["hover_blade_pitch_deg"] = np.degrees(hover.blade_pitch).tolist()
+    res["hover_pitch_deg"] = math.degrees(hover.pitch_angle)
+    try:
+        t07 = trim(model, 0.7, [hover.pitch_angle, hover.blade_pitch[0], hover.blade_pitch[2]])
+        res["trim_0_7"] = {"pitch_deg": math.degrees(t07.pitch_angle),
+                           "blade_pitch_deg": np.degrees(t07.blade_pitch).tolist()}
+    except TrimError as exc:
+        res["trim_0_7"] = {"error": str(exc)}
+    a, b = linearise(model, hover.state, hover.blade_pitch)
+    ev = np.linalg.eigvals(a)
+    res["eigenvalues_quiescent"] = sorted([[float(e.real), float(e.imag)] for e in ev])
+    res["zero_eigenvalues_quiescent"] = int(np.sum(np.abs(ev) < 1e-6))
+
+    speeds = np.round(np.arange(0.0, 1.0001, 0.05), 3) if loci_speeds is None else loci_speeds
+    loci, guess, onset, max_real, beyond = [], None, None, -np.inf, None
+    c = output_matrix()
+    for s in speeds:
+        try:
+            tr = trim(model, float(s), guess, enforce_limits=False)
+        except TrimError:
+            break
+        if not tr.within_limits and beyond is None:
+            beyond = float(s)
+        guess = [tr.pitch_angle, tr.blade_pitch[0], tr.blade_pitch[2]]
+        a_s, b_s = linearise(model, tr.state, tr.blade_pitch)
+        ev_s = np.linalg.eigvals(a_s)
+        zs = [z.value for z in system_zeros(a_s, b_s, c) if z.kind == "transmission"]
+        max_real = max(max_real, float(ev_s.real.max()))
+        if onset is None and any(z.real > 0 for z in zs):
+            onset = float(s)
+        loci.append({"surge_speed": float(s), "pitch_deg": math.degrees(tr.pitch_angle),
+                     "blade_pitch_deg": np.degrees(tr.blade_pitch).tolist(),
+                     "within_blade_limits": tr.within_limits,
+                     "eigenvalues": [[e.real, e.imag] for e in ev_s],
+                     "transmission_zeros": [[z.real, z.imag] for z in zs]})
+    res["loci_max_speed"] = loci[-1]["surge_speed"] if loci else None
+    # from this speed on, level trimmed flight needs blade pitch beyond +/-35 deg
+    res["trim_beyond_blade_limits_from"] = beyond
+    res["max_real_eigenvalue_0_1"] = max_real
+    res["nmp_onset_surge"] = onset
+    hist["loci"] = loci
+
+    b0, b1 = step_gains(model, hover.blade_pitch)
+    res["step_gains_5hz"] = {"B0inv": b0.tolist(), "B1inv": b1.tolist()}
+    return res, hist
+
+
+@dataclass(frozen=True)
+class Target:
+    """One thesis number: where it is in the results, the value and a tolerance."""
+
+    key: str
+    label: str
+    thesis: float
+    low: float
+    high: float
+    primary: bool
+    source: str
+
+    def value(self, res: dict):
+        node = res
+        for part in self.key.split("."):
+            if isinstance(node, dict):
+                node = node.get(part)
+            elif isinstance(node, list):
+                node = node[int(part)]
+            if node is None:
+                return None
+        return node
+
+    def check(self, res: dict) -> tuple[float | None, bool]:
+        v = self.value(res)
+        if isinstance(v, bool):
+            return float(v), bool(v)
+        if v is None or not math.isfinite(float(v)):
+            return None, False
+        return float(v), self.low <= float(v) <= self.high
+
+
+def _rel(key, label, value, tol, primary, source):
+    return Target(key, label, value, value * (1 - tol), value * (1 + tol), primary, source)
+
+
+def _abs(key, label, value, tol, primary, source):
+    return Target(key, label, value, value - tol, value + tol, primary, source)
+
+
+TARGETS = {
+    "baseline": [
+        _rel("surge.max_u", "surge top speed [m/s]", 0.98, 0.05, True, "sec. 3.5"),
+        _abs("surge.steady_pitch_deg", "surge steady pitch [deg]", 27.4, 3.0, True, "sec. 3.6"),
+        _rel("sway_4a.max_v", "sway 4a top speed [m/s]", 0.34, 0.10, True, "sec. 3.5"),
+        _abs("sway_4a.max_roll_deg", "sway 4a max roll [deg]", 24.8, 3.0, True, "sec. 3.5"),
+        _abs("sway_mirror_error", "4a/4b mirror error", 0.0, 1e-9, True, "symmetry"),
+        _rel("heave_down.max_w", "heave down [m/s]", 0.33, 0.10, True, "sec. 3.5"),
+        _abs("heave_up.max_w", "heave up [m/s]", 0.17, 0.05, True, "sec. 3.5"),
+        Target("roll_release.stable", "roll release stable", 1, 1, 1, True, "fig. 3.2"),
+        Target("pitch_release.stable", "pitch release stable", 1, 1, 1, True, "fig. 3.3"),
+        _rel("roll_release.eigenvalue.1", "roll mode frequency [rad/s]", 2.56, 0.15, True, "App. A.3"),
+        Target("roll_release.eigenvalue.0", "roll mode real part [1/s]", -0.185, -0.37, -0.0925, True, "App. A.3"),
+        _rel("pitch_release.eigenvalue.1", "pitch mode frequency [rad/s]", 1.46, 0.15, True, "App. A.3"),
+        Target("pitch_release.eigenvalue.0", "pitch mode real part [1/s]", -0.167, -0.334, -0.0835, True, "App. A.3"),
+        _abs("hover_blade_pitch_deg.0", "hover main port [deg]", -3.38, 1.5, True, "eq. 5.2"),
+        _abs("hover_blade_pitch_deg.1", "hover main stbd [deg]", -3.38, 1.5, True, "eq. 5.2"),
+        _abs("hover_blade_pitch_deg.2", "hover vect stbd [deg]", -13.10, 1.5, True, "eq. 5.2"),
+        _abs("hover_blade_pitch_deg.3", "hover vect port [deg]", -13.10, 1.5, True, "eq. 5.2"),
+        _abs("zero_eigenvalues_quiescent", "zero eigenvalues at rest", 4, 0, True, "sec. 3.2"),
+        Target("max_real_eigenvalue_0_1", "max Re(pole) over 0-1 m/s", 0.0, -np.inf, 1e-9, True, "sec. 3.7"),
+        _abs("loci_max_speed", "poles/zeros computed up to [m/s]", 1.0, 0.0, True, "sec. 3.7"),
+        _abs("rest_trim_deg", "rest trim [deg]", 0.0, 1.0, True, "sec. 3.6"),
+        _abs("surge.max_pitch_deg", "impulsive start max pitch [deg]", 32.5, 3.0, False, "sec. 3.5"),
+        _rel("surge.max_pitch_rate_dps", "impulsive start max pitch rate [deg/s]", 23.2, 0.2, False, "sec. 3.5"),
+        _rel("sway_4a.max_roll_rate_dps", "sway max roll rate [deg/s]", 32.7, 0.2, False, "sec. 3.5"),
+        _rel("surge.rise95_s", "surge 95% rise time [s]", 2.2, 0.25, False, "sec. 3.6"),
+        _abs("trim_0_7.pitch_deg", "trim 0.7 m/s pitch [deg]", 10.0, 3.0, False, "sec. 3.7"),
+        _abs("trim_0_7.blade_pitch_deg.0", "trim 0.7 m/s mains [deg]", 14.6, 3.0, False, "sec. 3.7"),
+        _abs("trim_0_7.blade_pitch_deg.2", "trim 0.7 m/s vectored [deg]", -5.9, 3.0, False, "sec. 3.7"),
+        _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.7, 0.1, False, "sec. 3.7"),
+        _rel("step_gains_5hz.B1inv.0.0", "B1inv[u, main port]", 0.0246, 0.5, False, "eq. 5.3b"),
+        _rel("step_gains_5hz.B1inv.3.0", "B1inv[r, main port] [deg/s/deg]", 1.96, 0.5, False, "eq. 5.3b"),
+        _rel("step_gains_5hz.B1inv.2.2", "B1inv[w, vect stbd]", 0.004875, 0.5, False, "eq. 5.3b"),
+        Target("step_gains_5hz.B1inv.1.2", "B1inv[v, vect stbd]", -0.00766, -0.01149, -0.00511, False, "eq. 5.3b"),
+    ],
+    "camera": [
+        _abs("rest_trim_deg", "rest trim [deg]", -6.3, 1.0, True, "sec. 3.6"),
+        _rel("surge.max_u", "surge top speed [m/s]", 1.13, 0.05, False, "sec. 3.6"),
+        _abs("surge.steady_pitch_deg", "surge steady pitch [deg]", 20.8, 3.0, False, "sec. 3.6"),
+        _rel("surge.rise95_s", "surge 95% rise time [s]", 2.8, 0.25, False, "sec. 3.6"),
+        _rel("heave_down.max_w", "heave down [m/s]", 0.35, 0.10, False, "sec. 3.6"),
+        _abs("heave_up.max_w", "heave up [m/s]", 0.14, 0.05, False, "sec. 3.6"),
+        _rel("sway_4a.max_v", "sway top speed [m/s]", 0.35, 0.10, False, "sec. 3.6"),
+        _abs("sway_4a.max_roll_deg", "sway max roll [deg]", 22.6, 3.0, False, "sec. 3.6"),
+        _rel("sway_4a.max_roll_rate_dps", "sway max roll rate [deg/s]", 29.4, 0.2, False, "sec. 3.6"),
+        _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.45, 0.1, False, "sec. 3.7"),
+    ],
+}
+
+
+def check_targets(res: dict, config: str) -> list[dict]:
+    """PASS/FAIL rows for the targets of ``config`` ('baseline' or 'camera')."""
+    rows = []
+    for tg in TARGETS.get(config, []):
+        value, ok = tg.check(res)
+        rows.append({"label": tg.label, "key": tg.key, "value": value, "thesis": tg.thesis,
+                     "low": tg.low, "high": tg.high, "primary": tg.primary, "pass": ok,
+                     "source": tg.source})
+    return rows

@@ -1,0 +1,233 @@
+#!/usr/bin/env python3
+"""Calibrate the Seapup model's free parameters to the thesis (developer tool).
+
+How the numbers in ``seapup_sim/vehicles/baseline.yaml`` marked "calibrated"
+were obtained: scipy.optimize.least_squares over the parameters in FREE,
+minimising the misfit to the targets of ``seapup_sim.verification.TARGETS``
+(each residual = (value - thesis) / tolerance, secondary targets weighted
+0.3). The vectored thrusters' heave installation coefficient is not free: it
+is solved so that hovering needs exactly -13.098 deg (eq. 5.2).
+
+Usage (inside ``eval "$(./seapup env)"``):
+    python tools/calibrate_vehicle.py [--iterations N] [--write]
+--write stores the result into baseline.yaml (values only; comments kept).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import scipy.optimize
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "ros2_ws/src/seapup_sim"))
+
+from seapup_sim.analysis import TrimError, linearise, trim  # noqa: E402
+from seapup_sim.vehicle import VehicleModel  # noqa: E402
+from seapup_sim.vehicle_config import load_vehicle_config  # noqa: E402
+from seapup_sim.verification import _mode_of, run_open_loop  # noqa: E402
+
+D = math.radians
+YAML = ROOT / "ros2_ws/src/seapup_sim/seapup_sim/vehicles/baseline.yaml"
+
+# (path in the config, lower, upper)
+FREE = {
+    "hydrodynamics.X_u|u|": (-400.0, -5.0),
+    "hydrodynamics.X_u": (-60.0, 0.0),
+    "hydrodynamics.M_u|u|": (0.0, 200.0),
+    "hydrodynamics.Z_uu": (-300.0, 0.0),
+    "hydrodynamics.M_|u|q": (-200.0, 0.0),
+    "hydrodynamics.M_q": (-60.0, 0.0),
+    "hydrodynamics.Z_w|w|": (-3000.0, -50.0),
+    "hydrodynamics.Z_ww": (-1500.0, 1500.0),
+    "hydrodynamics.Z_w": (-300.0, 0.0),
+    "hydrodynamics.Y_v|v|": (-3000.0, -50.0),
+    "hydrodynamics.K_v|v|": (-200.0, 200.0),
+    "hydrodynamics.K_p": (-30.0, 0.0),
+    "hydrodynamics.K_p|p|": (-30.0, 0.0),
+    "hydrodynamics.N_r|r|": (-100.0, 0.0),
+    "hydrodynamics.N_r": (-60.0, 0.0),
+    "thrusters.k_beta": (0.05, 0.6),
+    "thrusters.k_j": (0.0, 1.5),
+    "thrusters.installation.0.0": (0.1, 1.0),   # X, mains (both kept equal)
+    "thrusters.installation.1.2": (0.1, 1.0),   # Y, vectored (both kept equal)
+    "thrusters.positions.2.2": (-0.4, 0.0),     # vectored thrusters' height (roll arm)
+    # a bluff open frame displacing ~0.1 m^3 has surge added mass of tens of kg
+    "added_mass.0.0": (30.0, 150.0),
+    "added_mass.4.4": (2.0, 40.0),
+    "rigid_body.inertia_cg.1.1": (5.0, 30.0),
+}
+TIED = {"thrusters.installation.0.0": ["thrusters.installation.0.1"],
+        "thrusters.installation.1.2": ["thrusters.installation.1.3"],
+        "thrusters.positions.2.2": ["thrusters.positions.3.2"]}
+
+
+def get(cfg, path):
+    node = cfg
+    for part in path.split("."):
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    return node
+
+
+def put(cfg, path, value):
+    *head, last = path.split(".")
+    node = cfg
+    for part in head:
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    if isinstance(node, list):
+        node[int(last)] = float(value)
+    else:
+        node[last] = float(value)
+
+
+def apply(base, z):
+    cfg = copy.deepcopy(base)
+    for (path, _), value in zip(FREE.items(), z):
+        put(cfg, path, value)
+        for other in TIED.get(path, []):
+            put(cfg, other, value)
+    solve_hover(cfg)
+    return cfg
+
+
+def solve_hover(cfg):
+    """Vectored heave installation coefficient so that hover is at -13.098 deg."""
+    model = VehicleModel(cfg)
+    th = model.thrusters
+    t_hover = th.bollard_thrust(D(-13.098))
+    net_weight = model.weight - model.buoyancy
+    c = net_weight / (2 * abs(t_hover) * th.open_water[2, 2])
+    for j in (2, 3):
+        put(cfg, f"thrusters.installation.2.{j}", c)
+
+
+def measure(cfg):
+    """The calibrated quantities, cheaply (dt 0.1 s, shorter runs)."""
+    model = VehicleModel(cfg)
+    lim = D(35.0)
+    out = {}
+    t, x, _ = run_open_loop(model, np.array([lim, lim, 0, 0]), 25.0)
+    u = x[:, 6]
+    out["max_u"] = u.max()
+    out["steady_pitch"] = math.degrees(x[-1, 4])
+    out["max_pitch"] = math.degrees(x[:, 4].max())
+    out["max_pitch_rate"] = math.degrees(x[:, 10].max())
+    above = np.flatnonzero(u >= 0.95 * u[-1])
+    out["rise95"] = t[above[0]] if above.size else 25.0
+    t, x, _ = run_open_loop(model, np.array([0, 0, lim, -lim]), 25.0)
+    out["max_v"] = np.abs(x[:, 7]).max()
+    out["max_roll"] = math.degrees(np.abs(x[:, 3]).max())
+    out["max_roll_rate"] = math.degrees(np.abs(x[:, 9]).max())
+    _, x, _ = run_open_loop(model, np.array([0, 0, lim, lim]), 20.0)
+    out["w_down"] = x[:, 8].max()
+    _, x, _ = run_open_loop(model, np.array([0, 0, -lim, -lim]), 20.0)
+    out["w_up"] = (-x[:, 8]).max()
+    a, _ = linearise(model, np.zeros(12), np.zeros(4), thrusters_on=False)
+    roll, pitch = _mode_of(a, 3), _mode_of(a, 4)
+    out["roll_re"], out["roll_im"] = roll.real, roll.imag
+    out["pitch_re"], out["pitch_im"] = pitch.real, pitch.imag
+    hover = trim(model, 0.0)
+    try:
+        t07 = trim(model, 0.7, [0.1, 0.2, -0.1])
+        out["trim_pitch"] = math.degrees(t07.pitch_angle)
+        out["trim_main"] = math.degrees(t07.blade_pitch[0])
+        out["trim_vect"] = math.degrees(t07.blade_pitch[2])
+    except TrimError:
+        out["trim_pitch"], out["trim_main"], out["trim_vect"] = 40.0, 40.0, 40.0
+    t10 = trim(model, 1.0, [0.3, 0.6, 0.1], enforce_limits=False)
+    out["trim1_main"] = math.degrees(t10.blade_pitch[0])
+    for j, key in ((0, "main"), (2, "vect")):
+        cmd = hover.blade_pitch.copy()
+        cmd[j] += D(8.0)
+        _, x, _ = run_open_loop(model, cmd, 10.0, pitch0=hover.blade_pitch)
+        out[f"b1_{key}"] = x[-1, [6, 7, 8, 11]] / 8.0 * np.array([1, 1, 1, 180 / math.pi])
+        out[f"b0_{key}"] = x[2, [6, 7, 8, 11]] / 8.0 * np.array([1, 1, 1, 180 / math.pi])
+    return out
+
+
+# (quantity, thesis value, tolerance, weight)
+OBJECTIVE = [
+    ("max_u", 0.98, 0.049, 1.0), ("steady_pitch", 27.4, 3.0, 1.0),
+    ("max_v", 0.34, 0.034, 1.0), ("max_roll", 24.8, 3.0, 1.0),
+    ("w_down", 0.33, 0.033, 1.0), ("w_up", 0.17, 0.05, 1.0),
+    ("roll_re", -0.185, 0.06, 1.0), ("roll_im", 2.56, 0.2, 1.0),
+    ("pitch_re", -0.167, 0.05, 1.0), ("pitch_im", 1.46, 0.12, 1.0),
+    ("max_pitch", 32.5, 3.0, 0.3), ("max_pitch_rate", 23.2, 4.6, 0.3),
+    ("max_roll_rate", 32.7, 6.5, 0.3), ("rise95", 2.2, 0.55, 1.0),
+    ("trim_pitch", 10.0, 3.0, 0.3), ("trim_main", 14.6, 3.0, 0.3), ("trim_vect", -5.9, 3.0, 0.3),
+]
+
+
+def residuals(z, base, verbose=False):
+    cfg = apply(base, z)
+    try:
+        m = measure(cfg)
+    except Exception as exc:  # a diverged trial: large, finite misfit
+        if verbose:
+            print("diverged:", exc)
+        return np.full(len(OBJECTIVE) + 6, 50.0)
+    res = [w * (m[k] - v) / tol for k, v, tol, w in OBJECTIVE]
+    # trim must exist up to 1 m/s within the blade limits (primary)
+    res.append(max(0.0, m["trim1_main"] - 33.0) / 2.0)
+    b1m, b1v = m["b1_main"], m["b1_vect"]
+    res += [0.3 * (b1m[0] - 0.0246) / 0.0123, 0.3 * (b1m[3] - 1.96) / 0.98,
+            0.3 * (b1v[2] - 0.004875) / 0.0025, 0.3 * (b1v[1] + 0.00766) / 0.0038,
+            0.3 * (b1m[2] + 0.0006) / 0.0006,
+            0.3 * (m["b0_main"][0] - 0.0026) / 0.0013, 0.3 * (m["b0_main"][3] - 0.2629) / 0.13,
+            0.3 * (m["b0_vect"][2] - 0.000525) / 0.00026]
+    if verbose:
+        for k, v, tol, w in OBJECTIVE:
+            print(f"  {k:<16} {m[k]:10.4f}  thesis {v}")
+        print(f"  trim 1.0 main   {m['trim1_main']:.2f}")
+        print(f"  B1 main {np.round(b1m, 5)}  vect {np.round(b1v, 5)}")
+        print(f"  B0 main {np.round(m['b0_main'], 5)}  vect {np.round(m['b0_vect'], 5)}")
+    return np.array(res)
+
+
+def write_yaml(cfg):
+    """Store the fitted values in baseline.yaml, keeping its comments (ruamel.yaml)."""
+    from ruamel.yaml import YAML as RoundTrip
+    rt = RoundTrip()
+    rt.width = 120
+    doc = rt.load(YAML.read_text())
+    for path in list(FREE) + [p for ps in TIED.values() for p in ps] + [
+            "thrusters.installation.2.2", "thrusters.installation.2.3"]:
+        put(doc, path, float(f"{get(cfg, path):.6g}"))
+    with open(YAML, "w") as f:
+        rt.dump(doc, f)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--iterations", type=int, default=30)
+    ap.add_argument("--write", action="store_true")
+    ap.add_argument("--start", help="start from a .npy vector of FREE values")
+    args = ap.parse_args()
+    base = load_vehicle_config("baseline")
+    z0 = np.array([get(base, p) for p in FREE])
+    lo = np.array([b[0] for b in FREE.values()])
+    hi = np.array([b[1] for b in FREE.values()])
+    if args.start:
+        z0 = np.load(args.start)
+    z0 = np.clip(z0, lo + 1e-9, hi - 1e-9)
+    print("start cost", 0.5 * np.sum(residuals(z0, base) ** 2))
+    sol = scipy.optimize.least_squares(residuals, z0, args=(base,), bounds=(lo, hi),
+                                       x_scale=np.abs(hi - lo) / 10, diff_step=1e-3,
+                                       max_nfev=args.iterations, verbose=1)
+    print("final cost", sol.cost)
+    residuals(sol.x, base, verbose=True)
+    np.save(ROOT / "tools" / ".calibration_last.npy", sol.x)
+    cfg = apply(base, sol.x)
+    for path in FREE:
+        print(f"{path:<36} {get(cfg, path):.6g}")
+    print("vectored Z installation", get(cfg, "thrusters.installation.2.2"))
+    if args.write:
+        write_yaml(cfg)
+
+
+if __name__ == "__main__":
+    main()
