@@ -86,3 +86,22 @@ def test_step_halving_converges_on_the_surge_test():
         finals.append(sim.state.copy())
     assert np.abs(finals[0] - finals[2]).max() < 1e-3
     assert np.abs(finals[1] - finals[2]).max() < np.abs(finals[0] - finals[2]).max()
+
+
+def test_configuration_switch_mid_run_keeps_the_state_and_changes_the_dynamics():
+    """Sec. 7.4.4 adds the camera at t = 65 s in flight: the state carries over."""
+    cmd = np.radians([35.0, 35.0, 0.0, 0.0])
+    base = VehicleIntegrator(model(), dt=0.1, pitch=cmd)
+    switched = VehicleIntegrator(model(), dt=0.1, pitch=cmd)
+    for _ in range(50):
+        base.step(cmd)
+        switched.step(cmd)
+    np.testing.assert_array_equal(base.state, switched.state)
+    before = switched.state.copy()
+    switched.model.configure(load_vehicle_config("camera"))
+    np.testing.assert_array_equal(switched.state, before)  # nothing jumps
+    for _ in range(100):
+        base.step(cmd)
+        switched.step(cmd)
+    # the bow-heavy camera trims the vehicle further bow-down (sec. 3.6: 20.8 vs 27.4 deg)
+    assert switched.state[4] < base.state[4] - np.radians(3.0)
