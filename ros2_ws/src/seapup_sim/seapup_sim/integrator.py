@@ -62,11 +62,16 @@ class VehicleIntegrator:
             raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
         self.model = model
         self.dt = float(dt)
-        self.t = 0.0
+        self.steps = 0  # time is steps * dt: no drift from repeated addition
         self.state = np.zeros(12) if state is None else np.array(state, float)
         self.pitch = np.zeros(4) if pitch is None else np.array(pitch, float)
         self.thrusters_on = True
-        self._check(self.state, self.t)
+        self._check(self.state, 0.0)
+
+    @property
+    def t(self) -> float:
+        """Simulated time [s]."""
+        return self.steps * self.dt
 
     def _pitch_at(self, command: np.ndarray, elapsed: float) -> np.ndarray:
         tau = self.model.actuator_time_constant
@@ -101,5 +106,6 @@ class VehicleIntegrator:
         new[3] = (new[3] + np.pi) % (2 * np.pi) - np.pi  # roll and yaw wrap to [-pi, pi)
         new[5] = (new[5] + np.pi) % (2 * np.pi) - np.pi
         self.pitch = stage_pitch[1.0]
-        self.state, self.t = new, t0 + self.dt
+        self.state = new
+        self.steps += 1
         return new.copy()
