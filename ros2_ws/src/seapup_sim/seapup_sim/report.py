@@ -87,6 +87,50 @@ def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Pat
           [("sway v [m/s]", t, x[:, 7]), ("roll [deg]", t, np.degrees(x[:, 3])),
            ("roll rate [deg/s]", t, np.degrees(x[:, 9]))])
 
+    shapes = histories.get("umbilical") or {}
+    if any(v is not None for v in shapes.values()):
+        fig, ax = plt.subplots(figsize=(7, 5))
+        for depth, pts in shapes.items():
+            if pts is None:
+                continue
+            u = results["umbilical"][depth]
+            ax.plot(pts[:, 0], -pts[:, 2], label=f"{depth} m: u = {u['max_u']:.3f} m/s, "
+                    f"F = ({u['Fx']:.0f}, {u['Fz']:.0f}) N")
+        ax.set_xlabel("x [m] (NED)")
+        ax.set_ylabel("height [m] (-z)")
+        ax.set_title(f"Umbilical at the surge test's top speed (fig. 3.11) ({cfg})")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        ax.set_aspect("equal", adjustable="datalim")
+        fig.tight_layout()
+        path = out / "fig3_11_umbilical.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    cur = histories.get("current")
+    if cur is not None:
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 6))
+        ex, ts = cur["example"], cur["sample_time"]
+        ax1.plot(np.arange(len(ex)) * ts, ex[:, 0])
+        ax1.axhline(0.26, color="k", lw=0.8, ls="--")
+        ax1.set_xlabel("time [s]")
+        ax1.set_ylabel("current speed [m/s]")
+        ax1.set_title(f"Current realisation (fig. 3.12a): mean {ex[:, 0].mean():.4f}, "
+                      f"std {ex[:, 0].std():.4f} m/s")
+        spec = cur["spectrum"]
+        omega = 2 * np.pi * np.fft.rfftfreq(2 * (len(spec) - 1), ts)
+        ax2.semilogx(omega[1:], spec[1:])
+        ax2.axvline(0.1, color="k", lw=0.8, ls="--")
+        ax2.set_xlabel("frequency [rad/s]")
+        ax2.set_ylabel("mean |FFT| [m/s]")
+        ax2.set_title(f"30 realisations of 256 samples (fig. 3.12b); zero-frequency level {spec[0]:.3f} m/s")
+        ax2.grid(alpha=0.3)
+        fig.tight_layout()
+        path = out / "fig3_12_current.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
     loci = histories.get("loci") or []
     if loci:
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.5))

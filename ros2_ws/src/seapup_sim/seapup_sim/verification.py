@@ -32,8 +32,8 @@ from seapup_sim.analysis import (OUTPUTS, TrimError, linearise, output_matrix, s
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.vehicle import VehicleModel
 
-__all__ = ["run_open_loop", "rest_trim", "step_gains", "verify", "Target", "TARGETS",
-           "check_targets", "mode_nearest"]
+__all__ = ["run_open_loop", "rest_trim", "step_gains", "verify", "verify_current",
+           "verify_umbilical", "Target", "TARGETS", "check_targets", "mode_nearest"]
 
 D = math.radians
 
@@ -202,7 +202,61 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
 
     b0, b1 = step_gains(model, hover.blade_pitch)
     res["step_gains_5hz"] = {"B0inv": b0.tolist(), "B1inv": b1.tolist()}
+    res["current"], hist["current"] = verify_current()
+    res["umbilical"], hist["umbilical"] = verify_umbilical(model)
     return res, hist
+
+
+def verify_current(seed: int = 1, realisations: int = 100, seconds: float = 300.0):
+    """Sec. 3.9: coefficients for the thesis's parameters and long-run statistics.
+
+    Also returns a 40 s realisation (201 samples, fig. 3.12a) and the mean FFT
+    magnitude of 30 realisations of 256 samples (fig. 3.12b).
+    """
+    from seapup_sim.current import CurrentParams, GaussMarkovCurrent, coefficients
+    params, ts = CurrentParams(), 0.2
+    c = coefficients(params, ts)
+    rng = np.random.default_rng(seed)
+    n = int(round(seconds / ts))
+    speeds = np.empty((realisations, n))
+    for k in range(realisations):
+        speeds[k] = GaussMarkovCurrent(params, ts, rng, start_at_mean=False).sample(n)[:, 0]
+    example = GaussMarkovCurrent(params, ts, rng).sample(201)
+    spectra = np.array([np.abs(np.fft.rfft(GaussMarkovCurrent(params, ts, rng).sample(256)[:, 0])) / 256
+                        for _ in range(30)]).mean(axis=0)
+    res = {"a_c": c.a_c, "b": c.b, "d": c.d, "E_wc2": c.var_w_c,
+           "w_alpha_per_w_c": math.degrees(c.w_alpha_per_w_c),
+           "sample_mean": float(speeds.mean()), "sample_std": float(speeds.std())}
+    return res, {"example": example, "spectrum": spectra, "sample_time": ts}
+
+
+def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration: float = 40.0):
+    """Sec. 3.8: surge test (Table 3.2 no. 3) with the cable, ship above at the start.
+
+    Returns, per depth, the top speed and the cable force on the vehicle in
+    body axes [N] at that moment.
+    """
+    from seapup_sim.simulation import Simulation
+    from seapup_sim.umbilical import Umbilical, UmbilicalParams
+    lim = D(35.0)
+    cmd = np.array([lim, lim, 0.0, 0.0])
+    out, shapes = {}, {}
+    for depth in depths:
+        x0 = np.zeros(12)
+        x0[2] = depth
+        cable = Umbilical(UmbilicalParams(rho=model.rho), [0.0, 0.0, 0.0])
+        sim = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
+        shape, best = None, -1.0
+        n = int(round(duration / sim.control_period))
+        for _ in range(n):
+            sim.advance(cmd)
+            if sim.plant.state[6] > best:
+                best = float(sim.plant.state[6])
+                force = sim.umbilical.wrench(sim.plant.state)[:3]
+                shape = cable.solution.shape(60) if not cable.solution.bypassed else None
+        out[f"{depth:g}"] = {"max_u": best, "Fx": float(force[0]), "Fz": float(force[2])}
+        shapes[f"{depth:g}"] = shape
+    return out, shapes
 
 
 @dataclass(frozen=True)
@@ -238,7 +292,8 @@ class Target:
 
 
 def _rel(key, label, value, tol, primary, source):
-    return Target(key, label, value, value * (1 - tol), value * (1 + tol), primary, source)
+    lo, hi = sorted((value * (1 - tol), value * (1 + tol)))
+    return Target(key, label, value, lo, hi, primary, source)
 
 
 def _abs(key, label, value, tol, primary, source):
@@ -280,6 +335,22 @@ TARGETS = {
         _rel("step_gains_5hz.B1inv.3.0", "B1inv[r, main port] [deg/s/deg]", 1.96, 0.5, False, "eq. 5.3b"),
         _rel("step_gains_5hz.B1inv.2.2", "B1inv[w, vect stbd]", 0.004875, 0.5, False, "eq. 5.3b"),
         Target("step_gains_5hz.B1inv.1.2", "B1inv[v, vect stbd]", -0.00766, -0.01149, -0.00511, False, "eq. 5.3b"),
+    ] + [
+        # stochastic current (sec. 3.9, eq. 3.13-3.14): b, d, a_c to 6 significant figures;
+        # E{w_c^2} and w_alpha/w_c from the formulas, within 0.1 % of the printed values
+        _abs("current.b", "current b", 0.9801987, 5e-7, True, "eq. 3.13"),
+        _abs("current.d", "current d", 0.0198013, 5e-8, True, "eq. 3.13"),
+        _abs("current.a_c", "current a_c", 0.0051483, 5e-8, True, "eq. 3.13"),
+        _rel("current.E_wc2", "current E{w_c^2}", 0.739269, 1e-3, True, "eq. 3.14"),
+        _rel("current.w_alpha_per_w_c", "current w_alpha / w_c [deg per m/s]", 232.546, 1e-3, True, "eq. 3.14"),
+        _rel("current.sample_mean", "current long-run mean [m/s]", 0.26, 0.03, True, "sec. 3.9"),
+        _rel("current.sample_std", "current long-run std [m/s]", 0.086, 0.05, True, "sec. 3.9"),
+    ] + [
+        target for depth, (u, fx, fz) in (("50", (0.474, -148.0, -104.0)), ("100", (0.354, -163.0, -112.0)),
+                                          ("200", (0.259, -172.0, -119.0)))
+        for target in (_rel(f"umbilical.{depth}.max_u", f"umbilical {depth} m: top speed [m/s]", u, 0.10, True, "sec. 3.8"),
+                       _rel(f"umbilical.{depth}.Fx", f"umbilical {depth} m: F_x [N]", fx, 0.15, True, "sec. 3.8"),
+                       _rel(f"umbilical.{depth}.Fz", f"umbilical {depth} m: F_z [N]", fz, 0.15, True, "sec. 3.8"))
     ],
     "camera": [
         _abs("rest_trim_deg", "rest trim [deg]", -6.3, 1.0, True, "sec. 3.6"),
