@@ -141,7 +141,8 @@ class Simulation:
         umbilical = None
         if env["umbilical"].get("enabled"):
             u = env["umbilical"]
-            params = UmbilicalParams(u["diameter"], u["drag_coefficient"], u["weight_per_length"],
+            params = UmbilicalParams(u["diameter"], u["strumming_factor"] * u["still_water_drag_coefficient"],
+                                     u["weight_per_length"],
                                      u["length_ratio"], model.rho, tuple(u["attachment"]),
                                      u["min_flow"], u["max_gravity_ratio"])
             umbilical = Umbilical(params, u["ship_ned"])

@@ -236,15 +236,19 @@ def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration:
     Returns, per depth, the top speed and the cable force on the vehicle in
     body axes [N] at that moment.
     """
-    from seapup_sim.simulation import Simulation
+    from seapup_sim.simulation import Simulation, load_environment
     from seapup_sim.umbilical import Umbilical, UmbilicalParams
+    env = load_environment()["umbilical"]
     lim = D(35.0)
     cmd = np.array([lim, lim, 0.0, 0.0])
     out, shapes = {}, {}
     for depth in depths:
         x0 = np.zeros(12)
         x0[2] = depth
-        cable = Umbilical(UmbilicalParams(rho=model.rho), [0.0, 0.0, 0.0])
+        params = UmbilicalParams(env["diameter"], env["strumming_factor"] * env["still_water_drag_coefficient"],
+                                 env["weight_per_length"], env["length_ratio"], model.rho,
+                                 tuple(env["attachment"]), env["min_flow"], env["max_gravity_ratio"])
+        cable = Umbilical(params, env["ship_ned"])
         sim = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
         shape, best = None, -1.0
         n = int(round(duration / sim.control_period))

@@ -84,4 +84,6 @@ def test_umbilical_slows_the_vehicle_and_pulls_back():
 
 def test_environment_defaults_load():
     env = load_environment()
-    assert env["umbilical"]["drag_coefficient"] == 2.5 and env["current"]["break_time"] == 10.0
+    u = env["umbilical"]
+    assert u["strumming_factor"] * u["still_water_drag_coefficient"] == pytest.approx(3.0)
+    assert env["current"]["break_time"] == 10.0

@@ -20,11 +20,11 @@ def baseline_results():
     return verify(VehicleModel(load_vehicle_config("baseline")))
 
 
-# The sec. 3.8 umbilical table is not reproduced yet (issue #4 stays open):
-# the cable model gives ~30 % less drag than the thesis's NPL code at the same
-# speed and leaves the vehicle at 26 deg instead of ~35 deg, so the top speeds
-# are 13-17 % high and F_z ~45 % low. F_x is within tolerance and asserted.
-UMBILICAL_OPEN = {f"umbilical {d} m: {q}" for d in (50, 100, 200) for q in ("top speed [m/s]", "F_z [N]")}
+# The sec. 3.8 umbilical table's F_z is not reproduced yet (issue #4 stays
+# open): the cable leaves the vehicle at ~26 deg above horizontal where the
+# thesis's forces imply ~35 deg, so F_z is 25-45 % low. Top speeds and F_x are
+# within tolerance and asserted.
+UMBILICAL_OPEN = {f"umbilical {d} m: F_z [N]" for d in (50, 100, 200)}
 
 
 def test_every_primary_target_passes(baseline_results):
@@ -34,9 +34,10 @@ def test_every_primary_target_passes(baseline_results):
     assert failed == []
 
 
-def test_umbilical_drag_force_matches_the_table(baseline_results):
+def test_umbilical_speed_and_drag_force_match_the_table(baseline_results):
     res, _ = baseline_results
-    for depth, fx in (("50", -148.0), ("100", -163.0), ("200", -172.0)):
+    for depth, u, fx in (("50", 0.474, -148.0), ("100", 0.354, -163.0), ("200", 0.259, -172.0)):
+        assert res["umbilical"][depth]["max_u"] == pytest.approx(u, rel=0.10)
         assert res["umbilical"][depth]["Fx"] == pytest.approx(fx, rel=0.15)
     # deeper means more cable, more drag, lower speed (the thesis's trend)
     speeds = [res["umbilical"][d]["max_u"] for d in ("50", "100", "200")]
