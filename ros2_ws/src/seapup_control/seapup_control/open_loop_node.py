@@ -1,16 +1,19 @@
 """The ``open_loop`` node: publishes a blade-pitch schedule at the sample rate.
 
-A thin shell over :class:`seapup_control.schedule.PitchSchedule`: every
-``sample_period`` it publishes the schedule's pitches for the time elapsed since
-the node started (node clock, so ``use_sim_time`` works) on
-``/seapup/thrusters/command``. This is how the thesis's open-loop tests
-(Table 3.2) are flown through the ROS graph.
+A thin shell over :class:`seapup_control.schedule.PitchSchedule`, publishing on
+``/seapup/thrusters/command``. With ``lockstep`` false it publishes every
+``sample_period`` the pitches for the time elapsed since the node started
+(node clock, so ``use_sim_time`` works). With ``lockstep`` true it answers
+every ``/clock`` sample t_k of a lockstep simulator with the command for t_k,
+stamped t_k. This is how the thesis's open-loop tests (Table 3.2) are flown
+through the ROS graph.
 """
 from __future__ import annotations
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
 from seapup_control.schedule import PitchSchedule
@@ -36,10 +39,26 @@ class OpenLoopNode(Node):
             BladePitch, "thrusters/command", QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
         self.start = self.get_clock().now()
         self.sent = 0
-        self.create_timer(value("sample_period").value, self._tick)
+        self._last_clock = None
+        if value("lockstep").value:
+            self.create_subscription(Clock, "/clock", self._on_clock,
+                                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        else:
+            self.create_timer(value("sample_period").value, self._tick)
         self.get_logger().info(
             f"open-loop schedule: {len(self.schedule.times)} segment(s), last switch at "
             f"{self.schedule.duration:.1f} s, period {value('sample_period').value:.3f} s")
+
+    def _on_clock(self, msg: Clock) -> None:
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if t_ns == self._last_clock:
+            return  # the simulator repeats t_k until someone answers: answer once
+        self._last_clock = t_ns
+        out = BladePitch()
+        out.header.stamp = msg.clock
+        out.pitch = self.schedule.at(t_ns * 1e-9)
+        self.publisher.publish(out)
+        self.sent += 1
 
     def _tick(self) -> None:
         now = self.get_clock().now()

@@ -20,8 +20,9 @@ from seapup_sim.parameters import load_node_parameters
 __all__ = ["run_node", "declare_from_package_file"]
 
 
-def declare_from_package_file(node, package: str, file_name: str, descriptors: dict | None = None):
-    """Declare every parameter of ``share/<package>/config/<file_name>`` for ``node``.
+def declare_from_package_file(node, package: str, file_name: str, descriptors: dict | None = None) -> dict:
+    """Declare every parameter of ``share/<package>/config/<file_name>`` for ``node``;
+    return their values (after overrides) by name.
 
     Defaults come from the package's YAML; overrides given on the command line
     (``-p``, ``--params-file``) win as usual. ``descriptors`` maps parameter
@@ -35,6 +36,7 @@ def declare_from_package_file(node, package: str, file_name: str, descriptors: d
             node.declare_parameter(name, value, descriptors[name])
         else:
             node.declare_parameter(name, value)
+    return {name: node.get_parameter(name).value for name in defaults}
 
 
 def run_node(make_node, args=None) -> int:

@@ -159,6 +159,11 @@ class Simulation:
     def state(self) -> np.ndarray:
         return self.plant.state.copy()
 
+    @property
+    def acceleration(self) -> np.ndarray:
+        """d(u, v, w)/dt over the last physics step [m/s^2], body axes."""
+        return self._accel.copy()
+
     def _current_ned(self) -> np.ndarray:
         return self.current.velocity_ned() if self.current is not None else np.zeros(3)
 

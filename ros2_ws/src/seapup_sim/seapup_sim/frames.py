@@ -1,0 +1,69 @@
+"""The one place where NED/FRD meets ENU/FLU.
+
+Vehicle quantities are kept as in the thesis and the marine REP-156 draft:
+world frame ``odom_ned`` (x north, y east, z down) and body frame
+``base_link_frd`` (x forward, y right, z down). Where seapup publishes the
+REP-103/REP-105 conventions (``odom`` east-north-up, ``base_link``
+forward-left-up) every conversion goes through this module:
+
+    v_enu = M v_ned,   M = [[0, 1, 0], [1, 0, 0], [0, 0, -1]]
+    v_flu = F v_frd,   F = diag(1, -1, -1)
+    R_enu_flu = M R_ned_frd F
+
+Quaternions are (x, y, z, w) as in ROS messages; conversions use
+``scipy.spatial.transform.Rotation``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = ["NED_TO_ENU", "FRD_TO_FLU", "FRAME_NED", "FRAME_FRD", "FRAME_ENU", "FRAME_FLU",
+           "euler_to_quaternion", "quaternion_to_euler", "ned_to_enu", "frd_to_flu",
+           "orientation_ned_frd_to_enu_flu", "covariance6_to_enu_flu"]
+
+FRAME_NED, FRAME_FRD = "odom_ned", "base_link_frd"
+FRAME_ENU, FRAME_FLU = "odom", "base_link"
+NED_TO_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+FRD_TO_FLU = np.diag([1.0, -1.0, -1.0])
+
+
+def euler_to_quaternion(phi: float, theta: float, psi: float) -> np.ndarray:
+    """(x, y, z, w) of the z-y-x Euler rotation (roll phi, pitch theta, yaw psi)."""
+    return Rotation.from_euler("ZYX", [psi, theta, phi]).as_quat()
+
+
+def quaternion_to_euler(q) -> np.ndarray:
+    """(phi, theta, psi) of a quaternion (x, y, z, w), z-y-x convention."""
+    psi, theta, phi = Rotation.from_quat(q).as_euler("ZYX")
+    return np.array([phi, theta, psi])
+
+
+def ned_to_enu(v) -> np.ndarray:
+    """A world vector (position, velocity) from NED to ENU."""
+    return NED_TO_ENU @ np.asarray(v, float)
+
+
+def frd_to_flu(v) -> np.ndarray:
+    """A body vector (velocity, rate, force) from FRD to FLU."""
+    return FRD_TO_FLU @ np.asarray(v, float)
+
+
+def orientation_ned_frd_to_enu_flu(q_ned_frd) -> np.ndarray:
+    """Quaternion of base_link (FLU) in odom (ENU) from that of FRD in NED."""
+    r = Rotation.from_matrix(NED_TO_ENU @ Rotation.from_quat(q_ned_frd).as_matrix() @ FRD_TO_FLU)
+    return r.as_quat()
+
+
+def covariance6_to_enu_flu(cov, world_first: bool) -> np.ndarray:
+    """A 6x6 covariance (ROS row-major 36 or 6x6) re-expressed in ENU/FLU.
+
+    ``world_first``: the first three variables are world-frame (pose: position
+    in NED, rotation about body axes FRD); otherwise both halves are body-frame
+    (twist in FRD).
+    """
+    c = np.asarray(cov, float).reshape(6, 6)
+    j = np.zeros((6, 6))
+    j[:3, :3] = NED_TO_ENU if world_first else FRD_TO_FLU
+    j[3:, 3:] = FRD_TO_FLU
+    return j @ c @ j.T

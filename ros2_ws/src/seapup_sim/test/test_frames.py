@@ -1,0 +1,59 @@
+"""Tests of seapup_sim.frames: NED/FRD <-> ENU/FLU (REP-103/105, REP-156 draft)."""
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from seapup_sim.frames import (covariance6_to_enu_flu, euler_to_quaternion, frd_to_flu, ned_to_enu,
+                               orientation_ned_frd_to_enu_flu, quaternion_to_euler)
+from seapup_sim.vehicle import rotation_body_to_ned
+
+
+def test_quaternion_is_the_vehicle_rotation_matrix():
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        phi, theta, psi = rng.uniform(-1.4, 1.4, 3)
+        q = euler_to_quaternion(phi, theta, psi)
+        np.testing.assert_allclose(Rotation.from_quat(q).as_matrix(), rotation_body_to_ned(phi, theta, psi),
+                                   atol=1e-12)
+        np.testing.assert_allclose(quaternion_to_euler(q), [phi, theta, psi], atol=1e-12)
+
+
+def test_known_poses():
+    # facing north in NED is yaw +90 deg in ENU (x east, y north)
+    q = orientation_ned_frd_to_enu_flu(euler_to_quaternion(0.0, 0.0, 0.0))
+    roll, pitch, yaw = quaternion_to_euler(q)
+    assert (roll, pitch, yaw) == pytest.approx((0.0, 0.0, math.pi / 2))
+    # facing east (NED yaw 90 deg) is ENU yaw 0
+    assert quaternion_to_euler(orientation_ned_frd_to_enu_flu(euler_to_quaternion(0, 0, math.pi / 2)))[2] \
+        == pytest.approx(0.0, abs=1e-12)
+    # bow up is bow up: the forward axis points up in both conventions
+    q_up = orientation_ned_frd_to_enu_flu(euler_to_quaternion(0.0, 0.3, 0.0))
+    forward_enu = Rotation.from_quat(q_up).apply([1.0, 0.0, 0.0])
+    assert forward_enu[2] == pytest.approx(math.sin(0.3))
+    np.testing.assert_allclose(ned_to_enu([1.0, 2.0, 3.0]), [2.0, 1.0, -3.0])
+    np.testing.assert_allclose(frd_to_flu([1.0, 2.0, 3.0]), [1.0, -2.0, -3.0])
+
+
+def test_vectors_and_orientation_agree():
+    """A body vector mapped to the world gives the same physical vector either way."""
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        eul = rng.uniform(-1.4, 1.4, 3)
+        v_frd = rng.normal(size=3)
+        q_ned = euler_to_quaternion(*eul)
+        world_ned = Rotation.from_quat(q_ned).apply(v_frd)
+        q_enu = orientation_ned_frd_to_enu_flu(q_ned)
+        world_enu = Rotation.from_quat(q_enu).apply(frd_to_flu(v_frd))
+        np.testing.assert_allclose(world_enu, ned_to_enu(world_ned), atol=1e-12)
+
+
+def test_covariance_transform():
+    cov = np.diag([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    cov[0, 1] = cov[1, 0] = 0.5
+    pose = covariance6_to_enu_flu(cov, world_first=True)
+    np.testing.assert_allclose(np.diag(pose), [2.0, 1.0, 3.0, 4.0, 5.0, 6.0])
+    assert pose[0, 1] == 0.5
+    twist = covariance6_to_enu_flu(cov.ravel(), world_first=False)
+    assert twist[0, 1] == -0.5 and np.allclose(np.diag(twist), np.diag(cov))
