@@ -1,68 +1,329 @@
 """The simulator node in its own process, driven from this test's process.
 
-A real cross-process test: the node is started from its installed executable
+Real cross-process tests: the node is started from its installed executable
 (what ``ros2 run`` / ``./seapup run`` start) on the test's own domain; this
-process publishes commands and subscribes to what the node publishes.
+process publishes commands (typed and raw bytes), calls services and
+subscribes to what the node publishes.
 """
 import math
 import os
+import time
 from pathlib import Path
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from seapup_msgs.msg import BladePitch
+from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import Imu
+from seapup_msgs.msg import BladePitch, Depth
+from seapup_msgs.srv import Reset, SetConfiguration, SetSensorProfile, SetThrusterEfficiency
+
+from seapup_control.schedule import PitchSchedule
+from seapup_sim.simulation import Simulation
+from seapup_sim.simulator import HOVER_PITCH_DEG
 
 LIMIT = math.radians(35.0)
-QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+HOVER = np.radians(HOVER_PITCH_DEG)
+QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 REPO = Path(__file__).resolve().parents[1]
 
 
-def graph_has_node(node, name, namespace):
-    return (name, namespace) in node.get_node_names_and_namespaces()
+class Probe:
+    """A node in the test process that records topics and talks to the simulator."""
+
+    def __init__(self, context, spin):
+        self.node = rclpy.create_node("probe", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self._spin = spin
+        self.msgs = {}
+        self.cmd = self.node.create_publisher(BladePitch, "/seapup/thrusters/command", QOS)
+
+    def record(self, topic, msg_type):
+        self.msgs[topic] = []
+        self.node.create_subscription(msg_type, topic, self.msgs[topic].append, QOS)
+
+    def spin(self, predicate, timeout):
+        return self._spin(self.executor, predicate, timeout)
+
+    def counters(self):
+        diags = self.msgs.get("/diagnostics") or []
+        for d in reversed(diags):
+            for st in d.status:
+                if st.name == "seapup/simulator":
+                    return {kv.key: kv.value for kv in st.values}
+        return {}
+
+    def call(self, srv_type, name, request, timeout=10.0):
+        client = self.node.create_client(srv_type, name)
+        assert self.spin(client.service_is_ready, timeout), f"{name} not available"
+        future = client.call_async(request)
+        assert self.spin(future.done, timeout)
+        return future.result()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
 
 
-def make_probe(ros_context):
-    node = rclpy.create_node("probe", context=ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(node)
-    return node, executor
+def command(pitch, stamp_ns=0):
+    msg = BladePitch()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    msg.pitch = pitch
+    return msg
 
 
-def test_simulator_gates_commands_across_processes(ros_context, node_process, spin):
+def start_simulator(node_process, *params):
+    args = ["--ros-args", "-p", "diagnostics_period:=0.1"]
+    for p in params:
+        args += ["-p", p]
+    return node_process(package="seapup_sim", executable="simulator", args=args)
+
+
+def finite(msg):
+    """Every float in a message (recursively) is finite."""
+    if isinstance(msg, float):
+        return math.isfinite(msg)
+    if isinstance(msg, (list, tuple, np.ndarray)):
+        return all(finite(float(v)) if np.isscalar(v) else finite(v) for v in msg)
+    if hasattr(msg, "get_fields_and_field_types"):
+        return all(finite(getattr(msg, f)) for f in msg.get_fields_and_field_types())
+    return True
+
+
+def test_hostile_commands_are_counted_and_never_reach_the_outputs(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "watchdog_timeout:=1000.0")
+    probe = Probe(ros_context, spin)
+    for topic, t in (("/seapup/thrusters/applied", BladePitch), ("/seapup/truth/odometry", Odometry),
+                     ("/seapup/sensors/velocity", TwistWithCovarianceStamped), ("/seapup/sensors/imu", Imu),
+                     ("/diagnostics", DiagnosticArray)):
+        probe.record(topic, t)
+    assert probe.spin(lambda: probe.cmd.get_subscription_count() > 0 and probe.counters(), 20.0), sim.log_text()
+
+    good = serialize_message(command([0.1, 0.1, -0.2, -0.2]))
+    padded = serialize_message(command([0.1, 0.2, 0.3, 0.4])) + b"\0" * 8   # a fifth float64
+    n = 300
+    kinds = [("nan", command([math.nan, 0, 0, 0])), ("inf", command([0, -math.inf, 0, 0])),
+             ("huge", command([1e300, -1e300, 0, 0])), ("future", command([0.1] * 4, 10**15)),
+             ("truncated", good[:-8]), ("padded", padded), ("valid", command([0.2, 0.2, 0.0, 0.0]))]
+    for i in range(n):
+        for _, msg in kinds:
+            probe.cmd.publish(msg)
+        if i % 20 == 19:
+            probe.spin(lambda: False, 0.02)
+    expected = {"rejected_invalid": 2 * n, "rejected_future": n, "rejected_malformed": 2 * n,
+                "accepted": 2 * n, "saturated": 2 * n}
+    assert probe.spin(lambda: all(int(probe.counters().get(k, -1)) == v for k, v in expected.items()), 30.0), \
+        (probe.counters(), sim.log_text()[-2000:])
+    assert sim.running, "the node must survive hostile input"
+    for topic, msgs in probe.msgs.items():
+        assert msgs, topic
+        assert all(finite(m) for m in msgs), f"non-finite value on {topic}"
+    applied = np.array([m.pitch for m in probe.msgs["/seapup/thrusters/applied"]])
+    assert np.abs(applied).max() <= LIMIT + 1e-12
+    probe.close()
+
+
+def test_lockstep_rejects_commands_from_the_past(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "lockstep_timeout:=0.05")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    probe.record("/clock", Clock)
+    assert probe.spin(lambda: float(probe.counters().get("sim_time", 0)) > 1.0, 20.0), sim.log_text()
+    for _ in range(50):
+        probe.cmd.publish(command([0.1] * 4, 0))  # t = 0 is long gone
+    assert probe.spin(lambda: int(probe.counters().get("rejected_stale", 0)) == 50, 10.0), probe.counters()
+    assert int(probe.counters()["lockstep_timeouts"]) > 0  # nobody answered: it held and went on
+    probe.close()
+
+
+def test_watchdog_returns_to_hover(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=10.0", "watchdog_timeout:=1.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/seapup/thrusters/applied", BladePitch)
+    probe.record("/diagnostics", DiagnosticArray)
+    assert probe.spin(lambda: probe.cmd.get_subscription_count() > 0 and probe.counters(), 20.0)
+    probe.cmd.publish(command([LIMIT, LIMIT, 0.0, 0.0]))
+    applied = probe.msgs["/seapup/thrusters/applied"]
+    assert probe.spin(lambda: any(abs(m.pitch[0] - LIMIT) < 1e-3 for m in applied), 10.0), sim.log_text()
+    assert probe.spin(lambda: probe.counters().get("watchdog_active") == "True", 10.0)
+    assert probe.spin(lambda: np.allclose(applied[-1].pitch, HOVER, atol=1e-4), 10.0)
+    assert int(probe.counters()["watchdog_trips"]) == 1
+    probe.close()
+
+
+SCHEDULE_TIMES = [0.0, 4.0]
+SCHEDULE_PITCHES = [0.6, 0.6, 0.0, 0.0, 0.3, -0.1, 0.4, -0.4]
+
+
+def run_lockstep_with_open_loop(node_process, probe, seed, duration):
+    """One lockstep run (simulator + open_loop in their own processes); returns
+    the truth and measured-velocity histories, and stops both nodes."""
+    for topic in probe.msgs:
+        probe.msgs[topic].clear()
     sim = node_process(package="seapup_sim", executable="simulator",
-                       args=["--ros-args", "-p", "heartbeat_period:=0.2"])
-    node, executor = make_probe(ros_context)
-    applied, diags = [], []
-    node.create_subscription(BladePitch, "/seapup/thrusters/applied", applied.append, QOS)
-    node.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
-    pub = node.create_publisher(BladePitch, "/seapup/thrusters/command", QOS)
-    assert spin(executor, lambda: pub.get_subscription_count() > 0 and len(diags) > 0, 15.0), sim.log_text()
+                       args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", f"seed:={seed}",
+                             "-p", "current_enabled:=true", "-p", "sensor_profile:=baseline"], name="sim")
+    # the simulator holds t_0 (re-sending it) until a controller answers: start
+    # the controller only once this probe hears t_0, so it records from the start
+    odom = probe.msgs["/seapup/truth/odometry"]
 
-    commands = [[0.1, 0.1, -0.2, -0.2], [1.0, -1.0, 0.0, 0.0], [math.nan, 0, 0, 0], [0, math.inf, 0, 0]]
-    for i, pitch in enumerate(commands):
-        msg = BladePitch()
-        msg.header.stamp.sec = i
-        msg.pitch = pitch
-        pub.publish(msg)
+    def heard_t0(msgs):
+        return any(m.header.stamp.sec == 0 and m.header.stamp.nanosec == 0 for m in msgs)
 
-    def counters():
-        if not diags:
-            return {}
-        return {kv.key: int(kv.value) for kv in diags[-1].status[0].values}
+    assert probe.spin(lambda: heard_t0(odom) and heard_t0(probe.msgs["/seapup/sensors/velocity"]), 30.0), \
+        sim.log_text()
+    ctl = node_process(package="seapup_control", executable="open_loop",
+                       args=["--ros-args", "-p", "lockstep:=true", "-p", f"times:={SCHEDULE_TIMES}",
+                             "-p", f"pitches:={SCHEDULE_PITCHES}"], name="open_loop")
+    n = int(round(duration / 0.2)) + 1
 
-    assert spin(executor, lambda: counters().get("rejected") == 2 and len(applied) == 2, 10.0), sim.log_text()
-    assert counters() == {"accepted": 2, "rejected": 2, "saturated": 2}
-    assert [m.header.stamp.sec for m in applied] == [0, 1]
-    assert list(applied[0].pitch) == commands[0]
-    assert list(applied[1].pitch) == [LIMIT, -LIMIT, 0.0, 0.0]
-    assert all(math.isfinite(p) for m in applied for p in m.pitch)
-    assert diags[-1].status[0].level == b"\x01"  # WARN after rejections
-    assert "not finite" in diags[-1].status[0].message
-    assert sim.running, "the node must survive bad input"
-    executor.shutdown()
-    node.destroy_node()
+    def first_per_stamp(msgs):  # t_0 may have been re-sent while waiting
+        out = {}
+        for m in msgs:
+            out.setdefault(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m)
+        return [out[k] for k in sorted(out)]
+
+    assert probe.spin(lambda: len(first_per_stamp(odom)) >= n
+                      and len(first_per_stamp(probe.msgs["/seapup/sensors/velocity"])) >= n, 60.0), sim.log_text()
+    ctl.stop()
+    sim.stop()
+    probe.spin(lambda: False, 0.5)  # drain what was still in flight
+    truth = np.array([(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.pose.pose.position.x,
+                       m.pose.pose.position.z, m.twist.twist.linear.x, m.twist.twist.linear.y,
+                       m.twist.twist.angular.z) for m in first_per_stamp(odom)[:n]])
+    vel = np.array([(m.twist.twist.linear.x, m.twist.twist.linear.y)
+                    for m in first_per_stamp(probe.msgs["/seapup/sensors/velocity"])[:n]])
+    return truth, vel
+
+
+def test_lockstep_is_deterministic_and_equals_the_pure_core_loop(ros_context, node_process, spin):
+    probe = Probe(ros_context, spin)
+    probe.record("/seapup/truth/odometry", Odometry)
+    probe.record("/seapup/sensors/velocity", TwistWithCovarianceStamped)
+    truth1, vel1 = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0)
+    truth2, vel2 = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0)
+    np.testing.assert_array_equal(truth1, truth2)
+    np.testing.assert_array_equal(vel1, vel2)
+    # the same scenario through the pure core (no ROS), sample by sample
+    schedule = PitchSchedule(SCHEDULE_TIMES, SCHEDULE_PITCHES, LIMIT)
+    core = Simulation.from_config("baseline", {"current": {"enabled": True}, "sensors": "baseline"}, seed=7,
+                                  pitch=HOVER)
+    log = core.run(lambda s: schedule.at(s.t), 10.0)
+    np.testing.assert_array_equal(truth1[:, 0].astype(np.int64), np.round(log.t * 1e9).astype(np.int64))
+    ref = np.column_stack([log.state[:, 0], log.state[:, 2], log.state[:, 6], log.state[:, 7], log.state[:, 11]])
+    np.testing.assert_array_equal(truth1[:, 1:], ref)
+    np.testing.assert_array_equal(vel1, log.measured_velocity[:, :2])
+    assert np.abs(ref[:, 3]).max() > 0.05  # it did move sideways with the current
+    probe.close()
+
+
+def test_frames_units_and_enu_conversion(ros_context, node_process, spin):
+    start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "start_depth:=20.0",
+                    "watchdog_timeout:=1000.0")
+    probe = Probe(ros_context, spin)
+    topics = {"/seapup/truth/odometry": Odometry, "/seapup/odometry": Odometry,
+              "/seapup/sensors/velocity": TwistWithCovarianceStamped, "/seapup/sensors/imu": Imu,
+              "/seapup/sensors/depth": Depth, "/seapup/environment/current": Vector3Stamped,
+              "/seapup/umbilical/wrench": WrenchStamped, "/seapup/thrusters/applied": BladePitch}
+    for topic, t in topics.items():
+        probe.record(topic, t)
+    assert probe.spin(lambda: all(len(v) > 5 for v in probe.msgs.values()), 20.0)
+    probe.cmd.publish(command([0.5, 0.3, 0.2, -0.3]))
+    assert probe.spin(lambda: abs(probe.msgs["/seapup/truth/odometry"][-1].twist.twist.angular.z) > 0.05, 20.0)
+    frame = {t: probe.msgs[t][-1].header.frame_id for t in topics}
+    assert frame["/seapup/truth/odometry"] == "odom_ned"
+    assert probe.msgs["/seapup/truth/odometry"][-1].child_frame_id == "base_link_frd"
+    assert frame["/seapup/odometry"] == "odom" and probe.msgs["/seapup/odometry"][-1].child_frame_id == "base_link"
+    for t in ("/seapup/sensors/velocity", "/seapup/sensors/imu", "/seapup/umbilical/wrench",
+              "/seapup/thrusters/applied"):
+        assert frame[t] == "base_link_frd", t
+    assert frame["/seapup/sensors/depth"] == "odom_ned" and frame["/seapup/environment/current"] == "odom_ned"
+    # same stamp, same physical pose in both conventions
+    ned = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in probe.msgs["/seapup/truth/odometry"]}
+    enu = next(m for m in reversed(probe.msgs["/seapup/odometry"])
+               if (m.header.stamp.sec, m.header.stamp.nanosec) in ned)
+    n = ned[(enu.header.stamp.sec, enu.header.stamp.nanosec)]
+    p = n.pose.pose.position
+    assert (enu.pose.pose.position.x, enu.pose.pose.position.y, enu.pose.pose.position.z) == (p.y, p.x, -p.z)
+    assert p.z > 19.0  # metres, positive down
+    qn, qe = n.pose.pose.orientation, enu.pose.pose.orientation
+    fwd_ned = Rotation.from_quat([qn.x, qn.y, qn.z, qn.w]).apply([1, 0, 0])
+    fwd_enu = Rotation.from_quat([qe.x, qe.y, qe.z, qe.w]).apply([1, 0, 0])
+    np.testing.assert_allclose(fwd_enu, [fwd_ned[1], fwd_ned[0], -fwd_ned[2]], atol=1e-9)
+    assert enu.twist.twist.angular.z == -n.twist.twist.angular.z   # yaw rate: FRD z down, FLU z up
+    # radians: the applied blade pitch settles on the command (0.05 s lag) in rad
+    applied = probe.msgs["/seapup/thrusters/applied"]
+    assert probe.spin(lambda: abs(applied[-1].pitch[0] - 0.5) < 1e-9, 5.0), applied[-1].pitch
+    depth = next(m for m in reversed(probe.msgs["/seapup/sensors/depth"])
+                 if (m.header.stamp.sec, m.header.stamp.nanosec) in ned)
+    assert abs(depth.depth - ned[(depth.header.stamp.sec, depth.header.stamp.nanosec)].pose.pose.position.z) < 0.5
+    probe.close()
+
+
+def param(name, value):
+    v = ParameterValue()
+    if isinstance(value, float):
+        v.type, v.double_value = ParameterType.PARAMETER_DOUBLE, value
+    else:
+        v.type, v.string_value = ParameterType.PARAMETER_STRING, value
+    return ParameterMsg(name=name, value=v)
+
+
+def test_services_and_parameter_validation(ros_context, node_process, spin):
+    start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    probe.record("/seapup/truth/odometry", Odometry)
+    assert probe.spin(lambda: float(probe.counters().get("sim_time", 0)) > 1.0, 20.0)
+
+    r = probe.call(SetConfiguration, "/seapup/simulator/set_configuration", SetConfiguration.Request(name="camera"))
+    assert r.success, r.message
+    assert probe.spin(lambda: probe.counters().get("vehicle") == "camera", 5.0)
+    r = probe.call(SetConfiguration, "/seapup/simulator/set_configuration", SetConfiguration.Request(name="boat"))
+    assert not r.success and "no configuration 'boat'" in r.message
+    req = SetThrusterEfficiency.Request()
+    req.efficiency = [2.0, 1.0, 1.0, 1.0]
+    r = probe.call(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency", req)
+    assert not r.success and "[0, 1.5]" in r.message
+    req.efficiency = [0.5, 1.0, 1.0, 1.0]
+    assert probe.call(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency", req).success
+    r = probe.call(SetSensorProfile, "/seapup/simulator/set_sensor_profile", SetSensorProfile.Request(name="haslar"))
+    assert r.success and probe.spin(lambda: probe.counters().get("sensor_profile") == "haslar", 5.0)
+
+    reset = Reset.Request(seed=5, use_state=True)
+    reset.state = [0.0, 0.0, 33.0] + [0.0] * 9
+    assert probe.call(Reset, "/seapup/simulator/reset", reset).success
+    odom = probe.msgs["/seapup/truth/odometry"]
+    assert probe.spin(lambda: odom and odom[-1].header.stamp.sec == 0 and abs(odom[-1].pose.pose.position.z - 33.0) < 0.1, 5.0)
+    bad = Reset.Request(seed=1, use_state=True)
+    bad.state = [math.nan] + [0.0] * 11
+    r = probe.call(Reset, "/seapup/simulator/reset", bad)
+    assert not r.success and "finite" in r.message
+
+    client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
+    def set_params(*ps):
+        assert probe.spin(client.service_is_ready, 10.0)
+        fut = client.call_async(SetParameters.Request(parameters=list(ps)))
+        assert probe.spin(fut.done, 10.0)
+        return fut.result().results[0]
+    res = set_params(param("real_time_factor", -1.0))
+    assert not res.successful and res.reason
+    res = set_params(param("mode", "realtime"))
+    assert not res.successful and "read-only" in res.reason
+    res = set_params(param("watchdog_action", "panic"))
+    assert not res.successful and "hover or neutral" in res.reason
+    assert set_params(param("real_time_factor", 2.0)).successful
+    probe.close()
 
 
 def test_seapup_run_starts_a_node_another_process_can_see(ros_context, node_process, ros_env, spin):
@@ -71,24 +332,8 @@ def test_seapup_run_starts_a_node_another_process_can_see(ros_context, node_proc
         env.pop(key, None)  # as a user's shell would be: ./seapup sets these up itself
     env["PATH"] = os.defpath
     sim = node_process([str(REPO / "seapup"), "run", "seapup_sim", "simulator"], env=env, name="seapup-run")
-    node, executor = make_probe(ros_context)
-    assert spin(executor, lambda: graph_has_node(node, "simulator", "/seapup"), 30.0), sim.log_text()
+    probe = Probe(ros_context, spin)
+    assert probe.spin(lambda: ("simulator", "/seapup") in probe.node.get_node_names_and_namespaces(), 30.0), \
+        sim.log_text()
     assert sim.stop() == 0, sim.log_text()
-    executor.shutdown()
-    node.destroy_node()
-
-
-def test_open_loop_drives_the_simulator_in_another_process(ros_context, node_process, spin):
-    hover = [-0.058992, -0.058992, -0.228638, -0.228638]
-    node_process(package="seapup_sim", executable="simulator")
-    node_process(package="seapup_control", executable="open_loop",
-                 args=["--ros-args", "-p", "sample_period:=0.05"])
-    node, executor = make_probe(ros_context)
-    applied = []
-    node.create_subscription(BladePitch, "/seapup/thrusters/applied", applied.append, QOS)
-    assert spin(executor, lambda: len(applied) >= 10, 20.0)
-    assert all(list(m.pitch) == hover for m in applied)
-    stamps = [m.header.stamp.sec * 1e9 + m.header.stamp.nanosec for m in applied]
-    assert stamps == sorted(stamps)
-    executor.shutdown()
-    node.destroy_node()
+    probe.close()

@@ -48,6 +48,8 @@ from seapup_sim.vehicle_config import available_configs
 __all__ = ["SimulatorNode", "main"]
 
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# commands queue deeper: every one, good or bad, must be seen and counted
+COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 NED, FRD = frames.FRAME_NED, frames.FRAME_FRD
 
 
@@ -111,7 +113,7 @@ class SimulatorNode(Node):
         self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", QOS)
         self.pub_clock = pub(Clock, "/clock", QOS) if p["publish_clock"] else None
         self.pub_diag = pub(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(BladePitch, "thrusters/command", self._on_command, QOS, raw=True)
+        self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True)
 
         srv = self.create_service
         srv(Reset, "~/reset", self._srv_reset)
@@ -124,6 +126,7 @@ class SimulatorNode(Node):
         self._sim_start = 0.0
         self._waiting_since = None
         self._last_warn = 0.0
+        self._outputs = None
         self._handshake = True  # lockstep: until the first command, re-publish t_0 (discovery races)
         self._last_republish = time.monotonic()
         if self.mode == "lockstep":
@@ -194,7 +197,7 @@ class SimulatorNode(Node):
                 self._handshake = False
             elif now - self._last_republish > 0.2:
                 self._last_republish = now
-                self._publish_outputs()  # no controller has answered yet: say t_k again
+                self._publish_outputs(resend=True)  # no controller has answered yet: say t_k again
         timeout = self.get_parameter("lockstep_timeout").value
         if self._waiting_since is not None and now - self._waiting_since > timeout:
             self.core.lockstep_timeout()
@@ -205,9 +208,12 @@ class SimulatorNode(Node):
         self._advance()
 
     # -- outputs -----------------------------------------------------------------
-    def _publish_outputs(self) -> None:
-        out = self.core.outputs()
-        self.core.check_finite(out)
+    def _publish_outputs(self, resend: bool = False) -> None:
+        if resend and self._outputs is not None:
+            out = self._outputs  # the same sample again: no new sensor noise drawn
+        else:
+            out = self._outputs = self.core.outputs()
+            self.core.check_finite(out)
         t_ns = self.core.t_ns
         if self.pub_clock is not None:
             clk = Clock()
