@@ -337,3 +337,19 @@ def test_seapup_run_starts_a_node_another_process_can_see(ros_context, node_proc
         sim.log_text()
     assert sim.stop() == 0, sim.log_text()
     probe.close()
+
+
+def test_lockstep_at_20_hz(ros_context, node_process, spin):
+    probe = Probe(ros_context, spin)
+    probe.record("/clock", Clock)
+    node_process(package="seapup_sim", executable="simulator",
+                 args=["--ros-args", "-p", "control_period:=0.05", "-p", "physics_step:=0.05",
+                       "-p", "lockstep_timeout:=30.0"], name="sim")
+    clocks = probe.msgs["/clock"]
+    assert probe.spin(lambda: len(clocks) > 0, 30.0)
+    node_process(package="seapup_control", executable="open_loop",
+                 args=["--ros-args", "-p", "lockstep:=true"], name="open_loop")
+    assert probe.spin(lambda: clocks and clocks[-1].clock.sec >= 5, 60.0)
+    stamps = sorted({c.clock.sec * 10**9 + c.clock.nanosec for c in clocks})
+    assert set(np.diff(stamps)) == {50_000_000}  # every 50 ms sample, none skipped
+    probe.close()

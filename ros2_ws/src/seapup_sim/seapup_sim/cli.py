@@ -128,6 +128,18 @@ def cmd_bench(args) -> int:
     t0 = time.perf_counter()
     verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
+    if not args.no_graph:
+        from seapup_sim import graph_bench
+        print("graph: simulator + open_loop in lockstep (separate processes)...", flush=True)
+        out["graph_lockstep_5hz"] = graph_bench.lockstep_rate(0.2, sim_seconds=120.0)
+        out["graph_lockstep_20hz"] = graph_bench.lockstep_rate(0.05, sim_seconds=30.0)
+        out["dds_round_trip_us"] = graph_bench.dds_round_trip()
+        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz"):
+            g = out[key]
+            print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
+                  f"{g['us_per_step']:.0f} us per step)")
+        rt = out["dds_round_trip_us"]
+        print(f"DDS round trip to another process: median {rt['median_us']:.0f} us, p99 {rt['p99_us']:.0f} us")
     print(f"model: {per_step * 1e6:.1f} us per RK4 step (dt 0.1 s) = {0.1 / per_step:.0f}x real time")
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)")
@@ -153,6 +165,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("bench", help="benchmarks")
     p.add_argument("--config", default="baseline")
     p.add_argument("--steps", type=int, default=3000)
+    p.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
     p.add_argument("--json", help="write the results here")
     p.set_defaults(func=cmd_bench)
     args = parser.parse_args(argv)

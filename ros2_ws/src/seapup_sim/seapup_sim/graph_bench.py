@@ -1,0 +1,135 @@
+"""Benchmarks of the ROS graph (rclpy; used by ``./seapup bench``).
+
+- :func:`lockstep_rate`: the simulator in lockstep with the ``open_loop``
+  controller in another process; simulated seconds per wall second, measured
+  on ``/clock`` from a third process (this one).
+- :func:`dds_round_trip`: median time for a small message to go to another
+  process and back (the floor of every lockstep step: the simulator publishes
+  t_k, the controller answers).
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from seapup_sim.node_processes import DomainLease, NodeProcess, find_executable, ros_environment
+
+__all__ = ["lockstep_rate", "dds_round_trip"]
+
+ECHO = """
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from seapup_msgs.msg import BladePitch
+rclpy.init()
+node = rclpy.create_node("bench_echo")
+qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+pub = node.create_publisher(BladePitch, "/bench/pong", qos)
+node.create_subscription(BladePitch, "/bench/ping", pub.publish, qos)
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+    pass
+"""
+
+
+def _context(domain: int):
+    import rclpy
+    from rclpy.context import Context
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    return ctx
+
+
+def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+    """Simulated seconds per wall second of simulator + open_loop in lockstep."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    physics = min(0.1, control_period)
+    with DomainLease() as lease:
+        env = ros_environment(lease.domain_id)
+        sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
+                           "-p", f"control_period:={control_period}", "-p", f"physics_step:={physics}",
+                           "-p", "lockstep_timeout:=5.0", "-p", "watchdog_timeout:=1000.0"],
+                          env, f"{log_dir}/bench_sim.log").start()
+        ctx = _context(lease.domain_id)
+        node = rclpy.create_node("bench_clock", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        stamps = []
+        node.create_subscription(Clock, "/clock", lambda m: stamps.append((time.perf_counter(),
+                                 m.clock.sec + m.clock.nanosec * 1e-9)),
+                                 QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        ctl = None
+        try:
+            deadline = time.monotonic() + 30
+            while not stamps and time.monotonic() < deadline:
+                ex.spin_once(timeout_sec=0.05)
+            ctl = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args", "-p", "lockstep:=true",
+                               "-p", "pitches:=[0.6, 0.6, 0.0, 0.0]"], env, f"{log_dir}/bench_ctl.log").start()
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and (not stamps or stamps[-1][1] < 1.0):
+                ex.spin_once(timeout_sec=0.05)
+            wall0, sim0 = stamps[-1]
+            while time.monotonic() < deadline and stamps[-1][1] - sim0 < sim_seconds:
+                ex.spin_once(timeout_sec=0.05)
+            wall1, sim1 = stamps[-1]
+        finally:
+            if ctl is not None:
+                ctl.stop()
+            sim.stop()
+            ex.shutdown()
+            node.destroy_node()
+            ctx.try_shutdown()
+    steps = (sim1 - sim0) / control_period
+    return {"rtf": (sim1 - sim0) / (wall1 - wall0), "steps_per_s": steps / (wall1 - wall0),
+            "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period}
+
+
+def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
+    """Round trip of a BladePitch to another process and back [us]."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from seapup_msgs.msg import BladePitch
+
+    with DomainLease() as lease:
+        env = ros_environment(lease.domain_id)
+        echo = NodeProcess([sys.executable, "-c", ECHO], env, f"{log_dir}/bench_echo.log").start()
+        ctx = _context(lease.domain_id)
+        node = rclpy.create_node("bench_ping", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        pub = node.create_publisher(BladePitch, "/bench/ping", qos)
+        got = []
+        node.create_subscription(BladePitch, "/bench/pong", got.append, qos)
+        try:
+            deadline = time.monotonic() + 30
+            while (pub.get_subscription_count() == 0 or node.count_publishers("/bench/pong") == 0) \
+                    and time.monotonic() < deadline:
+                ex.spin_once(timeout_sec=0.05)
+            samples = []
+            for k in range(n + 50):
+                msg = BladePitch()
+                msg.header.stamp.sec = k
+                before = len(got)
+                t0 = time.perf_counter()
+                pub.publish(msg)
+                while len(got) == before:
+                    ex.spin_once(timeout_sec=1.0)
+                    if time.perf_counter() - t0 > 5:
+                        raise TimeoutError("no echo within 5 s")
+                if k >= 50:
+                    samples.append(time.perf_counter() - t0)
+        finally:
+            echo.stop()
+            ex.shutdown()
+            node.destroy_node()
+            ctx.try_shutdown()
+    s = np.array(samples) * 1e6
+    return {"median_us": float(np.median(s)), "p99_us": float(np.percentile(s, 99)), "n": n}
