@@ -112,10 +112,10 @@ def cmd_bench(args) -> int:
     out = {"model": {"step_us": per_step * 1e6, "rtf": 0.1 / per_step, "dt": 0.1,
                      "steps": n, "config": model.config_name}}
     # the same step with the quasi-static umbilical solved every step (sec. 3.8)
-    from seapup_sim.umbilical import Umbilical, UmbilicalParams
+    from seapup_sim.simulation import load_environment, umbilical_from_environment
     x0 = np.zeros(12)
     x0[2] = 100.0
-    cable = Umbilical(UmbilicalParams(rho=model.rho), [0.0, 0.0, 0.0])
+    cable = umbilical_from_environment(load_environment()["umbilical"], model.rho)
     sim = VehicleIntegrator(model, dt=0.1, state=x0)
     for _ in range(50):
         sim.step(cmd, external=cable.wrench(sim.state))

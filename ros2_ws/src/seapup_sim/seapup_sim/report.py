@@ -6,7 +6,6 @@ numbers and the pictures cannot disagree.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +48,6 @@ def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Pat
     out.mkdir(parents=True, exist_ok=True)
     cfg = results.get("config", "")
     paths = []
-    deg = math.degrees
 
     def panel(name, title, series):
         fig, axes = plt.subplots(len(series), 1, figsize=(7, 2.2 * len(series)), sharex=True)
@@ -155,5 +153,4 @@ def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Pat
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)
-    del deg
     return paths

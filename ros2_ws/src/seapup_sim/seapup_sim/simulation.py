@@ -36,13 +36,23 @@ from seapup_sim.umbilical import Umbilical, UmbilicalParams
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config, merge_config
 
-__all__ = ["Event", "Sample", "SimulationLog", "Simulation", "load_environment"]
+__all__ = ["Event", "Sample", "SimulationLog", "Simulation", "load_environment", "umbilical_from_environment"]
 
 
 def load_environment(overrides: dict | None = None) -> dict:
     """The default environment (``environment/default.yaml``) merged with ``overrides``."""
     path = Path(str(resources.files("seapup_sim") / "environment" / "default.yaml"))
     return merge_config(yaml.safe_load(path.read_text()), overrides or {})
+
+
+def umbilical_from_environment(section: dict, rho: float) -> Umbilical:
+    """The umbilical of an environment's ``umbilical`` section (C_D = strumming
+    factor x still-water C_D0, sec. 2.3.4)."""
+    params = UmbilicalParams(section["diameter"],
+                             section["strumming_factor"] * section["still_water_drag_coefficient"],
+                             section["weight_per_length"], section["length_ratio"], rho,
+                             tuple(section["attachment"]), section["min_flow"], section["max_gravity_ratio"])
+    return Umbilical(params, section["ship_ned"])
 
 
 @dataclass(frozen=True)
@@ -138,14 +148,7 @@ class Simulation:
             c = env["current"]
             current = GaussMarkovCurrent(CurrentParams(c["mean_speed"], c["speed_std"], c["mean_direction"],
                                                        c["direction_std"], c["break_time"]), dt, rng)
-        umbilical = None
-        if env["umbilical"].get("enabled"):
-            u = env["umbilical"]
-            params = UmbilicalParams(u["diameter"], u["strumming_factor"] * u["still_water_drag_coefficient"],
-                                     u["weight_per_length"],
-                                     u["length_ratio"], model.rho, tuple(u["attachment"]),
-                                     u["min_flow"], u["max_gravity_ratio"])
-            umbilical = Umbilical(params, u["ship_ned"])
+        umbilical = umbilical_from_environment(env["umbilical"], model.rho) if env["umbilical"].get("enabled") else None
         seabed = Seabed.from_config(env["seabed"])
         sensors = SensorSuite(load_sensor_profile(env["sensors"]), rng, seabed)
         return cls(model, dt=dt, control_period=control_period, current=current, umbilical=umbilical,

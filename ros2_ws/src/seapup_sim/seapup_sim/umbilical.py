@@ -89,7 +89,7 @@ class UmbilicalParams:
     """Cable data (SI). Defaults: the thesis's Seapup cable (sec. 3.8)."""
 
     diameter: float = 0.025             # t [m]
-    drag_coefficient: float = 2.5       # C_D incl. strumming (sec. 3.8)
+    drag_coefficient: float = 3.0       # C_D = 2.5 (strumming, sec. 2.3.4) x C_D0 1.2
     weight_per_length: float = 0.0      # in water [N/m] ("negligible")
     length_ratio: float = 1.4           # cable length / straight line (sec. 3.8)
     rho: float = 1025.0

@@ -236,8 +236,7 @@ def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration:
     Returns, per depth, the top speed and the cable force on the vehicle in
     body axes [N] at that moment.
     """
-    from seapup_sim.simulation import Simulation, load_environment
-    from seapup_sim.umbilical import Umbilical, UmbilicalParams
+    from seapup_sim.simulation import Simulation, load_environment, umbilical_from_environment
     env = load_environment()["umbilical"]
     lim = D(35.0)
     cmd = np.array([lim, lim, 0.0, 0.0])
@@ -245,10 +244,7 @@ def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration:
     for depth in depths:
         x0 = np.zeros(12)
         x0[2] = depth
-        params = UmbilicalParams(env["diameter"], env["strumming_factor"] * env["still_water_drag_coefficient"],
-                                 env["weight_per_length"], env["length_ratio"], model.rho,
-                                 tuple(env["attachment"]), env["min_flow"], env["max_gravity_ratio"])
-        cable = Umbilical(params, env["ship_ned"])
+        cable = umbilical_from_environment(env, model.rho)
         sim = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
         shape, best = None, -1.0
         n = int(round(duration / sim.control_period))

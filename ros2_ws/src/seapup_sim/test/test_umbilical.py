@@ -77,7 +77,7 @@ def test_force_scales_with_flow_speed_squared():
 def test_bypass_when_loading_is_too_small_for_the_assumptions(caplog):
     assert solve_cable(VEHICLE, SHIP, 70.0, [0.001, 0.0, 0.0], P).bypassed.startswith("relative flow")
     heavy = UmbilicalParams(weight_per_length=10.0)
-    sol = solve_cable(VEHICLE, SHIP, 70.0, [-0.3, 0.0, 0.0], heavy)  # w / K U^2 = 10 / 2.9 > 0.1
+    sol = solve_cable(VEHICLE, SHIP, 70.0, [-0.3, 0.0, 0.0], heavy)  # w / K U^2 = 10 / 3.5 > 0.1
     assert sol.bypassed.startswith("weight/hydrodynamic") and not np.any(sol.force_on_vehicle)
     assert "parallel" in solve_cable(VEHICLE, SHIP, 70.0, [0.0, 0.0, 0.3], P).bypassed
     cable = Umbilical(P, SHIP)
