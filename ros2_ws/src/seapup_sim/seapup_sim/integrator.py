@@ -93,19 +93,20 @@ class VehicleIntegrator:
         command, _ = check_blade_pitch(command, self.model.pitch_limit)
         t0 = self.t
         model, on = self.model, self.thrusters_on
-        # the lagged pitch at the three distinct stage times (t0, t0 + dt/2, t0 + dt)
-        stage_pitch = {0.0: self._pitch_at(command, 0.0), 0.5: self._pitch_at(command, 0.5 * self.dt),
-                       1.0: self._pitch_at(command, self.dt)}
+        # the lagged pitch at rk4_step's three distinct stage times (computed the
+        # same way, so the float keys match exactly)
+        dt = self.dt
+        stage_pitch = {t0: self._pitch_at(command, 0.0), t0 + 0.5 * dt: self._pitch_at(command, 0.5 * dt),
+                       t0 + dt: self._pitch_at(command, dt)}
 
         def f(t, x):
-            return model.derivatives(x, stage_pitch[round((t - t0) / self.dt * 2) / 2], current_ned,
-                                     external, on)
+            return model.derivatives(x, stage_pitch[t], current_ned, external, on)
 
         new = rk4_step(f, t0, self.state, self.dt)
         self._check(new, t0 + self.dt)
         new[3] = (new[3] + np.pi) % (2 * np.pi) - np.pi  # roll and yaw wrap to [-pi, pi)
         new[5] = (new[5] + np.pi) % (2 * np.pi) - np.pi
-        self.pitch = stage_pitch[1.0]
+        self.pitch = stage_pitch[t0 + dt]
         self.state = new
         self.steps += 1
         return new.copy()
