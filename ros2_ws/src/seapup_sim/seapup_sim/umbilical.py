@@ -129,13 +129,13 @@ class CableSolution:
         return self.start + np.outer(x, self.e1) + np.outer(y, self.e2)
 
 
-def _residual(z, a, b):
-    c0, lam = z
+def _residual(c0: float, lam: float, a: float, b: float):
+    """End-condition misfit (g1, g2) and its Jacobian (plain floats: hot path)."""
     cl = c0 - lam
     r0, rl = math.sqrt(1 + c0 * c0), math.sqrt(1 + cl * cl)
-    g = np.array([r0 - rl - lam * a, math.asinh(c0) - math.asinh(cl) - lam * b])
-    jac = np.array([[c0 / r0 - cl / rl, cl / rl - a], [1 / r0 - 1 / rl, 1 / rl - b]])
-    return g, jac
+    g1 = r0 - rl - lam * a
+    g2 = math.asinh(c0) - math.asinh(cl) - lam * b
+    return g1, g2, c0 / r0 - cl / rl, cl / rl - a, 1 / r0 - 1 / rl, 1 / rl - b
 
 
 def _initial_guess(a: float, b: float) -> tuple[float, float]:
@@ -150,22 +150,23 @@ def _initial_guess(a: float, b: float) -> tuple[float, float]:
 
 
 def _solve_plane(a: float, b: float, guess=None, tol: float = 1e-12, max_iter: int = 50):
-    z = np.array(guess if guess is not None else _initial_guess(a, b), float)
+    c0, lam = guess if guess is not None else _initial_guess(a, b)
     for _ in range(max_iter):
-        g, jac = _residual(z, a, b)
-        if abs(g[0]) + abs(g[1]) < tol:
-            return z
-        step = np.linalg.solve(jac, -g)
+        g1, g2, j11, j12, j21, j22 = _residual(c0, lam, a, b)
+        if abs(g1) + abs(g2) < tol:
+            return c0, lam
+        det = j11 * j22 - j12 * j21
+        d_c0, d_lam = (-g1 * j22 + g2 * j12) / det, (-g2 * j11 + g1 * j21) / det
         t = 1.0  # damped Newton: keep lambda positive
-        while z[1] + t * step[1] <= 0:
+        while lam + t * d_lam <= 0:
             t *= 0.5
-        z = z + t * step
-    g, _ = _residual(z, a, b)
-    if abs(g[0]) + abs(g[1]) < 1e-8:
-        return z
+        c0, lam = c0 + t * d_c0, lam + t * d_lam
+    g1, g2 = _residual(c0, lam, a, b)[:2]
+    if abs(g1) + abs(g2) < 1e-8:
+        return c0, lam
     if guess is not None:  # a stale warm start: retry cold
         return _solve_plane(a, b, None, tol, max_iter)
-    raise UmbilicalError(f"Newton-Raphson did not converge (a={a:.4g}, b={b:.4g}, residual {g})")
+    raise UmbilicalError(f"Newton-Raphson did not converge (a={a:.4g}, b={b:.4g}, residual {g1:.3g}, {g2:.3g})")
 
 
 def solve_cable(vehicle_ned, ship_ned, length: float, flow_ned, params: UmbilicalParams,
@@ -185,11 +186,11 @@ def solve_cable(vehicle_ned, ship_ned, length: float, flow_ned, params: Umbilica
     """
     start = np.asarray(vehicle_ned, float)
     chord = np.asarray(ship_ned, float) - start
-    dist = float(np.linalg.norm(chord))
+    dist = math.sqrt(chord @ chord)
     if length < dist * (1 - 1e-12):
         raise UmbilicalError(f"cable length {length:.3f} m is shorter than the distance {dist:.3f} m")
     flow = np.asarray(flow_ned, float)
-    speed = float(np.linalg.norm(flow))
+    speed = math.sqrt(flow @ flow)
     zero = np.zeros(3)
     if speed < params.min_flow:
         return CableSolution(zero, 0.0, length, f"relative flow {speed:.4f} m/s < {params.min_flow} m/s")
@@ -198,12 +199,13 @@ def solve_cable(vehicle_ned, ship_ned, length: float, flow_ned, params: Umbilica
         return CableSolution(zero, 0.0, length, f"weight/hydrodynamic loading "
                              f"{params.weight_per_length / load:.3f} > {params.max_gravity_ratio}")
     e1 = flow / speed
-    across = chord - (chord @ e1) * e1
-    if np.linalg.norm(across) < 1e-9 * max(dist, 1.0):
+    along = chord @ e1
+    across = chord - along * e1
+    across_norm = math.sqrt(across @ across)
+    if across_norm < 1e-9 * max(dist, 1.0):
         return CableSolution(zero, 0.0, length, "chord parallel to the flow: no normal loading")
-    e2 = across / np.linalg.norm(across)
-    a, b = (chord @ e1) / length, (chord @ e2) / length
-    c0, lam = _solve_plane(a, b, guess)
+    e2 = across / across_norm
+    c0, lam = _solve_plane(along / length, across_norm / length, guess)
     tension = load * length / lam
     tau0 = (c0 * e1 + e2) / math.sqrt(1 + c0 * c0)
     return CableSolution(tension * tau0, tension, length, "", c0, lam, e1, e2, start)
@@ -263,12 +265,15 @@ class Umbilical:
         self._guess = None
         self._bypass_reason = None
 
-    def solve(self, state, current_ned=None) -> CableSolution:
-        rot = rotation_body_to_ned(state[3], state[4], state[5])
+    def solve(self, state, current_ned=None, rot=None) -> CableSolution:
+        """Equilibrium for a vehicle state (``rot``: its body-to-NED matrix, if known)."""
+        if rot is None:
+            rot = rotation_body_to_ned(state[3], state[4], state[5])
         end = state[:3] + rot @ self.attachment
         vehicle_velocity = rot @ (state[6:9] + cross(state[9:12], self.attachment))
         flow = (np.zeros(3) if current_ned is None else np.asarray(current_ned, float)) - vehicle_velocity
-        dist = float(np.linalg.norm(self.ship - end))
+        chord = self.ship - end
+        dist = math.sqrt(chord @ chord)
         length = self.fixed_length if self.fixed_length is not None else self.params.length_ratio * dist
         sol = solve_cable(end, self.ship, length, flow, self.params, self._guess)
         if sol.bypassed:
@@ -286,6 +291,7 @@ class Umbilical:
 
     def wrench(self, state, current_ned=None) -> np.ndarray:
         """Body-axis force and moment (6,) of the cable on the vehicle."""
-        sol = self.solve(state, current_ned)
-        force_body = rotation_body_to_ned(state[3], state[4], state[5]).T @ sol.force_on_vehicle
+        rot = rotation_body_to_ned(state[3], state[4], state[5])
+        sol = self.solve(state, current_ned, rot)
+        force_body = rot.T @ sol.force_on_vehicle
         return np.concatenate([force_body, cross(self.attachment, force_body)])

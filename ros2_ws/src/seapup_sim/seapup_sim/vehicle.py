@@ -39,7 +39,7 @@ import numpy as np
 from seapup_sim.hydrodynamics import HydroTable
 from seapup_sim.thrusters import ThrusterSet
 
-__all__ = ["cross", "skew", "rotation_body_to_ned", "euler_rate_matrix", "VehicleModel", "STATE_NAMES"]
+__all__ = ["cross", "kirchhoff_coriolis", "skew", "rotation_body_to_ned", "euler_rate_matrix", "VehicleModel", "STATE_NAMES"]
 
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
 
@@ -47,6 +47,21 @@ STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r
 def cross(a, b) -> np.ndarray:
     """a x b for 3-vectors (np.cross is ~10x slower for single vectors)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def kirchhoff_coriolis(mass: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """Coriolis/centripetal generalized force of a symmetric 6x6 mass matrix.
+
+    With p = M nu split into linear and angular parts (p_v, p_w) and nu into
+    (v, w): ``-[w x p_v ; w x p_w + v x p_v]`` (Kirchhoff's equations; Fossen,
+    Thm 3.2). It does no work: nu . f = 0.
+    """
+    a, b, c, d, e, f = (mass @ nu).tolist()
+    u, v, w, p, q, r = nu.tolist()
+    return np.array([
+        -(q * c - r * b), -(r * a - p * c), -(p * b - q * a),
+        -(q * f - r * e) - (v * c - w * b), -(r * d - p * f) - (w * a - u * c), -(p * e - q * d) - (u * b - v * a),
+    ])
 
 
 def skew(a) -> np.ndarray:
@@ -160,6 +175,7 @@ class VehicleModel:
         self.m_inv = np.linalg.inv(self.m_total)
         self.weight = mp.mass * self.g
         self.buoyancy = mp.buoyancy_mass * self.g
+        self._hydrostatic_arm = tuple(self.weight * mp.cg - self.buoyancy * mp.cb)
         self.hydro = HydroTable(config["hydrodynamics"])
         th = config["thrusters"]
         self.thrusters = ThrusterSet(
@@ -176,21 +192,17 @@ class VehicleModel:
 
     # -- force terms ------------------------------------------------------
     def rigid_coriolis(self, nu: np.ndarray) -> np.ndarray:
-        """F_d: rigid-body Coriolis/centripetal forces about the origin (eq. 2.8, 2.17a)."""
-        m, rg = self.mass.mass, self.mass.cg
-        v, w = nu[:3], nu[3:]
-        wxv = cross(w, v)
-        f = -m * (wxv + cross(w, cross(w, rg)))
-        mom = -(cross(w, self.mass.inertia_origin @ w) + m * cross(rg, wxv))
-        return np.concatenate([f, mom])
+        """F_d: rigid-body Coriolis/centripetal forces about the origin (eq. 2.8, 2.17a).
+
+        Computed in Kirchhoff form with the rigid-body mass matrix (equal to the
+        velocity terms of eq. 2.8 and 2.17a for a body about an arbitrary origin;
+        Fossen, Thm 3.2); the tests check it against eq. 2.8/2.17a written out.
+        """
+        return kirchhoff_coriolis(self.m_rigid, nu)
 
     def added_mass_coriolis(self, nu_r: np.ndarray) -> np.ndarray:
         """Coriolis/centripetal forces of the added mass (Kirchhoff), relative velocities."""
-        a = self.m_added
-        v, w = nu_r[:3], nu_r[3:]
-        p_lin = a[:3, :3] @ v + a[:3, 3:] @ w
-        p_ang = a[3:, :3] @ v + a[3:, 3:] @ w
-        return np.concatenate([-cross(w, p_lin), -cross(w, p_ang) - cross(v, p_lin)])
+        return kirchhoff_coriolis(self.m_added, nu_r)
 
     def hydrostatics(self, phi: float, theta: float) -> np.ndarray:
         """G: weight at the CG and buoyancy at the CB in body axes (sec. 2.3.2)."""
@@ -198,10 +210,13 @@ class VehicleModel:
                                                  np.cos(theta) * np.cos(phi)]))
 
     def _hydrostatics_from(self, down: np.ndarray) -> np.ndarray:
-        f_w = self.weight * down
-        f_b = -self.buoyancy * down
-        moment = cross(self.mass.cg, f_w) + cross(self.mass.cb, f_b)
-        return np.concatenate([f_w + f_b, moment])
+        """Hydrostatics for the NED down axis expressed in body axes: force
+        (W - B) down, moment (W r_G - B r_B) x down."""
+        dx, dy, dz = down
+        net = self.weight - self.buoyancy
+        ax, ay, az = self._hydrostatic_arm
+        return np.array([net * dx, net * dy, net * dz,
+                         ay * dz - az * dy, az * dx - ax * dz, ax * dy - ay * dx])
 
     # -- equations of motion ---------------------------------------------
     def relative_velocity(self, state: np.ndarray, current_ned) -> np.ndarray:

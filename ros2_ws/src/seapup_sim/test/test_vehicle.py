@@ -54,6 +54,28 @@ def test_kinetic_energy_and_impulse_are_conserved_in_ideal_fluid():
     assert np.abs(x[9:]).max() > 0.1  # it really did rotate
 
 
+def test_rigid_coriolis_equals_eq_2_8_and_2_17a_written_out():
+    """The Kirchhoff form equals the thesis's component equations about an arbitrary origin."""
+    model = VehicleModel(ideal_fluid_config(cg=(0.07, -0.02, 0.11)))
+    m = model.mass.mass
+    x, y, z = model.mass.cg
+    inertia = model.mass.inertia_origin
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        u, v, w, p, q, r = rng.normal(size=6)
+        # eq. 2.8 (velocity terms, moved to the right-hand side)
+        fx = -m * ((q * w - r * v) - x * (q * q + r * r) + y * (p * q) + z * (p * r))
+        fy = -m * ((r * u - p * w) - y * (p * p + r * r) + z * (q * r) + x * (q * p))
+        fz = -m * ((p * v - q * u) - z * (p * p + q * q) + x * (r * p) + y * (r * q))
+        # eq. 2.17a (velocity terms): h = I w about the origin
+        hx, hy, hz = inertia @ np.array([p, q, r])
+        gx = -((q * hz - r * hy) + m * (y * (p * v - q * u) - z * (r * u - p * w)))
+        gy = -((r * hx - p * hz) + m * (z * (q * w - r * v) - x * (p * v - q * u)))
+        gz = -((p * hy - q * hx) + m * (x * (r * u - p * w) - y * (q * w - r * v)))
+        np.testing.assert_allclose(model.rigid_coriolis(np.array([u, v, w, p, q, r])),
+                                   [fx, fy, fz, gx, gy, gz], rtol=1e-10, atol=1e-10)
+
+
 def test_coriolis_terms_do_no_work():
     model = VehicleModel(ideal_fluid_config())
     rng = np.random.default_rng(1)
