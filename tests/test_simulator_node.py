@@ -143,6 +143,7 @@ def test_lockstep_rejects_commands_from_the_past(ros_context, node_process, spin
         probe.cmd.publish(command([0.1] * 4, 0))  # t = 0 is long gone
     assert probe.spin(lambda: int(probe.counters().get("rejected_stale", 0)) == 50, 10.0), probe.counters()
     assert int(probe.counters()["lockstep_timeouts"]) > 0  # nobody answered: it held and went on
+    assert float(probe.counters()["control_steps_per_wall_second"]) > 0
     probe.close()
 
 

@@ -325,6 +325,7 @@ class SimulatorNode(Node):
             level, message = DiagnosticStatus.WARN, message + f", last rejection: {self.core.last_error}"
         values = {**c, "sim_time": f"{self.core.t:.3f}",
                   "real_time_factor_measured": f"{self.core.t / elapsed:.2f}" if elapsed > 0 else "0",
+                  "control_steps_per_wall_second": f"{c['steps'] / elapsed:.1f}" if elapsed > 0 else "0",
                   "watchdog_active": str(self.core.watchdog_active), "vehicle": self.config.vehicle,
                   "sensor_profile": self.config.sensor_profile}
         status = DiagnosticStatus(level=level, name="seapup/simulator", hardware_id="seapup_sim",
