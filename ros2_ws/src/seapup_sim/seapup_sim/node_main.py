@@ -52,7 +52,8 @@ def run_node(make_node, args=None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # construction or callback failure: report and exit non-zero
-        print(f"[{getattr(node, 'get_name', lambda: 'node')()}] fatal: {exc}", file=sys.stderr)
+        name = node.get_name() if node is not None else getattr(make_node, "__name__", "node")
+        print(f"[{name}] fatal: {exc}", file=sys.stderr)
         return 1
     finally:
         if node is not None:
