@@ -311,6 +311,22 @@ def test_services_and_parameter_validation(ros_context, node_process, spin):
     r = probe.call(Reset, "/seapup/simulator/reset", bad)
     assert not r.success and "finite" in r.message
 
+    # a legal state that leaves the valid envelope within a step: the plant halts
+    # with an ERROR diagnostic instead of the node dying, until the next reset
+    steep = Reset.Request(seed=1, use_state=True)
+    steep.state = [0.0, 0.0, 10.0, 0.0, 1.45, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0]
+    assert probe.call(Reset, "/seapup/simulator/reset", steep).success
+    diags = probe.msgs["/diagnostics"]
+
+    def simulator_status():
+        return next((st for d in reversed(diags) for st in d.status if st.name == "seapup/simulator"), None)
+
+    assert probe.spin(lambda: simulator_status() is not None and "halted" in simulator_status().message, 10.0)
+    assert simulator_status().level == b"\x02"  # ERROR
+    assert probe.call(Reset, "/seapup/simulator/reset", Reset.Request(seed=2)).success
+    assert probe.spin(lambda: "halted" not in simulator_status().message
+                      and float(probe.counters()["sim_time"]) > 1.0, 10.0)
+
     client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
     def set_params(*ps):
         assert probe.spin(client.service_is_ready, 10.0)

@@ -127,6 +127,7 @@ class SimulatorNode(Node):
         self._waiting_since = None
         self._last_warn = 0.0
         self._outputs = None
+        self._halted = ""  # set when the plant diverged: stop stepping until ~/reset
         self._handshake = True  # lockstep: until the first command, re-publish t_0 (discovery races)
         self._last_republish = time.monotonic()
         if self.mode == "lockstep":
@@ -186,11 +187,20 @@ class SimulatorNode(Node):
             self._advance()
 
     def _advance(self) -> None:
-        self.core.step()
-        self._publish_outputs()
+        if self._halted:
+            return
+        try:
+            self.core.step()
+            self._publish_outputs()
+        except FloatingPointError as exc:  # DivergenceError or a non-finite output
+            self._halted = str(exc)
+            self.get_logger().error(f"simulation halted: {exc}; call ~/reset to continue")
+            return
         self._waiting_since = time.monotonic()
 
     def _lockstep_watch(self) -> None:
+        if self._halted:
+            return
         now = time.monotonic()
         if self._handshake:
             if self.core.counters["accepted"]:
@@ -319,7 +329,9 @@ class SimulatorNode(Node):
         rejected = sum(v for k, v in c.items() if k.startswith("rejected"))
         level = DiagnosticStatus.OK
         message = f"{self.mode}, t = {self.core.t:.1f} s"
-        if self.core.watchdog_active:
+        if self._halted:
+            level, message = DiagnosticStatus.ERROR, message + f", halted: {self._halted}"
+        elif self.core.watchdog_active:
             level, message = DiagnosticStatus.WARN, message + ", watchdog active (no valid command)"
         elif rejected:
             level, message = DiagnosticStatus.WARN, message + f", last rejection: {self.core.last_error}"
@@ -354,6 +366,7 @@ class SimulatorNode(Node):
             if not 0 <= request.seed < 2**31:
                 raise ValueError(f"seed must be in [0, 2^31), got {request.seed}")
             self.core.reset(request.seed, state)
+            self._halted = ""
             self._publish_outputs()
             self._waiting_since = time.monotonic()
         return self._answer(response, act, f"reset: t = 0, seed {request.seed}")
