@@ -33,7 +33,7 @@ from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.vehicle import VehicleModel
 
 __all__ = ["run_open_loop", "rest_trim", "step_gains", "verify", "verify_current",
-           "verify_umbilical", "Target", "TARGETS", "check_targets", "mode_nearest"]
+           "verify_umbilical", "Target", "TARGETS", "check_targets"]
 
 D = math.radians
 
@@ -86,13 +86,6 @@ def step_gains(model: VehicleModel, hover: np.ndarray, step_deg: float = 8.0,
         b0[:, j] = y[per_sample] / step_deg
         b1[:, j] = y[-1] / step_deg
     return b0, b1
-
-
-def mode_nearest(eigenvalues, target: complex) -> complex:
-    """The eigenvalue (upper half plane) nearest to ``target``."""
-    ev = np.asarray(eigenvalues)
-    ev = ev[ev.imag >= 0]
-    return complex(ev[np.argmin(np.abs(ev - target))])
 
 
 def _mode_of(a: np.ndarray, state_index: int) -> complex:
