@@ -5,7 +5,7 @@ ROS isolation rules, applied to every test:
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` in this process and every child,
   so no DDS traffic leaves loopback;
 - each ROS test leases its own ``ROS_DOMAIN_ID`` (machine-wide lock files, see
-  :class:`seapup_sim.node_processes.DomainLease`), so tests never hear each
+  :class:`seapup_common.processes.DomainLease`), so tests never hear each
   other, whatever the order or parallelism;
 - in-process ROS work uses a private rclpy Context on that domain;
 - child nodes run in their own process groups and are stopped (SIGINT, SIGTERM,
@@ -27,6 +27,19 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 REPO_ROOT = Path(__file__).resolve().parent
 
 
+ROS_FIXTURES = {"ros_domain", "ros_context", "ros_env", "node_process"}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Every test is ``unit`` (pure cores, message conversions: seconds) or ``graph``
+    (a ROS graph, child processes or a build: ``./seapup test -m unit`` skips them)."""
+    for item in items:
+        if item.get_closest_marker("graph") is None and not ROS_FIXTURES & set(item.fixturenames):
+            item.add_marker(pytest.mark.unit)
+        elif item.get_closest_marker("graph") is None:
+            item.add_marker(pytest.mark.graph)
+
+
 @pytest.hookimpl(tryfirst=True, hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     outcome = yield
@@ -37,7 +50,7 @@ def pytest_runtest_makereport(item, call):
 @pytest.fixture
 def ros_domain():
     """A ROS_DOMAIN_ID leased for this test alone."""
-    from seapup_sim.node_processes import DomainLease
+    from seapup_common.processes import DomainLease
 
     with DomainLease() as lease:
         yield lease.domain_id
@@ -58,7 +71,7 @@ def ros_context(ros_domain):
 @pytest.fixture
 def ros_env(ros_domain):
     """Environment for child processes of this test (its domain, loopback only)."""
-    from seapup_sim.node_processes import ros_environment
+    from seapup_common.processes import ros_environment
 
     return ros_environment(ros_domain)
 
@@ -70,7 +83,7 @@ def node_process(request, ros_env, tmp_path):
     ``node_process(["./seapup", "run", ...])`` or
     ``node_process(package="seapup_sim", executable="simulator", args=[...])``.
     """
-    from seapup_sim.node_processes import NodeProcess, find_executable
+    from seapup_common.processes import NodeProcess, find_executable
 
     started: list[NodeProcess] = []
 

@@ -12,7 +12,7 @@ def test_blade_pitch_index_constants_follow_table_3_2():
 
 
 def test_blade_pitch_core_indices_match_the_message():
-    from seapup_sim import blade_pitch as bp
+    from seapup_common import blade_pitch as bp
     assert (bp.MAIN_PORT, bp.MAIN_STARBOARD, bp.VECTORED_STARBOARD, bp.VECTORED_PORT) == (
         BladePitch.MAIN_PORT, BladePitch.MAIN_STARBOARD, BladePitch.VECTORED_STARBOARD,
         BladePitch.VECTORED_PORT)

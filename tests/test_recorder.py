@@ -2,7 +2,7 @@
 from rclpy.serialization import deserialize_message
 from seapup_msgs.msg import BladePitch
 
-from seapup_ident.bag import read_bag
+from seapup_common.bag import read_bag
 
 
 def test_recorder_bags_the_open_loop_commands(node_process, tmp_path):

@@ -1,6 +1,9 @@
 """The ./seapup entry script: usage, exit codes, environment, idempotent bootstrap."""
+import pytest
 import subprocess
 from pathlib import Path
+
+pytestmark = pytest.mark.graph  # runs ./seapup, a build or subprocesses: not a seconds-fast unit test
 
 REPO = Path(__file__).resolve().parents[1]
 SEAPUP = str(REPO / "seapup")

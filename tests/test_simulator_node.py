@@ -27,12 +27,14 @@ from sensor_msgs.msg import Imu
 from seapup_msgs.msg import BladePitch, Depth
 from seapup_msgs.srv import Reset, SetConfiguration, SetSensorProfile, SetThrusterEfficiency
 
-from seapup_control.schedule import PitchSchedule
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT as LIMIT
+from seapup_control.schedule import OpenLoop, PitchSchedule
+from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.simulation import Simulation
-from seapup_sim.simulator import HOVER_PITCH_DEG
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
 
-LIMIT = math.radians(35.0)
-HOVER = np.radians(HOVER_PITCH_DEG)
+HOVER = hover_blade_pitch(VehicleModel(load_vehicle_config("baseline")))
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 REPO = Path(__file__).resolve().parents[1]
 
@@ -118,7 +120,7 @@ def test_hostile_commands_are_counted_and_never_reach_the_outputs(ros_context, n
     for i in range(n):
         for _, msg in kinds:
             probe.cmd.publish(msg)
-        if i % 20 == 19:
+        if i % 5 == 4:  # let the node drain its queue: a burst beyond it is dropped by DDS, not counted
             probe.spin(lambda: False, 0.02)
     expected = {"rejected_invalid": 2 * n, "rejected_future": n, "rejected_malformed": 2 * n,
                 "accepted": 2 * n, "saturated": 2 * n}
@@ -173,7 +175,9 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration):
         probe.msgs[topic].clear()
     sim = node_process(package="seapup_sim", executable="simulator",
                        args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", f"seed:={seed}",
-                             "-p", "current_enabled:=true", "-p", "sensor_profile:=baseline"], name="sim")
+                             "-p", "environment.current.enabled:=true", "-p", "environment.sensors:=baseline",
+                             "-p", "wait_for_subscribers:=['truth/odometry', 'sensors/velocity']"],
+                       name="sim")
     # the simulator holds t_0 (re-sending it) until a controller answers: start
     # the controller only once this probe hears t_0, so it records from the start
     odom = probe.msgs["/seapup/truth/odometry"]
@@ -219,11 +223,11 @@ def test_lockstep_is_deterministic_and_equals_the_pure_core_loop(ros_context, no
     schedule = PitchSchedule(SCHEDULE_TIMES, SCHEDULE_PITCHES, LIMIT)
     core = Simulation.from_config("baseline", {"current": {"enabled": True}, "sensors": "baseline"}, seed=7,
                                   pitch=HOVER)
-    log = core.run(lambda s: schedule.at(s.t), 10.0)
+    log = core.run(OpenLoop(schedule, 0.2), 10.0)
     np.testing.assert_array_equal(truth1[:, 0].astype(np.int64), np.round(log.t * 1e9).astype(np.int64))
     ref = np.column_stack([log.state[:, 0], log.state[:, 2], log.state[:, 6], log.state[:, 7], log.state[:, 11]])
     np.testing.assert_array_equal(truth1[:, 1:], ref)
-    np.testing.assert_array_equal(vel1, log.measured_velocity[:, :2])
+    np.testing.assert_array_equal(vel1, log.measured["velocity"][:, :2])
     assert np.abs(ref[:, 3]).max() > 0.05  # it did move sideways with the current
     probe.close()
 
@@ -285,6 +289,7 @@ def test_services_and_parameter_validation(ros_context, node_process, spin):
     probe = Probe(ros_context, spin)
     probe.record("/diagnostics", DiagnosticArray)
     probe.record("/seapup/truth/odometry", Odometry)
+    probe.record("/seapup/sensors/velocity", TwistWithCovarianceStamped)
     assert probe.spin(lambda: float(probe.counters().get("sim_time", 0)) > 1.0, 20.0)
 
     r = probe.call(SetConfiguration, "/seapup/simulator/set_configuration", SetConfiguration.Request(name="camera"))
@@ -300,6 +305,12 @@ def test_services_and_parameter_validation(ros_context, node_process, spin):
     assert probe.call(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency", req).success
     r = probe.call(SetSensorProfile, "/seapup/simulator/set_sensor_profile", SetSensorProfile.Request(name="haslar"))
     assert r.success and probe.spin(lambda: probe.counters().get("sensor_profile") == "haslar", 5.0)
+    # what it changes: the published velocity covariance is Haslar's sigma^2 (0.0172 m/s, App. A)
+    vel = probe.msgs["/seapup/sensors/velocity"]
+    assert probe.spin(lambda: vel and abs(vel[-1].twist.covariance[0] - 0.0172 ** 2) < 1e-12, 5.0)
+    assert vel[-1].twist.covariance[7] == vel[-1].twist.covariance[0]
+    r = probe.call(SetSensorProfile, "/seapup/simulator/set_sensor_profile", SetSensorProfile.Request(name="x" * 10**5))
+    assert not r.success and len(r.message) < 300
 
     reset = Reset.Request(seed=5, use_state=True)
     reset.state = [0.0, 0.0, 33.0] + [0.0] * 9
@@ -315,6 +326,9 @@ def test_services_and_parameter_validation(ros_context, node_process, spin):
     # with an ERROR diagnostic instead of the node dying, until the next reset
     steep = Reset.Request(seed=1, use_state=True)
     steep.state = [0.0, 0.0, 10.0, 0.0, 1.45, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 0.0]
+    r = probe.call(Reset, "/seapup/simulator/reset", steep)
+    assert not r.success and "theta = 1.45" in r.message  # beyond environment/limits.yaml: refused
+    steep.state = [0.0, 0.0, 10.0, 0.0, 1.39, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0]  # legal, but pitching over
     assert probe.call(Reset, "/seapup/simulator/reset", steep).success
     diags = probe.msgs["/diagnostics"]
 

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy
 import pytest
 
+pytestmark = pytest.mark.graph  # runs ./seapup, a build or subprocesses: not a seconds-fast unit test
+
 REPO = Path(__file__).resolve().parents[1]
 HOOK = REPO / "cmake" / "fix_ros_wheel_paths.cmake"
 

@@ -26,10 +26,11 @@ import scipy.optimize
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "ros2_ws/src/seapup_sim"))
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT  # noqa: E402
 from seapup_sim.analysis import TrimError, linearise, trim  # noqa: E402
 from seapup_sim.vehicle import VehicleModel  # noqa: E402
 from seapup_sim.vehicle_config import load_vehicle_config  # noqa: E402
-from seapup_sim.verification import _mode_of, run_open_loop  # noqa: E402
+from seapup_sim.verification import oscillatory_mode, run_open_loop  # noqa: E402
 
 D = math.radians
 YAML = ROOT / "ros2_ws/src/seapup_sim/seapup_sim/vehicles/baseline.yaml"
@@ -108,7 +109,7 @@ def solve_hover(cfg):
 def measure(cfg):
     """The calibrated quantities, cheaply (dt 0.1 s, shorter runs)."""
     model = VehicleModel(cfg)
-    lim = D(35.0)
+    lim = BLADE_PITCH_LIMIT
     out = {}
     t, x, _ = run_open_loop(model, np.array([lim, lim, 0, 0]), 25.0)
     u = x[:, 6]
@@ -127,7 +128,7 @@ def measure(cfg):
     _, x, _ = run_open_loop(model, np.array([0, 0, -lim, -lim]), 20.0)
     out["w_up"] = (-x[:, 8]).max()
     a, _ = linearise(model, np.zeros(12), np.zeros(4), thrusters_on=False)
-    roll, pitch = _mode_of(a, 3), _mode_of(a, 4)
+    roll, pitch = oscillatory_mode(a, 3), oscillatory_mode(a, 4)
     out["roll_re"], out["roll_im"] = roll.real, roll.imag
     out["pitch_re"], out["pitch_im"] = pitch.real, pitch.imag
     hover = trim(model, 0.0)

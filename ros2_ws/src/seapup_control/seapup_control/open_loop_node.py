@@ -12,12 +12,15 @@ from __future__ import annotations
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
-from seapup_control.schedule import PitchSchedule
-from seapup_sim.node_main import declare_from_package_file, run_node
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.contract import Measurement, Reference
+from seapup_common.ros.messages import command_to_msg, stamp_to_ns
+from seapup_common.ros.graph import SubscriberGate
+from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_control.schedule import OpenLoop, PitchSchedule
 
 __all__ = ["OpenLoopNode", "main"]
 
@@ -27,47 +30,47 @@ class OpenLoopNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("open_loop", namespace="/seapup", **kwargs)
-        declare_from_package_file(self, "seapup_control", "open_loop.yaml", {
+        p = declare_from_package_file(self, "seapup_control", "open_loop.yaml", {
             "sample_period": ParameterDescriptor(
                 description="controller sample period [s]", read_only=True,
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)]),
-        })
-        value = self.get_parameter
-        self.schedule = PitchSchedule(value("times").value, value("pitches").value,
-                                      value("blade_pitch_limit").value)
-        self.publisher = self.create_publisher(
-            BladePitch, "thrusters/command", QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+            "blade_pitch_limit": ParameterDescriptor(
+                description="blade-pitch limit [rad] the schedule must respect", read_only=True,
+                floating_point_range=[FloatingPointRange(from_value=0.01, to_value=BLADE_PITCH_LIMIT)]),
+        }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="open_loop")
+        self.schedule = PitchSchedule(p["times"], p["pitches"], p["blade_pitch_limit"])
+        self.controller = OpenLoop(self.schedule, p["sample_period"])
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start
+        self.gate = SubscriberGate([(self.publisher, p["wait_for_subscribers"])])
         self.start = self.get_clock().now()
         self.sent = 0
         self._last_clock = None
-        if value("lockstep").value:
-            self.create_subscription(Clock, "/clock", self._on_clock,
-                                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        if p["lockstep"]:
+            self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
         else:
-            self.create_timer(value("sample_period").value, self._tick)
+            self.create_timer(p["sample_period"], self._tick)
         self.get_logger().info(
             f"open-loop schedule: {len(self.schedule.times)} segment(s), last switch at "
-            f"{self.schedule.duration:.1f} s, period {value('sample_period').value:.3f} s")
+            f"{self.schedule.duration:.1f} s, period {p['sample_period']:.3f} s")
+
+    def _publish(self, t_ns: int, elapsed: float) -> None:
+        if not self.gate.ready():
+            return
+        command = self.controller.update(elapsed, Measurement(elapsed), Reference())
+        self.publisher.publish(command_to_msg(command, t_ns))
+        self.sent += 1
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-        if t_ns == self._last_clock:
-            return  # the simulator repeats t_k until someone answers: answer once
+        t_ns = stamp_to_ns(msg.clock)
+        if t_ns == self._last_clock or not self.gate.ready():
+            return  # the simulator repeats t_k until someone answers: answer once, when heard
         self._last_clock = t_ns
-        out = BladePitch()
-        out.header.stamp = msg.clock
-        out.pitch = self.schedule.at(t_ns * 1e-9)
-        self.publisher.publish(out)
-        self.sent += 1
+        self._publish(t_ns, t_ns * 1e-9)
 
     def _tick(self) -> None:
         now = self.get_clock().now()
-        elapsed = max((now - self.start).nanoseconds * 1e-9, 0.0)
-        msg = BladePitch()
-        msg.header.stamp = now.to_msg()
-        msg.pitch = self.schedule.at(elapsed)
-        self.publisher.publish(msg)
-        self.sent += 1
+        self._publish(now.nanoseconds, max((now - self.start).nanoseconds * 1e-9, 0.0))
 
 
 def main(args=None) -> int:

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from seapup_sim.blade_pitch import check_blade_pitch
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
+from seapup_common.contract import Command, Measurement, Reference
 
-__all__ = ["ScheduleError", "PitchSchedule"]
+__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop"]
 
 
 class ScheduleError(ValueError):
@@ -29,8 +30,9 @@ class PitchSchedule:
     pitches : array_like, shape (n, 4) or (4 * n,)
         Blade pitches [rad] held from ``times[i]`` until ``times[i+1]`` (the
         last row is held for ever), in ``seapup_msgs/BladePitch`` order.
-    limit : float
-        Blade-pitch limit [rad]; a schedule may not ask for more.
+    limit : float, optional
+        Blade-pitch limit [rad]; a schedule may not ask for more (default the
+        Seapup's +/-35 deg, :data:`~seapup_common.blade_pitch.BLADE_PITCH_LIMIT`).
 
     Examples
     --------
@@ -39,7 +41,7 @@ class PitchSchedule:
     (0.6, 0.0)
     """
 
-    def __init__(self, times, pitches, limit: float):
+    def __init__(self, times, pitches, limit: float = BLADE_PITCH_LIMIT):
         t = np.asarray(times, dtype=float)
         p = np.asarray(pitches, dtype=float)
         if t.ndim != 1 or t.size == 0:
@@ -72,3 +74,40 @@ class PitchSchedule:
     def duration(self) -> float:
         """Time of the last switch [s]; the last row is held after it."""
         return float(self.times[-1])
+
+
+class OpenLoop:
+    """A :class:`PitchSchedule` flown as a velocity controller (open loop).
+
+    Parameters
+    ----------
+    schedule : PitchSchedule
+    sample_period : float
+        T [s], > 0.
+    start_time : float
+        Simulation time [s] at which the schedule's time 0 is (set by
+        :meth:`reset` to the time of the applied command when it has one).
+
+    Examples
+    --------
+    >>> ctl = OpenLoop(PitchSchedule([0.0, 1.0], [[0.1] * 4, [0.0] * 4]), 0.2)
+    >>> ctl.reset(Command([0.0] * 4, stamp=0.0))
+    >>> ctl.update(1.2, Measurement(1.2), Reference()).blade_pitch.tolist()
+    [0.0, 0.0, 0.0, 0.0]
+    """
+
+    def __init__(self, schedule: PitchSchedule, sample_period: float, start_time: float = 0.0):
+        if not (np.isfinite(sample_period) and sample_period > 0):
+            raise ScheduleError(f"sample period must be finite and > 0 s, got {sample_period!r}")
+        self.schedule = schedule
+        self.sample_period = float(sample_period)
+        self.start_time = float(start_time)
+
+    def reset(self, applied: Command) -> None:
+        """Start the schedule at the applied command's time (an open loop has no other state)."""
+        if np.isfinite(applied.stamp):
+            self.start_time = float(applied.stamp)
+
+    def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        """The schedule's pitches at ``t`` (measurement and reference are not used)."""
+        return Command(self.schedule.at(max(t - self.start_time, 0.0)), stamp=t)

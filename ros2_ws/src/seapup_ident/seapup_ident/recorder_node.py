@@ -1,35 +1,62 @@
-"""The ``recorder`` node: records topics into a rosbag2/MCAP bag.
+"""The ``recorder`` node: records topics into a rosbag2 (v9, MCAP) bag, as ``ros2 bag record``.
 
-A thin shell over :class:`seapup_ident.bag.BagRecorder`. It subscribes raw
-(CDR bytes, nothing decoded) to each entry of ``topics``: ``/topic`` is
-subscribed as soon as the ROS graph reports its type, ``/topic:pkg/msg/Type``
-at once (nothing published before that is missed for want of discovery). It
-stamps messages with the receive time of the node clock and closes the bag
-cleanly on SIGINT/SIGTERM.
+A thin shell over :class:`seapup_common.bag.BagWriter`. It subscribes raw
+(CDR bytes, nothing decoded) to each entry of ``topics`` -- ``/topic`` as soon
+as the graph reports its type, ``/topic:pkg/msg/Type`` at once, so a recorder
+started before the publishers misses nothing -- or, with ``all``, to every
+topic that appears (less those matching ``exclude``). Like rosbag2 it adapts
+its subscription QoS to the publishers (:func:`seapup_common.ros.graph.adapted_qos`)
+and stores their offered QoS profiles and the topic's type hash.
+
+Times are the graph's: the log time is the graph's time when the message was
+received -- the node clock on a wall-clock graph; under sim time
+(``use_sim_time``) the ``/clock`` value current when DDS received the message
+(its ``received_timestamp`` placed among those of the ``/clock`` samples, so
+a busy recorder's callback lag does not shift it),
+the publish time the DDS source timestamp on a wall clock and, under sim time
+(which stands still between samples), the log time. Under sim time the
+recorder's clock can lag the graph by one sample (a message of t_k may arrive
+before ``/clock`` says t_k); a received header stamp is a lower bound of the
+graph's time, so the clock used is the later of the two (stamps more than
+``max_stamp_lead`` ahead of ``/clock`` are not trusted).
+
+The bag is flushed and fsync'd every ``flush_interval`` (a ``kill -9`` loses
+at most that) and finalised on SIGINT/SIGTERM or after ``max_duration``
+seconds of graph time.
 """
 from __future__ import annotations
 
 import importlib
 import os
+import re
+import bisect
+import struct
 import time
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from seapup_ident.bag import BagRecorder, make_typestore
-from seapup_sim.node_main import declare_from_package_file, run_node
+from seapup_common.bag import BagWriter, make_typestore
+from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
+from seapup_common.ros.node import declare_from_package_file, run_node
 
-__all__ = ["RecorderNode", "main"]
+__all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "default_bag_path"]
 
-RECORD_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: Subscriptions for topics named with their type before any publisher exists.
+EAGER_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def message_class(type_name: str):
     """The Python class of ``pkg/msg/Type`` (rclpy has no type-less subscription)."""
-    package, kind, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.{kind}"), name)
+    try:
+        package, kind, name = type_name.split("/")
+        return getattr(importlib.import_module(f"{package}.{kind}"), name)
+    except (ValueError, ImportError, AttributeError):
+        raise ValueError(f"unknown message type {type_name[:80]!r} (expected pkg/msg/Type of an "
+                         "installed package)") from None
 
 
 def project_msg_files() -> dict[str, Path]:
@@ -40,45 +67,113 @@ def project_msg_files() -> dict[str, Path]:
 
 def default_bag_path() -> Path:
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
-    return root / "bags" / time.strftime("%Y%m%d_%H%M%S", time.gmtime())
+    return root / "bags" / time.strftime("rosbag2_%Y_%m_%d-%H_%M_%S", time.gmtime())
 
 
 class RecorderNode(Node):
-    """rclpy shell around a :class:`BagRecorder` (see module docstring)."""
+    """rclpy shell around a :class:`BagWriter` (see module docstring)."""
 
     def __init__(self, **kwargs):
         super().__init__("recorder", **kwargs)
-        declare_from_package_file(self, "seapup_ident", "recorder.yaml")
-        entries = [t for t in self.get_parameter("topics").value if t]
+        p = declare_from_package_file(self, "seapup_ident", "recorder.yaml", {
+            "topics": ParameterDescriptor(type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True),
+        }, section="recorder")
+        entries = [t for t in p["topics"] if t]
+        self.record_all = bool(p["all"])
+        self.exclude = re.compile(p["exclude"]) if p["exclude"] else None
+        if not entries and not self.record_all:
+            raise ValueError("nothing to record: give topics or set all:=true")
         self.wanted = [e.split(":", 1)[0] for e in entries]
-        path = self.get_parameter("bag_path").value or str(default_bag_path())
-        self.bag = BagRecorder(path, make_typestore(project_msg_files())).open()
+        self.sim_time = bool(self.get_parameter("use_sim_time").value)
+        self.max_stamp_lead_ns = int(p["max_stamp_lead"] * 1e9)
+        self._graph_floor_ns = 0
+        self._clock_wall: list[int] = []  # DDS receive wall times of the /clock samples (increasing)
+        self._clock_sim: list[int] = []   # and their values
+        if self.sim_time:
+            from rosgraph_msgs.msg import Clock
+            self.create_subscription(Clock, "/clock", self._on_clock, EAGER_QOS)
+        path = p["bag_path"] or str(default_bag_path())
+        self.typestore = make_typestore(project_msg_files())
+        self.bag = BagWriter(path, self.typestore, flush_interval=p["flush_interval"]).open()
+        self.stamped: dict[str, bool] = {}
+        self.drain_on_shutdown = True  # run_node takes the messages already received before closing
+        self.received = 0
+        self.max_duration = float(p["max_duration"])
+        self._first_ns: int | None = None
         self.subscribed: dict[str, str] = {}
         for entry in entries:
             if ":" in entry:
-                self._subscribe(*entry.split(":", 1))
-        self.discovery = self.create_timer(self.get_parameter("discovery_period").value,
-                                           self._discover)
-        self.get_logger().info(f"recording {', '.join(self.wanted)} into {self.bag.path}")
+                self._subscribe(*entry.split(":", 1), publishers=[])
+        self.discovery = self.create_timer(p["discovery_period"], self._discover)
+        self.get_logger().info(f"recording {', '.join(self.wanted) or 'all topics'} into {self.bag.path}")
 
     def _discover(self) -> None:
-        known = dict(self.get_topic_names_and_types())
-        for topic in self.wanted:
-            if topic in self.subscribed or topic not in known:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscribed:
                 continue
-            self._subscribe(topic, known[topic][0])
-        if len(self.subscribed) == len(self.wanted):
+            wanted = topic in self.wanted or (self.record_all and not (self.exclude and self.exclude.search(topic)))
+            if not wanted:
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue  # only subscribers so far: wait for a publisher to know its QoS
+            self._subscribe(topic, types[0], publishers)
+        if not self.record_all and len(self.subscribed) == len(self.wanted):
             self.discovery.cancel()
 
-    def _subscribe(self, topic: str, type_name: str) -> None:
+    def _subscribe(self, topic: str, type_name: str, publishers) -> None:
+        qos = adapted_qos(publishers) if publishers else EAGER_QOS
+        offered = [qos_to_rosbag2(i.qos_profile) for i in publishers] or None
+        type_hash = str(publishers[0].topic_type_hash) if publishers else ""
+        self.bag.add_topic(topic, type_name, qos=offered, type_hash=type_hash)
         self.create_subscription(message_class(type_name), topic,
-                                 lambda raw, t=topic, m=type_name: self._record(t, m, raw),
-                                 RECORD_QOS, raw=True)
+                                 lambda raw, info, t=topic: self._record(t, raw, info), qos, raw=True)
         self.subscribed[topic] = type_name
+        fields = self.typestore.fielddefs.get(type_name, ((), []))[1]
+        self.stamped[topic] = bool(fields) and fields[0][0] == "header"
         self.get_logger().info(f"recording {topic} [{type_name}]")
 
-    def _record(self, topic: str, type_name: str, raw: bytes) -> None:
-        self.bag.write(topic, type_name, self.get_clock().now().nanoseconds, raw)
+    @staticmethod
+    def header_stamp_ns(raw: bytes) -> int | None:
+        """The header stamp of a CDR message whose first field is std_msgs/Header."""
+        if len(raw) < 12:
+            return None
+        order = "<" if raw[1] & 1 else ">"
+        sec, nanosec = struct.unpack(order + "iI", raw[4:12])
+        return sec * 1_000_000_000 + nanosec if nanosec < 1_000_000_000 else None
+
+    def _on_clock(self, msg, info) -> None:
+        received = int(info.get("received_timestamp", 0))
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if not self._clock_wall or received >= self._clock_wall[-1]:
+            self._clock_wall.append(received)
+            self._clock_sim.append(t_ns)
+            if len(self._clock_wall) > 200_000:  # bounded memory: keep the recent half
+                del self._clock_wall[:100_000], self._clock_sim[:100_000]
+
+    def graph_time_at(self, received_wall_ns: int) -> int | None:
+        """The /clock value current at a DDS receive (wall) time; None before the first /clock."""
+        k = bisect.bisect_right(self._clock_wall, received_wall_ns) - 1
+        return self._clock_sim[k] if k >= 0 else None
+
+    def _record(self, topic: str, raw: bytes, info) -> None:
+        self.received += 1
+        log_ns = self.get_clock().now().nanoseconds
+        if self.sim_time:
+            at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))
+            if at_receipt is not None:
+                log_ns = at_receipt
+            stamp = self.header_stamp_ns(raw) if self.stamped.get(topic) else None
+            if stamp is not None and log_ns < stamp <= log_ns + self.max_stamp_lead_ns:
+                self._graph_floor_ns = max(self._graph_floor_ns, stamp)
+            log_ns = max(log_ns, self._graph_floor_ns)
+        publish_ns = log_ns if self.sim_time else int(info.get("source_timestamp", log_ns))
+        self.bag.write(topic, raw, log_ns, publish_ns)
+        if self._first_ns is None:
+            self._first_ns = log_ns
+        if self.max_duration > 0 and (log_ns - self._first_ns) * 1e-9 >= self.max_duration:
+            self.get_logger().info(f"max_duration {self.max_duration:g} s reached")
+            raise KeyboardInterrupt("max_duration reached")  # run_node finalises the bag
 
     def destroy_node(self):
         self.bag.close()

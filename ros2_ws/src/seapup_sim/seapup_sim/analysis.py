@@ -15,6 +15,7 @@ The outputs are C = selection of u, v, w, r (sec. 3.7), D = 0.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,7 @@ import scipy.optimize
 
 from seapup_sim.vehicle import VehicleModel
 
-__all__ = ["OUTPUTS", "output_matrix", "linearise", "ZeroInfo", "system_zeros",
+__all__ = ["OUTPUTS", "output_matrix", "linearise", "ZeroInfo", "system_zeros", "trim_sweep", "hover_blade_pitch",
            "transmission_zeros", "TrimError", "Trim", "trim", "speed_loci"]
 
 #: Indices of the outputs u, v, w, r in the state vector.
@@ -142,6 +143,11 @@ class Trim:
     residual: float               # max |acceleration| left [m/s^2, rad/s^2]
     within_limits: bool           # blade pitches inside the +/-35 deg limits
 
+    @property
+    def unknowns(self) -> list[float]:
+        """(theta, main blade pitch, vectored blade pitch): a warm start for a nearby trim."""
+        return [self.pitch_angle, float(self.blade_pitch[0]), float(self.blade_pitch[2])]
+
 
 def trim(model: VehicleModel, surge_speed: float, guess=None, enforce_limits: bool = True) -> Trim:
     """Steady forward flight at ``surge_speed`` [m/s], all other velocities zero.
@@ -191,17 +197,43 @@ def trim(model: VehicleModel, surge_speed: float, guess=None, enforce_limits: bo
     return Trim(float(surge_speed), float(z[0]), pitches(z), state_of(z), float(full), within)
 
 
+def trim_sweep(model: VehicleModel, speeds) -> Iterator[Trim]:
+    """Trims at increasing surge speeds, each warm-started from the previous one.
+
+    Trims beyond the blade limits are included (``within_limits`` False): the
+    equations can still be linearised there (sec. 3.7).
+
+    Raises
+    ------
+    TrimError
+        At the first speed with no trim (the trims before it were yielded).
+    """
+    guess = None
+    for u in speeds:
+        tr = trim(model, float(u), guess, enforce_limits=False)
+        guess = tr.unknowns
+        yield tr
+
+
+def hover_blade_pitch(model: VehicleModel) -> np.ndarray:
+    """The hover setting (eq. 5.2) of ``model``'s present configuration [rad].
+
+    Computed from the trim at zero speed, so it follows the configuration: the
+    baseline hovers at (-3.38, -3.38, -13.10, -13.10) deg (eq. 5.2), the
+    camera-fitted vehicle needs more vectored thrust.
+    """
+    return trim(model, 0.0).blade_pitch.copy()
+
+
 def speed_loci(model: VehicleModel, speeds) -> list[dict]:
     """Trim, eigenvalues and transmission zeros at each surge speed (figs 3.8-3.10).
 
     Trims beyond the blade limits are included (``trim.within_limits`` False).
     """
-    out, guess = [], None
     c = output_matrix()
-    for u in speeds:
-        tr = trim(model, float(u), guess, enforce_limits=False)
-        guess = [tr.pitch_angle, tr.blade_pitch[0], tr.blade_pitch[2]]
+    out = []
+    for tr in trim_sweep(model, speeds):
         a, b = linearise(model, tr.state, tr.blade_pitch)
-        out.append({"surge_speed": float(u), "trim": tr, "eigenvalues": np.linalg.eigvals(a),
+        out.append({"surge_speed": tr.surge_speed, "trim": tr, "eigenvalues": np.linalg.eigvals(a),
                     "zeros": system_zeros(a, b, c)})
     return out

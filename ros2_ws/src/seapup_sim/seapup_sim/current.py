@@ -38,15 +38,17 @@ __all__ = ["CurrentParams", "CurrentCoefficients", "coefficients", "noise_power_
 class CurrentParams:
     """Statistics of the current (SI: m/s, rad, s).
 
-    The thesis's values (sec. 3.9): mean 0.26 m/s (0.5 kt), sigma_c 0.086 m/s
-    (1 kt extreme at 3 sigma), mean direction 0, sigma_alpha 20 deg, T_c 10 s.
+    The thesis's values (sec. 3.9: mean 0.26 m/s, sigma_c 0.086 m/s, mean
+    direction 0, sigma_alpha 20 deg, T_c 10 s) are the ``current`` section of
+    ``environment/default.yaml``, their one place
+    (:func:`seapup_sim.environment_config.load_environment`).
     """
 
-    mean_speed: float = 0.26
-    speed_std: float = 0.086
-    mean_direction: float = 0.0
-    direction_std: float = math.radians(20.0)
-    break_time: float = 10.0
+    mean_speed: float
+    speed_std: float
+    mean_direction: float
+    direction_std: float
+    break_time: float
 
     def __post_init__(self):
         for name in ("mean_speed", "speed_std", "mean_direction", "direction_std", "break_time"):
@@ -79,7 +81,7 @@ def coefficients(params: CurrentParams, sample_time: float) -> CurrentCoefficien
     --------
     The thesis's case (eq. 3.13-3.14):
 
-    >>> c = coefficients(CurrentParams(), 0.2)
+    >>> c = coefficients(CurrentParams(0.26, 0.086, 0.0, math.radians(20.0), 10.0), 0.2)
     >>> round(c.b, 7), round(c.d, 7), round(c.a_c, 7)
     (0.9801987, 0.0198013, 0.0051483)
     """
@@ -149,8 +151,8 @@ class GaussMarkovCurrent:
 
     @classmethod
     def constant(cls, speed: float, direction: float, sample_time: float, rng: np.random.Generator):
-        """A steady current (no noise)."""
-        return cls(CurrentParams(speed, 0.0, direction, 0.0), sample_time, rng)
+        """A steady current (no noise; it starts at its mean, so T_c plays no part)."""
+        return cls(CurrentParams(speed, 0.0, direction, 0.0, 1.0), sample_time, rng)
 
     def step(self) -> tuple[float, float]:
         """Advance one sample (eq. 2.25, 2.26, 2.33); return (speed, direction)."""

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from seapup_sim.blade_pitch import check_blade_pitch
+from seapup_common.blade_pitch import check_blade_pitch
 from seapup_sim.vehicle import STATE_NAMES, VehicleModel
 
 __all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE"]

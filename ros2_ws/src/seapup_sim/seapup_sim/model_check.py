@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from seapup_sim.analysis import TrimError, linearise, trim
+from seapup_sim.analysis import TrimError, linearise, trim, trim_sweep
 from seapup_sim.hydrodynamics import AXES, VELOCITIES, HydroTerm
 from seapup_sim.vehicle import VehicleModel
 
@@ -120,7 +120,7 @@ def check_mass(model: VehicleModel, findings: list[Finding], tol: float = 1e-9) 
     if eig.min() <= 0:
         findings.append(Finding("mass-not-positive", "total mass matrix",
                                 f"smallest eigenvalue {eig.min():g} <= 0"))
-    for name, c in (("CG", model.mass.cg), ("CB", model.mass.cb)):
+    for name, c in (("CG", model.mass_properties.cg), ("CB", model.mass_properties.cb)):
         if abs(c[1]) > tol:
             findings.append(Finding("symmetry", name, f"{name} is off the centreline: y = {c[1]:g} m"))
 
@@ -154,22 +154,23 @@ def check_linear_symmetry(model: VehicleModel, findings: list[Finding], tol: flo
 
 
 def check_speed_range(model: VehicleModel, findings: list[Finding], speeds) -> list[tuple[float, float]]:
-    sweep, guess = [], None
-    for u in speeds:
-        try:  # equilibria beyond the blade limits still say whether the equations are stable
-            tr = trim(model, float(u), guess, enforce_limits=False)
-        except TrimError as exc:
-            findings.append(Finding("instability", f"u = {u:.2f} m/s", f"no trimmed flight: {exc}"))
-            break
-        guess = [tr.pitch_angle, tr.blade_pitch[0], tr.blade_pitch[2]]
-        a, _ = linearise(model, tr.state, tr.blade_pitch)
-        ev = np.linalg.eigvals(a)
-        worst = float(ev.real.max())
-        sweep.append((float(u), worst))
-        if worst > 1e-6:
-            e = ev[np.argmax(ev.real)]
-            findings.append(Finding("instability", f"u = {u:.2f} m/s",
-                                    f"pole {e.real:+.4f}{e.imag:+.4f}j 1/s in the right half plane"))
+    """Max Re(pole) of the trimmed, linearised vehicle at each speed (sec. 3.7).
+
+    Equilibria beyond the blade limits still say whether the equations are stable.
+    """
+    sweep = []
+    try:
+        for tr in trim_sweep(model, speeds):
+            a, _ = linearise(model, tr.state, tr.blade_pitch)
+            ev = np.linalg.eigvals(a)
+            worst = float(ev.real.max())
+            sweep.append((tr.surge_speed, worst))
+            if worst > 1e-6:
+                e = ev[np.argmax(ev.real)]
+                findings.append(Finding("instability", f"u = {tr.surge_speed:.2f} m/s",
+                                        f"pole {e.real:+.4f}{e.imag:+.4f}j 1/s in the right half plane"))
+    except TrimError as exc:
+        findings.append(Finding("instability", "speed sweep", f"no trimmed flight: {exc}"))
     return sweep
 
 

@@ -3,7 +3,11 @@
 Profiles live in ``seapup_sim/environment/sensors.yaml``: ``ideal`` (no
 noise), ``baseline`` (Kallstrom's doppler log and gyros, 3-sigma figures) and
 ``haslar`` (the ARE Haslar pack, optionally with strapdown accelerometer
-integration). Every draw comes from the ``numpy.random.Generator`` passed in.
+integration). Each instrument draws from its own random stream
+(:class:`seapup_common.random_streams.RandomStreams`), so changing one
+instrument's noise or the profile never changes another's draws, nor the
+current's. The readings are a :class:`seapup_common.contract.Measurement`,
+each with its stamp, variance and validity -- what a controller may see.
 
 Readings (all SI, body axes FRD unless named):
 
@@ -12,9 +16,10 @@ Readings (all SI, body axes FRD unless named):
 - ``rates`` (p, q, r) -- rate gyros;
 - ``attitude`` (phi, theta, psi) -- vertical gyro and compass;
 - ``depth`` -- pressure gauge, NED z of the body origin;
-- ``altitude`` -- altimeter range to the seabed along the body z axis;
-- ``position`` (x, y, z NED) -- acoustic fix at ``rate_hz`` with dropouts, or
-  None between fixes or when a fix is lost.
+- ``altitude`` -- altimeter range to the seabed along the body z axis, invalid
+  outside the altimeter's range or when the seabed is out of its view;
+- ``position`` (x, y, z NED) -- acoustic fix at ``rate_hz`` with dropouts,
+  invalid between fixes or when a fix is lost.
 
 With ``strapdown.enabled`` the velocity comes instead from integrating
 accelerometers as at Haslar: specific force plus a drifting zero, with gravity
@@ -31,9 +36,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from seapup_common.contract import Measurement
+from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
-__all__ = ["SensorProfile", "load_sensor_profile", "sensor_profiles", "SensorSuite"]
+__all__ = ["SensorProfile", "load_sensor_profile", "sensor_profiles", "SensorSuite", "INSTRUMENTS"]
+
+#: The instruments, each with its own random stream ``sensors.<name>``.
+INSTRUMENTS = ("velocity", "rates", "attitude", "depth", "altitude", "position", "position_dropout",
+               "strapdown")
 
 
 def _profiles_file() -> Path:
@@ -41,12 +52,13 @@ def _profiles_file() -> Path:
 
 
 def sensor_profiles() -> list[str]:
+    """Names of the profiles in ``sensors.yaml``."""
     return sorted(yaml.safe_load(_profiles_file().read_text()))
 
 
 @dataclass(frozen=True)
 class SensorProfile:
-    """Noise levels of one instrument fit (SI standard deviations)."""
+    """Noise levels of one instrument fit (SI standard deviations) and the altimeter's geometry."""
 
     name: str
     velocity_std: tuple = (0.0, 0.0, 0.0)
@@ -57,6 +69,9 @@ class SensorProfile:
     position_std: float = 0.0
     position_rate_hz: float = 1.0
     position_dropout: float = 0.0
+    altimeter_min_range: float = 0.0
+    altimeter_max_range: float = math.inf
+    altimeter_field_of_view: float = 0.0
     strapdown: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -69,20 +84,41 @@ class SensorProfile:
                              ">= 0, dropout in [0, 1]")
         if not (0 < self.position_rate_hz <= 1.0):
             raise ValueError(f"sensor profile {self.name!r}: acoustic fix rate must be in (0, 1] Hz")
+        if not (0 <= self.altimeter_min_range < self.altimeter_max_range
+                and 0 <= self.altimeter_field_of_view < math.pi):
+            raise ValueError(f"sensor profile {self.name!r}: altimeter range must satisfy 0 <= min < max "
+                             "and its field of view be in [0, pi) rad")
+
+    @property
+    def strapdown_enabled(self) -> bool:
+        """Velocity from integrated accelerometers instead of the doppler log."""
+        return bool((self.strapdown or {}).get("enabled", False))
+
+    def variances(self) -> dict:
+        """Variance of each measurement field (for the readings and the message covariances)."""
+        return {"velocity": np.square(self.velocity_std), "rates": np.square(self.rate_std),
+                "attitude": np.square(self.attitude_std), "depth": self.depth_std ** 2,
+                "altitude": self.altitude_std ** 2, "position": np.full(3, self.position_std ** 2)}
 
 
 def load_sensor_profile(name: str) -> SensorProfile:
     """A profile from ``sensors.yaml`` by name."""
     profiles = yaml.safe_load(_profiles_file().read_text())
     if name not in profiles:
-        raise ValueError(f"no sensor profile {name!r} (available: {', '.join(sorted(profiles))})")
+        raise ValueError(f"no sensor profile {str(name)[:80]!r} (available: {', '.join(sorted(profiles))})")
     p = profiles[name] or {}
     pos = p.get("position", {})
+    alt = p.get("altimeter", {})
     return SensorProfile(name, tuple(p.get("velocity_std", (0.0,) * 3)), tuple(p.get("rate_std", (0.0,) * 3)),
                          tuple(p.get("attitude_std", (0.0,) * 3)), float(p.get("depth_std", 0.0)),
                          float(p.get("altitude_std", 0.0)), float(pos.get("std", 0.0)),
                          float(pos.get("rate_hz", 1.0)), float(pos.get("dropout", 0.0)),
-                         dict(p.get("strapdown", {})))
+                         float(alt.get("min_range", 0.0)), float(alt.get("max_range", math.inf)),
+                         float(alt.get("field_of_view", 0.0)), dict(p.get("strapdown", {})))
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 class SensorSuite:
@@ -91,81 +127,89 @@ class SensorSuite:
     Parameters
     ----------
     profile : SensorProfile
-    rng : numpy.random.Generator
+        May be replaced at run time (:attr:`profile`); a change of strapdown
+        mode takes effect at the next reading.
+    streams : RandomStreams
+        One stream per instrument (``sensors.<instrument>``).
     seabed : callable (x, y) -> depth, optional
-        For the altimeter; without it altitude is None.
+        For the altimeter; without it altitude is invalid.
+    g : float
+        Gravity [m/s^2] (the vehicle configuration's), for the strapdown's
+        gravity compensation.
     """
 
-    def __init__(self, profile: SensorProfile, rng: np.random.Generator, seabed=None):
-        if not isinstance(rng, np.random.Generator):
-            raise TypeError("rng must be a numpy.random.Generator")
+    def __init__(self, profile: SensorProfile, streams: RandomStreams, seabed=None, g: float = 9.81):
+        if not isinstance(streams, RandomStreams):
+            raise TypeError("streams must be a seapup_common.random_streams.RandomStreams")
         self.profile = profile
-        self.rng = rng
+        self.rng = {name: streams.generator(f"sensors.{name}") for name in INSTRUMENTS}
         self.seabed = seabed
+        self.g = float(g)
         self._next_fix = 0.0
-        sd = profile.strapdown or {}
-        self.strapdown = bool(sd.get("enabled", False))
         self._sd_velocity = None
         self._sd_bias = np.zeros(3)
-        self._sd_att_err = np.asarray(sd.get("attitude_error", (0.0, 0.0, 0.0)), float)
-        self._sd_walk = float(sd.get("bias_random_walk", 0.0))
-        self._sd_noise = float(sd.get("accel_std", 0.0))
         self._last_t = None
 
-    def _noise(self, std) -> np.ndarray:
+    def _noise(self, instrument: str, std) -> np.ndarray:
         std = np.asarray(std, float)
-        return std * self.rng.standard_normal(std.shape) if np.any(std > 0) else np.zeros(std.shape)
+        if not np.any(std > 0):
+            return np.zeros(std.shape)
+        return std * self.rng[instrument].standard_normal(std.shape)
 
-    def _strapdown_velocity(self, t: float, state: np.ndarray, accel_body: np.ndarray) -> np.ndarray:
-        """Integrate accelerometers with a wrong attitude and drifting zeros."""
-        g = 9.81
-        true_down = rotation_body_to_ned(*state[3:6])[2]
-        est = state[3:6] + self._sd_att_err
+    def _strapdown_velocity(self, t: float, state: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
+        """Integrate accelerometers (true specific force + drifting zero + noise), removing
+        gravity with an attitude that is wrong by the profile's ``attitude_error``."""
+        sd = self.profile.strapdown
+        est = state[3:6] + np.asarray(sd.get("attitude_error", (0.0, 0.0, 0.0)), float)
         est_down = rotation_body_to_ned(*est)[2]
-        # specific force measured: f = v_dot + w x v - g (body); gravity removed
-        # with the estimated attitude
-        specific = accel_body + cross(state[9:12], state[6:9]) - g * true_down
         if self._sd_velocity is None or self._last_t is None:
-            self._sd_velocity = state[6:9].copy()  # aligned at start
+            self._sd_velocity = state[6:9].copy()  # aligned when strapdown starts
             self._last_t = t
             return self._sd_velocity.copy()
         dt = t - self._last_t
         self._last_t = t
-        self._sd_bias += self._sd_walk * math.sqrt(max(dt, 0.0)) * self.rng.standard_normal(3)
-        measured = specific + self._sd_bias + self._sd_noise * self.rng.standard_normal(3)
+        rng = self.rng["strapdown"]
+        self._sd_bias += float(sd.get("bias_random_walk", 0.0)) * math.sqrt(max(dt, 0.0)) * rng.standard_normal(3)
+        measured = specific_force + self._sd_bias + float(sd.get("accel_std", 0.0)) * rng.standard_normal(3)
         v = self._sd_velocity
-        v_dot = measured + g * est_down - cross(state[9:12], v)
+        v_dot = measured + self.g * est_down - cross(state[9:12], v)
         self._sd_velocity = v + dt * v_dot
         return self._sd_velocity.copy()
 
-    def measure(self, t: float, state: np.ndarray, accel_body=None) -> dict:
+    def _altitude(self, state: np.ndarray) -> float | None:
+        p = self.profile
+        if self.seabed is None:
+            return None
+        vertical = self.seabed(state[0], state[1]) - state[2]
+        tilt = math.cos(state[3]) * math.cos(state[4])
+        if vertical <= 0 or tilt <= 0:
+            return None  # seabed above the vehicle, or the beam pointing up
+        # slant range along body z over a locally flat bottom; beyond max_range: no echo
+        reading = vertical / tilt + self._noise("altitude", [p.altitude_std])[0]
+        return float(reading) if p.altimeter_min_range <= reading <= p.altimeter_max_range else None
+
+    def measure(self, t: float, state: np.ndarray, specific_force=None) -> Measurement:
         """Readings at time ``t`` for the true ``state`` (see module docstring).
 
-        ``accel_body`` (du/dt, dv/dt, dw/dt) is needed only for strapdown.
+        ``specific_force`` (body axes, :func:`seapup_sim.vehicle.specific_force`)
+        is needed only for strapdown velocity.
         """
         p = self.profile
-        out = {"t": t}
-        if self.strapdown:
-            if accel_body is None:
-                raise ValueError("strapdown velocity needs the body accelerations")
-            out["velocity"] = self._strapdown_velocity(t, state, np.asarray(accel_body, float))
+        values = {}
+        if p.strapdown_enabled:
+            if specific_force is None:
+                raise ValueError("strapdown velocity needs the specific force")
+            values["velocity"] = self._strapdown_velocity(t, state, np.asarray(specific_force, float))
         else:
-            out["velocity"] = state[6:9] + self._noise(p.velocity_std)
-        out["rates"] = state[9:12] + self._noise(p.rate_std)
-        att = state[3:6] + self._noise(p.attitude_std)
-        att[0] = (att[0] + math.pi) % (2 * math.pi) - math.pi
-        att[2] = (att[2] + math.pi) % (2 * math.pi) - math.pi
-        out["attitude"] = att
-        out["depth"] = float(state[2] + self._noise([p.depth_std])[0])
-        out["altitude"] = None
-        if self.seabed is not None:
-            vertical = self.seabed(state[0], state[1]) - state[2]
-            tilt = math.cos(state[3]) * math.cos(state[4])
-            if vertical > 0 and tilt > 0.1:  # range along the body z axis, flat-bottom approximation
-                out["altitude"] = float(vertical / tilt + self._noise([p.altitude_std])[0])
-        out["position"] = None
+            self._sd_velocity = self._last_t = None  # re-aligned if strapdown is switched on later
+            values["velocity"] = state[6:9] + self._noise("velocity", p.velocity_std)
+        values["rates"] = state[9:12] + self._noise("rates", p.rate_std)
+        att = state[3:6] + self._noise("attitude", p.attitude_std)
+        values["attitude"] = np.array([_wrap(att[0]), att[1], _wrap(att[2])])
+        values["depth"] = float(state[2] + self._noise("depth", [p.depth_std])[0])
+        values["altitude"] = self._altitude(state)
         if t + 1e-9 >= self._next_fix:
             self._next_fix = t + 1.0 / p.position_rate_hz
-            if self.rng.random() >= p.position_dropout:
-                out["position"] = state[:3] + self._noise([p.position_std] * 3)
-        return out
+            if self.rng["position_dropout"].random() >= p.position_dropout:
+                values["position"] = state[:3] + self._noise("position", [p.position_std] * 3)
+        return Measurement.build(t, variances=p.variances(), **values)

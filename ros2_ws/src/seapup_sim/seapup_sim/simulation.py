@@ -1,8 +1,9 @@
 """The simulation loop without ROS: vehicle, environment and a sampled controller.
 
 This is fig. 5.1 of the thesis in code. A controller sampled every
-``control_period`` T sees the outputs sampled at t_k (truth and sensor
-readings) and returns a blade-pitch command, which is held (zero-order hold)
+``control_period`` T sees the sensor readings at t_k (a
+:class:`~seapup_common.contract.Measurement`, never the true state) and a
+reference, and returns a blade-pitch command, which is held (zero-order hold)
 while the plant is integrated from t_k to t_k + T in physics steps of ``dt``.
 Within each physics step the current advances one sample of its Gauss-Markov
 process (sample time dt: its statistics do not depend on dt) and the
@@ -12,47 +13,37 @@ configuration (e.g. the camera added at 65 s, sec. 7.4.4), thruster
 efficiencies (fouling) or the current statistics (step changes, sec. 5.4.3)
 at given times.
 
+The run-time changes -- configuration, thruster efficiency, current, sensor
+profile -- are methods of :class:`Simulation`, used alike by scheduled
+events and by the simulator node's services. Randomness comes from one
+stream per component (:class:`~seapup_common.random_streams.RandomStreams`):
+the current's realisation does not depend on the sensors, and vice versa.
+
 Every later scenario -- open-loop tests, closed-loop SIL, identification
 runs -- can run through :class:`Simulation` with or without ROS; the
-simulator node is a shell around it.
+simulator node is a shell around it. The log keeps the truth (for analysis)
+next to every measurement and reference the controller saw.
 """
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import yaml
 
+from seapup_common.contract import (MEASUREMENT_FIELDS, Command, Measurement, Reference,
+                                    VelocityController)
+from seapup_common.random_streams import RandomStreams
 from seapup_sim.current import CurrentParams, GaussMarkovCurrent
+from seapup_sim.environment_config import EnvironmentConfig, load_environment
 from seapup_sim.integrator import VehicleIntegrator
-from seapup_sim.seabed import Seabed
-from seapup_sim.sensors import SensorSuite, load_sensor_profile
-from seapup_sim.umbilical import Umbilical, UmbilicalParams
-from seapup_sim.vehicle import VehicleModel
-from seapup_sim.vehicle_config import load_vehicle_config, merge_config
+from seapup_sim.sensors import SensorProfile, SensorSuite
+from seapup_sim.umbilical import Umbilical
+from seapup_sim.vehicle import VehicleModel, specific_force
+from seapup_sim.vehicle_config import load_vehicle_config
 
-__all__ = ["Event", "Sample", "SimulationLog", "Simulation", "load_environment", "umbilical_from_environment"]
-
-
-def load_environment(overrides: dict | None = None) -> dict:
-    """The default environment (``environment/default.yaml``) merged with ``overrides``."""
-    path = Path(str(resources.files("seapup_sim") / "environment" / "default.yaml"))
-    return merge_config(yaml.safe_load(path.read_text()), overrides or {})
-
-
-def umbilical_from_environment(section: dict, rho: float) -> Umbilical:
-    """The umbilical of an environment's ``umbilical`` section (C_D = strumming
-    factor x still-water C_D0, sec. 2.3.4)."""
-    params = UmbilicalParams(section["diameter"],
-                             section["strumming_factor"] * section["still_water_drag_coefficient"],
-                             section["weight_per_length"], section["length_ratio"], rho,
-                             tuple(section["attachment"]), section["min_flow"], section["max_gravity_ratio"])
-    return Umbilical(params, section["ship_ned"])
+__all__ = ["Event", "Sample", "SimulationLog", "Simulation"]
 
 
 @dataclass(frozen=True)
@@ -72,29 +63,63 @@ class Event:
             raise ValueError(f"event time must be finite and >= 0, got {self.time!r}")
 
 
-@dataclass
+@dataclass(frozen=True)
 class Sample:
-    """What the controller sees at t_k."""
+    """Everything at t_k: the truth (for analysis and the simulator's truth
+    topics) and the measurement (what a controller may see)."""
 
     t: float
     state: np.ndarray                 # truth (12,)
-    measurement: dict | None          # sensor readings (None without sensors)
+    measurement: Measurement
+    specific_force: np.ndarray        # (3,) body axes [m/s^2]
     current_ned: np.ndarray           # (3,)
     umbilical_body: np.ndarray        # (6,) wrench on the vehicle
 
 
 @dataclass
 class SimulationLog:
-    """Histories at the control instants, in preallocated arrays."""
+    """Histories at the control instants, in preallocated arrays.
+
+    ``measured[name]`` holds each :data:`~seapup_common.contract.MEASUREMENT_FIELDS`
+    reading (NaN where invalid: no fix, seabed out of range); ``reference`` the
+    reference the controller was given (NaN at the last instant, where no
+    command is asked for).
+    """
 
     t: np.ndarray
     state: np.ndarray
     command: np.ndarray               # held from t[k] to t[k+1]
-    pitch: np.ndarray                 # applied blade pitch at t[k]
+    blade_pitch: np.ndarray           # applied blade pitch at t[k]
     current_ned: np.ndarray
     umbilical_body: np.ndarray
-    measured_velocity: np.ndarray     # NaN without sensors
+    measured: dict
+    reference: np.ndarray
     extra: dict = field(default_factory=dict)
+
+    @classmethod
+    def allocate(cls, n: int) -> "SimulationLog":
+        """A log for ``n`` samples, filled with NaN."""
+        def nan(*shape):
+            return np.full((n, *shape), np.nan)
+        measured = {name: nan(size) if size else nan() for name, (size, _) in MEASUREMENT_FIELDS.items()}
+        return cls(nan(), nan(12), nan(4), nan(4), nan(3), nan(6), measured, nan(4))
+
+    def record(self, k: int, sample: Sample, blade_pitch: np.ndarray) -> None:
+        self.t[k], self.state[k], self.blade_pitch[k] = sample.t, sample.state, blade_pitch
+        self.current_ned[k], self.umbilical_body[k] = sample.current_ned, sample.umbilical_body
+        for name in MEASUREMENT_FIELDS:
+            reading = getattr(sample.measurement, name)
+            if reading.valid:
+                self.measured[name][k] = reading.value
+
+
+def _reference_at(reference, t: float) -> Reference:
+    if reference is None:
+        return Reference()
+    if isinstance(reference, Reference):
+        return reference
+    value = reference(t)
+    return value if isinstance(value, Reference) else Reference(value)
 
 
 class Simulation:
@@ -110,15 +135,16 @@ class Simulation:
     current, umbilical, sensors : optional environment parts
     events : iterable of Event
     state, pitch : initial state (12,) and applied blade pitch (4,)
-    rng : numpy.random.Generator, optional
-        For a current created by an event (default: seeded with 0).
+    streams : RandomStreams, optional
+        The run's random streams (default: seed 0). A current created later
+        (event or :meth:`set_current`) draws from stream ``current``.
     """
 
     def __init__(self, model: VehicleModel, *, dt: float = 0.1, control_period: float = 0.2,
                  current: GaussMarkovCurrent | None = None, umbilical: Umbilical | None = None,
                  sensors: SensorSuite | None = None, events=(), state=None, pitch=None,
-                 rng: np.random.Generator | None = None):
-        self.rng = rng if rng is not None else np.random.default_rng(0)
+                 streams: RandomStreams | None = None):
+        self.streams = streams if streams is not None else RandomStreams(0)
         steps = control_period / dt
         if not (math.isfinite(steps) and steps >= 1 - 1e-9 and abs(steps - round(steps)) < 1e-9):
             raise ValueError(f"control period {control_period} s must be a whole number of "
@@ -129,6 +155,7 @@ class Simulation:
         if current is not None and abs(current.sample_time - dt) > 1e-12:
             raise ValueError("the current's sample time must equal the physics step")
         self.current = current
+        self._current_rng = current.rng if current is not None else self.streams.generator("current")
         self.umbilical = umbilical
         self.sensors = sensors
         self.events = sorted(events, key=lambda e: e.time)
@@ -137,26 +164,28 @@ class Simulation:
         self._accel = np.zeros(3)
 
     @classmethod
-    def from_config(cls, vehicle: str | dict, environment: dict | None = None, *, seed: int = 0,
+    def from_config(cls, vehicle: str | dict, environment=None, *, seed: int = 0,
                     dt: float = 0.1, control_period: float = 0.2, events=(), state=None, pitch=None):
-        """Build vehicle and environment from names/dicts (see ``load_environment``)."""
+        """Build vehicle and environment from a configuration name (or dict) and an
+        environment (overrides, file or :class:`EnvironmentConfig`; see
+        :func:`~seapup_sim.environment_config.load_environment`)."""
         model = VehicleModel(load_vehicle_config(vehicle) if isinstance(vehicle, str) else vehicle)
-        env = load_environment(environment)
-        rng = np.random.default_rng(seed)
-        current = None
-        if env["current"].get("enabled"):
-            c = env["current"]
-            current = GaussMarkovCurrent(CurrentParams(c["mean_speed"], c["speed_std"], c["mean_direction"],
-                                                       c["direction_std"], c["break_time"]), dt, rng)
-        umbilical = umbilical_from_environment(env["umbilical"], model.rho) if env["umbilical"].get("enabled") else None
-        seabed = Seabed.from_config(env["seabed"])
-        sensors = SensorSuite(load_sensor_profile(env["sensors"]), rng, seabed)
+        env: EnvironmentConfig = load_environment(environment, rho=model.rho)
+        streams = RandomStreams(seed)
+        current = (GaussMarkovCurrent(env.current.params, dt, streams.generator("current"))
+                   if env.current.enabled else None)
+        umbilical = env.umbilical.build() if env.umbilical.enabled else None
+        sensors = SensorSuite(env.sensors, streams, env.seabed, g=model.g)
         return cls(model, dt=dt, control_period=control_period, current=current, umbilical=umbilical,
-                   sensors=sensors, events=events, state=state, pitch=pitch, rng=rng)
+                   sensors=sensors, events=events, state=state, pitch=pitch, streams=streams)
 
     @property
     def t(self) -> float:
         return self.plant.t
+
+    @property
+    def model(self) -> VehicleModel:
+        return self.plant.model
 
     @property
     def state(self) -> np.ndarray:
@@ -167,34 +196,58 @@ class Simulation:
         """d(u, v, w)/dt over the last physics step [m/s^2], body axes."""
         return self._accel.copy()
 
-    def _current_ned(self) -> np.ndarray:
-        return self.current.velocity_ned() if self.current is not None else np.zeros(3)
+    # -- run-time changes (scheduled events and the simulator's services) ----------
+    def set_configuration(self, configuration: str | dict) -> None:
+        """Switch the vehicle configuration in flight; the state carries over, and
+        so do thruster efficiencies unless the new configuration sets its own."""
+        cfg = load_vehicle_config(configuration) if isinstance(configuration, str) else configuration
+        efficiency = self.model.thrusters.efficiency.copy()
+        self.model.configure(cfg)
+        if "thruster_efficiency" not in cfg:
+            self.model.thrusters.set_efficiency(efficiency)
+
+    def set_thruster_efficiency(self, efficiency) -> None:
+        """Fouling factors on the four thrusters (sec. 7.4.4)."""
+        self.model.thrusters.set_efficiency(efficiency)
+
+    def set_current(self, params: CurrentParams | None) -> None:
+        """Change the current's statistics (it relaxes to the new mean with T_c, a step
+        change of sec. 5.4.3), start one at its mean, or remove it (None)."""
+        if params is None:
+            self.current = None
+        elif self.current is None:
+            self.current = GaussMarkovCurrent(params, self.plant.dt, self._current_rng)
+        else:
+            self.current.set_params(params)
+
+    def set_sensor_profile(self, profile: SensorProfile) -> None:
+        """Another instrument fit; each instrument keeps its own random stream."""
+        if self.sensors is None:
+            raise ValueError("this simulation has no sensors")
+        self.sensors.profile = profile
 
     def _apply_events(self) -> None:
         while self._next_event < len(self.events) and self.events[self._next_event].time <= self.t + 1e-9:
             ev = self.events[self._next_event]
             self._next_event += 1
-            model = self.plant.model
             if ev.kind == "configuration":
-                cfg = load_vehicle_config(ev.value) if isinstance(ev.value, str) else copy.deepcopy(ev.value)
-                efficiency = model.thrusters.efficiency.copy()
-                model.configure(cfg)
-                if "thruster_efficiency" not in cfg:
-                    model.thrusters.set_efficiency(efficiency)
+                self.set_configuration(ev.value)
             elif ev.kind == "thruster_efficiency":
-                model.thrusters.set_efficiency(ev.value)
-            elif ev.value is None:
-                self.current = None
-            elif self.current is None:
-                self.current = GaussMarkovCurrent(ev.value, self.plant.dt, self.rng)
+                self.set_thruster_efficiency(ev.value)
             else:
-                self.current.set_params(ev.value)
+                self.set_current(ev.value)
+
+    # -- stepping ---------------------------------------------------------------------
+    def _current_ned(self) -> np.ndarray:
+        return self.current.velocity_ned() if self.current is not None else np.zeros(3)
 
     def sample(self) -> Sample:
-        """Outputs at the present control instant."""
+        """Truth and sensor readings at the present control instant."""
         state = self.plant.state.copy()
-        meas = self.sensors.measure(self.t, state, self._accel) if self.sensors is not None else None
-        return Sample(self.t, state, meas, self._current_ned(), self._umbilical_wrench.copy())
+        force = specific_force(state, self._accel, self.model.g)
+        meas = (self.sensors.measure(self.t, state, force) if self.sensors is not None
+                else Measurement(self.t))
+        return Sample(self.t, state, meas, force, self._current_ned(), self._umbilical_wrench.copy())
 
     def advance(self, command) -> None:
         """Hold ``command`` [rad] for one control period."""
@@ -210,24 +263,40 @@ class Simulation:
             if self.current is not None:
                 self.current.step()
 
-    def run(self, controller: Callable[[Sample], np.ndarray], duration: float,
+    def run(self, controller: VelocityController, duration: float, reference=None,
             progress: Callable[[float], None] | None = None) -> SimulationLog:
-        """Run ``controller`` in the loop for ``duration`` [s]; return the log."""
+        """Fly ``controller`` for ``duration`` [s]; return the log.
+
+        Parameters
+        ----------
+        controller : VelocityController
+            Reset first with the applied command (bumpless start), then updated
+            every control period with the measurement and reference; its
+            ``sample_period`` must equal the simulation's control period.
+        reference : Reference, callable t -> Reference or (4,) array, optional
+            The velocity reference (default: zero velocity).
+        progress : callable, optional
+            Called with the fraction done after every sample.
+        """
+        if not isinstance(controller, VelocityController):
+            raise TypeError(f"{type(controller).__name__} is not a VelocityController "
+                            "(needs sample_period, reset(applied) and update(t, measurement, reference))")
+        if abs(controller.sample_period - self.control_period) > 1e-9:
+            raise ValueError(f"the controller samples every {controller.sample_period} s, the simulation "
+                             f"every {self.control_period} s")
         n = int(round(duration / self.control_period))
-        log = SimulationLog(np.empty(n + 1), np.empty((n + 1, 12)), np.full((n + 1, 4), np.nan),
-                            np.empty((n + 1, 4)), np.empty((n + 1, 3)), np.empty((n + 1, 6)),
-                            np.full((n + 1, 3), np.nan))
+        log = SimulationLog.allocate(n + 1)
+        controller.reset(Command(self.plant.pitch.copy(), self.t))
         for k in range(n + 1):
-            s = self.sample()
-            log.t[k], log.state[k], log.pitch[k] = s.t, s.state, self.plant.pitch
-            log.current_ned[k], log.umbilical_body[k] = s.current_ned, s.umbilical_body
-            if s.measurement is not None:
-                log.measured_velocity[k] = s.measurement["velocity"]
+            sample = self.sample()
+            log.record(k, sample, self.plant.pitch)
             if k == n:
                 break
-            command = np.asarray(controller(s), float)
-            log.command[k] = command
-            self.advance(command)
+            ref = _reference_at(reference, sample.t)
+            command = controller.update(sample.t, sample.measurement, ref)
+            log.reference[k] = ref.velocity
+            log.command[k] = command.blade_pitch
+            self.advance(command.blade_pitch)
             if progress is not None:
                 progress((k + 1) / n)
         return log

@@ -136,7 +136,8 @@ class ThrusterSet:
         a property of the rotating propeller and is not scaled."""
         eff = np.asarray(efficiency, float)
         if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
-            raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got {efficiency!r}")
+            shown = ", ".join(f"{float(x):g}" for x in eff.ravel()[:8]) if eff.size else str(efficiency)[:80]
+            raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got [{shown}]")
         self.efficiency = eff.copy()
 
     def thrust_coefficient(self, advance: np.ndarray, pitch: np.ndarray) -> np.ndarray:

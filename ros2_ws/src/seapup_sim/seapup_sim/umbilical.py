@@ -86,16 +86,18 @@ class UmbilicalError(RuntimeError):
 
 @dataclass(frozen=True)
 class UmbilicalParams:
-    """Cable data (SI). Defaults: the thesis's Seapup cable (sec. 3.8)."""
+    """Cable data (SI). The thesis's Seapup cable (sec. 3.8) is the ``umbilical``
+    section of ``environment/default.yaml``
+    (:func:`seapup_sim.environment_config.load_environment`)."""
 
-    diameter: float = 0.025             # t [m]
-    drag_coefficient: float = 3.0       # C_D = 2.5 (strumming, sec. 2.3.4) x C_D0 1.2
-    weight_per_length: float = 0.0      # in water [N/m] ("negligible")
-    length_ratio: float = 1.4           # cable length / straight line (sec. 3.8)
-    rho: float = 1025.0
+    diameter: float                # t [m]
+    drag_coefficient: float        # normal C_D (strumming factor x C_D0, sec. 2.3.4)
+    weight_per_length: float       # in water [N/m]
+    length_ratio: float            # cable length / straight line (sec. 3.8)
+    rho: float                     # water density [kg/m^3]
     attachment: tuple = (0.0, 0.0, 0.0)  # body axes [m]
-    min_flow: float = 0.01              # [m/s] below: bypass
-    max_gravity_ratio: float = 0.1      # w / (K U^2) above: bypass (sec. 2.3.4)
+    min_flow: float = 0.01         # [m/s] below: bypass
+    max_gravity_ratio: float = 0.1  # w / (K U^2) above: bypass (sec. 2.3.4)
 
     @property
     def k(self) -> float:

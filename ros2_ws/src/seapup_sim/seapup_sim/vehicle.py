@@ -36,10 +36,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.config import ConfigView
 from seapup_sim.hydrodynamics import HydroTable
 from seapup_sim.thrusters import ThrusterSet
 
-__all__ = ["cross", "kirchhoff_coriolis", "skew", "rotation_body_to_ned", "euler_rate_matrix", "VehicleModel", "STATE_NAMES"]
+__all__ = ["cross", "kirchhoff_coriolis", "skew", "rotation_body_to_ned", "euler_rate_matrix", "specific_force",
+           "VehicleModel", "STATE_NAMES"]
 
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
 
@@ -79,6 +82,26 @@ def rotation_body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
         [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
         [-st, ct * sf, ct * cf],
     ])
+
+
+def specific_force(state, accel_body, g: float) -> np.ndarray:
+    """What an accelerometer at the body origin feels, body axes [m/s^2].
+
+    f = d(u, v, w)/dt + omega x (u, v, w) - g R^T e_z: the acceleration of the
+    origin in the NED frame (eq. 2.3's left side, linear part) less gravity,
+    expressed in body axes (R of eq. 2.1). At rest and level f = (0, 0, -g).
+
+    Parameters
+    ----------
+    state : array_like, shape (12,)
+    accel_body : array_like, shape (3,)
+        d(u, v, w)/dt [m/s^2].
+    g : float
+        Gravity [m/s^2] (the configuration's ``environment.g``).
+    """
+    x = np.asarray(state, float)
+    down_in_body = rotation_body_to_ned(x[3], x[4], x[5])[2]
+    return np.asarray(accel_body, float) + cross(x[9:12], x[6:9]) - g * down_in_body
 
 
 def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:
@@ -156,14 +179,19 @@ class VehicleModel:
 
     def configure(self, config: dict) -> None:
         """(Re)build the model from a configuration; the state lives elsewhere,
-        so a configuration can be switched while a simulation runs."""
+        so a configuration can be switched while a simulation runs.
+
+        A missing or malformed key raises :class:`~seapup_common.config.ConfigError`
+        naming the configuration and the key."""
+        raw = config.raw() if isinstance(config, ConfigView) else config
+        config = ConfigView(raw, f"vehicle configuration {raw.get('name', 'unnamed')!r}")
         env = config["environment"]
-        self.rho = float(env["rho"])
-        self.g = float(env["g"])
+        self.rho = env.number("rho", lo=0.0, lo_open=True)
+        self.g = env.number("g", lo=0.0, lo_open=True)
         self.config_name = config.get("name", "unnamed")
-        self.mass = compose_mass_properties(config["rigid_body"], config["added_mass"],
+        self.mass_properties = compose_mass_properties(config["rigid_body"], config["added_mass"],
                                             config.get("payloads"), self.rho)
-        mp = self.mass
+        mp = self.mass_properties
         m_rb = np.zeros((6, 6))
         m_rb[:3, :3] = mp.mass * np.eye(3)
         m_rb[:3, 3:] = -mp.mass * skew(mp.cg)
@@ -176,19 +204,19 @@ class VehicleModel:
         self.weight = mp.mass * self.g
         self.buoyancy = mp.buoyancy_mass * self.g
         self._hydrostatic_arm = tuple(self.weight * mp.cg - self.buoyancy * mp.cb)
-        self.hydro = HydroTable(config["hydrodynamics"])
+        self.hydro = HydroTable(config["hydrodynamics"].raw())
         th = config["thrusters"]
         self.thrusters = ThrusterSet(
             rho=self.rho, shaft_speed=th["shaft_speed"], diameter=th["diameter"],
-            k_beta=th["k_beta"], k_j=th["k_j"], zero_thrust_pitch=np.radians(th["zero_thrust_pitch_deg"]),
+            k_beta=th["k_beta"], k_j=th["k_j"], zero_thrust_pitch=np.radians(th.number("zero_thrust_pitch_deg")),
             positions=th["positions"], directions=th["directions"], installation=th["installation"],
             rotation=th["rotation"], torque_ratio=th["torque_ratio"],
-            momentum_drag_factor=th.get("momentum_drag_factor", 1.0),
-            momentum_drag_epsilon=th.get("momentum_drag_epsilon", 0.005))
+            momentum_drag_factor=th.number("momentum_drag_factor", 1.0, lo=0.0),
+            momentum_drag_epsilon=th.number("momentum_drag_epsilon", 0.005, lo=0.0, lo_open=True))
         self.thrusters.set_efficiency(config.get("thruster_efficiency", [1.0, 1.0, 1.0, 1.0]))
-        self.pitch_limit = np.radians(float(th["pitch_limit_deg"]))
-        self.actuator_time_constant = float(th["actuator_time_constant"])
-        self.config = config
+        self.pitch_limit = BLADE_PITCH_LIMIT  # the Seapup's blades (seapup_common/data/interface.yaml)
+        self.actuator_time_constant = th.number("actuator_time_constant", lo=0.0)
+        self.config = raw
 
     # -- force terms ------------------------------------------------------
     def rigid_coriolis(self, nu: np.ndarray) -> np.ndarray:

@@ -2,24 +2,21 @@
 
 A configuration is data: ``seapup_sim/vehicles/<name>.yaml`` (shipped inside
 the package, so the pure core finds it without ROS). A file may start with
-``extends: <other>``; it is then merged over that configuration: mappings merge
-key by key (so an overlay can change one hydrodynamic derivative), any other
-value replaces the base's. Every parameter documents its origin in a comment
-next to it.
+``extends: <other>``; it is then merged over that configuration
+(:func:`seapup_common.config.load_yaml`): mappings merge key by key (so an
+overlay can change one hydrodynamic derivative), any other value replaces the
+base's. Every parameter documents its origin in a comment next to it. The
+model reads the result through a :class:`~seapup_common.config.ConfigView`,
+so a missing or bad key is named in the error.
 """
 from __future__ import annotations
 
-import copy
 from importlib import resources
 from pathlib import Path
 
-import yaml
+from seapup_common.config import ConfigError, load_yaml
 
-__all__ = ["ConfigError", "available_configs", "load_vehicle_config", "merge_config"]
-
-
-class ConfigError(ValueError):
-    """A vehicle configuration that cannot be found or merged."""
+__all__ = ["ConfigError", "available_configs", "load_vehicle_config"]
 
 
 def _vehicles_dir() -> Path:
@@ -31,35 +28,23 @@ def available_configs() -> list[str]:
     return sorted(p.stem for p in _vehicles_dir().glob("*.yaml"))
 
 
-def merge_config(base: dict, overlay: dict) -> dict:
-    """Deep merge: mappings merge recursively, other values replace (copies)."""
-    out = copy.deepcopy(base)
-    for key, value in overlay.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merge_config(out[key], value)
-        else:
-            out[key] = copy.deepcopy(value)
-    return out
+def load_vehicle_config(name_or_path: str | Path) -> dict:
+    """Load a configuration by shipped name (``baseline``, ``camera``) or path.
 
-
-def load_vehicle_config(name_or_path: str | Path, _seen: tuple = ()) -> dict:
-    """Load a configuration by shipped name (``baseline``, ``camera``) or path."""
+    Raises
+    ------
+    ConfigError
+        If there is no such configuration or a file in its ``extends`` chain is
+        unreadable or not a mapping.
+    """
     path = Path(name_or_path)
     if not path.suffix:
+        if not str(name_or_path) or "/" in str(name_or_path) or str(name_or_path) not in available_configs():
+            raise ConfigError(f"no vehicle configuration {str(name_or_path)[:80]!r} "
+                              f"(shipped: {', '.join(available_configs())})")
         path = _vehicles_dir() / f"{name_or_path}.yaml"
     if not path.is_file():
-        raise ConfigError(f"no vehicle configuration {name_or_path!r} "
-                          f"(shipped: {', '.join(available_configs())})")
-    if path.resolve() in _seen:
-        raise ConfigError(f"configuration {path} extends itself")
-    data = yaml.safe_load(path.read_text()) or {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: top level must be a mapping")
-    parent = data.pop("extends", None)
-    if parent is not None:
-        parent_path = parent if Path(str(parent)).suffix else path.parent / f"{parent}.yaml"
-        data = merge_config(load_vehicle_config(parent_path, _seen + (path.resolve(),)), data)
-    data.setdefault("name", path.stem)
-    if parent is not None:
-        data["name"] = path.stem
+        raise ConfigError(f"no vehicle configuration file {str(path)[:200]}")
+    data = load_yaml(path)
+    data["name"] = path.stem
     return data

@@ -27,12 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from seapup_sim.analysis import (OUTPUTS, TrimError, linearise, output_matrix, system_zeros,
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_sim.analysis import (OUTPUTS, TrimError, linearise, output_matrix, system_zeros, trim_sweep,
                                  trim)
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.vehicle import VehicleModel
 
-__all__ = ["run_open_loop", "rest_trim", "step_gains", "verify", "verify_current",
+__all__ = ["run_open_loop", "rest_trim", "oscillatory_mode", "step_gains", "verify", "verify_current",
            "verify_umbilical", "Target", "TARGETS", "check_targets"]
 
 D = math.radians
@@ -59,7 +60,7 @@ def rest_trim(model: VehicleModel) -> float:
     """Pitch angle [rad] at rest with thrusters disabled: the hydrostatic pitch
     moment about the body origin vanishes (sec. 3.6: 0.0 deg baseline,
     -6.3 deg with the camera)."""
-    mp = model.mass
+    mp = model.mass_properties
     moment_x = mp.cg[0] * model.weight - mp.cb[0] * model.buoyancy
     moment_z = mp.cg[2] * model.weight - mp.cb[2] * model.buoyancy
     return math.atan2(-moment_x, moment_z)
@@ -88,7 +89,7 @@ def step_gains(model: VehicleModel, hover: np.ndarray, step_deg: float = 8.0,
     return b0, b1
 
 
-def _mode_of(a: np.ndarray, state_index: int) -> complex:
+def oscillatory_mode(a: np.ndarray, state_index: int) -> complex:
     """The oscillatory eigenvalue whose eigenvector is dominated by one state."""
     w, v = np.linalg.eig(a)
     best, score = 0j, -1.0
@@ -102,12 +103,20 @@ def _mode_of(a: np.ndarray, state_index: int) -> complex:
     return best
 
 
+def _trims_until_failure(model: VehicleModel, speeds):
+    """The trims of :func:`trim_sweep` up to the first speed without one."""
+    try:
+        yield from trim_sweep(model, speeds)
+    except TrimError:
+        return
+
+
 def _release_test(model, index: int, angle_deg: float, duration: float = 40.0):
     x0 = np.zeros(12)
     x0[index] = D(angle_deg)
     t, x, _ = run_open_loop(model, np.zeros(4), duration, state0=x0, thrusters_on=False)
     a, _ = linearise(model, np.zeros(12), np.zeros(4), thrusters_on=False)
-    ev = _mode_of(a, index)
+    ev = oscillatory_mode(a, index)
     tail = np.abs(x[t >= duration - 10.0, index]).max()
     stable = bool(tail < 0.2 * D(angle_deg) and np.all(np.isfinite(x)))
     return {"stable": stable, "eigenvalue": [ev.real, ev.imag],
@@ -128,7 +137,7 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
     res["roll_release"], hist["roll_release"] = _release_test(model, 3, 24.0)
     res["pitch_release"], hist["pitch_release"] = _release_test(model, 4, 22.0)
 
-    lim = D(35.0)
+    lim = BLADE_PITCH_LIMIT
     t, x, _ = run_open_loop(model, np.array([lim, lim, 0.0, 0.0]), duration)
     hist["surge"] = (t, x)
     u = x[:, 6]
@@ -154,7 +163,7 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
     res["hover_blade_pitch_deg"] = np.degrees(hover.blade_pitch).tolist()
     res["hover_pitch_deg"] = math.degrees(hover.pitch_angle)
     try:
-        t07 = trim(model, 0.7, [hover.pitch_angle, hover.blade_pitch[0], hover.blade_pitch[2]])
+        t07 = trim(model, 0.7, hover.unknowns)
         res["trim_0_7"] = {"pitch_deg": math.degrees(t07.pitch_angle),
                            "blade_pitch_deg": np.degrees(t07.blade_pitch).tolist()}
     except TrimError as exc:
@@ -165,16 +174,12 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
     res["zero_eigenvalues_quiescent"] = int(np.sum(np.abs(ev) < 1e-6))
 
     speeds = np.round(np.arange(0.0, 1.0001, 0.05), 3) if loci_speeds is None else loci_speeds
-    loci, guess, onset, max_real, beyond = [], None, None, -np.inf, None
+    loci, onset, max_real, beyond = [], None, -np.inf, None
     c = output_matrix()
-    for s in speeds:
-        try:
-            tr = trim(model, float(s), guess, enforce_limits=False)
-        except TrimError:
-            break
+    for tr in _trims_until_failure(model, speeds):
+        s = tr.surge_speed
         if not tr.within_limits and beyond is None:
             beyond = float(s)
-        guess = [tr.pitch_angle, tr.blade_pitch[0], tr.blade_pitch[2]]
         a_s, b_s = linearise(model, tr.state, tr.blade_pitch)
         ev_s = np.linalg.eigvals(a_s)
         zs = [z.value for z in system_zeros(a_s, b_s, c) if z.kind == "transmission"]
@@ -206,8 +211,9 @@ def verify_current(seed: int = 1, realisations: int = 100, seconds: float = 300.
     Also returns a 40 s realisation (201 samples, fig. 3.12a) and the mean FFT
     magnitude of 30 realisations of 256 samples (fig. 3.12b).
     """
-    from seapup_sim.current import CurrentParams, GaussMarkovCurrent, coefficients
-    params, ts = CurrentParams(), 0.2
+    from seapup_sim.current import GaussMarkovCurrent, coefficients
+    from seapup_sim.environment_config import load_environment
+    params, ts = load_environment().current.params, 0.2
     c = coefficients(params, ts)
     rng = np.random.default_rng(seed)
     n = int(round(seconds / ts))
@@ -229,15 +235,16 @@ def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration:
     Returns, per depth, the top speed and the cable force on the vehicle in
     body axes [N] at that moment.
     """
-    from seapup_sim.simulation import Simulation, load_environment, umbilical_from_environment
-    env = load_environment()["umbilical"]
-    lim = D(35.0)
+    from seapup_sim.environment_config import load_environment
+    from seapup_sim.simulation import Simulation
+    cable_config = load_environment(rho=model.rho).umbilical
+    lim = BLADE_PITCH_LIMIT
     cmd = np.array([lim, lim, 0.0, 0.0])
     out, shapes = {}, {}
     for depth in depths:
         x0 = np.zeros(12)
         x0[2] = depth
-        cable = umbilical_from_environment(env, model.rho)
+        cable = cable_config.build()
         sim = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
         shape, best = None, -1.0
         n = int(round(duration / sim.control_period))

@@ -1,13 +1,15 @@
 """Tests of seapup_sim.current against the thesis's numbers and Gauss-Markov theory."""
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 import scipy.signal
 
+from seapup_sim.environment_config import load_environment
 from seapup_sim.current import CurrentParams, GaussMarkovCurrent, coefficients, noise_power_eq_2_31
 
-THESIS = CurrentParams()  # sec. 3.9: 0.26 m/s, 0.086 m/s, 0 deg, 20 deg, 10 s
+THESIS = load_environment().current.params  # sec. 3.9: 0.26 m/s, 0.086 m/s, 0 deg, 20 deg, 10 s
 
 
 def sig6(x):
@@ -115,7 +117,7 @@ def test_constant_current_and_step_change():
 def test_bad_parameters_are_refused():
     for kwargs in ({"mean_speed": -1.0}, {"speed_std": math.nan}, {"break_time": 0.0}):
         with pytest.raises(ValueError):
-            CurrentParams(**kwargs)
+            replace(THESIS, **kwargs)
     with pytest.raises(ValueError):
         coefficients(THESIS, 0.0)
     with pytest.raises(TypeError):

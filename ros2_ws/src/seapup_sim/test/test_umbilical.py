@@ -4,11 +4,14 @@ import math
 import numpy as np
 import pytest
 
+from dataclasses import replace
+
+from seapup_sim.environment_config import load_environment
 from seapup_sim.umbilical import (Umbilical, UmbilicalError, UmbilicalParams, shedding_frequency,
                                   solve_cable, solve_numeric, strumming_drag_coefficient,
                                   wake_stability_parameter)
 
-P = UmbilicalParams()  # the thesis's cable: 2.5 cm, C_D 2.5, weightless, L = 1.4 x chord
+P = load_environment().umbilical.params  # the thesis's cable: 2.5 cm, C_D 2.5, weightless, L = 1.4 x chord
 VEHICLE = np.array([0.0, 0.0, 50.0])
 SHIP = np.zeros(3)
 
@@ -48,7 +51,7 @@ def test_force_balance_of_the_returned_shape():
 
 def test_zero_flow_weighted_cable_is_a_catenary():
     """No flow, weight w: the numerical solver reproduces the catenary's tension."""
-    params = UmbilicalParams(weight_per_length=2.0)
+    params = replace(P, weight_per_length=2.0)
     span, length = 40.0, 50.0
     a_end, b_end = np.array([0.0, 0.0, 10.0]), np.array([span, 0.0, 10.0])
     # catenary: L = 2 a sinh(S / 2a), horizontal tension H = w a, sag = a (cosh(S/2a) - 1)
@@ -76,7 +79,7 @@ def test_force_scales_with_flow_speed_squared():
 
 def test_bypass_when_loading_is_too_small_for_the_assumptions(caplog):
     assert solve_cable(VEHICLE, SHIP, 70.0, [0.001, 0.0, 0.0], P).bypassed.startswith("relative flow")
-    heavy = UmbilicalParams(weight_per_length=10.0)
+    heavy = replace(P, weight_per_length=10.0)
     sol = solve_cable(VEHICLE, SHIP, 70.0, [-0.3, 0.0, 0.0], heavy)  # w / K U^2 = 10 / 3.5 > 0.1
     assert sol.bypassed.startswith("weight/hydrodynamic") and not np.any(sol.force_on_vehicle)
     assert "parallel" in solve_cable(VEHICLE, SHIP, 70.0, [0.0, 0.0, 0.3], P).bypassed
@@ -103,7 +106,7 @@ def test_strumming_relations():
 
 
 def test_vehicle_wrench_is_the_body_axis_force_at_the_attachment():
-    params = UmbilicalParams(attachment=(0.1, 0.0, -0.2))
+    params = replace(P, attachment=(0.1, 0.0, -0.2))
     cable = Umbilical(params, SHIP)
     state = np.zeros(12)
     state[2], state[4], state[6] = 50.0, 0.2, 0.5

@@ -57,9 +57,9 @@ def test_kinetic_energy_and_impulse_are_conserved_in_ideal_fluid():
 def test_rigid_coriolis_equals_eq_2_8_and_2_17a_written_out():
     """The Kirchhoff form equals the thesis's component equations about an arbitrary origin."""
     model = VehicleModel(ideal_fluid_config(cg=(0.07, -0.02, 0.11)))
-    m = model.mass.mass
-    x, y, z = model.mass.cg
-    inertia = model.mass.inertia_origin
+    m = model.mass_properties.mass
+    x, y, z = model.mass_properties.cg
+    inertia = model.mass_properties.inertia_origin
     rng = np.random.default_rng(4)
     for _ in range(20):
         u, v, w, p, q, r = rng.normal(size=6)
@@ -88,7 +88,7 @@ def test_coriolis_terms_do_no_work():
 @pytest.mark.parametrize("angle", [0.1, 0.4, -0.7, 1.2])
 def test_hydrostatic_moment_is_bg_times_buoyancy_sin_angle(angle):
     model = VehicleModel(load_vehicle_config("baseline"))
-    bg = model.mass.cg[2] - model.mass.cb[2]
+    bg = model.mass_properties.cg[2] - model.mass_properties.cb[2]
     assert bg == pytest.approx(0.05271317829457364)
     roll = model.hydrostatics(angle, 0.0)
     pitch = model.hydrostatics(0.0, angle)
@@ -102,9 +102,9 @@ def test_hydrostatic_moment_is_bg_times_buoyancy_sin_angle(angle):
 def test_camera_payload_shifts_cg_and_cb_as_the_thesis_says():
     base = VehicleModel(load_vehicle_config("baseline"))
     cam = VehicleModel(load_vehicle_config("camera"))
-    np.testing.assert_allclose(cam.mass.cg - base.mass.cg, [0.046, 0.0, 0.014], atol=1e-12)
-    np.testing.assert_allclose(cam.mass.cb - base.mass.cb, [0.043, 0.0, 0.019], atol=1e-12)
-    assert cam.mass.mass == pytest.approx(125.0)
+    np.testing.assert_allclose(cam.mass_properties.cg - base.mass_properties.cg, [0.046, 0.0, 0.014], atol=1e-12)
+    np.testing.assert_allclose(cam.mass_properties.cb - base.mass_properties.cb, [0.043, 0.0, 0.019], atol=1e-12)
+    assert cam.mass_properties.mass == pytest.approx(125.0)
     # added mass of a sphere is rho V / 2, so the total grows by that on the diagonal
     sphere = 0.5 * 1025.0 * 4.0 / 3.0 * math.pi * 0.1465009467420094 ** 3
     np.testing.assert_allclose(np.diag(cam.m_added - base.m_added)[:3], sphere, rtol=1e-12)

@@ -3,7 +3,7 @@ import pytest
 import yaml
 
 from seapup_sim.vehicle import VehicleModel
-from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config, merge_config
+from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
 
 
 def test_shipped_configurations():
@@ -46,16 +46,11 @@ def test_missing_and_cyclic_configurations(tmp_path):
         load_vehicle_config("nope")
     (tmp_path / "a.yaml").write_text("extends: b\n")
     (tmp_path / "b.yaml").write_text("extends: a\n")
-    with pytest.raises(ConfigError, match="extends itself"):
+    with pytest.raises(ConfigError, match="loops back"):
         load_vehicle_config(tmp_path / "a.yaml")
-
-
-def test_merge_config_is_deep():
-    assert merge_config({"a": {"b": 1, "c": 2}, "l": [1]}, {"a": {"c": 3}, "l": [2]}) == \
-        {"a": {"b": 1, "c": 3}, "l": [2]}
 
 
 def test_model_can_be_reconfigured_in_place():
     model = VehicleModel(load_vehicle_config("baseline"))
     model.configure(load_vehicle_config("camera"))
-    assert model.config_name == "camera" and model.mass.mass == pytest.approx(125.0)
+    assert model.config_name == "camera" and model.mass_properties.mass == pytest.approx(125.0)

@@ -1,10 +1,10 @@
-"""Tests of seapup_sim.blade_pitch: the gate in front of the vehicle model."""
+"""Tests of seapup_common.blade_pitch: the gate in front of the vehicle model."""
 import math
 
 import numpy as np
 import pytest
 
-from seapup_sim.blade_pitch import (CommandGate, InvalidBladePitchError, MAIN_PORT,
+from seapup_common.blade_pitch import (CommandGate, InvalidBladePitchError, MAIN_PORT,
                                     VECTORED_PORT, check_blade_pitch)
 
 LIMIT = math.radians(35.0)

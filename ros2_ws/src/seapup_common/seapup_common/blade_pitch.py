@@ -12,11 +12,15 @@ blade limit are saturated, and every outcome is counted.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from importlib import resources
 
 import numpy as np
+import yaml
 
 __all__ = [
+    "BLADE_PITCH_LIMIT",
     "MAIN_PORT",
     "MAIN_STARBOARD",
     "VECTORED_STARBOARD",
@@ -28,23 +32,38 @@ __all__ = [
 ]
 
 MAIN_PORT, MAIN_STARBOARD, VECTORED_STARBOARD, VECTORED_PORT = range(4)
-THRUSTER_NAMES = ("main_port", "main_starboard", "vectored_starboard", "vectored_port")
+
+
+def _interface() -> dict:
+    text = (resources.files("seapup_common") / "data" / "interface.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+_INTERFACE = _interface()
+#: Thruster names in ``seapup_msgs/BladePitch`` index order (``data/interface.yaml``).
+THRUSTER_NAMES = tuple(_INTERFACE["thrusters"])
+#: Symmetric blade-pitch limit [rad]: +/-35 deg (thesis sec. 3.1); the one place
+#: of this value is ``seapup_common/data/interface.yaml``.
+BLADE_PITCH_LIMIT = math.radians(float(_INTERFACE["blade_pitch_limit_deg"]))
+if len(THRUSTER_NAMES) != 4 or not 0.0 < BLADE_PITCH_LIMIT < math.pi / 2:
+    raise ValueError("seapup_common/data/interface.yaml: need 4 thrusters and a blade-pitch "
+                     f"limit in (0, 90) deg, got {THRUSTER_NAMES} and {_INTERFACE['blade_pitch_limit_deg']}")
 
 
 class InvalidBladePitchError(ValueError):
     """A blade-pitch command that must not reach the vehicle model."""
 
 
-def check_blade_pitch(pitch, limit: float) -> tuple[np.ndarray, int]:
+def check_blade_pitch(pitch, limit: float = BLADE_PITCH_LIMIT) -> tuple[np.ndarray, int]:
     """Validate a blade-pitch command and saturate it to the blade limits.
 
     Parameters
     ----------
     pitch : array_like
         Four blade pitches [rad] in ``seapup_msgs/BladePitch`` index order.
-    limit : float
-        Symmetric blade-pitch limit [rad], > 0 (the Seapup's blades stop at
-        +/-35 deg, thesis sec. 3.1).
+    limit : float, optional
+        Symmetric blade-pitch limit [rad], > 0; default :data:`BLADE_PITCH_LIMIT`
+        (the Seapup's blades stop at +/-35 deg, thesis sec. 3.1).
 
     Returns
     -------
@@ -93,7 +112,7 @@ class CommandGate:
         Message of the most recent rejection ('' if none).
     """
 
-    limit: float
+    limit: float = BLADE_PITCH_LIMIT
     accepted: int = 0
     rejected: int = 0
     saturated: int = 0

@@ -1,11 +1,11 @@
-"""Tests of seapup_sim.frames: NED/FRD <-> ENU/FLU (REP-103/105, REP-156 draft)."""
+"""Tests of seapup_common.frames: NED/FRD <-> ENU/FLU (REP-103/105, REP-156 draft)."""
 import math
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from seapup_sim.frames import (covariance6_to_enu_flu, euler_to_quaternion, frd_to_flu, ned_to_enu,
+from seapup_common.frames import (covariance6_to_enu_flu, euler_to_quaternion, frd_to_flu, ned_to_enu,
                                orientation_ned_frd_to_enu_flu, quaternion_to_euler)
 from seapup_sim.vehicle import rotation_body_to_ned
 

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from seapup_sim.node_processes import DomainLease, NodeProcess, find_executable, ros_environment
+from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 
 __all__ = ["lockstep_rate", "dds_round_trip"]
 

@@ -1,16 +1,16 @@
-"""Tests of seapup_sim.node_processes: domain leases and child processes."""
+"""Tests of seapup_common.processes: domain leases and child processes."""
 import subprocess
 import sys
 import textwrap
 
 import pytest
 
-from seapup_sim.node_processes import (DomainLease, NodeProcess, NoFreeDomainError,
+from seapup_common.processes import (DomainLease, NodeProcess, NoFreeDomainError,
                                        find_executable, ros_environment)
 
 HOLD_LEASE = textwrap.dedent("""
     import sys, time
-    from seapup_sim.node_processes import DomainLease
+    from seapup_common.processes import DomainLease
     lease = DomainLease(sys.argv[1], candidates=[int(x) for x in sys.argv[2:]])
     print(lease.acquire(), flush=True)
     time.sleep(60)

@@ -1,0 +1,176 @@
+"""``./seapup record``, ``./seapup bag info|recover`` and ``./seapup replay``: the
+embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
+
+- record: runs the ``recorder`` node (seapup_ident) in this process's place;
+- bag info / recover: read a bag's metadata, rebuild a killed recorder's bag;
+- replay: publishes the recorded bytes with the recorded QoS (reliability,
+  durability) at the recorded log-time spacing scaled by ``--rate``,
+  optionally ``/clock`` from the bag so sim-time nodes follow it.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_common.bag import BagError, bag_info, recover_bag, storage_file
+
+__all__ = ["record", "bag", "replay"]
+
+
+def record(argv: list[str]) -> int:
+    """``./seapup record``: start a recorder node with the given topics (Ctrl-C finalises the bag)."""
+    parser = argparse.ArgumentParser(prog="./seapup record", description="record topics into a rosbag2/MCAP bag")
+    parser.add_argument("-o", "--output", help="bag directory to create (default bags/rosbag2_<UTC time>)")
+    parser.add_argument("--topics", nargs="+", default=[], help="topics (/t or /t:pkg/msg/Type)")
+    parser.add_argument("--all", action="store_true", help="record every topic that appears")
+    parser.add_argument("--exclude", default="", help="regular expression of topics not to record")
+    parser.add_argument("--max-duration", type=float, default=0.0, help="stop after this many graph seconds")
+    parser.add_argument("--flush-interval", type=float, default=1.0, help="flush + fsync period [s]")
+    parser.add_argument("--use-sim-time", action="store_true", help="time stamps from /clock")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    if not args.topics and not args.all:
+        parser.error("give --topics or --all")
+    if not (args.flush_interval >= 0 and args.max_duration >= 0):
+        parser.error("--flush-interval and --max-duration must be >= 0")
+    from seapup_common.processes import find_executable
+    exe = find_executable("seapup_ident", "recorder")
+    ros = ["--ros-args", "-p", f"topics:={list(args.topics) or ['']}", "-p", f"all:={str(args.all).lower()}",
+           "-p", f"exclude:={args.exclude}", "-p", f"max_duration:={float(args.max_duration)}",
+           "-p", f"flush_interval:={float(args.flush_interval)}",
+           "-p", f"use_sim_time:={str(args.use_sim_time).lower()}"]
+    if args.output:
+        ros += ["-p", f"bag_path:={Path(args.output).resolve()}"]
+    os.execv(str(exe), [str(exe), *ros])
+    return 1  # not reached
+
+
+def bag(argv: list[str]) -> int:
+    """``./seapup bag info DIR`` / ``./seapup bag recover DIR``."""
+    parser = argparse.ArgumentParser(prog="./seapup bag", description="inspect or recover a bag")
+    parser.add_argument("verb", choices=("info", "recover"))
+    parser.add_argument("path", type=Path)
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    out = text_stream(args)
+    try:
+        result = bag_info(args.path) if args.verb == "info" else recover_bag(args.path)
+    except (BagError, OSError) as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    if args.verb == "recover":
+        print(f"recovered {result['messages']} messages ({result['stopped_at']}); damaged file kept as "
+              f"{result['damaged_file']}", file=out)
+        result = {**result, "info": bag_info(args.path)}
+        info = result["info"]
+    else:
+        info = result
+    print(f"Files:             {', '.join(info['files'])}\nBag size:          {info['bag_size_bytes']} B\n"
+          f"Storage id:        {info['storage_id']}\nROS Distro:        {info['ros_distro']}\n"
+          f"Duration:          {info['duration_s']:.9f}s\nStart:             {info['start_s']:.9f}\n"
+          f"End:               {info['end_s']:.9f}\nMessages:          {info['messages']}", file=out)
+    for t in info["topics"]:
+        qos = t["qos"][0] if t["qos"] else {}
+        print(f"  Topic: {t['name']} | Type: {t['type']} | Count: {t['count']} | Serialization Format: "
+              f"{t['serialization_format']} | QoS: {qos.get('reliability', '?')}, {qos.get('durability', '?')}",
+              file=out)
+    emit_json(args, result)
+    return 0
+
+
+def _qos(channel_metadata: dict):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    profiles = yaml.safe_load(channel_metadata.get("offered_qos_profiles") or "[]") or []
+    first = profiles[0] if profiles else {}
+    return QoSProfile(depth=1000,
+                      reliability=(ReliabilityPolicy.BEST_EFFORT if first.get("reliability") == "best_effort"
+                                   else ReliabilityPolicy.RELIABLE),
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if first.get("durability") == "transient_local"
+                                  else DurabilityPolicy.VOLATILE))
+
+
+def replay(argv: list[str]) -> int:
+    """``./seapup replay DIR``: publish a bag's messages with their recorded timing."""
+    parser = argparse.ArgumentParser(prog="./seapup replay", description="play a bag back onto the graph")
+    parser.add_argument("path", type=Path)
+    parser.add_argument("--rate", type=float, default=1.0, help="speed factor (> 0)")
+    parser.add_argument("--topics", nargs="+", help="only these topics")
+    parser.add_argument("--clock", action="store_true", help="publish /clock from the bag's log times")
+    parser.add_argument("--loop", action="store_true", help="play again from the start at the end")
+    parser.add_argument("--start-offset", type=float, default=0.0, help="skip this many seconds [bag time]")
+    parser.add_argument("--wait-for-subscribers", type=int, default=0, metavar="N",
+                        help="start only once every replayed topic has N matched subscribers (30 s at most)")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    if not (0 < args.rate < 1e6 and args.start_offset >= 0):
+        parser.error("--rate must be > 0 and --start-offset >= 0")
+    if not storage_file(args.path).is_file():
+        print(f"seapup: error: {args.path} has no {storage_file(args.path).name}", file=sys.stderr)
+        return 1
+    from mcap.reader import make_reader
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+
+    from seapup_common.ros.messages import ns_to_stamp
+    from seapup_ident.recorder_node import message_class
+
+    with open(storage_file(args.path), "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        channels = {c.id: c for c in summary.channels.values()
+                    if args.topics is None or c.topic in args.topics}
+        types = {c.id: summary.schemas[c.schema_id].name for c in channels.values()}
+        records = [(m.log_time, m.channel_id, bytes(m.data)) for _, c, m in
+                   reader.iter_messages(topics=[c.topic for c in channels.values()], log_time_order=True)]
+    if not records:
+        print("seapup: nothing to replay", file=sys.stderr)
+        return 1
+    t0 = records[0][0] + int(args.start_offset * 1e9)
+    records = [r for r in records if r[0] >= t0]
+    rclpy.init()
+    node = rclpy.create_node("replay")
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    pubs = {cid: node.create_publisher(message_class(types[cid]), c.topic, _qos(c.metadata))
+            for cid, c in channels.items()}
+    clock = node.create_publisher(Clock, "/clock", 10) if args.clock else None
+    sent = 0
+    try:
+        deadline = time.monotonic() + (30.0 if args.wait_for_subscribers > 0 else 0.5)
+        while time.monotonic() < deadline and not (
+                args.wait_for_subscribers > 0
+                and all(p.get_subscription_count() >= args.wait_for_subscribers for p in pubs.values())):
+            executor.spin_once(timeout_sec=0.05)  # let subscribers match
+        while True:
+            wall0 = time.monotonic()
+            for k, (t_ns, cid, data) in enumerate(records):
+                due = wall0 + (t_ns - t0) * 1e-9 / args.rate
+                while (left := due - time.monotonic()) > 0:
+                    executor.spin_once(timeout_sec=min(left, 0.05))
+                if clock is not None:
+                    clock.publish(Clock(clock=ns_to_stamp(t_ns)))
+                pubs[cid].publish(data)
+                sent += 1
+                if k % 50 == 0:
+                    progress("replaying", (k + 1) / len(records))
+            progress("replaying", 1.0)
+            if not args.loop:
+                break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        from rclpy.duration import Duration
+        for pub in pubs.values():  # reliable subscribers get the last messages before we leave
+            pub.wait_for_all_acked(Duration(seconds=2.0))
+        node.destroy_node()
+        rclpy.try_shutdown()
+    print(f"replayed {sent} messages", file=text_stream(args))
+    emit_json(args, {"sent": sent, "topics": sorted(c.topic for c in channels.values())})
+    return 0

@@ -1,0 +1,223 @@
+"""The ``./seapup`` command registry: one function per command.
+
+``./seapup`` (bash) only bootstraps (``setup``, ``env``, ``lock``) and hands
+every other command to :func:`main`. A command is a function registered with
+:func:`command`; its help line comes from the registry, so a new command is a
+new function here, not an edit to the bash script. This module imports only
+the standard library at the top, so ``help`` and unknown commands answer on
+a fresh clone before any bootstrap (``--check``).
+
+Conventions for every command: ``--help`` explains it; ``--json [FILE]``
+writes its result as JSON to FILE (to standard output with no FILE, and the
+human text then goes to standard error); long work shows a progress bar on a
+terminal (a line per 10 % otherwise); exit 0 on success, 1 on failure, 2 on
+bad usage.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+__all__ = ["command", "COMMANDS", "main", "add_json_argument", "emit_json", "progress", "jsonable"]
+
+
+@dataclass(frozen=True)
+class Entry:
+    name: str
+    summary: str
+    usage: str
+    run: Callable[[list[str]], int] | None   # None: implemented by the bash script
+    bootstrap: bool
+
+
+COMMANDS: dict[str, Entry] = {}
+
+
+def command(name: str, summary: str, usage: str = "", *, bootstrap: bool = True):
+    """Register ``fn(argv) -> exit code`` as ``./seapup <name>``."""
+    def register(fn):
+        COMMANDS[name] = Entry(name, summary, usage, fn, bootstrap)
+        return fn
+    return register
+
+
+def _shell(name: str, summary: str, usage: str = "") -> None:
+    COMMANDS[name] = Entry(name, summary, usage, None, name != "lock")
+
+
+# -- helpers for commands -------------------------------------------------------
+def add_json_argument(parser: argparse.ArgumentParser) -> None:
+    """The ``--json [FILE]`` convention."""
+    parser.add_argument("--json", nargs="?", const="-", metavar="FILE",
+                        help="write the result as JSON to FILE (stdout without FILE; text then goes to stderr)")
+
+
+def jsonable(obj):
+    """numpy scalars/arrays to Python; non-finite floats to None (JSON has no NaN)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if hasattr(obj, "tolist"):
+        return jsonable(obj.tolist())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def emit_json(args, result: dict) -> None:
+    """Write ``result`` where ``--json`` asked (nothing without it)."""
+    target = getattr(args, "json", None)
+    if not target:
+        return
+    text = json.dumps(jsonable(result), indent=1)
+    if target == "-":
+        sys.__stdout__.write(text + "\n")
+    else:
+        with open(target, "w") as f:
+            f.write(text + "\n")
+        print(f"wrote {target}")
+
+
+def text_stream(args):
+    """Where human text goes: stderr when JSON goes to stdout."""
+    return sys.stderr if getattr(args, "json", None) == "-" else sys.stdout
+
+
+def progress(label: str, fraction: float, width: int = 30, stream=None) -> None:
+    """A progress bar on a terminal; a line per 10 % otherwise (logs, CI)."""
+    stream = stream or sys.stderr
+    fraction = min(max(fraction, 0.0), 1.0)
+    done = int(width * fraction)
+    bar = f"  {label:<12} [{'#' * done}{'.' * (width - done)}] {100 * fraction:5.1f}%"
+    if stream.isatty():
+        stream.write("\r" + bar + ("\n" if fraction >= 1.0 else ""))
+    elif int(10 * fraction) != progress.last.get(label, -1):
+        progress.last[label] = int(10 * fraction)
+        stream.write(bar + "\n")
+    stream.flush()
+
+
+progress.last = {}
+
+
+# -- the commands ----------------------------------------------------------------------
+_shell("setup", "only bootstrap: .venv, wheel fix, colcon build")
+_shell("env", "print the exports; use: eval \"$(./seapup env)\"")
+_shell("lock", "regenerate requirements/lock.txt from seapup.in")
+
+
+@command("demo", "run the main demonstration", "[--duration S] [--out DIR] [--json [F]]")
+def _demo(argv: list[str]) -> int:
+    from seapup_bringup.demo import main as demo
+    return demo(argv)
+
+
+@command("test", "run every test; ends with pytest's summary line (-m unit: pure cores only)",
+         "[pytest args...]")
+def _test(argv: list[str]) -> int:
+    root = os.environ.get("SEAPUP_ROOT", ".")
+    os.chdir(root)
+    os.execvp(sys.executable, [sys.executable, "-m", "pytest", *argv])
+    return 1  # not reached
+
+
+@command("run", "start one node, like 'ros2 run' on a ROS install", "<pkg> <exe> [args...]")
+def _run(argv: list[str]) -> int:
+    from seapup_common.processes import find_executable
+    if len(argv) < 2:
+        print("seapup: error: run needs a package and an executable: ./seapup run seapup_sim simulator",
+              file=sys.stderr)
+        return 1
+    package, executable = argv[:2]
+    try:
+        path = find_executable(package, executable)
+    except FileNotFoundError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    os.execv(str(path), [str(path), *argv[2:]])
+    return 1  # not reached
+
+
+@command("verify", "open-loop verification of the vehicle model against the thesis",
+         "[--config C] [--json [F]] [--plots DIR]")
+def _verify(argv: list[str]) -> int:
+    from seapup_bringup.commands import verify
+    return verify(argv)
+
+
+@command("check-model", "model checker (symmetry, damping, stability)", "[--config C] [--json [F]]")
+def _check_model(argv: list[str]) -> int:
+    from seapup_bringup.commands import check_model
+    return check_model(argv)
+
+
+@command("bench", "benchmarks (model, umbilical, verify, ROS graph)", "[--json [F]] [--no-graph]")
+def _bench(argv: list[str]) -> int:
+    from seapup_bringup.commands import bench
+    return bench(argv)
+
+
+@command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
+         "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--flush-interval S]")
+def _record(argv: list[str]) -> int:
+    from seapup_bringup.bag_commands import record
+    return record(argv)
+
+
+@command("bag", "bag info DIR (what ros2 bag info shows) | bag recover DIR (after a crash)", "info|recover DIR")
+def _bag(argv: list[str]) -> int:
+    from seapup_bringup.bag_commands import bag
+    return bag(argv)
+
+
+@command("replay", "publish a bag's messages with their recorded QoS and timing",
+         "DIR [--rate R] [--topics T...] [--clock] [--loop] [--start-offset S]")
+def _replay(argv: list[str]) -> int:
+    from seapup_bringup.bag_commands import replay
+    return replay(argv)
+
+
+def usage() -> str:
+    lines = ["usage: ./seapup <command> [args...]", ""]
+    width = min(max(len(f"{e.name} {e.usage}".strip()) for e in COMMANDS.values()) + 2, 34)
+    for e in COMMANDS.values():
+        head = f"{e.name} {e.usage}".strip()
+        lines.append(f"  {head:<{width}} {e.summary}" if len(head) < width else f"  {head}\n  {'':<{width}} {e.summary}")
+    lines.append(f"  {'help':<{width}} this text")
+    lines += ["", "Every command takes --help; results as JSON with --json [FILE].",
+              "Environment: SEAPUP_PYTHON (default python3.11), ROS_DOMAIN_ID (default 0).",
+              "Every process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``argv`` (command first). ``--check CMD`` answers the bash script:
+    exit 0 if CMD needs the bootstrap, 3 if it is help (printed), 2 if unknown."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    check = bool(argv) and argv[0] == "--check"
+    if check:
+        argv = argv[1:]
+    name = argv[0] if argv else "help"
+    if name in ("help", "-h", "--help"):
+        print(usage())
+        return 3 if check else 0
+    entry = COMMANDS.get(name)
+    if entry is None:
+        print(f"seapup: unknown command: {name}\n\n{usage()}", file=sys.stderr)
+        return 2
+    if check:
+        return 0
+    if entry.run is None:
+        print(f"seapup: '{name}' is handled by the ./seapup script", file=sys.stderr)
+        return 2
+    return int(entry.run(argv[1:]) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,159 @@
+"""``./seapup verify``, ``./seapup check-model`` and ``./seapup bench``.
+
+verify       run the open-loop tests of Table 3.2 and the linear analyses,
+             print simulated vs thesis values with PASS/FAIL, optionally write
+             the JSON results and PNG plots. Exit 1 if a primary target fails.
+check-model  report mass-matrix asymmetry, symmetry-breaking terms, negative
+             dampers and instability over 0-1 m/s. Exit 1 on any finding.
+bench        micro-benchmarks of the model, the umbilical, verify and the ROS
+             graph; JSON keys are stable for tracking.
+
+Each is registered in :mod:`seapup_bringup.cli` and takes its own arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from seapup_bringup.cli import add_json_argument, emit_json, text_stream
+from seapup_sim.environment_config import load_environment
+from seapup_sim.integrator import VehicleIntegrator
+from seapup_sim.model_check import check_model as run_model_check
+from seapup_sim.report import format_rows, write_plots
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
+from seapup_sim.verification import check_targets
+from seapup_sim.verification import verify as run_verify
+
+__all__ = ["verify", "check_model", "bench"]
+
+
+def _model(name: str) -> VehicleModel:
+    try:
+        return VehicleModel(load_vehicle_config(name))
+    except ConfigError as exc:
+        raise SystemExit(f"seapup: {exc}")
+
+
+def _parser(name: str, description: str, config: bool = True) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=f"./seapup {name}", description=description)
+    if config:
+        parser.add_argument("--config", default="baseline", help=f"configuration ({', '.join(available_configs())})")
+    add_json_argument(parser)
+    return parser
+
+
+def verify(argv: list[str]) -> int:
+    """``./seapup verify``: Table 3.2 and the analyses against the thesis; exit 1 if a primary target fails."""
+    parser = _parser("verify", "open-loop verification of the vehicle model against the thesis")
+    parser.add_argument("--plots", help="write PNG plots into this directory")
+    args = parser.parse_args(argv)
+    out = text_stream(args)
+    model = _model(args.config)
+    t0 = time.perf_counter()
+    res, hist = run_verify(model)
+    res["verify_seconds"] = time.perf_counter() - t0
+    rows = check_targets(res, model.config_name)
+    print(format_rows(rows, f"seapup verify: configuration '{model.config_name}' "
+                            f"({res['verify_seconds']:.1f} s)"), file=out)
+    b1 = np.array(res["step_gains_5hz"]["B1inv"])
+    b0 = np.array(res["step_gains_5hz"]["B0inv"])
+    print("\nstep gains from hover, 8 deg steps, T_s = 0.2 s (eq. 5.3; rows u v w [m/s] r [deg/s], "
+          "columns main port, main stbd, vect stbd, vect port; per deg)", file=out)
+    for name, m in (("B0inv", b0), ("B1inv", b1)):
+        print(f"  {name}:", file=out)
+        for row in m:
+            print("   " + " ".join(f"{v:11.5f}" for v in row), file=out)
+    ev = res["eigenvalues_quiescent"]
+    print("\neigenvalues at hover [1/s]: " + ", ".join(
+        f"{re:.4f}{im:+.4f}j" if abs(im) > 1e-9 else f"{re:.4f}" for re, im in ev), file=out)
+    res["checks"] = rows
+    emit_json(args, res)
+    if args.plots:
+        for p in write_plots(res, hist, args.plots):
+            print(f"wrote {p}", file=out)
+    return 0 if all(r["pass"] for r in rows if r["primary"]) else 1
+
+
+def check_model(argv: list[str]) -> int:
+    """``./seapup check-model``: exit 1 on any finding."""
+    args = _parser("check-model", "model checker (thesis sec. 3.4-3.5)").parse_args(argv)
+    out = text_stream(args)
+    model = _model(args.config)
+    report = run_model_check(model)
+    emit_json(args, {"config": report.config, "ok": report.ok,
+                     "sweep": [{"surge_speed": u, "max_real_pole": w} for u, w in report.sweep],
+                     "findings": [{"kind": f.kind, "where": f.where, "message": f.message}
+                                  for f in report.findings]})
+    print(f"seapup check-model: configuration '{report.config}'", file=out)
+    print(f"  mass {model.mass_properties.mass:.2f} kg, buoyancy {model.mass_properties.buoyancy_mass:.2f} kg, "
+          f"CG {np.round(model.mass_properties.cg, 4).tolist()} m, CB {np.round(model.mass_properties.cb, 4).tolist()} m, "
+          f"{len(model.hydro.terms)} hydrodynamic terms", file=out)
+    for speed, worst in report.sweep:
+        print(f"  u = {speed:4.2f} m/s: max Re(pole) = {worst:+.5f} 1/s", file=out)
+    if report.ok:
+        print("  no findings: mass matrices symmetric and positive definite, every term "
+              "port/starboard-consistent and damping, stable over the speed range", file=out)
+        return 0
+    for f in report.findings:
+        print(f"  [{f.kind}] {f.where}: {f.message}", file=out)
+    print(f"  {len(report.findings)} finding(s)", file=out)
+    return 1
+
+
+def bench(argv: list[str]) -> int:
+    """``./seapup bench``: speed of the model, the umbilical, verify and the ROS graph."""
+    parser = _parser("bench", "benchmarks")
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
+    args = parser.parse_args(argv)
+    out_text = text_stream(args)
+    model = _model(args.config)
+    sim = VehicleIntegrator(model, dt=0.1)
+    cmd = np.radians([20.0, 20.0, -10.0, -10.0])
+    for _ in range(50):
+        sim.step(cmd)
+    n = args.steps
+    t0 = time.perf_counter()
+    for _ in range(n):
+        sim.step(cmd)
+    per_step = (time.perf_counter() - t0) / n
+    out = {"model": {"step_us": per_step * 1e6, "rtf": 0.1 / per_step, "dt": 0.1,
+                     "steps": n, "config": model.config_name}}
+    # the same step with the quasi-static umbilical solved every step (sec. 3.8)
+    x0 = np.zeros(12)
+    x0[2] = 100.0
+    cable = load_environment(rho=model.rho).umbilical.build()
+    sim = VehicleIntegrator(model, dt=0.1, state=x0)
+    for _ in range(50):
+        sim.step(cmd, external=cable.wrench(sim.state))
+    t0 = time.perf_counter()
+    for _ in range(n):
+        sim.step(cmd, external=cable.wrench(sim.state))
+    per_cable = (time.perf_counter() - t0) / n
+    out["model_umbilical"] = {"step_us": per_cable * 1e6, "rtf": 0.1 / per_cable,
+                              "extra_percent": 100.0 * (per_cable / per_step - 1.0)}
+    t0 = time.perf_counter()
+    run_verify(model)
+    out["verify"] = {"seconds": time.perf_counter() - t0}
+    if not args.no_graph:
+        from seapup_bringup import graph_bench
+        print("graph: simulator + open_loop in lockstep (separate processes)...", file=out_text, flush=True)
+        out["graph_lockstep_5hz"] = graph_bench.lockstep_rate(0.2, sim_seconds=120.0)
+        out["graph_lockstep_20hz"] = graph_bench.lockstep_rate(0.05, sim_seconds=30.0)
+        out["dds_round_trip_us"] = graph_bench.dds_round_trip()
+        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz"):
+            g = out[key]
+            print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
+                  f"{g['us_per_step']:.0f} us per step)", file=out_text)
+        rt = out["dds_round_trip_us"]
+        print(f"DDS round trip to another process: median {rt['median_us']:.0f} us, p99 {rt['p99_us']:.0f} us", file=out_text)
+    print(f"model: {per_step * 1e6:.1f} us per RK4 step (dt 0.1 s) = {0.1 / per_step:.0f}x real time", file=out_text)
+    print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
+          f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)
+    print(f"verify: {out['verify']['seconds']:.2f} s", file=out_text)
+    emit_json(args, out)
+    return 0

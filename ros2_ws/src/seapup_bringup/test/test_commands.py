@@ -1,0 +1,62 @@
+"""Tests of the ./seapup command registry and the commands' --json convention."""
+import pytest
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from seapup_bringup.cli import COMMANDS, main
+
+pytestmark = pytest.mark.graph  # runs ./seapup, a build or subprocesses: not a seconds-fast unit test
+
+
+def test_every_registered_command_has_help_text_and_answers_help():
+    for name, entry in COMMANDS.items():
+        assert entry.summary, name
+        if entry.run is None or name in ("test", "run"):
+            continue
+        r = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", name, "--help"],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0 and "--json" in r.stdout, (name, r.stdout + r.stderr)
+
+
+def test_unknown_command_exits_2_with_usage(capsys):
+    assert main(["frobnicate"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown command: frobnicate" in err and "usage: ./seapup" in err
+
+
+def test_check_model_json_goes_to_stdout_and_text_to_stderr():
+    r = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "check-model", "--json"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert data["ok"] is True and data["findings"] == [] and len(data["sweep"]) == 11
+    assert "no findings" in r.stderr
+
+
+def test_cli_writes_the_documented_json(tmp_path, capsys):
+    out = tmp_path / "v.json"
+    code = main(["verify", "--config", "baseline", "--json", str(out), "--plots", str(tmp_path / "p")])
+    text = capsys.readouterr().out
+    assert "PASS" in text
+    data = json.loads(out.read_text())
+    primary_failed = [r for r in data["checks"] if r["primary"] and not r["pass"]]
+    assert code == (1 if primary_failed else 0)
+    for key in ("config", "rest_trim_deg", "surge", "sway_4a", "sway_4b", "heave_down", "heave_up",
+                "roll_release", "pitch_release", "hover_blade_pitch_deg", "trim_0_7",
+                "eigenvalues_quiescent", "nmp_onset_surge", "step_gains_5hz", "current", "umbilical"):
+        assert key in data, key
+    assert set(data["surge"]) >= {"max_u", "steady_pitch_deg", "max_pitch_deg", "max_pitch_rate_dps", "rise95_s"}
+    assert set(data["sway_4a"]) == {"max_v", "max_roll_deg", "max_roll_rate_dps"}
+    assert set(data["roll_release"]) >= {"stable", "eigenvalue"}
+    assert np.array(data["step_gains_5hz"]["B0inv"]).shape == (4, 4)
+    assert len(data["hover_blade_pitch_deg"]) == 4 and len(data["eigenvalues_quiescent"]) == 12
+    assert {p.name for p in (tmp_path / "p").glob("*.png")} == {
+        "fig3_2_roll_release.png", "fig3_3_pitch_release.png", "fig3_4_surge.png",
+        "fig3_11_umbilical.png", "fig3_12_current.png", "fig3_5_heave.png", "fig3_6_sway.png",
+        "fig3_8_3_10_loci.png"}
+    assert set(data["current"]) == {"a_c", "b", "d", "E_wc2", "w_alpha_per_w_c", "sample_mean", "sample_std"}
+    assert set(data["umbilical"]) == {"50", "100", "200"}
+    assert set(data["umbilical"]["50"]) == {"max_u", "Fx", "Fz"}

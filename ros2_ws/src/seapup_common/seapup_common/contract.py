@@ -1,0 +1,236 @@
+"""The controller contract: what a velocity controller sees and returns.
+
+A controller -- on the simulator, in a SIL test, or on the real vehicle --
+sees *measurements* (what the sensors give, each reading with its stamp and
+validity), a *reference* from the level above (body velocities, thesis
+sec. 4.2), and returns a *command* (four blade pitches). It never sees the
+simulator's true state.
+
+A control law is a pure object with explicit state, like the update functions
+of python-control's ``NonlinearIOSystem``: :meth:`VelocityController.reset`
+initialises the state from the command presently applied (a bumpless start),
+:meth:`VelocityController.update` advances it by one sample and returns the
+command to hold until the next sample. Scheduling the calls (a simulation
+loop, a ROS timer, a lockstep ``/clock``) is the caller's job; switching
+between controllers is a manager's job, not the controller's.
+
+Units SI and radians; vehicle quantities in NED (world, ``odom_ned``) and FRD
+(body, ``base_link_frd``) as in the thesis.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from seapup_common.blade_pitch import InvalidBladePitchError
+
+__all__ = ["ContractError", "Reading", "Measurement", "Reference", "Command", "VelocityController",
+           "HoldCommand", "MEASUREMENT_FIELDS"]
+
+#: Measurement fields, their sizes (0 = scalar) and meanings.
+MEASUREMENT_FIELDS = {
+    "velocity": (3, "u, v, w [m/s], base_link_frd (doppler log)"),
+    "rates": (3, "p, q, r [rad/s], base_link_frd (rate gyros)"),
+    "attitude": (3, "phi, theta, psi [rad] of base_link_frd in odom_ned (vertical gyro, compass)"),
+    "depth": (0, "depth of the body origin [m], positive down (pressure gauge)"),
+    "altitude": (0, "range to the seabed along body z [m] (altimeter)"),
+    "position": (3, "x, y, z [m] in odom_ned (acoustic fix)"),
+}
+
+
+class ContractError(ValueError):
+    """A measurement, reference or command that breaks the contract (shape, finiteness)."""
+
+
+def _finite_array(value, size: int, what: str) -> np.ndarray | float:
+    if size == 0:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise ContractError(f"{what} must be a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ContractError(f"{what} must be finite, got {value!r}")
+        return value
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ContractError(f"{what} must be {size} numbers, got {value!r}") from None
+    if arr.shape != (size,):
+        raise ContractError(f"{what} needs exactly {size} values, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ContractError(f"{what} must be finite, got {arr.tolist()}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One sensor reading: its value, when it was taken, and its variance.
+
+    A reading without a value is *invalid* (no fix this sample, seabed out of
+    range, instrument lost); a value is always finite.
+
+    Parameters
+    ----------
+    value : ndarray, float or None
+        The reading (shape per :data:`MEASUREMENT_FIELDS`), None when invalid.
+    stamp : float
+        Time the reading was taken [s]; NaN when invalid.
+    variance : ndarray or float
+        Variance of each component (same shape as the value), 0 when unknown.
+    """
+
+    value: np.ndarray | float | None = None
+    stamp: float = math.nan
+    variance: np.ndarray | float = 0.0
+
+    @property
+    def valid(self) -> bool:
+        return self.value is not None
+
+    @classmethod
+    def invalid(cls) -> "Reading":
+        """A reading with no value."""
+        return cls()
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What the sensors say at control instant ``t`` (never the true state).
+
+    Every field is a :class:`Reading` (see :data:`MEASUREMENT_FIELDS`); use
+    :meth:`build` to make one from plain values with shape checks.
+    """
+
+    t: float
+    velocity: Reading = field(default_factory=Reading)
+    rates: Reading = field(default_factory=Reading)
+    attitude: Reading = field(default_factory=Reading)
+    depth: Reading = field(default_factory=Reading)
+    altitude: Reading = field(default_factory=Reading)
+    position: Reading = field(default_factory=Reading)
+
+    @classmethod
+    def build(cls, t: float, stamps: dict | None = None, variances: dict | None = None,
+              **values) -> "Measurement":
+        """A measurement from plain values: ``Measurement.build(t, velocity=(u, v, w), depth=3.0)``.
+
+        A field that is absent or None is invalid. Stamps default to ``t``,
+        variances to 0 (unknown).
+
+        Raises
+        ------
+        ContractError
+            On an unknown field, a wrong shape or a non-finite value.
+        """
+        stamps, variances = stamps or {}, variances or {}
+        unknown = set(values) - set(MEASUREMENT_FIELDS)
+        if unknown:
+            raise ContractError(f"unknown measurement field(s) {sorted(unknown)}; "
+                                f"known: {', '.join(MEASUREMENT_FIELDS)}")
+        t = float(t)
+        readings = {}
+        for name, (size, _) in MEASUREMENT_FIELDS.items():
+            value = values.get(name)
+            if value is None:
+                readings[name] = Reading()
+                continue
+            var = variances.get(name, 0.0 if size == 0 else np.zeros(size))
+            readings[name] = Reading(_finite_array(value, size, name), float(stamps.get(name, t)),
+                                     _finite_array(var, size, f"{name} variance"))
+        return cls(t, **readings)
+
+    def body_velocity(self) -> np.ndarray:
+        """(u, v, w, r): the four outputs of the velocity loop (thesis sec. 4.2, 5.1).
+
+        Raises
+        ------
+        ContractError
+            If the velocity or rate reading is invalid.
+        """
+        if not (self.velocity.valid and self.rates.valid):
+            raise ContractError(f"no valid velocity/rate reading at t = {self.t:.3f} s")
+        return np.array([*self.velocity.value, self.rates.value[2]])
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Body-velocity reference of the velocity loop (thesis sec. 4.2, 5.1).
+
+    Parameters
+    ----------
+    velocity : array_like, shape (4,)
+        Surge u, sway v, heave w [m/s] and yaw rate r [rad/s], base_link_frd.
+    """
+
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(4))
+
+    def __post_init__(self):
+        object.__setattr__(self, "velocity", _finite_array(self.velocity, 4, "velocity reference"))
+
+
+@dataclass(frozen=True)
+class Command:
+    """Four blade pitches [rad], ``seapup_msgs/BladePitch`` order, for time ``stamp`` [s].
+
+    Finite and of length four (else :class:`InvalidBladePitchError`); pitches
+    beyond the blade limits are allowed here and saturated by the vehicle.
+    """
+
+    blade_pitch: np.ndarray
+    stamp: float = math.nan
+
+    def __post_init__(self):
+        try:
+            pitch = _finite_array(self.blade_pitch, 4, "blade pitch")
+        except ContractError as exc:
+            raise InvalidBladePitchError(str(exc)) from None
+        object.__setattr__(self, "blade_pitch", pitch)
+
+
+@runtime_checkable
+class VelocityController(Protocol):
+    """A sampled body-velocity control law (see the module docstring).
+
+    Attributes
+    ----------
+    sample_period : float
+        T [s] at which :meth:`update` must be called.
+    """
+
+    sample_period: float
+
+    def reset(self, applied: Command) -> None:
+        """Initialise the law's state from the command the vehicle applies now (bumpless start)."""
+
+    def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        """Advance one sample at time ``t`` [s] and return the command to hold until t + T."""
+
+
+class HoldCommand:
+    """The simplest :class:`VelocityController`: it holds one blade-pitch setting.
+
+    An open loop (e.g. a trim or hover setting held while something else is
+    measured), and the reference implementation of the protocol.
+
+    Parameters
+    ----------
+    blade_pitch : array_like, shape (4,)
+        The setting [rad].
+    sample_period : float
+        T [s], > 0.
+    """
+
+    def __init__(self, blade_pitch, sample_period: float):
+        if not (math.isfinite(sample_period) and sample_period > 0):
+            raise ContractError(f"sample period must be finite and > 0 s, got {sample_period!r}")
+        self.sample_period = float(sample_period)
+        self.blade_pitch = Command(blade_pitch).blade_pitch
+
+    def reset(self, applied: Command) -> None:
+        """Nothing to initialise: the setting does not depend on the past."""
+
+    def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        return Command(self.blade_pitch, stamp=t)

@@ -1,0 +1,82 @@
+"""Graph-ready handshakes and QoS as rosbag2 sees it (rclpy shell code).
+
+- :class:`SubscriberGate`: a node does not start its work (a lockstep
+  simulator its first sample, a controller its first answer) until each of
+  its publishers has the subscribers it was told to wait for -- so a recorder
+  started beforehand misses nothing. Launchers and SIL graphs configure it
+  with each node's ``wait_for_subscribers`` parameter.
+- :func:`qos_to_rosbag2` and :func:`adapted_qos`: the offered QoS of a topic's
+  publishers in rosbag2's metadata keys, and the subscription QoS rosbag2
+  would choose for them (reliable only if every publisher is reliable,
+  transient-local only if every publisher is).
+"""
+from __future__ import annotations
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos"]
+
+_INT64_MAX = 2**63 - 1
+
+
+def _duration(d) -> dict:
+    ns = int(d.nanoseconds)
+    if ns >= _INT64_MAX or ns < 0:
+        ns = _INT64_MAX
+    sec, nsec = divmod(ns, 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def qos_to_rosbag2(qos) -> dict:
+    """A QoS profile (from ``get_publishers_info_by_topic``) in rosbag2's metadata keys.
+
+    History and depth are not visible across the graph (DDS does not announce
+    them): like rosbag2 Jazzy we write what the endpoint info says
+    (``unknown``, 0).
+    """
+    return {"history": qos.history.name.lower(), "depth": int(qos.depth),
+            "reliability": qos.reliability.name.lower(), "durability": qos.durability.name.lower(),
+            "deadline": _duration(qos.deadline), "lifespan": _duration(qos.lifespan),
+            "liveliness": qos.liveliness.name.lower(),
+            "liveliness_lease_duration": _duration(qos.liveliness_lease_duration),
+            "avoid_ros_namespace_conventions": bool(qos.avoid_ros_namespace_conventions)}
+
+
+def adapted_qos(publisher_infos, depth: int = 1000) -> QoSProfile:
+    """The subscription QoS that receives everything the publishers offer.
+
+    Reliable if every publisher is reliable (else best effort, or nothing would
+    match the best-effort ones), transient-local if every publisher is (so late
+    joining still gets their latched messages); keep-last ``depth``.
+    """
+    infos = list(publisher_infos)
+    reliable = bool(infos) and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+    latched = bool(infos) and all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+class SubscriberGate:
+    """Open once every listed publisher has at least its required matched subscribers.
+
+    Parameters
+    ----------
+    requirements : list of (publisher, int)
+        Each publisher and how many subscriptions must be matched to it.
+    """
+
+    def __init__(self, requirements):
+        self.requirements = [(p, int(n)) for p, n in requirements if int(n) > 0]
+        self._open = not self.requirements
+
+    def ready(self) -> bool:
+        """True once every requirement was met (it then stays open)."""
+        if not self._open:
+            self._open = all(p.get_subscription_count() >= n for p, n in self.requirements)
+        return self._open
+
+    def missing(self) -> list[str]:
+        """``topic (have/need)`` for every requirement not yet met."""
+        return [f"{p.topic_name} ({p.get_subscription_count()}/{n})" for p, n in self.requirements
+                if p.get_subscription_count() < n]

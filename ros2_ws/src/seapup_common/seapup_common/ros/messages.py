@@ -1,0 +1,290 @@
+"""ROS messages <-> the pure contract's dataclasses (rclpy shell code).
+
+One helper per message kind, each direction. The pure cores speak
+:mod:`seapup_common.contract` (``Measurement``, ``Reading``, ``Command``) and
+plain arrays in SI, NED/FRD; node shells convert at the edge with these. What
+comes in from the graph is checked on the way: a message with a wrong length
+or a non-finite number raises (:class:`~seapup_common.contract.ContractError`
+or :class:`~seapup_common.blade_pitch.InvalidBladePitchError`) instead of
+reaching a controller.
+
+Conventions (README "Nodes"): stamps are sim time t_k; velocities and rates
+in ``base_link_frd``; attitude as the quaternion of ``base_link_frd`` in
+``odom_ned``; positions in ``odom_ned``; ENU/FLU only through
+:mod:`seapup_common.frames`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import (PoseWithCovarianceStamped, TwistWithCovarianceStamped,
+                               Vector3Stamped, WrenchStamped)
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu, Range
+from seapup_msgs.msg import BladePitch, Depth
+
+from seapup_common import frames
+from seapup_common.contract import Command, ContractError, Measurement, Reading
+
+__all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
+           "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
+           "position_to_msg", "position_from_msg", "depth_to_msg", "depth_from_msg",
+           "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
+           "vector3_stamped", "wrench_stamped", "MeasurementCollector", "UNKNOWN_VARIANCE"]
+
+#: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
+UNKNOWN_VARIANCE = 1e9
+
+
+def ns_to_stamp(t_ns: int) -> Time:
+    """A ``builtin_interfaces/Time`` from integer nanoseconds."""
+    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_to_ns(stamp) -> int:
+    """Integer nanoseconds of a stamp (``Time`` or ``Clock.clock``)."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _header(msg, t_ns: int, frame_id: str):
+    msg.header.stamp = ns_to_stamp(t_ns)
+    msg.header.frame_id = frame_id
+    return msg
+
+
+def _xyz(v) -> tuple[float, float, float]:
+    return float(v.x), float(v.y), float(v.z)
+
+
+def _set_xyz(target, values) -> None:
+    target.x, target.y, target.z = (float(x) for x in values)
+
+
+def _quaternion(q) -> np.ndarray:
+    return np.array([q.x, q.y, q.z, q.w], float)
+
+
+def _set_quaternion(target, q) -> None:
+    target.x, target.y, target.z, target.w = (float(x) for x in q)
+
+
+def _diag3(cov, offset: int = 0) -> np.ndarray:
+    c = np.asarray(cov, float).reshape(int(round(math.sqrt(len(cov)))), -1)
+    return np.diag(c)[offset:offset + 3].copy()
+
+
+# -- commands -----------------------------------------------------------------
+def command_to_msg(command: Command, t_ns: int | None = None, frame_id: str = "") -> BladePitch:
+    """A ``BladePitch`` for ``command``, stamped ``t_ns`` (default: the command's stamp)."""
+    if t_ns is None:
+        t_ns = 0 if math.isnan(command.stamp) else int(round(command.stamp * 1e9))
+    msg = _header(BladePitch(), t_ns, frame_id)
+    msg.pitch = [float(x) for x in command.blade_pitch]
+    return msg
+
+
+def command_from_msg(msg: BladePitch) -> Command:
+    """The :class:`Command` of a ``BladePitch`` (raises InvalidBladePitchError if unusable)."""
+    return Command(np.array(msg.pitch, float), stamp_to_ns(msg.header.stamp) * 1e-9)
+
+
+# -- sensors --------------------------------------------------------------------
+def velocity_to_msg(velocity: Reading, rates: Reading, t_ns: int) -> TwistWithCovarianceStamped:
+    """Doppler log and rate gyros as a twist in base_link_frd (diagonal covariance)."""
+    msg = _header(TwistWithCovarianceStamped(), t_ns, frames.FRAME_FRD)
+    _set_xyz(msg.twist.twist.linear, velocity.value)
+    _set_xyz(msg.twist.twist.angular, rates.value)
+    msg.twist.covariance = np.diag(np.concatenate([np.broadcast_to(velocity.variance, 3),
+                                                   np.broadcast_to(rates.variance, 3)])).ravel()
+    return msg
+
+
+def velocity_from_msg(msg: TwistWithCovarianceStamped) -> tuple[Reading, Reading]:
+    """(velocity, rates) readings of a twist in base_link_frd."""
+    if msg.header.frame_id not in ("", frames.FRAME_FRD):
+        raise ContractError(f"velocity must be in {frames.FRAME_FRD}, got frame {msg.header.frame_id!r}")
+    t = stamp_to_ns(msg.header.stamp) * 1e-9
+    var = np.diag(np.asarray(msg.twist.covariance, float).reshape(6, 6))
+    m = Measurement.build(t, velocity=_xyz(msg.twist.twist.linear), rates=_xyz(msg.twist.twist.angular),
+                          variances={"velocity": var[:3], "rates": var[3:]})
+    return m.velocity, m.rates
+
+
+def imu_to_msg(attitude: Reading, rates: Reading, specific_force, t_ns: int) -> Imu:
+    """Attitude (as the quaternion of base_link_frd in odom_ned), rates and specific force.
+
+    The accelerometer's covariance is left zero: unknown (REP-145).
+    """
+    msg = _header(Imu(), t_ns, frames.FRAME_FRD)
+    _set_quaternion(msg.orientation, frames.euler_to_quaternion(*attitude.value))
+    msg.orientation_covariance = np.diag(np.broadcast_to(attitude.variance, 3)).ravel()
+    _set_xyz(msg.angular_velocity, rates.value)
+    msg.angular_velocity_covariance = np.diag(np.broadcast_to(rates.variance, 3)).ravel()
+    _set_xyz(msg.linear_acceleration, specific_force)
+    return msg
+
+
+def attitude_from_imu(msg: Imu) -> Reading:
+    """Euler angles (phi, theta, psi) of an Imu's orientation (base_link_frd in odom_ned)."""
+    q = _quaternion(msg.orientation)
+    if not np.all(np.isfinite(q)) or not 0.5 < np.linalg.norm(q) < 1.5:
+        raise ContractError(f"IMU orientation is not a unit quaternion: {q.tolist()}")
+    t = stamp_to_ns(msg.header.stamp) * 1e-9
+    m = Measurement.build(t, attitude=frames.quaternion_to_euler(q / np.linalg.norm(q)),
+                          variances={"attitude": _diag3(msg.orientation_covariance)})
+    return m.attitude
+
+
+def position_to_msg(position: Reading, t_ns: int) -> PoseWithCovarianceStamped:
+    """An acoustic fix in odom_ned; the orientation is not measured (huge variance)."""
+    msg = _header(PoseWithCovarianceStamped(), t_ns, frames.FRAME_NED)
+    _set_xyz(msg.pose.pose.position, position.value)
+    msg.pose.pose.orientation.w = 1.0
+    var = np.broadcast_to(position.variance, 3)
+    msg.pose.covariance = np.diag(np.concatenate([var, [UNKNOWN_VARIANCE] * 3])).ravel()
+    return msg
+
+
+def position_from_msg(msg: PoseWithCovarianceStamped) -> Reading:
+    """The position reading of an acoustic fix in odom_ned."""
+    if msg.header.frame_id not in ("", frames.FRAME_NED):
+        raise ContractError(f"position fix must be in {frames.FRAME_NED}, got {msg.header.frame_id!r}")
+    t = stamp_to_ns(msg.header.stamp) * 1e-9
+    m = Measurement.build(t, position=_xyz(msg.pose.pose.position),
+                          variances={"position": _diag3(msg.pose.covariance)})
+    return m.position
+
+
+def depth_to_msg(depth: Reading, t_ns: int) -> Depth:
+    msg = _header(Depth(), t_ns, frames.FRAME_NED)
+    msg.depth, msg.variance = float(depth.value), float(depth.variance)
+    return msg
+
+
+def depth_from_msg(msg: Depth) -> Reading:
+    m = Measurement.build(stamp_to_ns(msg.header.stamp) * 1e-9, depth=msg.depth,
+                          variances={"depth": msg.variance})
+    return m.depth
+
+
+def altitude_to_msg(altitude: Reading, t_ns: int, *, field_of_view: float, min_range: float,
+                    max_range: float) -> Range:
+    """An altimeter range along body z (sensor_msgs/Range, ultrasound)."""
+    msg = _header(Range(), t_ns, frames.FRAME_FRD)
+    msg.radiation_type = Range.ULTRASOUND
+    msg.field_of_view, msg.min_range, msg.max_range = float(field_of_view), float(min_range), float(max_range)
+    msg.range, msg.variance = float(altitude.value), float(altitude.variance)
+    return msg
+
+
+def altitude_from_msg(msg: Range) -> Reading:
+    """The altitude reading; invalid when the range is outside [min_range, max_range] (REP-117)."""
+    t = stamp_to_ns(msg.header.stamp) * 1e-9
+    if not (math.isfinite(msg.range) and msg.min_range <= msg.range <= msg.max_range):
+        return Reading.invalid()
+    return Measurement.build(t, altitude=msg.range, variances={"altitude": msg.variance}).altitude
+
+
+# -- truth and environment ----------------------------------------------------------
+def odometry_ned(state, t_ns: int) -> Odometry:
+    """Pose and body twist of a 12-state (thesis order) as odom_ned -> base_link_frd."""
+    x = np.asarray(state, float)
+    msg = _header(Odometry(), t_ns, frames.FRAME_NED)
+    msg.child_frame_id = frames.FRAME_FRD
+    _set_xyz(msg.pose.pose.position, x[:3])
+    _set_quaternion(msg.pose.pose.orientation, frames.euler_to_quaternion(*x[3:6]))
+    _set_xyz(msg.twist.twist.linear, x[6:9])
+    _set_xyz(msg.twist.twist.angular, x[9:12])
+    return msg
+
+
+def odometry_enu(state, t_ns: int) -> Odometry:
+    """The same as :func:`odometry_ned` in REP-105 odom -> base_link (ENU/FLU)."""
+    x = np.asarray(state, float)
+    msg = _header(Odometry(), t_ns, frames.FRAME_ENU)
+    msg.child_frame_id = frames.FRAME_FLU
+    _set_xyz(msg.pose.pose.position, frames.ned_to_enu(x[:3]))
+    q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6]))
+    _set_quaternion(msg.pose.pose.orientation, q)
+    _set_xyz(msg.twist.twist.linear, frames.frd_to_flu(x[6:9]))
+    _set_xyz(msg.twist.twist.angular, frames.frd_to_flu(x[9:12]))
+    return msg
+
+
+def vector3_stamped(vector, t_ns: int, frame_id: str) -> Vector3Stamped:
+    msg = _header(Vector3Stamped(), t_ns, frame_id)
+    _set_xyz(msg.vector, vector)
+    return msg
+
+
+def wrench_stamped(wrench, t_ns: int, frame_id: str) -> WrenchStamped:
+    """Force (first three) and moment (last three) of a 6-vector."""
+    w = np.asarray(wrench, float)
+    msg = _header(WrenchStamped(), t_ns, frame_id)
+    _set_xyz(msg.wrench.force, w[:3])
+    _set_xyz(msg.wrench.torque, w[3:])
+    return msg
+
+
+class MeasurementCollector:
+    """Keeps the latest reading of each sensor topic and assembles a :class:`Measurement`.
+
+    A controller node feeds it every sensor message as it arrives and asks
+    for the measurement at its sample time. Readings older than ``max_age``
+    [s] at that time are reported invalid (a dead sensor is not a reading);
+    readings stamped after it are not used yet.
+
+    Parameters
+    ----------
+    max_age : dict, optional
+        Per-field age limit [s] (default: 1 s for velocity, rates, attitude,
+        depth and altitude; 5 s for position fixes).
+    """
+
+    DEFAULT_MAX_AGE = {"velocity": 1.0, "rates": 1.0, "attitude": 1.0, "depth": 1.0,
+                       "altitude": 1.0, "position": 5.0}
+
+    def __init__(self, max_age: dict | None = None):
+        self.max_age = {**self.DEFAULT_MAX_AGE, **(max_age or {})}
+        self.latest: dict[str, Reading] = {}
+        self.rejected = 0
+        self.last_error = ""
+
+    def _keep(self, name: str, reading: Reading) -> None:
+        if reading.valid:
+            self.latest[name] = reading
+
+    def add(self, msg) -> bool:
+        """Take one sensor message; return False (and count it) if it is unusable."""
+        try:
+            if isinstance(msg, TwistWithCovarianceStamped):
+                velocity, rates = velocity_from_msg(msg)
+                self._keep("velocity", velocity)
+                self._keep("rates", rates)
+            elif isinstance(msg, Imu):
+                self._keep("attitude", attitude_from_imu(msg))
+            elif isinstance(msg, PoseWithCovarianceStamped):
+                self._keep("position", position_from_msg(msg))
+            elif isinstance(msg, Depth):
+                self._keep("depth", depth_from_msg(msg))
+            elif isinstance(msg, Range):
+                self._keep("altitude", altitude_from_msg(msg))
+            else:
+                raise ContractError(f"not a sensor message: {type(msg).__name__}")
+        except (ContractError, ValueError) as exc:
+            self.rejected += 1
+            self.last_error = str(exc)
+            return False
+        return True
+
+    def measurement(self, t: float) -> Measurement:
+        """The measurement at time ``t`` [s] from the latest fresh readings."""
+        fields = {}
+        for name, reading in self.latest.items():
+            age = t - reading.stamp
+            if -1e-9 <= age <= self.max_age[name] + 1e-9:
+                fields[name] = reading
+        return Measurement(float(t), **fields)

@@ -1,0 +1,199 @@
+"""Shared node entry, parameter declaration, QoS and logging for seapup nodes (rclpy).
+
+Gives every node the same life cycle: ``rclpy.init`` with the process's
+arguments, a SingleThreadedExecutor (the events executor deadlocks with these
+wheels), a clean exit on SIGINT/SIGTERM, a non-zero exit code if the node
+could not be constructed (e.g. a rejected parameter), and the log lines of
+the pure cores (Python ``logging`` under ``seapup_*``) on the node's ROS
+logger, so ``rosout`` and the console show them.
+"""
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+
+import rclpy
+from ament_index_python.packages import get_package_share_directory
+from rcl_interfaces.msg import ParameterType
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from seapup_common.parameters import load_node_parameters
+
+__all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
+           "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
+
+#: Reliable, keep-last 10: the default for seapup topics.
+RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Commands queue deeper: every one, good or bad, must be seen and counted.
+COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: Services queue deep enough for bursts: 1000 concurrent requests are each
+#: answered (rclpy's default keeps 10 and drops the rest silently).
+SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: Python loggers of the pure cores whose records go to the node's ROS logger.
+CORE_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident")
+
+
+class RosLogHandler(logging.Handler):
+    """Forwards Python ``logging`` records to an rclpy logger (same severity)."""
+
+    def __init__(self, ros_logger):
+        super().__init__()
+        self.ros_logger = ros_logger
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = f"[{record.name}] {record.getMessage()}"
+            if record.levelno >= logging.ERROR:
+                self.ros_logger.error(text)
+            elif record.levelno >= logging.WARNING:
+                self.ros_logger.warn(text)
+            elif record.levelno >= logging.INFO:
+                self.ros_logger.info(text)
+            else:
+                self.ros_logger.debug(text)
+        except Exception:  # noqa: BLE001 - logging must never raise into the caller
+            self.handleError(record)
+
+
+def _route_core_logs(node) -> list[tuple[logging.Logger, logging.Handler]]:
+    handler = RosLogHandler(node.get_logger())
+    installed = []
+    for name in CORE_LOGGERS:
+        logger = logging.getLogger(name)
+        logger.addHandler(handler)
+        logger.setLevel(logging.DEBUG)
+        logger.propagate = False
+        installed.append((logger, handler))
+    return installed
+
+
+def flatten(mapping: Mapping, prefix: str = "") -> dict:
+    """Nested mappings to ROS dotted parameter names: ``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out = {}
+    for key, value in mapping.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, Mapping):
+            out.update(flatten(value, name))
+        else:
+            out[name] = value
+    return out
+
+
+def _declare(node, name, value, descriptor):
+    if isinstance(value, (list, tuple)) and not value:  # an empty list has no type of its own
+        strings = descriptor is not None and descriptor.type == ParameterType.PARAMETER_STRING_ARRAY
+        value = Parameter.Type.STRING_ARRAY if strings else Parameter.Type.DOUBLE_ARRAY
+    if isinstance(value, (list, tuple)) and value and all(isinstance(v, (list, tuple)) for v in value):
+        value = [float(x) for row in value for x in row]  # ROS has no nested arrays: flatten rows
+    if descriptor is not None:
+        node.declare_parameter(name, value, descriptor)
+    else:
+        node.declare_parameter(name, value)
+    try:
+        got = node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return []
+    return list(got) if isinstance(got, (list, tuple)) or hasattr(got, "tolist") else got
+
+
+def declare_mapping(node, prefix: str, mapping: Mapping, descriptors: dict | None = None) -> dict:
+    """Declare every leaf of a nested mapping as ``<prefix>.<path>`` and return the
+    values (after overrides) as a nested dict of the same shape.
+
+    ``descriptors`` maps dotted names (without the prefix) to
+    ``ParameterDescriptor`` objects. Lists of rows are declared flattened.
+    """
+    descriptors = descriptors or {}
+    out: dict = {}
+    for key, value in mapping.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, Mapping):
+            sub = {k[len(key) + 1:]: d for k, d in descriptors.items() if k.startswith(f"{key}.")}
+            out[key] = declare_mapping(node, name, value, sub)
+        else:
+            out[key] = _declare(node, name, value, descriptors.get(key))
+    return out
+
+
+def declare_from_package_file(node, package: str, file_name: str, descriptors: dict | None = None,
+                              defaults: dict | None = None, section: str | None = None) -> dict:
+    """Declare every parameter of ``share/<package>/config/<file_name>`` for ``node``;
+    return their values (after overrides) by name.
+
+    Defaults come from the package's YAML (nested mappings become dotted
+    names); ``defaults`` adds parameters whose default lives in one shared place
+    in code-side data (e.g. the blade-pitch limit of ``seapup_common``).
+    Overrides given on the command line (``-p``, ``--params-file``) win as
+    usual. ``descriptors`` maps names to ``ParameterDescriptor`` objects.
+    ``section`` is the node's name in the file (default: its name now; pass the
+    executable's own name so a remapped ``__node:=other`` still finds its defaults).
+    """
+    path = Path(get_package_share_directory(package)) / "config" / file_name
+    values = {**(defaults or {}), **flatten(load_node_parameters(path, section or node.get_name()))}
+    descriptors = descriptors or {}
+    return {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def _drain(executor, node, budget: float = 3.0) -> None:
+    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping."""
+    import time
+    deadline = time.monotonic() + budget
+    try:
+        while time.monotonic() < deadline:
+            before = getattr(node, "received", None)
+            executor.spin_once(timeout_sec=0.05)
+            if getattr(node, "received", None) == before:
+                break
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+
+
+def run_node(make_node, args=None) -> int:
+    """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
+
+    Both signals raise ``KeyboardInterrupt`` in the main thread between two
+    Python operations (the executor returns to Python at least every 0.1 s,
+    also when the node has nothing to do), so the executor stops, the node (its timers, callbacks
+    and publishers) is destroyed, and only then is the context shut down: no
+    callback ever runs on a dead context, and the exit code is 0.
+    """
+    rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _interrupt)
+    signal.signal(signal.SIGTERM, _interrupt)
+    node = None
+    routed = []
+    try:
+        executor = None
+        node = make_node()
+        routed = _route_core_logs(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while True:  # back in Python at least every 0.1 s, so a signal is handled promptly
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        if node is not None and getattr(node, "drain_on_shutdown", False):
+            _drain(executor, node)
+    except Exception as exc:  # construction or callback failure: report and exit non-zero
+        name = node.get_name() if node is not None else getattr(make_node, "__name__", "node")
+        print(f"[{name}] fatal: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        for logger, handler in routed:
+            logger.removeHandler(handler)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

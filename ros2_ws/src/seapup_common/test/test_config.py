@@ -1,0 +1,71 @@
+"""Tests of seapup_common.config: extends chains, deep merge, errors that name the key."""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_common.config import ConfigError, ConfigView, load_yaml, merge
+
+
+def test_merge_is_deep_and_copies():
+    base = {"a": {"b": 1, "c": 2}, "l": [1]}
+    out = merge(base, {"a": {"c": 3}, "l": [2]})
+    assert out == {"a": {"b": 1, "c": 3}, "l": [2]}
+    out["a"]["b"] = 9
+    assert base["a"]["b"] == 1
+
+
+def test_extends_chain_merges_overlays(tmp_path):
+    (tmp_path / "base.yaml").write_text("x: 1\nsub: {a: 1, b: 2}\n")
+    (tmp_path / "mid.yaml").write_text("extends: base\nsub: {b: 3}\n")
+    (tmp_path / "top.yaml").write_text("extends: mid.yaml\ny: 4\n")
+    assert load_yaml(tmp_path / "top.yaml") == {"x": 1, "sub": {"a": 1, "b": 3}, "y": 4}
+
+
+@pytest.mark.parametrize("files,match", [
+    ({"a.yaml": "extends: b\n", "b.yaml": "extends: a\n"}, "loops back"),
+    ({"a.yaml": "extends: missing\n"}, "does not exist"),
+    ({"a.yaml": "[1, 2]\n"}, "must be a mapping"),
+    ({"a.yaml": "a: [b\n"}, "cannot read"),
+])
+def test_bad_files_are_named(tmp_path, files, match):
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        load_yaml(tmp_path / "a.yaml")
+
+
+def test_view_names_the_missing_key_with_its_path():
+    v = ConfigView({"rigid_body": {"mass": 110.0}}, "baseline.yaml")
+    assert v["rigid_body"]["mass"] == 110.0
+    with pytest.raises(ConfigError, match=r"baseline.yaml: missing key rigid_body\.cg"):
+        v["rigid_body"]["cg"]
+    with pytest.raises(ConfigError):
+        v.section("thrusters")
+    assert v.get("thrusters") is None and v["rigid_body"].get("cg", 3) == 3
+    assert isinstance(v, dict) is False and dict(v)["rigid_body"] == {"mass": 110.0}
+
+
+@pytest.mark.parametrize("value,kw,match", [
+    (math.nan, {}, "outside the allowed range"), (-1.0, {"lo": 0.0}, r"\[0, inf\]"),
+    (0.0, {"lo": 0.0, "lo_open": True}, r"\(0, inf\]"), ("3", {}, "must be a number"),
+    (True, {}, "must be a number"), (1e308 * 10, {}, "outside"),
+])
+def test_number_checks_type_finiteness_and_range(value, kw, match):
+    with pytest.raises(ConfigError, match=match):
+        ConfigView({"k": value}, "f.yaml", "sec").number("k", **kw)
+
+
+def test_vector_flag_choice_integer():
+    v = ConfigView({"v": [1, 2, 3], "f": True, "c": "hover", "i": 4, "s": "yes"}, "f.yaml")
+    np.testing.assert_array_equal(v.vector("v", 3), [1.0, 2.0, 3.0])
+    with pytest.raises(ConfigError, match="needs 4 numbers"):
+        v.vector("v", 4)
+    assert v.flag("f") is True
+    with pytest.raises(ConfigError, match="true or false"):
+        v.flag("s")
+    assert v.choice("c", ("hover", "neutral")) == "hover"
+    with pytest.raises(ConfigError, match="not one of"):
+        v.choice("s", ("hover", "neutral"))
+    assert v.integer("i", lo=0, hi=10) == 4
+    assert v.number("absent", 2.5) == 2.5

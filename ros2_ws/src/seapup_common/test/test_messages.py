@@ -1,0 +1,90 @@
+"""Tests of seapup_common.ros.messages: contract <-> ROS messages, both ways."""
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from scipy.spatial.transform import Rotation
+from sensor_msgs.msg import Imu
+
+from seapup_common import frames
+from seapup_common.blade_pitch import InvalidBladePitchError
+from seapup_common.contract import Command, ContractError, Measurement
+from seapup_common.ros import messages as conv
+
+T_NS = 12_345_000_000
+
+
+def roundtrip(msg):
+    return deserialize_message(serialize_message(msg), type(msg))
+
+
+def test_stamps():
+    assert conv.stamp_to_ns(conv.ns_to_stamp(T_NS)) == T_NS
+    assert conv.ns_to_stamp(T_NS).sec == 12 and conv.ns_to_stamp(T_NS).nanosec == 345_000_000
+
+
+def test_command_roundtrip_and_rejection():
+    cmd = Command([0.1, -0.2, 0.3, -0.4], 12.345)
+    back = conv.command_from_msg(roundtrip(conv.command_to_msg(cmd)))
+    np.testing.assert_array_equal(back.blade_pitch, cmd.blade_pitch)
+    assert back.stamp == pytest.approx(12.345)
+    msg = conv.command_to_msg(cmd)
+    msg.pitch[0] = math.nan
+    with pytest.raises(InvalidBladePitchError):
+        conv.command_from_msg(msg)
+
+
+def test_measurement_roundtrip_through_every_sensor_message():
+    m = Measurement.build(12.345, velocity=[0.5, -0.1, 0.05], rates=[0.01, -0.02, 0.3],
+                          attitude=[0.1, -0.2, 3.0], depth=30.0, altitude=12.0, position=[1.0, 2.0, 30.0],
+                          variances={"velocity": [1e-4] * 3, "rates": [1e-6] * 3, "attitude": [4e-6] * 3,
+                                     "depth": 0.0025, "altitude": 0.0025, "position": [0.25] * 3})
+    collector = conv.MeasurementCollector()
+    msgs = [conv.velocity_to_msg(m.velocity, m.rates, T_NS),
+            conv.imu_to_msg(m.attitude, m.rates, [0.0, 0.0, -9.81], T_NS),
+            conv.depth_to_msg(m.depth, T_NS),
+            conv.altitude_to_msg(m.altitude, T_NS, field_of_view=0.17, min_range=0.3, max_range=200.0),
+            conv.position_to_msg(m.position, T_NS)]
+    for msg in msgs:
+        assert collector.add(roundtrip(msg))
+    back = collector.measurement(12.345)
+    for name in ("velocity", "rates", "attitude", "depth", "altitude", "position"):
+        a, b = getattr(m, name), getattr(back, name)
+        np.testing.assert_allclose(b.value, a.value, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(b.variance, a.variance, err_msg=name)
+        assert b.stamp == pytest.approx(12.345)
+    # stale readings are not readings
+    late = collector.measurement(12.345 + 2.0)
+    assert not late.velocity.valid and late.position.valid  # fixes may be 5 s old
+
+
+def test_imu_orientation_is_frd_in_ned_and_bad_messages_are_counted():
+    att = [0.1, -0.2, 3.0]
+    m = Measurement.build(0.0, attitude=att, rates=[0, 0, 0])
+    imu = conv.imu_to_msg(m.attitude, m.rates, [0, 0, -9.81], 0)
+    q = [imu.orientation.x, imu.orientation.y, imu.orientation.z, imu.orientation.w]
+    np.testing.assert_allclose(Rotation.from_quat(q).as_euler("ZYX")[::-1], att, atol=1e-12)
+    assert imu.header.frame_id == frames.FRAME_FRD
+    collector = conv.MeasurementCollector()
+    bad = Imu()
+    bad.orientation.w = math.nan
+    assert not collector.add(bad) and collector.rejected == 1
+    assert not collector.add(conv.command_to_msg(Command([0] * 4))) and collector.rejected == 2
+    with pytest.raises(ContractError, match="base_link_frd"):
+        tw = conv.velocity_to_msg(m.rates, m.rates, 0)
+        tw.header.frame_id = "base_link"
+        conv.velocity_from_msg(tw)
+
+
+def test_altitude_outside_the_range_is_invalid_and_odometry_frames():
+    m = Measurement.build(0.0, altitude=250.0)
+    msg = conv.altitude_to_msg(m.altitude, 0, field_of_view=0.17, min_range=0.3, max_range=200.0)
+    assert not conv.altitude_from_msg(msg).valid
+    x = np.zeros(12)
+    x[:3], x[5], x[6] = [1.0, 2.0, 3.0], math.pi / 2, 0.5
+    ned, enu = conv.odometry_ned(x, 0), conv.odometry_enu(x, 0)
+    assert (ned.header.frame_id, ned.child_frame_id) == (frames.FRAME_NED, frames.FRAME_FRD)
+    assert (enu.header.frame_id, enu.child_frame_id) == (frames.FRAME_ENU, frames.FRAME_FLU)
+    assert (enu.pose.pose.position.x, enu.pose.pose.position.y, enu.pose.pose.position.z) == (2.0, 1.0, -3.0)
+    assert enu.twist.twist.linear.x == 0.5

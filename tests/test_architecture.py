@@ -1,0 +1,101 @@
+"""Dependencies point one way, and pure cores never touch ROS.
+
+    seapup_msgs <- seapup_common <- seapup_sim, seapup_control, seapup_ident <- seapup_bringup
+
+seapup_control and seapup_ident must install and run on a real vehicle without
+the simulator, so they never import seapup_sim (outside their tests). Pure-core
+modules import numpy/scipy/yaml/rosbags but never rclpy or ROS message
+packages, directly or through another seapup module; rclpy shells are the
+``*_node.py`` modules, ``seapup_common.ros`` and the bringup package (graphs).
+"""
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
+LAYER = {"seapup_msgs": 0, "seapup_common": 1, "seapup_sim": 2, "seapup_control": 2, "seapup_ident": 2,
+         "seapup_bringup": 3}
+ROS = re.compile(r"^(rclpy|rosidl\w*|ament_index_python|\w+_msgs|\w+_interfaces|rcl_\w+|rosgraph_msgs)(\.|$)")
+
+
+def modules():
+    """Every module of the Python packages (not their tests): name -> path."""
+    out = {}
+    for package in LAYER:
+        root = SRC / package / package
+        for path in sorted(root.rglob("*.py")) if root.is_dir() else []:
+            rel = path.relative_to(SRC / package).with_suffix("")
+            name = ".".join(rel.parts)
+            out[name.removesuffix(".__init__")] = path
+    return out
+
+
+def imports_of(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{a.name}" for a in node.names)
+    return names
+
+
+def is_shell(module: str) -> bool:
+    package = module.split(".")[0]
+    return (package == "seapup_bringup" or module.startswith("seapup_common.ros")
+            or module.split(".")[-1].endswith("_node"))
+
+
+MODULES = modules()
+
+
+def test_the_packages_exist_and_are_walked():
+    assert {m.split(".")[0] for m in MODULES} == set(LAYER) - {"seapup_msgs"}
+    assert len(MODULES) >= 35
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_point_down_the_layers(module):
+    mine = module.split(".")[0]
+    for name in imports_of(MODULES[module]):
+        other = name.split(".")[0]
+        if other in LAYER and other != mine:
+            assert LAYER[other] < LAYER[mine], f"{module} imports {name}: {other} is not below {mine}"
+
+
+def _project_closure(module: str, seen=None) -> set[str]:
+    """Every import of ``module``, following the project's own modules."""
+    seen = set() if seen is None else seen
+    out = set()
+    for name in imports_of(MODULES[module]):
+        out.add(name)
+        target = next((m for m in (name, name.rsplit(".", 1)[0]) if m in MODULES), None)
+        if target and target not in seen:
+            seen.add(target)
+            out |= _project_closure(target, seen)
+    return out
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if not is_shell(m)))
+def test_pure_cores_never_reach_ros(module):
+    ros = sorted(n for n in _project_closure(module) if ROS.match(n))
+    assert not ros, f"pure-core module {module} reaches {ros}"
+
+
+def test_package_manifests_declare_the_same_direction():
+    for package, layer in LAYER.items():
+        xml = (SRC / package / "package.xml").read_text()
+        for dep in re.findall(r"<(?:exec_|build_)?depend>(seapup_\w+)</", xml):
+            assert LAYER[dep] < layer, f"{package}/package.xml depends on {dep}"
+
+
+def test_the_checker_catches_a_violation(tmp_path):
+    """The walk really sees imports: a control module importing the simulator is flagged."""
+    bad = tmp_path / "bad.py"
+    bad.write_text("from seapup_sim.simulation import Simulation\nimport rclpy.node\n")
+    names = imports_of(bad)
+    assert "seapup_sim.simulation" in names and any(ROS.match(n) for n in names)
+    assert LAYER["seapup_sim"] >= LAYER["seapup_control"]

@@ -1,0 +1,199 @@
+"""No request, parameter or signal may kill or freeze the simulator (issue: hardening).
+
+Each case of the hostile-user report: the node stays alive, answers, refuses
+with a reason, keeps publishing finite values, and a refused request changes
+nothing.
+"""
+import concurrent.futures
+import math
+import signal
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rosgraph_msgs.msg import Clock
+from seapup_msgs.srv import Reset, SetCurrent
+
+from seapup_common.ros.node import SERVICE_QOS
+from tests.test_simulator_node import Probe, command, finite, start_simulator
+
+
+def param(name, value):
+    v = ParameterValue()
+    if isinstance(value, bool):
+        v.type, v.bool_value = ParameterType.PARAMETER_BOOL, value
+    else:
+        v.type, v.double_value = ParameterType.PARAMETER_DOUBLE, float(value)
+    return ParameterMsg(name=name, value=v)
+
+
+def set_param(probe, name, value):
+    client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
+    assert probe.spin(client.service_is_ready, 10.0)
+    fut = client.call_async(SetParameters.Request(parameters=[param(name, value)]))
+    assert probe.spin(fut.done, 10.0)
+    return fut.result().results[0]
+
+
+def current(**kw):
+    req = SetCurrent.Request(enabled=True, mean_speed=0.2, mean_direction=0.0, speed_std=0.05,
+                             direction_std=0.1, break_time=10.0)
+    for k, v in kw.items():
+        setattr(req, k, v)
+    return req
+
+
+def sim_time(probe):
+    return float(probe.counters().get("sim_time", -1))
+
+
+def test_refused_requests_change_nothing_and_the_node_lives(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    probe.record("/seapup/truth/odometry", Odometry)
+    assert probe.spin(lambda: sim_time(probe) > 0.5, 20.0), sim.log_text()
+    for state in ([0, 0, 10, 0, 1.6, 0, 0, 0, 0, 0, 0, 0], [0, 0, 10, 0, 0, 0, 25, 0, 0, 0, 0, 0],
+                  [2e5, 0, 10] + [0] * 9, [0, 0, -1e5] + [0] * 9, [0, 0, -1.0] + [0] * 9,
+                  [0, 0, 10, 0, 0, 0, 19.9, 0, 19.9, 0, 0, 19.9]):
+        req = Reset.Request(seed=3, use_state=True)
+        req.state = [float(x) for x in state]
+        before = sim_time(probe)
+        r = probe.call(Reset, "/seapup/simulator/reset", req)
+        assert not r.success and "outside the allowed range" in r.message, (state, r.message)
+        assert probe.spin(lambda: sim_time(probe) > before + 0.2, 10.0)  # not reset: time went on
+    for kw, words in (({"break_time": 1e16}, "break_time"), ({"mean_speed": 100.0}, "maximum"),
+                      ({"mean_speed": 1e308}, "maximum"), ({"speed_std": 1e300}, "maximum"),
+                      ({"direction_std": 1e300}, "direction_std"), ({"speed_std": math.nan}, "finite")):
+        r = probe.call(SetCurrent, "/seapup/simulator/set_current", current(**kw))
+        assert not r.success and words in r.message and len(r.message) < 300, (kw, r.message)
+    assert probe.call(SetCurrent, "/seapup/simulator/set_current", current(break_time=0.0)).success  # keeps T_c
+    t0 = sim_time(probe)
+    assert probe.spin(lambda: sim_time(probe) > t0 + 2.0, 10.0)
+    assert sim.running and all(finite(m) for m in probe.msgs["/seapup/truth/odometry"][-20:])
+    probe.close()
+
+
+def test_real_time_factor_limits_and_changes_take_effect_at_once(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/clock", Clock)
+    assert probe.spin(lambda: len(probe.msgs["/clock"]) > 3, 20.0), sim.log_text()
+    for bad in (1e-11, 1e-300):
+        res = set_param(probe, "real_time_factor", bad)
+        assert not res.successful and "must be 0" in res.reason
+    assert set_param(probe, "real_time_factor", 1e-3).successful   # a step every 200 s...
+    time.sleep(0.5)
+    assert set_param(probe, "real_time_factor", 10.0).successful   # ...and back: at once
+    n = len(probe.msgs["/clock"])
+    assert probe.spin(lambda: len(probe.msgs["/clock"]) > n + 10, 5.0), "frozen after a slow real-time factor"
+    res = set_param(probe, "use_sim_time", True)
+    assert not res.successful and "clock source" in res.reason
+    n = len(probe.msgs["/clock"])
+    assert probe.spin(lambda: len(probe.msgs["/clock"]) > n + 5, 5.0)
+    probe.close()
+
+
+def test_use_sim_time_at_start_is_refused_and_the_plant_runs(ros_context, node_process, spin):
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "use_sim_time:=true")
+    probe = Probe(ros_context, spin)
+    probe.record("/clock", Clock)
+    assert probe.spin(lambda: len(probe.msgs["/clock"]) > 5, 20.0), sim.log_text()
+    assert "use_sim_time refused" in sim.log_text()
+    probe.close()
+
+
+def test_a_burst_of_concurrent_service_calls_is_all_answered(ros_context, node_process, spin):
+    start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    # the client's response queue must hold the burst too (rclpy's default keeps 10)
+    client = probe.node.create_client(SetCurrent, "/seapup/simulator/set_current", qos_profile=SERVICE_QOS)
+    assert probe.spin(client.service_is_ready, 20.0)
+    n = 200
+    futures = [client.call_async(current(mean_speed=0.001 * k)) for k in range(n)]
+    assert probe.spin(lambda: all(f.done() for f in futures), 60.0), sum(f.done() for f in futures)
+    assert all(f.result().success for f in futures)
+    probe.close()
+
+
+def test_second_simulator_and_silent_controller_are_reported(ros_context, node_process, spin):
+    start_simulator(node_process, "lockstep_timeout:=0.05")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+
+    def message():
+        for d in reversed(probe.msgs["/diagnostics"]):
+            for st in d.status:
+                if st.name == "seapup/simulator":
+                    return st.level, st.message
+        return None, ""
+
+    # lockstep with no controller: WARN from the first timeout, not only when the watchdog trips
+    assert probe.spin(lambda: "has not answered" in message()[1], 20.0), message()
+    assert message()[0] == b"\x01"
+    node_process(package="seapup_sim", executable="simulator",
+                 args=["--ros-args", "-p", "mode:=realtime", "-r", "__node:=simulator2"], name="second")
+    assert probe.spin(lambda: "publishers on /clock" in message()[1], 20.0), message()
+    probe.close()
+
+
+def test_bad_environment_parameters_stop_the_start_with_the_key_named(node_process):
+    for setting, words in (("environment.current.break_time:=1e16", "break_time"),
+                           ("environment.current.mean_speed:=.nan", "current.mean_speed"),
+                           ("environment.current.mean_speed:=-5.0", "current.mean_speed"),
+                           ("environment.seabed.depth:=-1.0", "seabed.depth"),
+                           ("environment.sensors:=sonar", "sensors")):
+        sim = start_simulator(node_process, setting)
+        deadline = time.monotonic() + 20
+        while sim.running and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sim.returncode == 1 and words in sim.log_text(), (setting, sim.log_text()[-500:])
+
+
+def test_read_only_environment_and_wrong_typed_commands(ros_context, ros_domain, node_process, spin):
+    import rclpy
+    from rclpy.context import Context
+    from std_msgs.msg import String
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    assert probe.spin(lambda: sim_time(probe) > 0.2, 20.0), sim.log_text()
+    res = set_param(probe, "environment.current.mean_speed", math.nan)
+    assert not res.successful and "read-only" in res.reason
+    res = set_param(probe, "publish_clock", False)
+    assert not res.successful and "read-only" in res.reason
+    other = Context()  # another participant: DDS refuses two types on one topic in one participant
+    rclpy.init(context=other, domain_id=ros_domain)
+    try:
+        stray_node = rclpy.create_node("stray", context=other)
+        stray = stray_node.create_publisher(String, "/seapup/thrusters/command", 10)
+        stray.publish(String(data="forward!"))
+
+        def warned():
+            return any("std_msgs/msg/String" in st.message for d in probe.msgs["/diagnostics"] for st in d.status)
+
+        assert probe.spin(warned, 10.0)
+        assert sim.running
+        stray_node.destroy_node()
+    finally:
+        other.try_shutdown()
+    probe.close()
+
+
+def test_sigterm_under_command_spam_exits_0_every_time(ros_context, node_process, spin):
+    probe = Probe(ros_context, spin)
+    for run in range(20):
+        sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=0.0")
+        assert probe.spin(lambda: probe.cmd.get_subscription_count() > 0, 20.0), sim.log_text()
+        for _ in range(200):
+            probe.cmd.publish(command([0.1, 0.1, 0.0, 0.0]))
+        t0 = time.monotonic()
+        import os
+        os.killpg(sim.popen.pid, signal.SIGTERM)
+        code = sim.popen.wait(timeout=10)
+        assert code == 0 and time.monotonic() - t0 < 1.0, (run, code, sim.log_text()[-1500:])
+        probe.spin(lambda: probe.cmd.get_subscription_count() == 0, 5.0)
+    probe.close()
