@@ -27,3 +27,62 @@ def test_recorder_bags_the_open_loop_commands(node_process, tmp_path):
     pitches = {tuple(m.pitch) for m in msgs}
     assert pitches <= {(0.1, 0.1, 0.0, 0.0), (0.0, 0.0, -0.2, -0.2)}
     assert (0.0, 0.0, -0.2, -0.2) in pitches
+
+
+def _typed_recording(ros_context, node_process, spin, tmp_path, qos):
+    """Start a recorder on a typed topic before its publisher, then publish 20 strings with ``qos``."""
+    import time
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    bag_dir = tmp_path / "bag"
+    rec = node_process(package="seapup_ident", executable="recorder",
+                       args=["--ros-args", "-p", f"bag_path:={bag_dir}",
+                             "-p", "topics:=['/typed:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and "recording /typed [" not in rec.log_text():
+        time.sleep(0.05)
+    node = rclpy.create_node("typed_source", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    pub = node.create_publisher(String, "/typed", qos)
+    assert spin(executor, lambda: pub.get_subscription_count() >= 1, 20.0), rec.log_text()
+    for k in range(20):
+        pub.publish(String(data=f"m{k}"))
+        spin(executor, lambda: False, 0.02)
+    spin(executor, lambda: False, 0.5)
+    assert rec.stop() == 0, rec.log_text()
+    node.destroy_node()
+    return bag_dir
+
+
+def test_typed_topic_records_the_publishers_offered_qos(ros_context, node_process, spin, tmp_path):
+    """A topic named with its type is subscribed at once, but the bag keeps the publisher's QoS."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from seapup_common.bag import bag_info
+
+    qos = QoSProfile(depth=7, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    bag_dir = _typed_recording(ros_context, node_process, spin, tmp_path, qos)
+    assert [deserialize_message(m.cdr, String).data for m in read_bag(bag_dir)] == [f"m{k}" for k in range(20)]
+    (topic,) = bag_info(bag_dir)["topics"]
+    (offered,) = topic["qos"]  # the publisher's, not the eager subscription's default (volatile)
+    assert (offered["reliability"], offered["durability"]) == ("reliable", "transient_local")
+
+
+def test_typed_topic_matches_a_best_effort_publisher(ros_context, node_process, spin, tmp_path):
+    """A reliable eager subscription cannot match a best-effort publisher: it is replaced by one that can."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from seapup_common.bag import bag_info
+
+    bag_dir = _typed_recording(ros_context, node_process, spin, tmp_path,
+                               QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+    got = [deserialize_message(m.cdr, String).data for m in read_bag(bag_dir)]
+    assert len(got) >= 18 and got == sorted(got, key=lambda s: int(s[1:]))  # loopback best effort: (nearly) all
+    (topic,) = bag_info(bag_dir)["topics"]
+    assert [q["reliability"] for q in topic["qos"]] == ["best_effort"]

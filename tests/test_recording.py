@@ -58,20 +58,24 @@ def test_sigkill_loses_at_most_the_flush_interval_and_recover_makes_it_readable(
         ros_context, node_process, spin, tmp_path):
     start_simulator(node_process, "mode:=realtime", "real_time_factor:=10.0")
     probe = Probe(ros_context, spin)
-    probe.record(ODOM, Odometry)
+    arrivals = []  # (wall arrival time in this process, stamp)
+    probe.node.create_subscription(Odometry, ODOM, lambda m: arrivals.append((time.monotonic(), stamp(m))), 1000)
     rec = start_recorder(node_process, tmp_path / "bag", "flush_interval:=0.5")
-    assert probe.spin(lambda: len(probe.msgs[ODOM]) > 60, 30.0)
+    assert probe.spin(lambda: len(arrivals) > 60, 30.0)
+    probe.spin(lambda: False, 3.0)  # the recorder has been recording for at least 3 s
+    killed_at = time.monotonic()
     rec.popen.send_signal(signal.SIGKILL)
     rec.popen.wait(10)
-    probe.spin(lambda: False, 0.2)
-    received = sorted(stamp(m) for m in probe.msgs[ODOM])
     report = recover_bag(tmp_path / "bag")
     got = [deserialize_message(m.cdr, Odometry) for m in read_bag(tmp_path / "bag")]
     assert report["messages"] == len(got) > 0
-    # 10x real time, 0.5 s wall flush interval: at most ~5 s of graph time (+ one sample) missing at the end
-    assert stamp(got[-1]) >= received[-1] - int(6e9), (stamp(got[-1]), received[-1])
     stamps = [stamp(m) for m in got]
     assert stamps == sorted(stamps) and len(set(np.diff(stamps))) == 1  # a gap-free run of samples
+    # What the graph delivered more than the flush interval (0.5 s) before the kill is on disk.
+    # 1.5 s more is allowed for the recorder's own lag behind this process on a loaded machine
+    # (messages still in its DDS queue die with it; that is not the bag's loss).
+    settled = [s for t, s in arrivals if t < killed_at - 0.5 - 1.5 and s >= stamps[0]]
+    assert settled and stamps[-1] >= settled[-1], (stamps[-1], settled[-1])
     probe.close()
 
 

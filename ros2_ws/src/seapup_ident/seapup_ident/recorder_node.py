@@ -3,7 +3,9 @@
 A thin shell over :class:`seapup_common.bag.BagWriter`. It subscribes raw
 (CDR bytes, nothing decoded) to each entry of ``topics`` -- ``/topic`` as soon
 as the graph reports its type, ``/topic:pkg/msg/Type`` at once, so a recorder
-started before the publishers misses nothing -- or, with ``all``, to every
+started before the publishers misses nothing (its bag channel is declared, with
+the publishers' offered QoS, when they appear or at its first message, and a
+best-effort publisher gets a best-effort subscription) -- or, with ``all``, to every
 topic that appears (less those matching ``exclude``). Like rosbag2 it adapts
 its subscription QoS to the publishers (:func:`seapup_common.ros.graph.adapted_qos`)
 and stores their offered QoS profiles and the topic's type hash.
@@ -101,6 +103,8 @@ class RecorderNode(Node):
         self.max_duration = float(p["max_duration"])
         self._first_ns: int | None = None
         self.subscribed: dict[str, str] = {}
+        self.subscriptions_by_topic: dict = {}
+        self.eager: set[str] = set()  # typed topics subscribed before any publisher was seen
         for entry in entries:
             if ":" in entry:
                 self._subscribe(*entry.split(":", 1), publishers=[])
@@ -110,6 +114,8 @@ class RecorderNode(Node):
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subscribed:
+                if topic in self.eager:
+                    self._adapt_eager(topic)
                 continue
             wanted = topic in self.wanted or (self.record_all and not (self.exclude and self.exclude.search(topic)))
             if not wanted:
@@ -118,20 +124,46 @@ class RecorderNode(Node):
             if not publishers:
                 continue  # only subscribers so far: wait for a publisher to know its QoS
             self._subscribe(topic, types[0], publishers)
-        if not self.record_all and len(self.subscribed) == len(self.wanted):
+        if not self.record_all and len(self.subscribed) == len(self.wanted) and not self.eager:
             self.discovery.cancel()
 
     def _subscribe(self, topic: str, type_name: str, publishers) -> None:
         qos = adapted_qos(publishers) if publishers else EAGER_QOS
-        offered = [qos_to_rosbag2(i.qos_profile) for i in publishers] or None
-        type_hash = str(publishers[0].topic_type_hash) if publishers else ""
-        self.bag.add_topic(topic, type_name, qos=offered, type_hash=type_hash)
-        self.create_subscription(message_class(type_name), topic,
-                                 lambda raw, info, t=topic: self._record(t, raw, info), qos, raw=True)
+        self.subscriptions_by_topic[topic] = self.create_subscription(
+            message_class(type_name), topic, lambda raw, info, t=topic: self._record(t, raw, info), qos, raw=True)
+        if publishers:
+            self._add_to_bag(topic, type_name, publishers)
+        else:
+            self.eager.add(topic)  # the bag's channel waits for the publishers' offered QoS
         self.subscribed[topic] = type_name
         fields = self.typestore.fielddefs.get(type_name, ((), []))[1]
         self.stamped[topic] = bool(fields) and fields[0][0] == "header"
         self.get_logger().info(f"recording {topic} [{type_name}]")
+
+    def _add_to_bag(self, topic: str, type_name: str, publishers) -> None:
+        offered = [qos_to_rosbag2(i.qos_profile) for i in publishers]
+        type_hash = str(publishers[0].topic_type_hash) if publishers else ""
+        self.bag.add_topic(topic, type_name, qos=offered, type_hash=type_hash)
+
+    def _adapt_eager(self, topic: str) -> None:
+        """A typed topic's publishers appeared: record their QoS, and match a best-effort one.
+
+        The eager subscription is reliable; it cannot match a best-effort
+        publisher, so then it is replaced by one adapted to the publishers.
+        """
+        publishers = self.get_publishers_info_by_topic(topic)
+        if not publishers:
+            return
+        self.eager.discard(topic)
+        adapted = adapted_qos(publishers)
+        if adapted.reliability != EAGER_QOS.reliability:
+            self.destroy_subscription(self.subscriptions_by_topic[topic])
+            type_name = self.subscribed[topic]
+            self.subscriptions_by_topic[topic] = self.create_subscription(
+                message_class(type_name), topic, lambda raw, info, t=topic: self._record(t, raw, info),
+                adapted, raw=True)
+        if topic not in self.bag.topics:
+            self._add_to_bag(topic, self.subscribed[topic], publishers)
 
     @staticmethod
     def header_stamp_ns(raw: bytes) -> int | None:
@@ -158,6 +190,8 @@ class RecorderNode(Node):
 
     def _record(self, topic: str, raw: bytes, info) -> None:
         self.received += 1
+        if topic not in self.bag.topics:  # first message of a typed topic: its publisher exists now
+            self._add_to_bag(topic, self.subscribed[topic], self.get_publishers_info_by_topic(topic))
         log_ns = self.get_clock().now().nanoseconds
         if self.sim_time:
             at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))

@@ -12,12 +12,14 @@ from __future__ import annotations
 import logging
 import signal
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
 import rclpy
 from ament_index_python.packages import get_package_share_directory
 from rcl_interfaces.msg import ParameterType
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -147,7 +149,6 @@ def _interrupt(signum, frame):
 
 def _drain(executor, node, budget: float = 3.0) -> None:
     """Run the callbacks already queued (e.g. a recorder's received messages) before stopping."""
-    import time
     deadline = time.monotonic() + budget
     try:
         while time.monotonic() < deadline:
@@ -159,6 +160,26 @@ def _drain(executor, node, budget: float = 3.0) -> None:
         pass
 
 
+def _await_acknowledgements(node, budget: float = 1.0) -> None:
+    """Give reliable subscribers up to ``budget`` seconds to acknowledge what was published.
+
+    A process that exits right after publishing (a controller stopped just after
+    its last command) would otherwise take an unacknowledged message with it: a
+    subscriber that lost the first transmission never gets the resend, while
+    another (a recorder) did receive it.
+    """
+    deadline = time.monotonic() + budget
+    try:
+        for publisher in list(node.publishers):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return
+            if publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
+                publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+
+
 def run_node(make_node, args=None) -> int:
     """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
 
@@ -166,7 +187,10 @@ def run_node(make_node, args=None) -> int:
     Python operations (the executor returns to Python at least every 0.1 s,
     also when the node has nothing to do), so the executor stops, the node (its timers, callbacks
     and publishers) is destroyed, and only then is the context shut down: no
-    callback ever runs on a dead context, and the exit code is 0.
+    callback ever runs on a dead context, and the exit code is 0. Before the
+    node goes, reliable publishers wait (briefly) until their subscribers have
+    acknowledged every message, so the last command of a stopped controller is
+    not lost for one subscriber while another has it.
     """
     rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
     signal.signal(signal.SIGINT, _interrupt)
@@ -184,6 +208,8 @@ def run_node(make_node, args=None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         if node is not None and getattr(node, "drain_on_shutdown", False):
             _drain(executor, node)
+        if node is not None:
+            _await_acknowledgements(node)
     except Exception as exc:  # construction or callback failure: report and exit non-zero
         name = node.get_name() if node is not None else getattr(make_node, "__name__", "node")
         print(f"[{name}] fatal: {exc}", file=sys.stderr)
