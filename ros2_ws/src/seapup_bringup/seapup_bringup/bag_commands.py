@@ -5,7 +5,9 @@ embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
 - bag info / recover: read a bag's metadata, rebuild a killed recorder's bag;
 - replay: publishes the recorded bytes with the recorded QoS (reliability,
   durability) at the recorded log-time spacing scaled by ``--rate``,
-  optionally ``/clock`` from the bag so sim-time nodes follow it.
+  optionally ``/clock`` from the bag so sim-time nodes follow it; or, with
+  ``--lockstep TOPIC``, sample by sample as the lockstep simulator does,
+  waiting for the node under test to answer each sample on TOPIC.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import argparse
 import os
 import sys
 import time
+from itertools import groupby
 from pathlib import Path
 
 import yaml
@@ -96,81 +99,183 @@ def _qos(channel_metadata: dict):
 
 
 def replay(argv: list[str]) -> int:
-    """``./seapup replay DIR``: publish a bag's messages with their recorded timing."""
+    """``./seapup replay DIR``: publish a bag's messages with their recorded timing, or in lockstep."""
     parser = argparse.ArgumentParser(prog="./seapup replay", description="play a bag back onto the graph")
     parser.add_argument("path", type=Path)
     parser.add_argument("--rate", type=float, default=1.0, help="speed factor (> 0)")
     parser.add_argument("--topics", nargs="+", help="only these topics")
-    parser.add_argument("--clock", action="store_true", help="publish /clock from the bag's log times")
+    parser.add_argument("--clock", action="store_true",
+                        help="publish /clock from the bag's log times (instead of a recorded /clock)")
     parser.add_argument("--loop", action="store_true", help="play again from the start at the end")
     parser.add_argument("--start-offset", type=float, default=0.0, help="skip this many seconds [bag time]")
     parser.add_argument("--wait-for-subscribers", type=int, default=0, metavar="N",
                         help="start only once every replayed topic has N matched subscribers (30 s at most)")
+    parser.add_argument("--lockstep", metavar="TOPIC",
+                        help="drive a node under test sample by sample: publish /clock t_k and the messages "
+                             "logged at t_k, then wait for its answer on TOPIC (stamped >= t_k) before t_k+1; "
+                             "the recorded TOPIC is not replayed")
+    parser.add_argument("--lockstep-timeout", type=float, default=10.0,
+                        help="seconds to wait for an answer before going on (counted as a timeout)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
-    if not (0 < args.rate < 1e6 and args.start_offset >= 0):
-        parser.error("--rate must be > 0 and --start-offset >= 0")
+    if not (0 < args.rate < 1e6 and args.start_offset >= 0 and args.lockstep_timeout > 0):
+        parser.error("--rate and --lockstep-timeout must be > 0 and --start-offset >= 0")
+    if args.lockstep and args.loop:
+        parser.error("--lockstep plays the bag once (--loop would send time backwards)")
     if not storage_file(args.path).is_file():
         print(f"seapup: error: {args.path} has no {storage_file(args.path).name}", file=sys.stderr)
         return 1
-    from mcap.reader import make_reader
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rosgraph_msgs.msg import Clock
-
-    from seapup_common.ros.messages import ns_to_stamp
-    from seapup_ident.recorder_node import message_class
-
-    with open(storage_file(args.path), "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        channels = {c.id: c for c in summary.channels.values()
-                    if args.topics is None or c.topic in args.topics}
-        types = {c.id: summary.schemas[c.schema_id].name for c in channels.values()}
-        records = [(m.log_time, m.channel_id, bytes(m.data)) for _, c, m in
-                   reader.iter_messages(topics=[c.topic for c in channels.values()], log_time_order=True)]
+    clock = args.clock or bool(args.lockstep)
+    answer_type, channels, records = _load_replay(args.path, args.topics, args.lockstep, clock)
     if not records:
         print("seapup: nothing to replay", file=sys.stderr)
         return 1
     t0 = records[0][0] + int(args.start_offset * 1e9)
     records = [r for r in records if r[0] >= t0]
+    if args.lockstep and answer_type is None:
+        print(f"seapup: error: the bag does not say the type of {args.lockstep}; record it with the bag",
+              file=sys.stderr)
+        return 1
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+
+    from seapup_ident.recorder_node import message_class
+
     rclpy.init()
     node = rclpy.create_node("replay")
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    pubs = {cid: node.create_publisher(message_class(types[cid]), c.topic, _qos(c.metadata))
-            for cid, c in channels.items()}
-    clock = node.create_publisher(Clock, "/clock", 10) if args.clock else None
-    sent = 0
+    pubs = {cid: node.create_publisher(message_class(type_name), topic, qos)
+            for cid, (topic, type_name, qos) in channels.items()}
+    clock_pub = node.create_publisher(Clock, "/clock", _qos({})) if clock else None
+    report = {"sent": 0, "topics": sorted(topic for topic, _, _ in channels.values())}
+    answers = _answer_subscription(node, args.lockstep, message_class(answer_type)) if args.lockstep else None
     try:
+        # lockstep: the node under test must hear /clock and be heard on the answer topic;
+        # timed: every replayed topic needs its subscribers
+        needed = [clock_pub] if args.lockstep else list(pubs.values())
+
+        def ready():
+            return all(p.get_subscription_count() >= args.wait_for_subscribers for p in needed) and (
+                not args.lockstep or node.count_publishers(args.lockstep) >= 1)
         deadline = time.monotonic() + (30.0 if args.wait_for_subscribers > 0 else 0.5)
-        while time.monotonic() < deadline and not (
-                args.wait_for_subscribers > 0
-                and all(p.get_subscription_count() >= args.wait_for_subscribers for p in pubs.values())):
+        while time.monotonic() < deadline and not (args.wait_for_subscribers > 0 and ready()):
             executor.spin_once(timeout_sec=0.05)  # let subscribers match
-        while True:
-            wall0 = time.monotonic()
-            for k, (t_ns, cid, data) in enumerate(records):
-                due = wall0 + (t_ns - t0) * 1e-9 / args.rate
-                while (left := due - time.monotonic()) > 0:
-                    executor.spin_once(timeout_sec=min(left, 0.05))
-                if clock is not None:
-                    clock.publish(Clock(clock=ns_to_stamp(t_ns)))
-                pubs[cid].publish(data)
-                sent += 1
-                if k % 50 == 0:
-                    progress("replaying", (k + 1) / len(records))
-            progress("replaying", 1.0)
-            if not args.loop:
-                break
+        if args.lockstep:
+            report.update(_play_lockstep(executor, pubs, clock_pub, records, args, answers))
+        else:
+            _play_timed(executor, pubs, clock_pub, records, args, report)
     except KeyboardInterrupt:
         pass
     finally:
         from rclpy.duration import Duration
-        for pub in pubs.values():  # reliable subscribers get the last messages before we leave
+        for pub in [*pubs.values(), *([clock_pub] if clock_pub else [])]:  # reliable subscribers get the last
             pub.wait_for_all_acked(Duration(seconds=2.0))
         node.destroy_node()
         rclpy.try_shutdown()
-    print(f"replayed {sent} messages", file=text_stream(args))
-    emit_json(args, {"sent": sent, "topics": sorted(c.topic for c in channels.values())})
-    return 0
+    line = f"replayed {report['sent']} messages"
+    if args.lockstep:
+        line += (f" in {report['samples']} samples: {report['answered']} answered on {args.lockstep}, "
+                 f"{report['timeouts']} timed out")
+    print(line, file=text_stream(args))
+    emit_json(args, report)
+    return 0 if not args.lockstep or report["timeouts"] == 0 else 1
+
+
+def _load_replay(path: Path, topics, lockstep_topic, clock: bool):
+    """The channels to publish ({id: (topic, type, QoS)}) and their messages in log-time order.
+
+    A recorded ``/clock`` is left out when replay makes its own, and the
+    lockstep answer topic is left out (the node under test publishes it); the
+    answer topic's type is returned from the bag's channels.
+    """
+    from mcap.reader import make_reader
+    with open(storage_file(path), "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        all_types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+        channels = {c.id: (c.topic, all_types[c.topic], _qos(c.metadata)) for c in summary.channels.values()
+                    if (topics is None or c.topic in topics) and c.topic != lockstep_topic
+                    and not (clock and c.topic == "/clock")}
+        records = [(m.log_time, m.channel_id, bytes(m.data)) for _, c, m in
+                   reader.iter_messages(topics=[t for t, _, _ in channels.values()], log_time_order=True)]
+    return all_types.get(lockstep_topic), channels, records
+
+
+def _play_timed(executor, pubs, clock_pub, records, args, report) -> None:
+    """Publish at the recorded log-time spacing divided by ``--rate`` (and again with ``--loop``)."""
+    from rosgraph_msgs.msg import Clock
+
+    from seapup_common.ros.messages import ns_to_stamp
+    t0 = records[0][0]
+    while True:
+        wall0 = time.monotonic()
+        for k, (t_ns, cid, data) in enumerate(records):
+            due = wall0 + (t_ns - t0) * 1e-9 / args.rate
+            while (left := due - time.monotonic()) > 0:
+                executor.spin_once(timeout_sec=min(left, 0.05))
+            if clock_pub is not None:
+                clock_pub.publish(Clock(clock=ns_to_stamp(t_ns)))
+            pubs[cid].publish(data)
+            report["sent"] += 1
+            if k % 50 == 0:
+                progress("replaying", (k + 1) / len(records))
+        progress("replaying", 1.0)
+        if not args.loop:
+            return
+
+
+def _answer_subscription(node, topic: str, answer_class) -> list:
+    """Collect the header stamps (None if unstamped) of the node under test's answers."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from seapup_common.bag import header_stamp_ns
+    answers: list[int | None] = []
+    stamped = hasattr(answer_class, "header")
+    node.create_subscription(answer_class, topic, lambda raw: answers.append(header_stamp_ns(raw) if stamped else None),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE), raw=True)
+    return answers
+
+
+def _play_lockstep(executor, pubs, clock_pub, records, args, answers: list) -> dict:
+    """Act as a lockstep simulator from the bag: one sample (log time t_k) at a time.
+
+    Publishes ``/clock`` t_k and every message logged at t_k, then waits until
+    the node under test answers on ``--lockstep`` with a message stamped t_k or
+    later (any message, if the type has no header) -- the protocol of the
+    simulator's lockstep mode, so a controller cannot tell the two apart. As
+    the simulator does, the first sample's ``/clock`` is said again every
+    0.2 s until the first answer (a node may start listening late).
+    """
+    from rosgraph_msgs.msg import Clock
+
+    from seapup_common.ros.messages import ns_to_stamp
+    samples = [(t, [(cid, data) for _, cid, data in group]) for t, group in groupby(records, key=lambda r: r[0])]
+    result = {"sent": 0, "samples": len(samples), "answered": 0, "timeouts": 0}
+    for k, (t_ns, messages) in enumerate(samples):
+        seen = len(answers)
+        clock_pub.publish(Clock(clock=ns_to_stamp(t_ns)))
+        for cid, data in messages:
+            pubs[cid].publish(data)
+            result["sent"] += 1
+
+        def answered():
+            return any(a is None or a >= t_ns for a in answers[seen:])
+        deadline = time.monotonic() + args.lockstep_timeout
+        resend = time.monotonic() + 0.2
+        while not answered() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
+            if k == 0 and time.monotonic() > resend:
+                clock_pub.publish(Clock(clock=ns_to_stamp(t_ns)))
+                resend = time.monotonic() + 0.2
+        if answered():
+            result["answered"] += 1
+        else:
+            result["timeouts"] += 1
+            print(f"seapup replay: no answer on {args.lockstep} for t = {t_ns * 1e-9:.3f} s within "
+                  f"{args.lockstep_timeout:g} s", file=sys.stderr)
+        if k % 20 == 0:
+            progress("replaying", (k + 1) / len(samples))
+    progress("replaying", 1.0)
+    return result

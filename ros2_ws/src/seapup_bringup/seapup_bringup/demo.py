@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
@@ -37,12 +38,17 @@ from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
-VEHICLE = "baseline"
+
+
+def demo_config() -> dict:
+    """The demo's graph parameters (``seapup_bringup/config/demo.yaml``)."""
+    from ament_index_python.packages import get_package_share_directory
+    return yaml.safe_load((Path(get_package_share_directory("seapup_bringup")) / "config" / "demo.yaml").read_text())
 
 
 def manoeuvres() -> list[tuple[str, np.ndarray]]:
     """Hover (the trim of eq. 5.2), surge (Table 3.2 no. 3), sway (no. 4a), hover [rad]."""
-    hover = hover_blade_pitch(VehicleModel(load_vehicle_config(VEHICLE)))
+    hover = hover_blade_pitch(VehicleModel(load_vehicle_config(demo_config()["simulator"]["vehicle"])))
     lim = BLADE_PITCH_LIMIT
     return [("hover", hover), ("surge", np.array([lim, lim, 0.0, 0.0])),
             ("sway", np.array([0.0, 0.0, lim, -lim])), ("hover", hover)]
@@ -60,10 +66,14 @@ RECORDED = [("/clock", "rosgraph_msgs/msg/Clock", False),
 TOPICS = [t for t, _, _ in RECORDED]
 
 
+def schedule_times(duration: float, plan) -> list[float]:
+    """Switching times [s]: the manoeuvres share the flight equally."""
+    return [round(k * duration / len(plan), 6) for k in range(len(plan))]
+
+
 def schedule_args(duration: float, plan) -> list[str]:
-    times = [round(k * duration / len(plan), 6) for k in range(len(plan))]
     pitches = [float(x) for _, row in plan for x in row]
-    return ["-p", "lockstep:=true", "-p", f"times:={times}", "-p", f"pitches:={pitches}"]
+    return ["-p", "lockstep:=true", "-p", f"times:={schedule_times(duration, plan)}", "-p", f"pitches:={pitches}"]
 
 
 def wait_for(predicate, timeout: float) -> bool:
@@ -97,10 +107,9 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
         # graph-ready handshake: the simulator publishes its first sample only once the
         # recorder listens to every recorded topic, the controller answers only once
         # both the simulator and the recorder listen to its commands
-        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
-                                 "-p", f"vehicle:={VEHICLE}", "-p", "environment.current.enabled:=true",
-                                 "-p", "start_depth:=30.0", "-p", "lockstep_timeout:=10.0",
-                                 "-p", "diagnostics_period:=0.25",
+        parameters = [a for k, v in demo_config()["simulator"].items()
+                      for a in ("-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}")]
+        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", *parameters,
                                  "-p", f"wait_for_subscribers:={per_sample + ['/clock', '/diagnostics']}"],
                                 env, out / "simulator.log", "simulator")
         controller = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args",
@@ -170,9 +179,10 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=120.0,
-                        help="simulated seconds (default 120; lockstep runs faster than real time)")
+    parser.add_argument("--duration", type=float, default=float(demo_config()["duration"]),
+                        help="simulated seconds (default from config/demo.yaml; lockstep runs faster than real time)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/demo_<UTC time>)")
+    parser.add_argument("--bag", type=Path, default=None, help="bag directory to create (default OUT/bag)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     if not (math.isfinite(args.duration) and 4.0 <= args.duration <= 3600.0):
@@ -180,7 +190,9 @@ def main(argv=None) -> int:
     text = text_stream(args)
     out = args.out or Path("runs") / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
     out.mkdir(parents=True, exist_ok=True)
-    bag_dir = out / "bag"
+    bag_dir = args.bag or out / "bag"
+    if bag_dir.exists():
+        parser.error(f"{bag_dir} exists: a bag is never overwritten")
     plan = manoeuvres()
     flown = _fly(args, out, bag_dir, plan, text)
     if flown is None:

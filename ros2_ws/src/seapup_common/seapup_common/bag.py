@@ -40,7 +40,7 @@ from mcap.writer import CompressionType, Writer
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-__all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "read_bag", "bag_info",
+__all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "header_stamp_ns", "read_bag", "bag_info",
            "recover_bag", "storage_file", "DEFAULT_QOS", "BAG_VERSION"]
 
 #: rosbag2 metadata version written by ROS 2 Jazzy.
@@ -311,6 +311,20 @@ def _write_metadata_file(bag_dir: Path, meta: dict) -> None:
     tmp.write_text(yaml.safe_dump(meta, sort_keys=False))
     _fsync(tmp)
     tmp.replace(path)
+
+
+def header_stamp_ns(cdr: bytes) -> int | None:
+    """The header stamp [ns] of a CDR message whose first field is std_msgs/Header (None if it cannot be).
+
+    Reads the 4-byte encapsulation header (bit 0 of byte 1: little endian),
+    then ``builtin_interfaces/Time`` (int32 sec, uint32 nanosec) without
+    decoding the rest.
+    """
+    if len(cdr) < 12:
+        return None
+    order = "<" if cdr[1] & 1 else ">"
+    sec, nanosec = struct.unpack(order + "iI", cdr[4:12])
+    return sec * 1_000_000_000 + nanosec if nanosec < 1_000_000_000 else None
 
 
 def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:

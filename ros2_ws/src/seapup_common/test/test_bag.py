@@ -193,3 +193,20 @@ def test_refuses_existing_directory_unknown_type_undeclared_topic_and_type_chang
             bag.add_topic("/s", "std_msgs/msg/Header")
     with pytest.raises(BagError, match="nothing to recover"):
         recover_bag(tmp_path / "exists")
+
+
+def test_header_stamp_is_read_from_cdr_without_decoding():
+    """Against rclpy's serializer, both byte orders' encapsulation ids, and short or invalid input."""
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Header
+    from builtin_interfaces.msg import Time
+
+    from seapup_common.bag import header_stamp_ns
+
+    raw = serialize_message(Header(stamp=Time(sec=1234, nanosec=567_890_123), frame_id="odom_ned"))
+    assert header_stamp_ns(raw) == 1234 * 10**9 + 567_890_123
+    big = bytes([0, 0, 0, 0]) + (1234).to_bytes(4, "big") + (5).to_bytes(4, "big")
+    assert header_stamp_ns(big) == 1234 * 10**9 + 5
+    assert header_stamp_ns(raw[:11]) is None
+    bad = raw[:8] + (2 * 10**9).to_bytes(4, "little") + raw[12:]
+    assert header_stamp_ns(bad) is None

@@ -32,7 +32,6 @@ import importlib
 import os
 import re
 import bisect
-import struct
 import time
 from pathlib import Path
 
@@ -41,7 +40,7 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from seapup_common.bag import BagWriter, make_typestore
+from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
 from seapup_common.ros.node import declare_from_package_file, run_node
 
@@ -165,15 +164,6 @@ class RecorderNode(Node):
         if topic not in self.bag.topics:
             self._add_to_bag(topic, self.subscribed[topic], publishers)
 
-    @staticmethod
-    def header_stamp_ns(raw: bytes) -> int | None:
-        """The header stamp of a CDR message whose first field is std_msgs/Header."""
-        if len(raw) < 12:
-            return None
-        order = "<" if raw[1] & 1 else ">"
-        sec, nanosec = struct.unpack(order + "iI", raw[4:12])
-        return sec * 1_000_000_000 + nanosec if nanosec < 1_000_000_000 else None
-
     def _on_clock(self, msg, info) -> None:
         received = int(info.get("received_timestamp", 0))
         t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
@@ -197,7 +187,7 @@ class RecorderNode(Node):
             at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))
             if at_receipt is not None:
                 log_ns = at_receipt
-            stamp = self.header_stamp_ns(raw) if self.stamped.get(topic) else None
+            stamp = header_stamp_ns(raw) if self.stamped.get(topic) else None
             if stamp is not None and log_ns < stamp <= log_ns + self.max_stamp_lead_ns:
                 self._graph_floor_ns = max(self._graph_floor_ns, stamp)
             log_ns = max(log_ns, self._graph_floor_ns)
