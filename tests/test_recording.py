@@ -132,3 +132,51 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     np.testing.assert_array_equal([a.pitch for a in answers[:len(recorded)]], [r.pitch for r in recorded])
     assert [stamp(a) for a in answers[:len(recorded)]] == [stamp(r) for r in recorded]
     probe.close()
+
+
+def test_seapup_record_stops_on_max_duration_or_sigint_and_reports_the_bag(
+        ros_context, node_process, spin, tmp_path):
+    """``./seapup record`` itself: the CLI's bag is closed, readable, and its JSON report matches it."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0")
+    probe = Probe(ros_context, spin)
+    probe.record(ODOM, Odometry)
+    assert probe.spin(lambda: len(probe.msgs[ODOM]) > 5, 30.0)
+    # 1. --max-duration: the recorder stops by itself after 2 s of (wall-clock) graph time
+    timed = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "timed"), "--topics", ODOM,
+                          "--max-duration", "2", "--json", str(tmp_path / "timed.json")], name="record_timed")
+    assert timed.popen.wait(60) == 0, timed.log_text()
+    report = json.loads((tmp_path / "timed.json").read_text())
+    got = list(read_bag(tmp_path / "timed"))
+    assert report["messages"] == len(got) and [t["name"] for t in report["topics"]] == [ODOM]
+    assert 1.9 <= report["duration_s"] <= 2.5 and len(got) >= 20  # 25 samples/s at 5x real time
+    # 2. SIGINT to ./seapup: the bag is finalised and reported
+    held = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "held"), "--topics", ODOM,
+                         "--json", str(tmp_path / "held.json")], name="record_sigint")
+    deadline = time.monotonic() + 30
+    while not (tmp_path / "held" / "held_0.mcap").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    probe.spin(lambda: False, 2.0)
+    held.popen.send_signal(signal.SIGINT)
+    assert held.popen.wait(30) == 0, held.log_text()
+    report = json.loads((tmp_path / "held.json").read_text())
+    assert report["messages"] == len(list(read_bag(tmp_path / "held"))) >= 10
+    # 3. an existing bag is refused, nothing is touched
+    again = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "held"), "--topics", ODOM],
+                         name="record_again")
+    assert again.popen.wait(60) == 2 and "exists" in again.log_text()
+    assert json.loads((tmp_path / "held.json").read_text()) == report
+    probe.close()
+
+
+def test_a_malformed_parameter_rule_is_a_clear_error_not_a_traceback(ros_env):
+    import subprocess
+
+    from seapup_common.processes import find_executable
+    run = subprocess.run([str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", "exclude:="],
+                         env=ros_env, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1
+    assert "fatal" in run.stderr and "exclude:=" in run.stderr and "Traceback" not in run.stderr

@@ -1,7 +1,8 @@
 """``./seapup record``, ``./seapup bag info|recover`` and ``./seapup replay``: the
 embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
 
-- record: runs the ``recorder`` node (seapup_ident) in this process's place;
+- record: runs the ``recorder`` node (seapup_ident), passes it Ctrl-C/SIGTERM, then
+  prints (or ``--json``) what the closed bag holds;
 - bag info / recover: read a bag's metadata, rebuild a killed recorder's bag;
 - replay: publishes the recorded bytes with the recorded QoS (reliability,
   durability) at the recorded log-time spacing scaled by ``--rate``,
@@ -12,7 +13,8 @@ embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
 from __future__ import annotations
 
 import argparse
-import os
+import signal
+import subprocess
 import sys
 import time
 from itertools import groupby
@@ -43,15 +45,41 @@ def record(argv: list[str]) -> int:
     if not (args.flush_interval >= 0 and args.max_duration >= 0):
         parser.error("--flush-interval and --max-duration must be >= 0")
     from seapup_common.processes import find_executable
+    from seapup_ident.recorder_node import default_bag_path
+    output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
+    if output.exists():
+        parser.error(f"{output} exists: a bag is never overwritten")
     exe = find_executable("seapup_ident", "recorder")
     ros = ["--ros-args", "-p", f"topics:={list(args.topics) or ['']}", "-p", f"all:={str(args.all).lower()}",
-           "-p", f"exclude:={args.exclude}", "-p", f"max_duration:={float(args.max_duration)}",
+           *(["-p", f"exclude:={args.exclude}"] if args.exclude else []),
+           "-p", f"max_duration:={float(args.max_duration)}",
            "-p", f"flush_interval:={float(args.flush_interval)}",
-           "-p", f"use_sim_time:={str(args.use_sim_time).lower()}"]
-    if args.output:
-        ros += ["-p", f"bag_path:={Path(args.output).resolve()}"]
-    os.execv(str(exe), [str(exe), *ros])
-    return 1  # not reached
+           "-p", f"use_sim_time:={str(args.use_sim_time).lower()}", "-p", f"bag_path:={output}"]
+    # the recorder runs as a child so that, when it has closed the bag (Ctrl-C, SIGTERM or
+    # --max-duration), this process can say what is in it
+    child = subprocess.Popen([str(exe), *ros], start_new_session=True)  # signals come once, from us
+
+    def forward(signum, frame):
+        child.send_signal(signum)
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = child.wait()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    out = text_stream(args)
+    if code not in (0, -signal.SIGINT):
+        print(f"seapup record: the recorder exited with {code}", file=sys.stderr)
+        return 1
+    try:
+        info = bag_info(output)
+    except (BagError, OSError) as exc:
+        print(f"seapup record: {exc}", file=sys.stderr)
+        return 1
+    print(f"recorded {info['messages']} messages in {info['duration_s']:.1f} s into {output}: "
+          + ", ".join(f"{t['name']} {t['count']}" for t in info["topics"]), file=out)
+    emit_json(args, info)
+    return 0
 
 
 def bag(argv: list[str]) -> int:

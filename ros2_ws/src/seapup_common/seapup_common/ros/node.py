@@ -192,7 +192,11 @@ def run_node(make_node, args=None) -> int:
     acknowledged every message, so the last command of a stopped controller is
     not lost for one subscriber while another has it.
     """
-    rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # rcl refuses the command line (e.g. a malformed -p rule)
+        print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
+        return 1
     signal.signal(signal.SIGINT, _interrupt)
     signal.signal(signal.SIGTERM, _interrupt)
     node = None
