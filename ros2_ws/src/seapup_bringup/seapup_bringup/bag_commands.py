@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
-from seapup_common.bag import BagError, bag_info, recover_bag, storage_file
+from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
 
 __all__ = ["record", "bag", "replay"]
 
@@ -37,13 +37,16 @@ def record(argv: list[str]) -> int:
     parser.add_argument("--exclude", default="", help="regular expression of topics not to record")
     parser.add_argument("--max-duration", type=float, default=0.0, help="stop after this many graph seconds")
     parser.add_argument("--flush-interval", type=float, default=1.0, help="flush + fsync period [s]")
+    parser.add_argument("--max-bag-size", type=int, default=0, help="split files at this many bytes (0: never)")
+    parser.add_argument("--max-bag-duration", type=float, default=0.0,
+                        help="split files at this many seconds (0: never)")
     parser.add_argument("--use-sim-time", action="store_true", help="time stamps from /clock")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     if not args.topics and not args.all:
         parser.error("give --topics or --all")
-    if not (args.flush_interval >= 0 and args.max_duration >= 0):
-        parser.error("--flush-interval and --max-duration must be >= 0")
+    if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
+        parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
     from seapup_common.processes import find_executable
     from seapup_ident.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
@@ -53,7 +56,8 @@ def record(argv: list[str]) -> int:
     ros = ["--ros-args", "-p", f"topics:={list(args.topics) or ['']}", "-p", f"all:={str(args.all).lower()}",
            *(["-p", f"exclude:={args.exclude}"] if args.exclude else []),
            "-p", f"max_duration:={float(args.max_duration)}",
-           "-p", f"flush_interval:={float(args.flush_interval)}",
+           "-p", f"flush_interval:={float(args.flush_interval)}", "-p", f"max_bag_size:={int(args.max_bag_size)}",
+           "-p", f"max_bag_duration:={float(args.max_bag_duration)}",
            "-p", f"use_sim_time:={str(args.use_sim_time).lower()}", "-p", f"bag_path:={output}"]
     # the recorder runs as a child so that, when it has closed the bag (Ctrl-C, SIGTERM or
     # --max-duration), this process can say what is in it
@@ -212,22 +216,25 @@ def replay(argv: list[str]) -> int:
 
 
 def _load_replay(path: Path, topics, lockstep_topic, clock: bool):
-    """The channels to publish ({id: (topic, type, QoS)}) and their messages in log-time order.
+    """The channels to publish ({topic: (topic, type, QoS)}) and their messages in log-time order.
 
     A recorded ``/clock`` is left out when replay makes its own, and the
     lockstep answer topic is left out (the node under test publishes it); the
     answer topic's type is returned from the bag's channels.
     """
     from mcap.reader import make_reader
-    with open(storage_file(path), "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        all_types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
-        channels = {c.id: (c.topic, all_types[c.topic], _qos(c.metadata)) for c in summary.channels.values()
-                    if (topics is None or c.topic in topics) and c.topic != lockstep_topic
-                    and not (clock and c.topic == "/clock")}
-        records = [(m.log_time, m.channel_id, bytes(m.data)) for _, c, m in
-                   reader.iter_messages(topics=[t for t, _, _ in channels.values()], log_time_order=True)]
+    all_types, channels, records = {}, {}, []
+    for storage in storage_files(path):  # a split bag: file after file, channels by topic
+        with open(storage, "rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            for c in summary.channels.values():
+                all_types[c.topic] = summary.schemas[c.schema_id].name
+                if ((topics is None or c.topic in topics) and c.topic != lockstep_topic
+                        and not (clock and c.topic == "/clock")):
+                    channels.setdefault(c.topic, (c.topic, all_types[c.topic], _qos(c.metadata)))
+            records += [(m.log_time, c.topic, bytes(m.data)) for _, c, m in
+                        reader.iter_messages(topics=list(channels), log_time_order=True)]
     return all_types.get(lockstep_topic), channels, records
 
 

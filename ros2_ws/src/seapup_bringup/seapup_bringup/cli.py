@@ -112,7 +112,7 @@ _shell("env", "print the exports; use: eval \"$(./seapup env)\"")
 _shell("lock", "regenerate requirements/lock.txt from seapup.in")
 
 
-@command("demo", "run the main demonstration", "[--duration S] [--out DIR] [--json [F]]")
+@command("demo", "run the main demonstration", "[--duration S] [--out DIR] [--bag DIR] [--json [F]]")
 def _demo(argv: list[str]) -> int:
     from seapup_bringup.demo import main as demo
     return demo(argv)
@@ -157,7 +157,7 @@ def _check_model(argv: list[str]) -> int:
     return check_model(argv)
 
 
-@command("bench", "benchmarks (model, umbilical, verify, ROS graph)", "[--json [F]] [--no-graph]")
+@command("bench", "benchmarks (model, umbilical, verify, ROS graph)", "[--json [F]] [--no-graph] [--recording-minutes M]")
 def _bench(argv: list[str]) -> int:
     from seapup_bringup.commands import bench
     return bench(argv)
@@ -176,8 +176,8 @@ def _bag(argv: list[str]) -> int:
     return bag(argv)
 
 
-@command("replay", "publish a bag's messages with their recorded QoS and timing",
-         "DIR [--rate R] [--topics T...] [--clock] [--loop] [--start-offset S]")
+@command("replay", "publish a bag's messages with their recorded QoS and timing, or lockstep into a node",
+         "DIR [--rate R] [--topics T...] [--clock] [--loop] [--start-offset S] [--lockstep TOPIC]")
 def _replay(argv: list[str]) -> int:
     from seapup_bringup.bag_commands import replay
     return replay(argv)

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from seapup_bringup.cli import add_json_argument, emit_json, text_stream
+from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
 from seapup_sim.environment_config import load_environment
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.model_check import check_model as run_model_check
@@ -109,6 +109,8 @@ def bench(argv: list[str]) -> int:
     parser = _parser("bench", "benchmarks")
     parser.add_argument("--steps", type=int, default=3000)
     parser.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
+    parser.add_argument("--recording-minutes", type=float, default=10.0,
+                        help="wall minutes of the recorder memory benchmark (0 skips it; default 10)")
     args = parser.parse_args(argv)
     out_text = text_stream(args)
     model = _model(args.config)
@@ -151,6 +153,14 @@ def bench(argv: list[str]) -> int:
                   f"{g['us_per_step']:.0f} us per step)", file=out_text)
         rt = out["dds_round_trip_us"]
         print(f"DDS round trip to another process: median {rt['median_us']:.0f} us, p99 {rt['p99_us']:.0f} us", file=out_text)
+        if args.recording_minutes > 0:
+            print(f"recorder memory: {args.recording_minutes:g} min recording everything a free-running "
+                  "simulator publishes...", file=out_text, flush=True)
+            r = out["recording"] = graph_bench.recording_memory(args.recording_minutes, progress=progress)
+            print(f"recording: {r['messages']} messages ({r['messages_per_s']:.0f}/s, {r['mb_per_s']:.2f} MB/s, "
+                  f"{r['sim_s']:.0f} s simulated) in {r['wall_s']:.0f} s; recorder RSS {r['rss_mb_start']:.1f} MB "
+                  f"at start, {r['rss_mb_after_1min']:.1f} after 1 min, {r['rss_mb_end']:.1f} at the end "
+                  f"(max {r['rss_mb_max']:.1f}); slope {r['rss_slope_mb_per_min']:+.3f} MB/min", file=out_text)
     print(f"model: {per_step * 1e6:.1f} us per RK4 step (dt 0.1 s) = {0.1 / per_step:.0f}x real time", file=out_text)
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)

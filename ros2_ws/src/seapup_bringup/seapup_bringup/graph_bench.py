@@ -3,6 +3,9 @@
 - :func:`lockstep_rate`: the simulator in lockstep with the ``open_loop``
   controller in another process; simulated seconds per wall second, measured
   on ``/clock`` from a third process (this one).
+- :func:`recording_memory`: the recorder's resident memory while it records
+  everything a free-running simulator publishes (real_time_factor 0, the
+  simulator's full rate), in sim time, for minutes of wall time.
 - :func:`dds_round_trip`: median time for a small message to go to another
   process and back (the floor of every lockstep step: the simulator publishes
   t_k, the controller answers).
@@ -11,12 +14,13 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 
-__all__ = ["lockstep_rate", "dds_round_trip"]
+__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory"]
 
 ECHO = """
 import rclpy
@@ -133,3 +137,60 @@ def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
             ctx.try_shutdown()
     s = np.array(samples) * 1e6
     return {"median_us": float(np.median(s)), "p99_us": float(np.percentile(s, 99)), "n": n}
+
+
+def _rss_mb(pid: int) -> float:
+    """Resident set size of a process [MiB] (Linux /proc)."""
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    raise OSError(f"no VmRSS for process {pid}")
+
+
+def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp", progress=None) -> dict:
+    """Record ``--all`` from a free-running simulator for ``minutes`` of wall time; sample the recorder's RSS.
+
+    Returns the RSS samples, the slope of a straight line through them after
+    the first minute [MiB/min] (flat memory: ~0), the messages and bytes
+    written and their rates. The bag goes to a temporary directory and is
+    deleted afterwards.
+    """
+    import shutil
+    import tempfile
+
+    from seapup_common.bag import bag_info
+    tmp = Path(tempfile.mkdtemp(prefix="seapup_bench_bag_"))
+    bag_dir = tmp / "bag"
+    samples = []
+    with DomainLease() as lease:
+        env = ros_environment(lease.domain_id)
+        rec = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
+                           "-p", "all:=true", "-p", "use_sim_time:=true"], env, f"{log_dir}/bench_rec.log").start()
+        sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", "-p", "mode:=realtime",
+                           "-p", "real_time_factor:=0.0", "-p", "watchdog_timeout:=1000.0",
+                           "-p", "environment.current.enabled:=true"], env, f"{log_dir}/bench_sim.log").start()
+        try:
+            t0 = time.monotonic()
+            while (elapsed := time.monotonic() - t0) < minutes * 60.0:
+                if not (rec.running and sim.running):
+                    raise RuntimeError(f"a node died during the recording benchmark; see {log_dir}/bench_*.log")
+                samples.append((elapsed, _rss_mb(rec.popen.pid)))
+                if progress:
+                    progress("recording", elapsed / (minutes * 60.0))
+                time.sleep(min(period, max(minutes * 60.0 - elapsed, 0.0)) or 0.01)
+            samples.append((time.monotonic() - t0, _rss_mb(rec.popen.pid)))
+            wall = samples[-1][0]
+        finally:
+            sim.stop()
+            rec.stop()
+        info = bag_info(bag_dir)
+    shutil.rmtree(tmp, ignore_errors=True)
+    t, rss = np.array(samples).T
+    later = t >= min(60.0, t[-1] / 2)
+    slope = float(np.polyfit(t[later] / 60.0, rss[later], 1)[0]) if later.sum() >= 2 else float("nan")
+    return {"wall_s": wall, "sim_s": info["duration_s"], "messages": info["messages"],
+            "messages_per_s": info["messages"] / wall, "bag_mb": info["bag_size_bytes"] / 2**20,
+            "mb_per_s": info["bag_size_bytes"] / 2**20 / wall, "topics": len(info["topics"]),
+            "rss_mb_start": float(rss[0]), "rss_mb_after_1min": float(rss[later][0]),
+            "rss_mb_max": float(rss.max()), "rss_mb_end": float(rss[-1]), "rss_slope_mb_per_min": slope,
+            "rss_samples": [[float(a), float(b)] for a, b in samples]}

@@ -4,7 +4,8 @@ There is no rosbag2 on PyPI, so seapup writes the rosbag2 Jazzy layout itself
 with the ``mcap`` library's writer (``ros2`` profile) and reads it with
 ``rosbags``:
 
-- a bag is a directory ``<name>/`` holding ``<name>_0.mcap`` and
+- a bag is a directory ``<name>/`` holding ``<name>_0.mcap`` (then
+  ``<name>_1.mcap``, ... when it is split, as rosbag2 splits) and
   ``metadata.yaml`` (rosbag2 format version 9, ``ros_distro: jazzy``), with per
   topic the offered QoS profiles of its publishers and its RIHS01 type hash;
 - every MCAP channel carries ``offered_qos_profiles`` (YAML) and
@@ -41,7 +42,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 __all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "header_stamp_ns", "read_bag", "bag_info",
-           "recover_bag", "storage_file", "DEFAULT_QOS", "BAG_VERSION"]
+           "recover_bag", "storage_file", "storage_files", "DEFAULT_QOS", "BAG_VERSION"]
 
 #: rosbag2 metadata version written by ROS 2 Jazzy.
 BAG_VERSION = 9
@@ -93,10 +94,22 @@ def make_typestore(msg_files: dict[str, str | Path] | None = None):
     return store
 
 
-def storage_file(bag_dir: str | Path) -> Path:
-    """The MCAP file of a bag directory, named as rosbag2 names it: ``<dir>/<dir>_0.mcap``."""
+def storage_file(bag_dir: str | Path, index: int = 0) -> Path:
+    """The ``index``-th MCAP file of a bag directory, named as rosbag2 names it: ``<dir>/<dir>_<index>.mcap``."""
     bag_dir = Path(bag_dir)
-    return bag_dir / f"{bag_dir.name}_0.mcap"
+    return bag_dir / f"{bag_dir.name}_{index}.mcap"
+
+
+def storage_files(bag_dir: str | Path) -> list[Path]:
+    """Every MCAP file of a bag in order: ``<dir>_0.mcap``, ``<dir>_1.mcap``, ... (as ``ros2 bag reindex`` finds them)."""
+    bag_dir = Path(bag_dir)
+    prefix = f"{bag_dir.name}_"
+    found = []
+    for f in bag_dir.glob(f"{prefix}*.mcap"):
+        number = f.name[len(prefix):-len(".mcap")]
+        if number.isdigit():
+            found.append((int(number), f))
+    return [f for _, f in sorted(found)]
 
 
 def _qos_yaml(profiles: list[QosProfileDict]) -> str:
@@ -113,11 +126,20 @@ class _Topic:
     count: int = 0
 
 
-def _metadata(name: str, topics: list[_Topic], start_ns: int, end_ns: int) -> dict:
+@dataclass
+class _File:
+    path: str
+    start_ns: int | None = None
+    end_ns: int = 0
+    count: int = 0
+
+
+def _metadata(topics: list[_Topic], files: list[_File]) -> dict:
     """The ``rosbag2_bagfile_information`` mapping rosbag2 Jazzy writes (version 9)."""
     count = sum(t.count for t in topics)
-    start = start_ns if count else 0
-    duration = max(0, end_ns - start_ns) if count else 0
+    starts = [f.start_ns for f in files if f.count]
+    start = min(starts) if starts else 0
+    duration = max(0, max(f.end_ns for f in files if f.count) - start) if starts else 0
     return {"rosbag2_bagfile_information": {
         "version": BAG_VERSION,
         "storage_identifier": "mcap",
@@ -130,9 +152,10 @@ def _metadata(name: str, topics: list[_Topic], start_ns: int, end_ns: int) -> di
              "message_count": t.count} for t in topics],
         "compression_format": "",
         "compression_mode": "",
-        "relative_file_paths": [storage_file(name).name],
-        "files": [{"path": storage_file(name).name, "starting_time": {"nanoseconds_since_epoch": start},
-                   "duration": {"nanoseconds": duration}, "message_count": count}],
+        "relative_file_paths": [f.path for f in files],
+        "files": [{"path": f.path, "starting_time": {"nanoseconds_since_epoch": f.start_ns if f.count else 0},
+                   "duration": {"nanoseconds": max(0, f.end_ns - f.start_ns) if f.count else 0},
+                   "message_count": f.count} for f in files],
         "custom_data": None,
         "ros_distro": ROS_DISTRO,
     }}
@@ -162,6 +185,16 @@ class BagWriter:
         killed writer loses at most this much. 0 flushes after every message.
     chunk_size : int
         Largest chunk [bytes] (rosbag2 Jazzy's default).
+    max_bag_size, max_bag_duration : float
+        Start the next file ``<dir>_<N+1>.mcap`` once the current one holds
+        this many bytes / seconds of log time, as rosbag2's splitting does
+        (0: no limit).
+    max_file_chunks : int
+        Start the next file after this many chunks. Every chunk leaves an
+        index entry (~1.4 kB) in memory until its file is finished, and a
+        graph running far faster than real time closes a chunk every
+        ``flush_interval`` of graph time, so this bounds the writer's memory
+        however long and fast the recording.
 
     Examples
     --------
@@ -171,22 +204,34 @@ class BagWriter:
     """
 
     def __init__(self, path: str | Path, typestore, *, flush_interval: float = 1.0,
-                 chunk_size: int = CHUNK_SIZE):
+                 chunk_size: int = CHUNK_SIZE, max_bag_size: float = 0, max_bag_duration: float = 0,
+                 max_file_chunks: int = 4096):
         self.path = Path(path)
         if self.path.exists():
             raise BagError(f"bag {self.path} exists already; choose a new directory")
         if not flush_interval >= 0:
             raise BagError(f"flush interval must be >= 0 s, got {flush_interval!r}")
+        if not (max_bag_size >= 0 and max_bag_duration >= 0 and max_file_chunks >= 1):
+            raise BagError("max_bag_size and max_bag_duration must be >= 0, max_file_chunks >= 1")
         self.typestore = typestore
         self.flush_interval = float(flush_interval)
         self.chunk_size = int(chunk_size)
+        self.max_bag_size = float(max_bag_size)
+        self.max_bag_duration_ns = int(max_bag_duration * 1e9)
+        self.max_file_chunks = int(max_file_chunks)
         self.topics: dict[str, _Topic] = {}
         self.count = 0
         self.start_ns: int | None = None
         self.end_ns = 0
+        self.files: list[_File] = []
         self._schemas: dict[str, int] = {}
+        self._schema_records: dict[str, tuple[str, bytes]] = {}  # name: (encoding, data), for the next file
+        self._channel_metadata: dict[str, dict] = {}
         self._file = None
         self._writer: Writer | None = None
+        self._library = ""
+        self._file_chunks = 0
+        self._unflushed = 0
         self._last_flush_wall = 0.0
         self._last_flush_ns: int | None = None
 
@@ -198,34 +243,32 @@ class BagWriter:
     @classmethod
     def into_existing(cls, path: str | Path, typestore) -> "BagWriter":
         """An open writer of ``<path>/<name>_0.mcap`` in an existing directory whose
-        MCAP file was moved away (what :func:`recover_bag` rebuilds into)."""
+        MCAP files were moved away (what :func:`recover_bag` rebuilds into)."""
         writer = cls.__new__(cls)
-        cls.__init__(writer, Path(path).with_name(Path(path).name + ".new"), typestore, flush_interval=3600.0)
+        cls.__init__(writer, Path(path).with_name(Path(path).name + ".new"), typestore, flush_interval=3600.0,
+                     max_file_chunks=1 << 30)
         writer.path = Path(path)
         return writer._start("seapup (rosbag2 jazzy layout, recovered)")
 
     def _start(self, library: str) -> "BagWriter":
-        self._file = open(storage_file(self.path), "xb")
+        self._library = library
+        target = storage_file(self.path, len(self.files))
+        self._file = open(target, "xb")
         self._writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.NONE)
         self._writer.start(profile="ros2", library=library)
+        self.files.append(_File(target.name))
+        self._file_chunks = 0
         self._last_flush_wall = time.monotonic()
+        self._schemas = {}
+        for name, (encoding, data) in self._schema_records.items():  # a new file declares them again
+            self._schemas[name] = self._writer.register_schema(name, encoding, data)
+        for entry in self.topics.values():
+            entry.channel_id = self._writer.register_channel(entry.name, "cdr", self._schemas[entry.msgtype],
+                                                             self._channel_metadata[entry.name])
         return self
 
-    def add_recorded_channel(self, channel: Channel, schema: Schema) -> None:
-        """Re-declare a channel read back from a bag (its schema and metadata as they were)."""
-        if schema.name not in self._schemas:
-            self._schemas[schema.name] = self._writer.register_schema(schema.name, schema.encoding, schema.data)
-        cid = self._writer.register_channel(channel.topic, channel.message_encoding,
-                                            self._schemas[schema.name], dict(channel.metadata))
-        self.topics[channel.topic] = _Topic(channel.topic, schema.name, cid,
-                                            channel.metadata.get("topic_type_hash", ""),
-                                            _parse_qos(channel.metadata.get("offered_qos_profiles", "")))
-
-    def close(self) -> None:
-        """Finish the MCAP file (summary, indexes, the ``rosbag2`` metadata record) and
-        write metadata.yaml; both fsync'd (idempotent)."""
-        if self._writer is None:
-            return
+    def _finish_file(self) -> None:
+        """Summary, indexes and the ``rosbag2`` metadata record; flushed and fsync'd."""
         meta = self.metadata()
         self._writer.add_metadata("rosbag2", {
             "serialized_metadata": yaml.safe_dump(meta["rosbag2_bagfile_information"], sort_keys=False),
@@ -235,7 +278,36 @@ class BagWriter:
         os.fsync(self._file.fileno())
         self._file.close()
         self._writer = self._file = None
-        _write_metadata_file(self.path, meta)
+
+    def _split(self) -> None:
+        """Finish the current file and continue in ``<dir>_<N+1>.mcap`` (metadata.yaml updated)."""
+        self._finish_file()
+        _write_metadata_file(self.path, self.metadata())
+        self._start(self._library)
+
+    def add_recorded_channel(self, channel: Channel, schema: Schema) -> None:
+        """Re-declare a channel read back from a bag (its schema and metadata as they were)."""
+        if channel.topic in self.topics:
+            return
+        self._declare(channel.topic, schema.name, schema.encoding, schema.data, dict(channel.metadata),
+                      channel.metadata.get("topic_type_hash", ""),
+                      _parse_qos(channel.metadata.get("offered_qos_profiles", "")))
+
+    def _declare(self, topic, msgtype, encoding, schema_data, metadata, type_hash, qos) -> None:
+        if msgtype not in self._schemas:
+            self._schema_records[msgtype] = (encoding, schema_data)
+            self._schemas[msgtype] = self._writer.register_schema(msgtype, encoding, schema_data)
+        self._channel_metadata[topic] = metadata
+        cid = self._writer.register_channel(topic, "cdr", self._schemas[msgtype], metadata)
+        self.topics[topic] = _Topic(topic, msgtype, cid, type_hash, qos)
+
+    def close(self) -> None:
+        """Finish the MCAP file (summary, indexes, the ``rosbag2`` metadata record) and
+        write metadata.yaml; both fsync'd (idempotent)."""
+        if self._writer is None:
+            return
+        self._finish_file()
+        _write_metadata_file(self.path, self.metadata())
 
     def __enter__(self) -> "BagWriter":
         return self.open()
@@ -261,14 +333,11 @@ class BagWriter:
         if msgtype not in self.typestore.fielddefs:
             raise BagError(f"type {msgtype} of {topic} is unknown to the typestore; "
                            "pass its .msg file to make_typestore")
-        if msgtype not in self._schemas:
-            text, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
-            self._schemas[msgtype] = self._writer.register_schema(msgtype, "ros2msg", text.encode())
+        text, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
         qos = [dict(DEFAULT_QOS)] if qos is None else [dict(q) for q in qos]
         type_hash = type_hash or self.typestore.hash_rihs01(msgtype)
-        channel = self._writer.register_channel(topic, "cdr", self._schemas[msgtype], {
-            "offered_qos_profiles": _qos_yaml(qos), "topic_type_hash": type_hash})
-        self.topics[topic] = _Topic(topic, msgtype, channel, type_hash, qos)
+        self._declare(topic, msgtype, "ros2msg", text.encode(),
+                      {"offered_qos_profiles": _qos_yaml(qos), "topic_type_hash": type_hash}, type_hash, qos)
 
     def write(self, topic: str, cdr: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Append one message of a declared topic, then flush if the interval has passed."""
@@ -277,13 +346,26 @@ class BagWriter:
             raise BagError(f"topic {topic} was not added to the bag")
         log_time_ns = int(log_time_ns)
         publish_time_ns = log_time_ns if publish_time_ns is None else int(publish_time_ns)
+        current = self.files[-1]
+        if current.count and self._split_due(current, log_time_ns):
+            self._split()
+            entry, current = self.topics[topic], self.files[-1]
         self._writer.add_message(entry.channel_id, log_time=log_time_ns, data=bytes(cdr),
                                  publish_time=publish_time_ns, sequence=entry.count)
         entry.count += 1
         self.count += 1
+        self._unflushed += 1
+        current.count += 1
+        current.start_ns = log_time_ns if current.start_ns is None else min(current.start_ns, log_time_ns)
+        current.end_ns = max(current.end_ns, log_time_ns)
         self.start_ns = log_time_ns if self.start_ns is None else min(self.start_ns, log_time_ns)
         self.end_ns = max(self.end_ns, log_time_ns)
         self._maybe_flush(log_time_ns)
+
+    def _split_due(self, current: _File, log_time_ns: int) -> bool:
+        return (self._file_chunks >= self.max_file_chunks
+                or (self.max_bag_size > 0 and self._file.tell() >= self.max_bag_size)
+                or (self.max_bag_duration_ns > 0 and log_time_ns - current.start_ns >= self.max_bag_duration_ns))
 
     def _maybe_flush(self, t_ns: int) -> None:
         now = time.monotonic()
@@ -299,10 +381,13 @@ class BagWriter:
         if self._writer is not None:
             self._writer.flush()
             os.fsync(self._file.fileno())
+            if self._unflushed:
+                self._file_chunks += 1
+                self._unflushed = 0
 
     def metadata(self) -> dict:
         """The metadata.yaml content for what has been written so far."""
-        return _metadata(self.path.name, list(self.topics.values()), self.start_ns or 0, self.end_ns)
+        return _metadata(list(self.topics.values()), self.files)
 
 
 def _write_metadata_file(bag_dir: Path, meta: dict) -> None:
@@ -340,12 +425,13 @@ def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagM
 
 
 def read_bag_with_publish_times(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
-    """Like :func:`read_bag`, with each message's publish time (read with the mcap library)."""
+    """Like :func:`read_bag`, with each message's publish time (read with the mcap library), file by file."""
     from mcap.reader import make_reader
-    with open(storage_file(path), "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages(topics=topics, log_time_order=True):
-            yield BagMessage(channel.topic, schema.name, message.log_time, bytes(message.data),
-                             message.publish_time)
+    for storage in storage_files(path):
+        with open(storage, "rb") as f:
+            for schema, channel, message in make_reader(f).iter_messages(topics=topics, log_time_order=True):
+                yield BagMessage(channel.topic, schema.name, message.log_time, bytes(message.data),
+                                 message.publish_time)
 
 
 def bag_info(path: str | Path) -> dict:
@@ -380,54 +466,62 @@ def _parse_qos(text: str) -> list:
 def recover_bag(path: str | Path, typestore=None) -> dict:
     """Rebuild a readable, indexed bag and its metadata.yaml from what is on disk.
 
-    Reads the MCAP file record by record up to the first incomplete or damaged
-    one (the tail a killed writer left), keeps every message of the complete
-    chunks, moves the damaged file to ``<file>.damaged`` and writes a finished
-    file and metadata.yaml in its place.
+    Reads each MCAP file of the bag (``<dir>_0.mcap``, ``<dir>_1.mcap``, ...)
+    record by record up to the first incomplete or damaged one (the tail a
+    killed writer left), keeps every message of the complete chunks, moves the
+    files read to ``<file>.damaged`` (the damaged ones) or ``<file>.orig`` and
+    writes one finished file and metadata.yaml in their place.
 
     Returns
     -------
     dict
-        ``messages`` kept, ``topics``, and ``stopped_at`` (why reading ended).
+        ``messages`` kept, ``topics``, ``stopped_at`` (why reading of the
+        damaged file ended) and ``damaged_file``.
 
     Raises
     ------
     BagError
-        If there is no MCAP file or not even its header is readable.
+        If there is no MCAP file or not even the first one's header is readable.
     """
     path = Path(path)
-    source = storage_file(path)
-    if not source.is_file():
-        raise BagError(f"no {source.name} in {path}: nothing to recover")
-    data = source.read_bytes()
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    messages: list[Message] = []
-    stopped = "end of file"
-    try:
-        for record in StreamReader(io.BytesIO(data), skip_magic=False, emit_chunks=False).records:
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Message):
-                messages.append(record)
-    except (McapError, EOFError, ValueError, KeyError, IndexError, struct.error) as exc:
-        stopped = f"{type(exc).__name__}: {exc}"[:200]
-    if not channels and not messages and stopped != "end of file" and len(data) < 8:
-        raise BagError(f"{source} has no readable MCAP header ({stopped})")
-    damaged = source.with_name(source.name + ".damaged")
-    source.replace(damaged)
+    sources = storage_files(path)
+    if not sources:
+        raise BagError(f"no {storage_file(path).name} in {path}: nothing to recover")
+    schemas: dict[str, Schema] = {}
+    channels: dict[str, Channel] = {}
+    messages: list[tuple[str, Message]] = []
+    stopped, damaged_name = "end of file", ""
+    for source in sources:
+        data = source.read_bytes()
+        ids_schema: dict[int, Schema] = {}
+        ids_topic: dict[int, str] = {}
+        error = ""
+        try:
+            for record in StreamReader(io.BytesIO(data), skip_magic=False, emit_chunks=False).records:
+                if isinstance(record, Schema):
+                    ids_schema[record.id] = record
+                elif isinstance(record, Channel):
+                    ids_topic[record.id] = record.topic
+                    if record.schema_id in ids_schema:
+                        schemas.setdefault(record.topic, ids_schema[record.schema_id])
+                        channels.setdefault(record.topic, record)
+                elif isinstance(record, Message) and record.channel_id in ids_topic:
+                    messages.append((ids_topic[record.channel_id], record))
+        except (McapError, EOFError, ValueError, KeyError, IndexError, struct.error) as exc:
+            error = f"{type(exc).__name__}: {exc}"[:200]
+        if error and source == sources[0] and not ids_topic and len(data) < 8:
+            raise BagError(f"{source} has no readable MCAP header ({error})")
+        moved = source.with_name(source.name + (".damaged" if error else ".orig"))
+        source.replace(moved)
+        if error and not damaged_name:
+            stopped, damaged_name = error, moved.name
     (path / "metadata.yaml").unlink(missing_ok=True)
     writer = BagWriter.into_existing(path, typestore or make_typestore())
-    for channel in channels.values():
-        if channel.schema_id in schemas:
-            writer.add_recorded_channel(channel, schemas[channel.schema_id])
-    by_id = {c.id: c.topic for c in channels.values()}
-    for m in sorted(messages, key=lambda m: m.log_time):
-        topic = by_id.get(m.channel_id)
-        if topic in writer.topics:
+    for topic, channel in channels.items():
+        writer.add_recorded_channel(channel, schemas[topic])
+    for topic, m in sorted(messages, key=lambda tm: tm[1].log_time):
+        if topic in writer.topics:  # a channel whose schema was lost cannot be written back
             writer.write(topic, m.data, m.log_time, m.publish_time)
     writer.close()
     return {"messages": writer.count, "topics": {t: e.count for t, e in writer.topics.items()},
-            "stopped_at": stopped, "damaged_file": damaged.name}
+            "stopped_at": stopped, "damaged_file": damaged_name}

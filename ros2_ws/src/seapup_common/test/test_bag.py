@@ -210,3 +210,77 @@ def test_header_stamp_is_read_from_cdr_without_decoding():
     assert header_stamp_ns(raw[:11]) is None
     bad = raw[:8] + (2 * 10**9).to_bytes(4, "little") + raw[12:]
     assert header_stamp_ns(bad) is None
+
+
+def _split_sample(path, **limits):
+    """200 strings 0.1 s apart, flushed every 1 s of graph time (a chunk per 10 messages)."""
+    with BagWriter(path, make_typestore(), flush_interval=1.0, **limits) as bag:
+        bag.add_topic("/s", "std_msgs/msg/String")
+        bag.add_topic("/n", "std_msgs/msg/String")
+        for i in range(200):
+            bag.write("/s", serialize_message(String(data=f"m{i}")), T0 + i * 10**8)
+            if i % 50 == 0:
+                bag.write("/n", serialize_message(String(data=f"n{i}")), T0 + i * 10**8)
+    return bag
+
+
+@pytest.mark.parametrize("limits, files", [({"max_file_chunks": 5}, 4), ({"max_bag_duration": 5.0}, 4),
+                                           ({"max_bag_size": 3000}, None)])
+def test_split_bags_are_rosbag2_split_bags_both_readers_read_in_full(tmp_path, limits, files):
+    """As rosbag2 splits: <dir>_0.mcap, <dir>_1.mcap, ...; every file finished with its own summary."""
+    from seapup_common.bag import storage_files
+
+    bag = _split_sample(tmp_path / "run", **limits)
+    names = [f.name for f in storage_files(tmp_path / "run")]
+    assert names == [f"run_{k}.mcap" for k in range(len(names))] and len(names) >= 2
+    if files:
+        assert len(names) == files
+    meta = yaml.safe_load((tmp_path / "run" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["relative_file_paths"] == names and [f["path"] for f in meta["files"]] == names
+    assert sum(f["message_count"] for f in meta["files"]) == meta["message_count"] == bag.count == 204
+    assert meta["starting_time"]["nanoseconds_since_epoch"] == T0 and meta["duration"]["nanoseconds"] == 199 * 10**8
+    # rosbags reads the split bag as one (it follows relative_file_paths)
+    got = [deserialize_message(m.cdr, String).data for m in read_bag(tmp_path / "run", ["/s"])]
+    assert got == [f"m{i}" for i in range(200)]
+    # the mcap library reads every file on its own (each has its channels, schemas and summary)
+    decoded = []
+    for name in names:
+        with open(tmp_path / "run" / name, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            assert reader.get_summary() is not None
+            decoded += [(c.topic, d.data) for _, c, _, d in reader.iter_decoded_messages(log_time_order=True)]
+    assert [d for t, d in decoded if t == "/s"] == got
+    assert [d for t, d in decoded if t == "/n"] == ["n0", "n50", "n100", "n150"]
+    assert [m.publish_ns for m in read_bag_with_publish_times(tmp_path / "run", ["/s"])] == \
+        [T0 + i * 10**8 for i in range(200)]
+
+
+def test_file_splitting_bounds_the_writers_index_memory():
+    """A graph far faster than real time closes a chunk every flush interval of graph time; every
+    chunk keeps an index entry until its file is finished: max_file_chunks bounds them."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = BagWriter(Path(tmp) / "fast", make_typestore(), flush_interval=1.0, max_file_chunks=50).open()
+        bag.add_topic("/s", "std_msgs/msg/String")
+        data = serialize_message(String(data="x" * 100))
+        for i in range(2000):  # a chunk per 10 messages: 200 chunks
+            bag.write("/s", data, T0 + i * 10**8)
+            assert len(bag._writer._Writer__chunk_indices) <= 50
+        bag.close()
+        assert len(bag.files) == 4 and len(list(read_bag(Path(tmp) / "fast"))) == 2000
+
+
+def test_a_killed_split_bag_is_recovered_from_all_its_files(tmp_path):
+    from seapup_common.bag import storage_files
+
+    path = tmp_path / "split"
+    _split_sample(path, max_file_chunks=5)
+    last = storage_files(path)[-1]
+    last.write_bytes(last.read_bytes()[:len(last.read_bytes()) // 2])  # the writer died in the last file
+    (path / "metadata.yaml").unlink()
+    report = recover_bag(path)
+    got = [deserialize_message(m.cdr, String).data for m in read_bag(path, ["/s"])]
+    assert 150 <= len(got) < 200 and got == [f"m{i}" for i in range(len(got))]  # all files, a gap-free prefix
+    assert report["damaged_file"] == last.name + ".damaged"
+    assert sorted(p.name for p in path.iterdir() if p.suffix == ".orig") == [f"split_{k}.mcap.orig" for k in range(3)]

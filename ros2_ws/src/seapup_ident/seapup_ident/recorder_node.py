@@ -46,6 +46,9 @@ from seapup_common.ros.node import declare_from_package_file, run_node
 
 __all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "default_bag_path"]
 
+#: /clock samples kept to place receive times among (at least; a few seconds even at thousands of
+#: samples per second: far more than any callback lag).
+CLOCK_HISTORY = 10_000
 #: Subscriptions for topics named with their type before any publisher exists.
 EAGER_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -95,7 +98,8 @@ class RecorderNode(Node):
             self.create_subscription(Clock, "/clock", self._on_clock, EAGER_QOS)
         path = p["bag_path"] or str(default_bag_path())
         self.typestore = make_typestore(project_msg_files())
-        self.bag = BagWriter(path, self.typestore, flush_interval=p["flush_interval"]).open()
+        self.bag = BagWriter(path, self.typestore, flush_interval=p["flush_interval"],
+                             max_bag_size=p["max_bag_size"], max_bag_duration=p["max_bag_duration"]).open()
         self.stamped: dict[str, bool] = {}
         self.drain_on_shutdown = True  # run_node takes the messages already received before closing
         self.received = 0
@@ -170,8 +174,8 @@ class RecorderNode(Node):
         if not self._clock_wall or received >= self._clock_wall[-1]:
             self._clock_wall.append(received)
             self._clock_sim.append(t_ns)
-            if len(self._clock_wall) > 200_000:  # bounded memory: keep the recent half
-                del self._clock_wall[:100_000], self._clock_sim[:100_000]
+            if len(self._clock_wall) > 2 * CLOCK_HISTORY:  # bounded memory: keep the recent ones
+                del self._clock_wall[:CLOCK_HISTORY], self._clock_sim[:CLOCK_HISTORY]
 
     def graph_time_at(self, received_wall_ns: int) -> int | None:
         """The /clock value current at a DDS receive (wall) time; None before the first /clock."""
