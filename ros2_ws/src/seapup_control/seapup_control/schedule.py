@@ -37,7 +37,7 @@ class PitchSchedule:
     Examples
     --------
     >>> s = PitchSchedule([0.0, 5.0], [[0.6, 0.6, 0, 0], [0, 0, 0, 0]], limit=0.61)
-    >>> s.at(4.9)[0], s.at(5.0)[0]
+    >>> float(s.at(4.9)[0]), float(s.at(5.0)[0])
     (0.6, 0.0)
     """
 

@@ -1,0 +1,169 @@
+"""The MFOL velocity controller: Owens and Chotai's law flown through the controller contract.
+
+A :class:`~seapup_common.contract.VelocityController` that runs the two-term
+law of eq. 4.11 / 5.6 (gains from :func:`seapup_control.mfol.design`) on the
+measured body velocities (u, v, w, r), with
+
+- **gain scheduling** on surge speed (sec. 4.6, 5.3.1): the gains
+  ``K_int``, ``K_err`` interpolated linearly between operating points at the
+  *measured* surge speed, the offset ``u0(r)`` at the *reference* surge speed
+  (eq. 5.6), both held constant beyond the first and last points;
+- **anti-windup** (the thesis has none): every sample the integrator state
+  is re-set so that the law reproduces the command the vehicle actually
+  holds (saturated at the blade-pitch limit),
+  ``q_k := K_int^-1 (u_sat,k - K_err e_k - u0)``, before ``q_{k+1} = q_k + e_k``.
+  This is the incremental (velocity-form) realisation's anti-windup: while a
+  thruster is saturated, the integrators cannot run away, and the command
+  leaves the limit as soon as the error asks it to;
+- **bumpless start**: :meth:`reset` sets ``q`` so that the first command
+  equals the applied one when the error is zero (the same back-calculation).
+
+Bad measurements and references (non-finite, wrong length) never reach the
+state: :meth:`update` raises :class:`~seapup_common.contract.ContractError`
+and changes nothing.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.contract import Command, ContractError, Measurement, Reference
+from seapup_control.mfol import DesignError, TwoTermGains
+
+__all__ = ["GainSchedule", "MFOLController", "ControllerState"]
+
+SURGE = 0  # index of u among the outputs (u, v, w, r)
+
+
+class GainSchedule:
+    """Two-term gains at several surge speeds, linearly interpolated (sec. 4.6).
+
+    Parameters
+    ----------
+    points : sequence of (float, TwoTermGains)
+        (surge speed [m/s], gains designed about it), speeds strictly
+        increasing; one point gives a fixed-gain controller.
+
+    Raises
+    ------
+    DesignError
+        On no points, unordered speeds, or gains of different sizes / sample periods.
+    """
+
+    def __init__(self, points):
+        points = sorted(((float(s), g) for s, g in points), key=lambda p: p[0])
+        if not points:
+            raise DesignError("a gain schedule needs at least one operating point")
+        speeds = np.array([s for s, _ in points])
+        if not np.all(np.isfinite(speeds)) or np.any(np.diff(speeds) <= 0):
+            raise DesignError(f"operating-point speeds must be finite and distinct, got {speeds.tolist()}")
+        first = points[0][1]
+        for _, g in points:
+            if g.K_int.shape != first.K_int.shape or not math.isclose(g.sample_period, first.sample_period):
+                raise DesignError("every operating point needs gains of the same size and sample period")
+        self.speeds = speeds
+        self.gains = [g for _, g in points]
+        self.sample_period = first.sample_period
+        self.size = first.K_int.shape[0]
+        self._k_int = np.array([g.K_int for g in self.gains])
+        self._k_err = np.array([g.K_err for g in self.gains])
+        self._u0 = np.array([g.u0 for g in self.gains])
+
+    def _weights(self, speed: float) -> tuple[int, int, float]:
+        if len(self.speeds) == 1 or speed <= self.speeds[0]:
+            return 0, 0, 0.0
+        if speed >= self.speeds[-1]:
+            last = len(self.speeds) - 1
+            return last, last, 0.0
+        j = int(np.searchsorted(self.speeds, speed)) - 1
+        return j, j + 1, (speed - self.speeds[j]) / (self.speeds[j + 1] - self.speeds[j])
+
+    def gains_at(self, surge: float) -> tuple[np.ndarray, np.ndarray]:
+        """(K_int, K_err) at a measured surge speed [m/s]."""
+        i, j, w = self._weights(surge)
+        return (1 - w) * self._k_int[i] + w * self._k_int[j], (1 - w) * self._k_err[i] + w * self._k_err[j]
+
+    def offset_at(self, surge_reference: float) -> np.ndarray:
+        """u0(r): the inputs that hold a reference surge speed [rad] (eq. 5.6)."""
+        i, j, w = self._weights(surge_reference)
+        return (1 - w) * self._u0[i] + w * self._u0[j]
+
+
+@dataclass(frozen=True)
+class ControllerState:
+    """What the controller did at its last sample (for diagnostics)."""
+
+    t: float
+    error: np.ndarray
+    integrator: np.ndarray
+    command_unsaturated: np.ndarray
+    saturated: np.ndarray
+
+
+class MFOLController:
+    """Owens and Chotai's PI velocity controller (eq. 4.11, 5.6) with scheduling and anti-windup.
+
+    Parameters
+    ----------
+    schedule : GainSchedule or TwoTermGains
+        The gains (a single :class:`~seapup_control.mfol.TwoTermGains` is a fixed-gain controller).
+    limit : float
+        Blade-pitch limit [rad] the vehicle saturates at (default +/-35 deg).
+
+    Examples
+    --------
+    >>> from seapup_control.mfol import THESIS_POLES_5HZ, MFOLModel, design
+    >>> model = MFOLModel(np.eye(4) * 0.01, np.eye(4) * 0.1, 0.2)   # decoupled, for the example
+    >>> ctl = MFOLController(design(model, THESIS_POLES_5HZ))
+    >>> ctl.reset(Command(np.zeros(4)))
+    >>> at_rest = Measurement.build(0.0, velocity=(0.0, 0.0, 0.0), rates=(0.0, 0.0, 0.0))
+    >>> ctl.update(0.0, at_rest, Reference([0.01, 0.0, 0.0, 0.0])).blade_pitch  # (100 * 0.4 - 10) * 0.01
+    array([0.3, 0. , 0. , 0. ])
+    """
+
+    def __init__(self, schedule, limit: float = BLADE_PITCH_LIMIT):
+        self.schedule = schedule if isinstance(schedule, GainSchedule) else GainSchedule([(0.0, schedule)])
+        if not (math.isfinite(limit) and limit > 0):
+            raise DesignError(f"limit must be > 0 rad, got {limit!r}")
+        self.limit = float(limit)
+        self.sample_period = self.schedule.sample_period
+        m = self.schedule.size
+        self.q = np.zeros(m)
+        self.state: ControllerState | None = None
+        self.saturated_samples = np.zeros(m, dtype=int)
+
+    def reset(self, applied: Command) -> None:
+        """Bumpless start: the integrator state that makes the first command the applied one (zero error)."""
+        pitch = np.clip(np.asarray(applied.blade_pitch, float), -self.limit, self.limit)
+        k_int, _ = self.schedule.gains_at(0.0)
+        self.q = np.linalg.solve(k_int, pitch - self.schedule.offset_at(0.0))
+        self.state = None
+        self.saturated_samples[:] = 0
+
+    def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        """One sample of eq. 5.6 with back-calculated integrators (see the module docstring).
+
+        Raises
+        ------
+        ContractError
+            If the measurement has no valid velocity/rate reading or the
+            reference is not a :class:`Reference` (nothing changes).
+        """
+        y = measurement.body_velocity()  # raises ContractError when invalid
+        if not isinstance(reference, Reference):
+            raise ContractError(f"reference must be a Reference, got {type(reference).__name__}")
+        r = reference.velocity
+        error = r - y
+        k_int, k_err = self.schedule.gains_at(float(y[SURGE]))
+        u0 = self.schedule.offset_at(float(r[SURGE]))
+        raw = k_int @ self.q + k_err @ error + u0
+        command = np.clip(raw, -self.limit, self.limit)
+        saturated = np.abs(raw) > self.limit
+        # anti-windup: the state that reproduces the held command, then integrate
+        self.q = np.linalg.solve(k_int, command - k_err @ error - u0) + error
+        self.saturated_samples += saturated
+        self.state = ControllerState(float(t), error, self.q.copy(), raw, saturated)
+        return Command(command, stamp=t)

@@ -1,0 +1,129 @@
+"""The MFOL velocity controller against the closed-loop analysis, saturation and bad input."""
+import numpy as np
+import pytest
+
+from seapup_common.contract import Command, ContractError, Measurement, Reference, VelocityController
+from seapup_control.closed_loop import closed_loop_discrete
+from seapup_control.mfol import LoopPoles, MFOLModel, design
+from seapup_control.mfol_controller import GainSchedule, MFOLController
+
+T = 0.2
+
+
+def plant(seed=11):
+    """An exact 4-loop MFOL plant y+ = Φ y + Δ u (outputs u, v, w, r), stable."""
+    rng = np.random.default_rng(seed)
+    while True:
+        b0inv = np.diag([0.05, 0.02, 0.03, 0.3]) + 0.005 * rng.normal(size=(4, 4))
+        b1inv = np.diag([0.5, 0.3, 0.2, 2.0]) + 0.05 * rng.normal(size=(4, 4))
+        phi = np.eye(4) - b0inv @ np.linalg.inv(b1inv)
+        if np.max(np.abs(np.linalg.eigvals(phi))) < 0.97:
+            return phi, b0inv, MFOLModel.from_state_space(phi, b0inv, np.eye(4), T)
+
+
+def measure(t, y):
+    return Measurement.build(t, velocity=y[:3], rates=(0.0, 0.0, y[3]))
+
+
+def fly(controller, phi, delta, references, y=None):
+    y = np.zeros(4) if y is None else y
+    ys, us = [], []
+    for k, r in enumerate(references):
+        u = controller.update(k * T, measure(k * T, y), Reference(r)).blade_pitch
+        ys.append(y.copy())
+        us.append(u)
+        y = phi @ y + delta @ u
+    return np.array(ys), np.array(us)
+
+
+def test_the_controller_flies_exactly_the_analysed_closed_loop():
+    """Unsaturated, the contract implementation and eq. 5.14 give the same outputs, sample by sample."""
+    phi, delta, model = plant()
+    gains = design(model, LoopPoles([0.8, 0.85, 0.75, 0.65], [0.8, 0.85, 0.75, 0.65], T))
+    ctl = MFOLController(gains, limit=100.0)
+    assert isinstance(ctl, VelocityController)
+    ctl.reset(Command(np.zeros(4)))
+    r = np.array([0.3, -0.1, 0.05, 0.2])
+    ys, _ = fly(ctl, phi, delta, [r] * 120)
+    loop = closed_loop_discrete(phi, delta, np.eye(4), gains.K_int, gains.K_err, T)
+    state = np.zeros(8)
+    for k in range(120):
+        np.testing.assert_allclose(ys[k], loop.c_aug @ state, atol=1e-12)
+        state = loop.phi @ state + loop.gamma @ r
+    np.testing.assert_allclose(ys[-1], r, atol=1e-6)  # integral action: no steady-state error
+
+
+def test_bumpless_start_from_the_applied_command_and_the_offset():
+    phi, delta, model = plant()
+    u0 = np.radians([-3.383, -3.383, -13.098, -13.098])  # eq. 5.2's quiescent setting as the offset
+    model = MFOLModel(model.B0inv, model.B1inv, T, u0=u0)
+    ctl = MFOLController(design(model, LoopPoles([0.8] * 4, [0.8] * 4, T)))
+    applied = np.radians([10.0, -5.0, 3.0, 20.0])
+    ctl.reset(Command(applied))
+    y = np.array([0.1, 0.0, 0.02, 0.0])
+    first = ctl.update(0.0, measure(0.0, y), Reference(y)).blade_pitch  # zero error: no bump
+    np.testing.assert_allclose(first, applied, atol=1e-12)
+
+
+def test_anti_windup_leaves_saturation_at_once_where_a_plain_integrator_stays():
+    phi, delta, model = plant()
+    gains = design(model, LoopPoles([0.8] * 4, [0.8] * 4, T))
+    limit = np.radians(35.0)
+    references = [np.array([1.5, 0, 0, 0])] * 60 + [np.zeros(4)] * 60  # unreachable surge, then stop
+
+    class Plain(MFOLController):  # eq. 4.11 as written, output clipped, integrators free
+        def update(self, t, measurement, reference):
+            e = reference.velocity - measurement.body_velocity()
+            k_int, k_err = self.schedule.gains_at(0.0)
+            raw = k_int @ self.q + k_err @ e + self.schedule.offset_at(0.0)
+            self.q = self.q + e
+            return Command(np.clip(raw, -self.limit, self.limit), stamp=t)
+
+    runs = {}
+    for name, cls in (("aw", MFOLController), ("plain", Plain)):
+        ctl = cls(gains, limit=limit)
+        ctl.reset(Command(np.zeros(4)))
+        runs[name] = fly(ctl, phi, delta, references)
+    for name, (_, us) in runs.items():
+        assert np.all(np.abs(us) <= limit + 1e-12)
+        assert np.any(np.isclose(np.abs(us[:60]), limit)), name  # both saturate while chasing 1.5 m/s
+    def saturated_after_stop(us):
+        return int(np.sum(np.any(np.isclose(np.abs(us[60:]), limit), axis=1)))
+    assert saturated_after_stop(runs["aw"][1]) <= 3
+    assert saturated_after_stop(runs["plain"][1]) >= saturated_after_stop(runs["aw"][1]) + 10
+    # and the vehicle comes back to rest sooner
+    assert np.abs(runs["aw"][0][-1]).max() < 0.01 < np.abs(runs["plain"][0][75]).max()
+
+
+def test_gain_schedule_interpolates_gains_on_measured_surge_and_the_offset_on_the_reference():
+    phi, delta, model = plant()
+    slow = design(MFOLModel(model.B0inv, model.B1inv, T, u0=np.zeros(4)), LoopPoles([0.8] * 4, [0.8] * 4, T))
+    fast_model = MFOLModel(model.B0inv * 1.3, model.B1inv * 0.7, T, y0=[0.7, 0, 0, 0], u0=np.full(4, 0.25))
+    fast = design(fast_model, LoopPoles([0.8] * 4, [0.8] * 4, T))
+    schedule = GainSchedule([(0.7, fast), (0.0, slow)])  # any order
+    k_int, k_err = schedule.gains_at(0.35)
+    np.testing.assert_allclose(k_int, (slow.K_int + fast.K_int) / 2)
+    np.testing.assert_allclose(k_err, (slow.K_err + fast.K_err) / 2)
+    np.testing.assert_allclose(schedule.offset_at(0.175), np.full(4, 0.0625))
+    np.testing.assert_allclose(schedule.gains_at(-0.2)[0], slow.K_int)  # held beyond the ends
+    np.testing.assert_allclose(schedule.gains_at(2.0)[1], fast.K_err)
+    ctl = MFOLController(schedule)
+    ctl.reset(Command(np.zeros(4)))
+    cmd = ctl.update(0.0, measure(0.0, np.array([0.7, 0, 0, 0])), Reference([0.7, 0, 0, 0])).blade_pitch
+    np.testing.assert_allclose(cmd, np.full(4, 0.25))  # zero error at 0.7 m/s: the fast offset, fast gains
+
+
+def test_bad_measurements_and_references_change_nothing():
+    phi, delta, model = plant()
+    ctl = MFOLController(design(model, LoopPoles([0.8] * 4, [0.8] * 4, T)))
+    ctl.reset(Command(np.radians([5, 5, 0, 0])))
+    before = ctl.q.copy()
+    with pytest.raises(ContractError, match="velocity"):
+        ctl.update(0.0, Measurement.build(0.0, rates=(0, 0, 0)), Reference())
+    with pytest.raises(ContractError):
+        Measurement.build(0.0, velocity=(np.nan, 0, 0), rates=(0, 0, 0))
+    with pytest.raises(ContractError):
+        Reference([0.1, 0.2, np.inf, 0])
+    with pytest.raises(ContractError, match="Reference"):
+        ctl.update(0.0, measure(0.0, np.zeros(4)), [0.1, 0, 0, 0])
+    np.testing.assert_array_equal(ctl.q, before)
