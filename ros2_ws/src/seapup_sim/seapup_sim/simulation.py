@@ -118,6 +118,8 @@ def _reference_at(reference, t: float) -> Reference:
         return Reference()
     if isinstance(reference, Reference):
         return reference
+    if not callable(reference):  # a constant (4,) array, as the docstring of Simulation.run promises
+        return Reference(reference)
     value = reference(t)
     return value if isinstance(value, Reference) else Reference(value)
 

@@ -154,3 +154,12 @@ def test_environment_defaults_load():
     env = load_environment()
     assert env.umbilical.params.drag_coefficient == pytest.approx(3.0)
     assert env.current.params.break_time == 10.0 and env.sensors.name == "baseline"
+
+
+def test_references_may_be_constant_arrays_references_or_functions():
+    for reference in ([0.2, 0.0, 0.0, 0.1], Reference([0.2, 0.0, 0.0, 0.1]),
+                      lambda t: [0.2, 0.0, 0.0, 0.1], lambda t: Reference([0.2, 0.0, 0.0, 0.1])):
+        ctl = Recorder(0.5)
+        Simulation.from_config("baseline", {"sensors": "ideal"}, control_period=0.5, pitch=HOVER).run(
+            ctl, 1.0, reference=reference)
+        assert [list(ref.velocity) for _, _, ref in ctl.calls] == [[0.2, 0.0, 0.0, 0.1]] * 2

@@ -1,0 +1,144 @@
+"""The self-test procedure on an exactly first-order plant: it must find the plant's own MFOL.
+
+The plant ``y+ = Φ y + Δ (u - u_h)`` is an exact MFOL with B0^-1 = Δ and
+B1^-1 = (I - Φ)^-1 Δ (eq. 4.18-4.19), every channel a first-order lag
+(eq. 4.23), and holds still at the setting u_h; its
+zero level (zero pitch) makes it drift, as the Seapup does (sec. 5.3).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_common.config import ConfigError
+from seapup_common.contract import Command, ContractError, Measurement
+from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, fit_operating_point
+
+T = 0.2
+HOLD = np.radians([-3.4, -3.4, -13.1, -13.1])
+
+
+def exact_plant(seed=2):
+    """Decoupled dynamics (Φ diagonal), coupled inputs: every channel is exactly a first-order lag
+    (eq. 4.23), so the per-channel fits must return B0^-1 = Δ and B1^-1 = (I - Φ)^-1 Δ exactly.
+    Magnitudes like the Seapup's, per radian (eq. 5.3 x 180/pi)."""
+    rng = np.random.default_rng(seed)
+    phi = np.diag([0.88, 0.93, 0.80, 0.82])
+    delta = np.diag([0.16, 0.034, 0.057, 0.33]) + 0.01 * rng.normal(size=(4, 4))
+    return phi, delta, np.linalg.solve(np.eye(4) - phi, delta)
+
+
+def fly(test, phi, delta, y=None, limit=3000):
+    """Close the loop; an artificial reset puts the plant at rest at the requested surge speed,
+    holding the setting that keeps it there (as the simulator's ~/reset with a trim)."""
+    y = np.zeros(4) if y is None else y
+    b1inv = np.linalg.solve(np.eye(4) - phi, delta)
+    commands = []
+    for k in range(limit):
+        if test.finished:
+            break
+        u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
+        if test.reset_request is not None:
+            y = np.array([test.reset_request, 0.0, 0.0, 0.0])
+            test.plant_reset(Command(HOLD + np.linalg.solve(b1inv, y)))
+            continue
+        commands.append(u)
+        y = phi @ y + delta @ (u - HOLD)
+    return y, np.array(commands)
+
+
+def test_artificial_quiescence_finds_the_exact_mfol_at_every_operating_point():
+    phi, delta, b1inv = exact_plant()
+    test = SelfTest(SelfTestConfig.load({"mode": "artificial", "operating_points": [0.0, 0.3]}))
+    test.reset(Command(np.zeros(4)))
+    fly(test, phi, delta)
+    assert test.phase == Phase.DONE, test.reason
+    assert [p.surge for p in test.points] == [0.0, 0.3] and len(test.tests) == 12
+    for point in test.points:
+        np.testing.assert_allclose(point.model.B0inv, delta, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(point.model.B1inv, b1inv, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(point.model.u0, HOLD + np.linalg.solve(b1inv, [point.surge, 0, 0, 0]),
+                                   atol=1e-12)
+        np.testing.assert_allclose(point.model.y0, [point.surge, 0, 0, 0])
+    assert [t.cycle for t in test.tests] == [1] * 4 + [2] * 8 and test.progress == 1.0
+
+
+def test_realistic_quiescence_gets_the_dominant_channels_and_the_holding_setting():
+    """Each test starts where quiescence was declared, not at rest: the initial transient biases the
+    fits (sec. 5.3.3); the dominant channels stay within 10 % and the controller holds the plant."""
+    phi, delta, b1inv = exact_plant()
+    test = SelfTest(SelfTestConfig.load({"operating_points": [0.0, 0.3]}))
+    test.reset(Command(np.zeros(4)))
+    y, _ = fly(test, phi, delta)
+    assert test.phase == Phase.DONE, test.reason
+    assert test.threshold > 0.01 and len(test.tests) == 12
+    assert [t.cycle for t in test.tests] == [1] * 4 + [2] * 8
+    for point in test.points:
+        np.testing.assert_allclose(np.diag(point.model.B0inv), np.diag(delta), rtol=0.1)
+        np.testing.assert_allclose(np.diag(point.model.B1inv), np.diag(b1inv), rtol=0.1)
+        np.testing.assert_allclose(point.model.u0, HOLD + np.linalg.solve(b1inv, [point.surge, 0, 0, 0]),
+                                   atol=0.02)  # the controller found the holding setting
+    for k in range(3000, 3300):  # done: it hovers under the scheduled controller
+        u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
+        y = phi @ y + delta @ (u - HOLD)
+    assert np.abs(y).max() < 1e-3
+
+
+def test_refitting_the_logged_steps_gives_the_live_result():
+    """What --from-bag will do: the raw step data alone reproduce the model and gains."""
+    phi, delta, _ = exact_plant()
+    test = SelfTest(SelfTestConfig.load({}))
+    test.reset(Command(np.zeros(4)))
+    fly(test, phi, delta)
+    again = fit_operating_point([t for t in test.tests if t.cycle == 2], T, test.config.poles)
+    np.testing.assert_array_equal(again.model.B0inv, test.points[0].model.B0inv)
+    np.testing.assert_array_equal(again.gains.K_err, test.points[0].gains.K_err)
+
+
+def test_failures_end_in_hover_with_a_reason():
+    phi, delta, _ = exact_plant()
+    # quiescence never reached: the plant drifts faster than the threshold allows
+    test = SelfTest(SelfTestConfig.load({"quiescence_speed": 0.001, "max_wait": 5.0}))
+    test.reset(Command(np.zeros(4)))
+    _, commands = fly(test, phi, delta)
+    assert test.phase == Phase.FAILED and "quiescence" in test.reason
+    np.testing.assert_array_equal(commands[-1], np.zeros(4))  # no controller yet: the zero level
+    # a step that would pass the blade limit is refused before it is made
+    test = SelfTest(SelfTestConfig.load({"zero_level": [0.6, 0.0, 0.0, 0.0]}))
+    test.reset(Command(np.zeros(4)))
+    _, commands = fly(test, phi, delta)
+    assert test.phase == Phase.FAILED and "saturate" in test.reason
+    assert np.all(np.abs(commands) <= math.radians(35) + 1e-12)
+
+
+def test_cancel_hovers_under_the_best_controller():
+    phi, delta, _ = exact_plant()
+    test = SelfTest(SelfTestConfig.load({}))
+    test.reset(Command(np.zeros(4)))
+    y = np.zeros(4)
+    for k in range(5000):
+        u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
+        y = phi @ y + delta @ (u - HOLD)
+        if test.controller is not None and test.phase == Phase.STEP and test.tests[-1].cycle == 2:
+            break
+    test.cancel()
+    assert test.phase == Phase.CANCELLED and test.progress < 1.0
+    for k in range(k + 1, k + 600):  # hover: the controller brings the plant to rest
+        u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
+        y = phi @ y + delta @ (u - HOLD)
+    assert np.abs(y).max() < 1e-3
+
+
+def test_settings_are_checked_and_bad_measurements_change_nothing():
+    with pytest.raises(ConfigError, match="operating_points"):
+        SelfTestConfig.load({"operating_points": [0.7]})
+    with pytest.raises(ConfigError, match="samples"):
+        SelfTestConfig.load({"samples": 2})
+    with pytest.raises(ConfigError, match="mode"):
+        SelfTestConfig.load({"mode": "sometimes"})
+    fast = SelfTestConfig.load({"sample_period": 0.05})
+    np.testing.assert_allclose(fast.poles.k, [0.94574, 0.96018, 0.93060, 0.89790], atol=5e-6)  # sec. 5.2
+    test = SelfTest(SelfTestConfig.load({}))
+    with pytest.raises(ContractError):
+        test.update(0.0, Measurement.build(0.0, rates=(0, 0, 0)))
+    assert test.start_time is None and test.phase == Phase.DRIFT
