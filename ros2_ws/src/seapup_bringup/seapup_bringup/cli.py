@@ -163,6 +163,20 @@ def _bench(argv: list[str]) -> int:
     return bench(argv)
 
 
+@command("selftest", "the self-test in SIL (in-process lockstep): B0^-1, B1^-1 and gains beside the thesis",
+         "[--config C] [--rate 5|20] [--speeds 0,0.7] [--mode realistic|artificial] [--json [F]]")
+def _selftest(argv: list[str]) -> int:
+    from seapup_bringup.autopilot_commands import selftest
+    return selftest(argv)
+
+
+@command("closed-loop", "closed-loop eigenvalues over surge speed under the self-tested controller (sec. 5.4.1)",
+         "[--rate 5|20] [--schedule] [--config C] [--plots DIR] [--json [F]]")
+def _closed_loop(argv: list[str]) -> int:
+    from seapup_bringup.autopilot_commands import closed_loop_command
+    return closed_loop_command(argv)
+
+
 @command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
          "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--flush-interval S]")
 def _record(argv: list[str]) -> int:

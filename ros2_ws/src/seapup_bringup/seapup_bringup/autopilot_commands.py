@@ -1,0 +1,222 @@
+"""``./seapup selftest`` and ``./seapup closed-loop``: the Owens-Chotai autopilot on the simulated Seapup.
+
+selftest     fly the self-test (sec. 4.5.2, 5.3) in lockstep with the simulated
+             vehicle, in this process (pure cores; the ROS action server is
+             not built yet), and print B0^-1, B1^-1 and the designed gains per
+             operating point beside eq. 5.3 / 5.7 and Tables 5.1 / 5.2.
+closed-loop  the closed-loop eigenvalues of the linearised vehicle under the
+             self-tested controller over surge speed (sec. 5.4.1, figs 5.4-5.9):
+             fixed or scheduled gains, 5 or 20 Hz.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.self_test_sil import fly_self_test
+from seapup_control.closed_loop import closed_loop
+from seapup_control.mfol_controller import GainSchedule
+from seapup_sim.analysis import TrimError, linearise, output_matrix, trim
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
+
+__all__ = ["selftest", "closed_loop_command", "analyse", "MODES"]
+
+#: Eq. 5.3a/b and 5.7a/b (the thesis's velocity log, human observer), thesis units (m/s and deg/s per deg).
+THESIS = {0.0: {"B0inv": [[.0026, .0026, .000125, .000125], [-.0001, .0001, -.0004265, .0004265],
+                          [.0000625, .0000625, .000525, .000525], [.2629, -.2629, .001588, -.001588]],
+                "B1inv": [[.0246, .0246, .00064, .00064], [-.00409, .00409, -.00766, .00766],
+                          [-.0006, -.0006, .004875, .004875], [1.9612, -1.9612, -.04990, .04990]],
+                "u0_deg": [-3.383, -3.383, -13.098, -13.098]},
+          0.7: {"B0inv": [[.00325, .00325, -.001125, -.001125], [-.00025, .00025, -.0013, .0013],
+                          [.000375, .000375, .012, .012], [.361725, -.361725, -.009825, .009825]],
+                "B1inv": [[.01514, .01514, -.00565, -.00565], [-.007, .007, -.0049, .0049],
+                          [-.0006, -.0006, .00209, .00209], [1.3419, -1.3419, -.131, .131]],
+                "u0_deg": [14.589, 14.589, -5.929, -5.929]}}
+# eq. 5.3b prints +1.9612 for r / main starboard; mirror symmetry (5.3a, 5.7b) says -1.9612 (README).
+
+#: State groups that name a closed-loop mode (figs 5.4-5.9): states 0-11 of the vehicle, 12-15 the
+#: controller's integrators of the u, v, w, r loops.
+MODES = {"surge": [6, 12], "sway": [7, 13], "heave": [8, 14], "yaw": [11, 15], "roll": [3, 9],
+         "pitch": [4, 10], "position": [0, 1, 2, 5]}
+
+
+def _model(name: str) -> VehicleModel:
+    try:
+        return VehicleModel(load_vehicle_config(name))
+    except ConfigError as exc:
+        raise SystemExit(f"seapup: {exc}")
+
+
+def _self_test_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config", default="baseline", help=f"vehicle configuration ({', '.join(available_configs())})")
+    parser.add_argument("--rate", type=float, default=5.0, choices=(5.0, 20.0), help="sample rate [Hz]")
+    parser.add_argument("--speeds", default="0,0.7", help="operating points [m/s], comma separated, from 0")
+    parser.add_argument("--mode", choices=("realistic", "artificial"), default="realistic",
+                        help="quiescence waited for, or the plant reset before each step (sec. 5.3.2)")
+
+
+def _fly(args, text):
+    try:
+        speeds = [float(s) for s in args.speeds.split(",")]
+    except ValueError:
+        raise SystemExit(f"seapup: --speeds must be numbers separated by commas, got {args.speeds!r}")
+    print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, {args.mode} quiescence",
+          file=text, flush=True)
+    run = fly_self_test(args.config, {"sample_period": 1.0 / args.rate, "operating_points": speeds,
+                                      "mode": args.mode},
+                        progress=lambda f: progress("self-test", f))
+    if run.test.phase.value != "done":
+        raise SystemExit(f"seapup: the self-test {run.test.phase.value}: {run.test.reason}")
+    return run
+
+
+def selftest(argv: list[str]) -> int:
+    """``./seapup selftest``: the self-test in SIL; B0^-1/B1^-1 beside the thesis."""
+    parser = argparse.ArgumentParser(prog="./seapup selftest", description=__doc__.splitlines()[0])
+    _self_test_arguments(parser)
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    run = _fly(args, text)
+    test = run.test
+    points = []
+    for point in test.points:
+        b0, b1 = point.model.in_thesis_units()
+        points.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
+                       "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle})
+        thesis = THESIS.get(round(point.surge, 3))
+        print(f"\noperating point {point.surge:g} m/s (outputs u, v, w [m/s], r [deg/s] per degree of pitch;"
+              f" thesis eq. 5.{3 if point.surge == 0 else 7} in brackets)", file=text)
+        for name, key, ours in (("B0^-1", "B0inv", b0), ("B1^-1", "B1inv", b1)):
+            print(f"  {name}", file=text)
+            for i, row in enumerate(ours):
+                theirs = thesis[key][i] if thesis else None
+                cells = [f"{v:10.5f}" + (f" ({t:9.5f})" if theirs else "") for v, t in
+                         zip(row, theirs or [None] * 4)]
+                print("   " + " ".join(cells), file=text)
+        u0 = np.degrees(point.model.u0)
+        print("  u0 [deg] " + " ".join(f"{v:7.3f}" for v in u0)
+              + (f"   (thesis {' '.join(f'{v:7.3f}' for v in thesis['u0_deg'])})" if thesis else ""), file=text)
+    print(f"\ntime {test.duration:.1f} s, space {run.space[0]:.1f} x {run.space[1]:.1f} x {run.space[2]:.1f} m "
+          f"(X x Y x Z; depth {run.depth_range[0]:+.1f} to {run.depth_range[1]:+.1f} m); thesis: 119.2 s and "
+          "9.4 x 5.2 x 5.7 m at 0 m/s, +60.2 s and 33.4 x 33.0 x 12.0 m with 0.7 m/s (sec. 5.3.3)", file=text)
+    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "operating_points": points,
+                     "duration_s": test.duration, "space_m": run.space, "depth_range_m": run.depth_range,
+                     "quiescence_speed": test.threshold, "bag": None})
+    return 0
+
+
+def _mode_of(vector: np.ndarray, s: complex) -> str:
+    """The mode a closed-loop eigenvector belongs to: its largest velocity, attitude or integrator component.
+
+    The four pure integrations to X, Y, Z and psi (s = 0) are the position
+    modes; position components are left out of the others' weights (a slow
+    mode's displacement, v / s, would outweigh its own velocity).
+    """
+    if abs(s) < 1e-6:
+        return "position"
+    weight = {name: float(np.abs(vector[idx]).max()) for name, idx in MODES.items() if name != "position"}
+    return max(weight, key=weight.get)
+
+
+def analyse(model: VehicleModel, schedule: GainSchedule, speeds, scheduled: bool) -> list[dict]:
+    """Closed-loop poles about the trim at each surge speed (eq. 5.8-5.15), labelled by mode."""
+    c = output_matrix()
+    rows = []
+    for speed in speeds:
+        try:
+            held = trim(model, speed)
+        except TrimError as exc:
+            rows.append({"surge": speed, "error": str(exc)})
+            continue
+        a, b = linearise(model, held.state, held.blade_pitch)
+        k_int, k_err = schedule.gains_at(speed if scheduled else 0.0)
+        loop = closed_loop(a, b, c, k_int, k_err, schedule.sample_period)
+        values, vectors = np.linalg.eig(loop.phi)
+        with np.errstate(divide="ignore"):
+            s_values = np.log(values.astype(complex)) / schedule.sample_period  # eq. 5.1
+        modes = {}
+        for k, s in enumerate(s_values):
+            modes.setdefault(_mode_of(vectors[:, k], s), []).append([float(s.real), float(s.imag)])
+        dynamic = [p[0] for name, poles in modes.items() if name != "position" for p in poles]
+        # stable: every mode but the four pure integrations to position decays
+        rows.append({"surge": speed, "stable": max(dynamic) < 0.0, "max_re_s": max(dynamic),
+                     "spectral_radius": loop.spectral_radius,
+                     "z_poles": [[float(z.real), float(z.imag)] for z in loop.z_poles],
+                     "s_poles": [[float(s.real), float(s.imag)] for s in loop.s_poles], "modes": modes})
+    return rows
+
+
+def closed_loop_command(argv: list[str]) -> int:
+    """``./seapup closed-loop``: closed-loop eigenvalues over surge speed (sec. 5.4.1)."""
+    parser = argparse.ArgumentParser(prog="./seapup closed-loop", description=__doc__.splitlines()[0])
+    _self_test_arguments(parser)
+    parser.add_argument("--schedule", action="store_true", help="gains scheduled on surge speed (else fixed at 0)")
+    parser.add_argument("--plots", type=Path, help="write s-plane loci per mode (figs 5.4-5.9) into this directory")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    run = _fly(args, text)
+    schedule = run.test.schedule()
+    speeds = [round(0.1 * k, 1) for k in range(11)]
+    rows = analyse(_model(args.config), schedule, speeds, args.schedule)
+    designed = run.test.config.poles
+    print(f"\nclosed loop, {args.rate:g} Hz, {'scheduled' if args.schedule else 'fixed'} gains; designed s-plane "
+          "poles (u, v, w, r): " + ", ".join(f"{s.real:.2f}" for s in designed.continuous()[0]), file=text)
+    print(f"{'surge':>6} {'stable':>7} {'maxRe s':>8}  " + "  ".join(f"{m:>17}" for m in MODES if m != "position"),
+          file=text)
+    for row in rows:
+        if "error" in row:
+            print(f"{row['surge']:6.1f}  no trim: {row['error']}", file=text)
+            continue
+        cells = []
+        for mode in MODES:
+            if mode == "position":
+                continue
+            poles = sorted(row["modes"].get(mode, []), key=lambda p: -p[0])
+            cells.append(f"{poles[0][0]:8.2f}{poles[0][1]:+8.2f}j" if poles else f"{'-':>17}")
+        print(f"{row['surge']:6.1f} {str(row['stable']):>7} {row['max_re_s']:8.3f}  " + "  ".join(cells),
+              file=text)
+    print("(per mode: its least damped pole, s = ln(z) / T [1/s]; stable: all but the four position "
+          "integrations, s = 0, decay)", file=text)
+    result = {"config": args.config, "rate_hz": args.rate, "scheduled": args.schedule,
+              "designed_s": [[float(s.real), float(s.imag)] for s in designed.continuous()[0]], "speeds": rows}
+    if args.plots:
+        for path in plot_loci(result, args.plots):
+            print(f"wrote {path}", file=text)
+    emit_json(args, result)
+    return 0
+
+
+def plot_loci(result: dict, out_dir: Path) -> list[Path]:
+    """One s-plane figure per mode, coloured by surge speed (from the JSON result)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    speeds = [r for r in result["speeds"] if "modes" in r]
+    for number, mode in enumerate(m for m in MODES if m != "position"):
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        for row in speeds:
+            poles = np.array(row["modes"].get(mode, [])).reshape(-1, 2)
+            ax.scatter(poles[:, 0], poles[:, 1], color=plt.cm.viridis(row["surge"] / 1.0), s=14,
+                       label=f"{row['surge']:.1f} m/s")
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.set_xlabel("Re s [1/s]")
+        ax.set_ylabel("Im s [rad/s]")
+        kind = "scheduled" if result["scheduled"] else "fixed"
+        ax.set_title(f"{mode} modes, {result['rate_hz']:g} Hz, {kind} gains (cf. fig. 5.{4 + number})")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+        path = out_dir / f"fig5_{4 + number}_{mode}_{int(result['rate_hz'])}hz_{kind}.png"
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths

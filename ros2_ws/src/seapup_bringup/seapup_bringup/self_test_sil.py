@@ -1,0 +1,93 @@
+"""The self-test flown on the simulated Seapup in one process (pure cores in lockstep, no ROS).
+
+The software-in-the-loop driver of :class:`seapup_control.self_test.SelfTest`:
+it builds a :class:`~seapup_sim.simulation.Simulation` of a vehicle
+configuration, feeds the self-test the simulated *measurements* every
+sample, holds its commands, performs the plant resets of the artificial
+mode (rest, or the trim of the operating point, held by its blade pitches),
+and measures what the thesis reports about the run from the simulation's
+truth: the time taken and the box of water used (sec. 5.3.3).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from seapup_common.contract import Command
+from seapup_control.self_test import SelfTest, SelfTestConfig
+from seapup_sim.analysis import trim
+from seapup_sim.simulation import Simulation
+
+__all__ = ["SelfTestRun", "fly_self_test"]
+
+
+@dataclass
+class SelfTestRun:
+    """A finished self-test run and what it used."""
+
+    test: SelfTest
+    space: np.ndarray          # extent of x, y, z [m] (sec. 5.3.3's box of water)
+    depth_range: tuple[float, float]  # shallowest and deepest z relative to the start [m, down positive]
+    truth: np.ndarray          # (n, 13): t and the 12 states at each sample
+
+
+def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, seed: int = 0,
+                  start_depth: float = 50.0, max_time: float = 3600.0, progress=None) -> SelfTestRun:
+    """Fly a self-test in lockstep with the simulated vehicle.
+
+    Parameters
+    ----------
+    vehicle : str
+        Vehicle configuration (``baseline``, ``camera``, ...).
+    overrides : mapping, optional
+        Self-test settings over ``seapup_control/data/self_test.yaml``.
+    environment : mapping, optional
+        Environment overrides (default: noise-free sensors, no current, as sec. 5.3.2).
+    start_depth : float
+        Depth of the start [m].
+    max_time : float
+        Simulated seconds after which the run is cancelled.
+    progress : callable, optional
+        Called with the fraction done.
+    """
+    environment = {"sensors": "ideal"} if environment is None else environment
+    config = SelfTestConfig.load(overrides)
+    start = np.zeros(12)
+    start[2] = start_depth
+
+    def new_simulation(state, pitch):
+        return Simulation.from_config(vehicle, environment, seed=seed, control_period=config.sample_period,
+                                      dt=min(0.1, config.sample_period), state=state, pitch=pitch)
+
+    sim = new_simulation(start, config.zero_level)
+    test = SelfTest(config)
+    test.reset(Command(config.zero_level))
+    truth, offset = [], 0.0
+    while not test.finished:
+        sample = sim.sample()
+        t = sample.t + offset
+        truth.append(np.r_[t, sample.state])
+        if t >= max_time:
+            test.cancel(f"not finished within {max_time:g} s")
+            break
+        command = test.update(t, sample.measurement)
+        if test.reset_request is not None:  # artificial quiescence: restart at the operating point
+            held = trim(sim.model, test.reset_request)
+            state = start.copy()
+            state[:3] = sample.state[:3]
+            state[3:12] = held.state[3:12]
+            offset = t
+            sim = new_simulation(state, held.blade_pitch)
+            test.plant_reset(Command(held.blade_pitch))
+            continue
+        sim.advance(command.blade_pitch)
+        if progress is not None and len(truth) % 25 == 0:
+            progress(test.progress)
+    if progress is not None:
+        progress(1.0)
+    truth = np.array(truth)
+    position = truth[:, 1:4]
+    depth = position[:, 2] - start_depth
+    return SelfTestRun(test, position.max(axis=0) - position.min(axis=0), (float(depth.min()), float(depth.max())),
+                       truth)

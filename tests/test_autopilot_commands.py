@@ -1,0 +1,36 @@
+"""``./seapup selftest`` and ``./seapup closed-loop``: what they print as JSON matches what they compute."""
+import json
+import math
+
+import numpy as np
+
+from seapup_bringup.autopilot_commands import closed_loop_command, selftest
+from seapup_sim.analysis import hover_blade_pitch
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
+
+
+def test_selftest_json_has_the_operating_points_gains_time_and_space(tmp_path):
+    out = tmp_path / "st.json"
+    assert selftest(["--speeds", "0", "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    (point,) = result["operating_points"]
+    hover = np.degrees(hover_blade_pitch(VehicleModel(load_vehicle_config("baseline"))))
+    np.testing.assert_allclose(point["u0_deg"], hover, atol=0.2)
+    assert np.array(point["B0inv"]).shape == (4, 4) and np.array(point["Ki"]).shape == (4, 4)
+    # thesis units: u per degree of main pitch is ~0.024 m/s (eq. 5.3b: 0.0246)
+    assert 0.015 < point["B1inv"][0][0] < 0.035
+    assert 60 < result["duration_s"] < 240 and len(result["space_m"]) == 3
+
+
+def test_closed_loop_json_has_sixteen_poles_per_speed_four_of_them_the_position_integrations(tmp_path):
+    out = tmp_path / "cl.json"
+    assert closed_loop_command(["--speeds", "0", "--json", str(out), "--plots", str(tmp_path / "plots")]) == 0
+    result = json.loads(out.read_text())
+    assert [row["surge"] for row in result["speeds"]] == [round(0.1 * k, 1) for k in range(11)]
+    for row in result["speeds"]:
+        assert len(row["z_poles"]) == 16  # 12 vehicle states + 4 integrators (sec. 5.4.1)
+        assert len(row["modes"]["position"]) == 4
+        assert row["stable"] and row["max_re_s"] < 0
+        np.testing.assert_allclose([math.hypot(*p) for p in row["modes"]["position"]], 0.0, atol=1e-6)
+    assert len(list((tmp_path / "plots").glob("fig5_*.png"))) == 6
