@@ -1,4 +1,5 @@
-"""The self-test flown on the Seapup model (pure cores in lockstep, no ROS): sec. 5.3.
+"""The self-test flown on the Seapup model (pure cores in lockstep, no ROS; the driver is
+seapup_bringup.self_test_sil, which performs the artificial resets at the trim): sec. 5.3.
 
 Independent truths: the model's own hover trim (eq. 5.2) and trim at 0.7 m/s
 (the settings the controller must find), and the noise-free 8 deg step
@@ -7,7 +8,8 @@ responses from rest at hover ("chosen by a human observer", sec. 5.3.1).
 import numpy as np
 import pytest
 
-from seapup_common.contract import Command, Reference
+from seapup_bringup.self_test_sil import fly_self_test
+from seapup_common.contract import Reference
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig
 from seapup_sim.analysis import hover_blade_pitch, trim
 from seapup_sim.simulation import Simulation
@@ -24,24 +26,8 @@ def simulation(state=START, pitch=np.zeros(4)):
 
 
 def run_self_test(overrides):
-    """Fly the self-test; an artificial reset restarts the plant at rest (or at the trim) holding the trim."""
-    sim = simulation()
-    test = SelfTest(SelfTestConfig.load(overrides))
-    test.reset(Command(np.zeros(4)))
-    low, high = np.full(3, np.inf), np.full(3, -np.inf)
-    while not test.finished and sim.t < 1000:
-        sample = sim.sample()
-        low, high = np.minimum(low, sample.state[:3]), np.maximum(high, sample.state[:3])
-        command = test.update(sample.t, sample.measurement)
-        if test.reset_request is not None:
-            held = trim(MODEL, test.reset_request)
-            state = START.copy()
-            state[3:12] = held.state[3:12]
-            sim = simulation(state, held.blade_pitch)
-            test.plant_reset(Command(held.blade_pitch))
-            continue
-        sim.advance(command.blade_pitch)
-    return test, high - low
+    run = fly_self_test("baseline", overrides)
+    return run.test, run.space
 
 
 @pytest.fixture(scope="module")
