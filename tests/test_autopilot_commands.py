@@ -3,6 +3,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from seapup_bringup.autopilot_commands import closed_loop_command, selftest
 from seapup_sim.analysis import hover_blade_pitch
@@ -12,7 +13,7 @@ from seapup_sim.vehicle_config import load_vehicle_config
 
 def test_selftest_json_has_the_operating_points_gains_time_and_space(tmp_path):
     out = tmp_path / "st.json"
-    assert selftest(["--speeds", "0", "--json", str(out)]) == 0
+    assert selftest(["--speeds", "0", "--in-process", "--json", str(out)]) == 0
     result = json.loads(out.read_text())
     (point,) = result["operating_points"]
     hover = np.degrees(hover_blade_pitch(VehicleModel(load_vehicle_config("baseline"))))
@@ -34,3 +35,26 @@ def test_closed_loop_json_has_sixteen_poles_per_speed_four_of_them_the_position_
         assert row["stable"] and row["max_re_s"] < 0
         np.testing.assert_allclose([math.hypot(*p) for p in row["modes"]["position"]], 0.0, atol=1e-6)
     assert len(list((tmp_path / "plots").glob("fig5_*.png"))) == 6
+
+
+@pytest.mark.graph
+def test_selftest_through_the_action_records_a_bag_that_refits_to_the_same_result(tmp_path, ros_env, monkeypatch):
+    """The default path: simulator + self_test action server + recorder on a leased domain; the JSON's
+    matrices are the bag's refit, which the command checks against the action's live result."""
+    for key, value in ros_env.items():
+        monkeypatch.setenv(key, value)
+    out = tmp_path / "st.json"
+    assert selftest(["--speeds", "0", "--out", str(tmp_path / "run"), "--json", str(out)]) == 0
+    live = json.loads(out.read_text())
+    assert live["bag"] == str(tmp_path / "run" / "bag")
+    again = tmp_path / "again.json"
+    assert selftest(["--from-bag", live["bag"], "--json", str(again)]) == 0
+    refit = json.loads(again.read_text())
+    np.testing.assert_array_equal(refit["operating_points"][0]["B1inv"], live["operating_points"][0]["B1inv"])
+    inproc = tmp_path / "inproc.json"
+    assert selftest(["--speeds", "0", "--in-process", "--json", str(inproc)]) == 0
+    local = json.loads(inproc.read_text())
+    # the graph run starts at the hover setting, the in-process one at the zero level: close, not equal
+    np.testing.assert_allclose(live["operating_points"][0]["u0_deg"], local["operating_points"][0]["u0_deg"],
+                               atol=0.05)
+    assert list((tmp_path / "run").glob("self_test_*.yaml"))  # the controller file

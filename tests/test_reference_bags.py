@@ -113,3 +113,27 @@ def test_demo_bag_is_what_the_model_flies_today(reflown):
                                reflown.measured["velocity"][:n, :2], rtol=0, atol=1e-6)
     # the recorded commands are the schedule's, stamped with their samples
     np.testing.assert_allclose([c.pitch for c in cmd], reflown.command[:len(cmd)], rtol=0, atol=1e-12)
+
+
+SELFTEST = ROOT / "bags" / "selftest_5hz"
+
+
+def test_selftest_bag_refits_to_what_the_self_test_finds_today():
+    """Refit from the recorded samples (--from-bag) == the self-test flown again in process, started as the
+    simulator node starts (at the hover setting)."""
+    from seapup_bringup.autopilot_commands import _from_bag
+    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_sim.analysis import hover_blade_pitch
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+
+    refitted = _from_bag(SELFTEST)
+    hover = hover_blade_pitch(VehicleModel(load_vehicle_config("baseline")))
+    again = fly_self_test("baseline", {"operating_points": [0.0]}, start_pitch=hover)
+    (bag_point,), (live_point,) = refitted["points"], again.test.points
+    np.testing.assert_allclose(bag_point.model.B0inv, live_point.model.B0inv, rtol=1e-6, atol=1e-12,
+                               err_msg="record bags/selftest_5hz again if the plant or self-test changed")
+    np.testing.assert_allclose(bag_point.model.B1inv, live_point.model.B1inv, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(bag_point.model.u0, live_point.model.u0, atol=1e-9)
+    assert abs(refitted["duration"] - again.test.duration) < 1e-6
+    np.testing.assert_allclose(refitted["space"], again.space, atol=1e-6)

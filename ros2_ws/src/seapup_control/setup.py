@@ -23,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "open_loop = seapup_control.open_loop_node:main",
+            "self_test = seapup_control.self_test_node:main",
         ],
     },
 )

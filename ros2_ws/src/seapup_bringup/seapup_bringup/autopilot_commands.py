@@ -1,9 +1,10 @@
 """``./seapup selftest`` and ``./seapup closed-loop``: the Owens-Chotai autopilot on the simulated Seapup.
 
-selftest     fly the self-test (sec. 4.5.2, 5.3) in lockstep with the simulated
-             vehicle, in this process (pure cores; the ROS action server is
-             not built yet), and print B0^-1, B1^-1 and the designed gains per
-             operating point beside eq. 5.3 / 5.7 and Tables 5.1 / 5.2.
+selftest     fly the self-test (sec. 4.5.2, 5.3) through the /seapup/self_test
+             action with the simulator in lockstep, recording the run to a bag
+             (or in this process, or refit a recorded run from its bag), and
+             print B0^-1, B1^-1 and the designed gains per operating point
+             beside eq. 5.3 / 5.7.
 closed-loop  the closed-loop eigenvalues of the linearised vehicle under the
              self-tested controller over surge speed (sec. 5.4.1, figs 5.4-5.9):
              fixed or scheduled gains, 5 or 20 Hz.
@@ -20,6 +21,7 @@ from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stre
 from seapup_bringup.self_test_sil import fly_self_test
 from seapup_control.closed_loop import closed_loop
 from seapup_control.mfol_controller import GainSchedule
+from seapup_control.self_test import SelfTestConfig
 from seapup_sim.analysis import TrimError, linearise, output_matrix, trim
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
@@ -61,12 +63,10 @@ def _self_test_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _fly(args, text):
-    try:
-        speeds = [float(s) for s in args.speeds.split(",")]
-    except ValueError:
-        raise SystemExit(f"seapup: --speeds must be numbers separated by commas, got {args.speeds!r}")
-    print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, {args.mode} quiescence",
-          file=text, flush=True)
+    """The self-test in this process (pure cores in lockstep with the simulation)."""
+    speeds = _speeds(args)
+    print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, {args.mode} quiescence, "
+          "in process", file=text, flush=True)
     run = fly_self_test(args.config, {"sample_period": 1.0 / args.rate, "operating_points": speeds,
                                       "mode": args.mode},
                         progress=lambda f: progress("self-test", f))
@@ -75,40 +75,193 @@ def _fly(args, text):
     return run
 
 
+#: What a self-test run records (typed: subscribed before the publishers exist).
+SELF_TEST_TOPICS = [("/clock", "rosgraph_msgs/msg/Clock"), ("/seapup/thrusters/command", "seapup_msgs/msg/BladePitch"),
+                    ("/seapup/thrusters/applied", "seapup_msgs/msg/BladePitch"),
+                    ("/seapup/sensors/velocity", "geometry_msgs/msg/TwistWithCovarianceStamped"),
+                    ("/seapup/sensors/imu", "sensor_msgs/msg/Imu"), ("/seapup/sensors/depth", "seapup_msgs/msg/Depth"),
+                    ("/seapup/truth/odometry", "nav_msgs/msg/Odometry"),
+                    ("/seapup/self_test/samples", "seapup_msgs/msg/SelfTestSample")]
+
+
+def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
+    """The self-test through the ROS graph in lockstep: simulator, self_test action server and
+    recorder as processes on a leased domain; this process is the action client."""
+    import time
+
+    import rclpy
+    from rclpy.action import ActionClient
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from seapup_msgs.action import SelfTest as SelfTestAction
+
+    from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+    speeds = _speeds(args)
+    with DomainLease() as lease:
+        env = ros_environment(lease.domain_id)
+        print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
+              f"(domain {lease.domain_id}); output in {out}", file=text, flush=True)
+        recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p",
+                                f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
+                                "-p", f"topics:={[f'{t}:{m}' for t, m in SELF_TEST_TOPICS]}"],
+                               env, out / "recorder.log", "recorder")
+        period = 1.0 / args.rate
+        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
+                                 "-p", f"vehicle:={args.config}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
+                                 "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
+                                 "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=60.0",
+                                 "-p", "wait_for_subscribers:=" + str([t for t, _ in SELF_TEST_TOPICS
+                                                                        if t.startswith("/seapup/sensors")
+                                                                        or t.startswith("/seapup/truth")] + ["/clock"])],
+                                env, out / "simulator.log", "simulator")
+        node = NodeProcess([find_executable("seapup_control", "self_test"), "--ros-args",
+                            "-p", f"result_dir:={out.resolve()}"], env, out / "self_test.log", "self_test")
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=lease.domain_id)
+        client_node = rclpy.create_node("selftest_client", context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(client_node)
+        client = ActionClient(client_node, SelfTestAction, "/seapup/self_test")
+        procs = [node, simulator, recorder]
+
+        def spin_until(predicate, timeout):
+            deadline = time.monotonic() + timeout
+            while not predicate() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            return predicate()
+        try:
+            recorder.start()
+            node.start()
+            simulator.start()
+            if not spin_until(client.server_is_ready, 60.0):
+                raise SystemExit(f"seapup: the self-test action server did not come up; see {out}")
+            goal = SelfTestAction.Goal()
+            goal.sample_period = period
+            goal.operating_points = speeds
+            sent = client.send_goal_async(goal, feedback_callback=lambda f: progress(
+                f"{f.feedback.phase} c{f.feedback.cycle} t{f.feedback.thruster}", f.feedback.progress))
+            spin_until(sent.done, 30.0)
+            handle = sent.result()
+            if handle is None or not handle.accepted:
+                raise SystemExit("seapup: the self-test goal was refused")
+            done = handle.get_result_async()
+            spin_until(done.done, 3600.0)
+            answer = done.result()
+        finally:
+            for p in procs:
+                p.stop()
+            executor.shutdown()
+            client_node.destroy_node()
+            ctx.try_shutdown()
+    result = answer.result
+    if not result.success:
+        raise SystemExit(f"seapup: the self-test did not succeed: {result.message}; see {out}")
+    return {"result": result, "bag": bag_dir}
+
+
+def _speeds(args) -> list[float]:
+    try:
+        return [float(s) for s in args.speeds.split(",")]
+    except ValueError:
+        raise SystemExit(f"seapup: --speeds must be numbers separated by commas, got {args.speeds!r}")
+
+
+def _from_bag(bag_dir: Path) -> dict:
+    """Refit a recorded run from its /seapup/self_test/samples and measure its space from the truth."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from seapup_msgs.msg import SelfTestSample
+
+    from seapup_common.bag import read_bag
+    from seapup_control.self_test import refit, tests_from_samples
+    records, positions, stamps = [], [], []
+    for m in read_bag(bag_dir, ["/seapup/self_test/samples", "/seapup/truth/odometry"]):
+        if m.topic == "/seapup/truth/odometry":
+            odometry = deserialize_message(m.cdr, Odometry)
+            p, stamp = odometry.pose.pose.position, odometry.header.stamp
+            positions.append((stamp.sec + stamp.nanosec * 1e-9, p.x, p.y, p.z))
+            continue
+        s = deserialize_message(m.cdr, SelfTestSample)
+        t = s.header.stamp.sec + s.header.stamp.nanosec * 1e-9
+        stamps.append(t)
+        records.append({"t": t, "test_index": s.test_index, "cycle": s.cycle, "surge": s.surge,
+                        "thruster": s.thruster, "step": s.step, "quiescent_input": list(s.quiescent_input),
+                        "equilibrium": list(s.equilibrium), "velocity": list(s.velocity),
+                        "sample_period": s.sample_period})
+    if not records:
+        raise SystemExit(f"seapup: {bag_dir} has no /seapup/self_test/samples: not a self-test bag")
+    config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
+    points = refit(tests_from_samples(records), config.sample_period, config.poles)
+    # the box of water of the run itself: truth from its first to its last sample
+    position = np.array([p[1:] for p in positions if min(stamps) - 1e-9 <= p[0] <= max(stamps) + 1e-9]
+                        or [(0.0, 0.0, 0.0)])
+    return {"points": points, "duration": max(stamps) - min(stamps),
+            "space": position.max(axis=0) - position.min(axis=0)}
+
+
 def selftest(argv: list[str]) -> int:
-    """``./seapup selftest``: the self-test in SIL; B0^-1/B1^-1 beside the thesis."""
+    """``./seapup selftest``: the self-test through the ROS graph (or in process, or refitted from a bag)."""
     parser = argparse.ArgumentParser(prog="./seapup selftest", description=__doc__.splitlines()[0])
     _self_test_arguments(parser)
+    parser.add_argument("--in-process", action="store_true",
+                        help="fly it in this process (pure cores, no ROS; needed for --mode artificial)")
+    parser.add_argument("--from-bag", type=Path, help="refit a recorded self-test run instead of flying one")
+    parser.add_argument("--out", type=Path, help="output directory (default runs/selftest_<UTC time>)")
+    parser.add_argument("--bag", type=Path, help="bag directory to create (default OUT/bag)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     text = text_stream(args)
-    run = _fly(args, text)
-    test = run.test
-    points = []
-    for point in test.points:
+    bag = None
+    if args.from_bag:
+        refitted = _from_bag(args.from_bag)
+        points, duration, space, bag = refitted["points"], refitted["duration"], refitted["space"], args.from_bag
+        print(f"refitted from {args.from_bag}", file=text)
+    elif args.in_process or args.mode == "artificial":
+        run = _fly(args, text)
+        points, duration, space = run.test.points, run.test.duration, run.space
+    else:
+        import time
+        out = args.out or Path("runs") / time.strftime("selftest_%Y%m%d_%H%M%S", time.gmtime())
+        out.mkdir(parents=True, exist_ok=True)
+        bag_dir = args.bag or out / "bag"
+        if bag_dir.exists():
+            parser.error(f"{bag_dir} exists: a bag is never overwritten")
+        flown = _fly_graph(args, out, bag_dir, text)
+        bag = flown["bag"]
+        refitted = _from_bag(bag)  # the bag holds everything: the table and the space come from it
+        points, duration, space = refitted["points"], flown["result"].duration, refitted["space"]
+        live = np.reshape(flown["result"].b1_inverse, (-1, 4, 4))
+        if not np.allclose(live, [p.model.B1inv for p in points], rtol=1e-12, atol=1e-15):
+            raise SystemExit("seapup: the bag's refit differs from the live result (a sample was lost?)")
+        print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
+    rows = _print_points(points, text)
+    print(f"\ntime {duration:.1f} s, space {space[0]:.1f} x {space[1]:.1f} x {space[2]:.1f} m (X x Y x Z); "
+          "thesis: 119.2 s and 9.4 x 5.2 x 5.7 m at 0 m/s, +60.2 s and 33.4 x 33.0 x 12.0 m with 0.7 m/s "
+          "(sec. 5.3.3)", file=text)
+    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "operating_points": rows,
+                     "duration_s": duration, "space_m": space, "bag": str(bag) if bag else None})
+    return 0
+
+
+def _print_points(points, text) -> list[dict]:
+    rows = []
+    for point in points:
         b0, b1 = point.model.in_thesis_units()
-        points.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
-                       "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle})
+        rows.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
+                     "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle})
         thesis = THESIS.get(round(point.surge, 3))
         print(f"\noperating point {point.surge:g} m/s (outputs u, v, w [m/s], r [deg/s] per degree of pitch;"
-              f" thesis eq. 5.{3 if point.surge == 0 else 7} in brackets)", file=text)
+              + (f" thesis eq. 5.{3 if point.surge == 0 else 7} in brackets)" if thesis else ")"), file=text)
         for name, key, ours in (("B0^-1", "B0inv", b0), ("B1^-1", "B1inv", b1)):
             print(f"  {name}", file=text)
             for i, row in enumerate(ours):
-                theirs = thesis[key][i] if thesis else None
-                cells = [f"{v:10.5f}" + (f" ({t:9.5f})" if theirs else "") for v, t in
-                         zip(row, theirs or [None] * 4)]
-                print("   " + " ".join(cells), file=text)
+                theirs = thesis[key][i] if thesis else [None] * 4
+                print("   " + " ".join(f"{v:10.5f}" + (f" ({t:9.5f})" if t is not None else "")
+                                       for v, t in zip(row, theirs)), file=text)
         u0 = np.degrees(point.model.u0)
         print("  u0 [deg] " + " ".join(f"{v:7.3f}" for v in u0)
               + (f"   (thesis {' '.join(f'{v:7.3f}' for v in thesis['u0_deg'])})" if thesis else ""), file=text)
-    print(f"\ntime {test.duration:.1f} s, space {run.space[0]:.1f} x {run.space[1]:.1f} x {run.space[2]:.1f} m "
-          f"(X x Y x Z; depth {run.depth_range[0]:+.1f} to {run.depth_range[1]:+.1f} m); thesis: 119.2 s and "
-          "9.4 x 5.2 x 5.7 m at 0 m/s, +60.2 s and 33.4 x 33.0 x 12.0 m with 0.7 m/s (sec. 5.3.3)", file=text)
-    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "operating_points": points,
-                     "duration_s": test.duration, "space_m": run.space, "depth_range_m": run.depth_range,
-                     "quiescence_speed": test.threshold, "bag": None})
-    return 0
+    return rows
 
 
 def _mode_of(vector: np.ndarray, s: complex) -> str:

@@ -163,8 +163,9 @@ def _bench(argv: list[str]) -> int:
     return bench(argv)
 
 
-@command("selftest", "the self-test in SIL (in-process lockstep): B0^-1, B1^-1 and gains beside the thesis",
-         "[--config C] [--rate 5|20] [--speeds 0,0.7] [--mode realistic|artificial] [--json [F]]")
+@command("selftest", "the self-test through the action in SIL (recorded), in process, or refitted from a bag",
+         "[--config C] [--rate 5|20] [--speeds 0,0.7] [--mode realistic|artificial] [--in-process] "
+         "[--from-bag BAG] [--out DIR] [--bag DIR] [--json [F]]")
 def _selftest(argv: list[str]) -> int:
     from seapup_bringup.autopilot_commands import selftest
     return selftest(argv)

@@ -33,7 +33,8 @@ class SelfTestRun:
 
 
 def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, seed: int = 0,
-                  start_depth: float = 50.0, max_time: float = 3600.0, progress=None) -> SelfTestRun:
+                  start_depth: float = 50.0, start_pitch=None, max_time: float = 3600.0,
+                  progress=None) -> SelfTestRun:
     """Fly a self-test in lockstep with the simulated vehicle.
 
     Parameters
@@ -46,6 +47,8 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
         Environment overrides (default: noise-free sensors, no current, as sec. 5.3.2).
     start_depth : float
         Depth of the start [m].
+    start_pitch : array_like, optional
+        Blade pitch applied at the start [rad] (default: the self-test's zero level).
     max_time : float
         Simulated seconds after which the run is cancelled.
     progress : callable, optional
@@ -60,9 +63,10 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
         return Simulation.from_config(vehicle, environment, seed=seed, control_period=config.sample_period,
                                       dt=min(0.1, config.sample_period), state=state, pitch=pitch)
 
-    sim = new_simulation(start, config.zero_level)
+    pitch = config.zero_level if start_pitch is None else np.asarray(start_pitch, float)
+    sim = new_simulation(start, pitch)
     test = SelfTest(config)
-    test.reset(Command(config.zero_level))
+    test.reset(Command(pitch))
     truth, offset = [], 0.0
     while not test.finished:
         sample = sim.sample()

@@ -72,6 +72,32 @@ class GainSchedule:
         self._k_err = np.array([g.K_err for g in self.gains])
         self._u0 = np.array([g.u0 for g in self.gains])
 
+    @classmethod
+    def from_document(cls, document) -> "GainSchedule":
+        """The schedule of a controller file (:func:`seapup_control.self_test.result_document`).
+
+        Raises
+        ------
+        DesignError
+            If the document is not a seapup MFOL controller or its gains are malformed.
+        """
+        if not isinstance(document, dict) or document.get("kind") != "seapup/mfol_controller":
+            raise DesignError("not a seapup MFOL controller file (kind: seapup/mfol_controller)")
+        points = []
+        try:
+            period = float(document["sample_period"])
+            for p in document["operating_points"]:
+                gains = TwoTermGains(*(np.array(p[k], dtype=float) for k in ("K_int", "K_err", "u0", "y0")),
+                                     period)
+                if gains.K_int.shape != (4, 4) or gains.K_err.shape != (4, 4) or gains.u0.shape != (4,):
+                    raise DesignError(f"operating point {p.get('surge')}: gains must be 4 x 4, u0 4 values")
+                if not all(np.all(np.isfinite(a)) for a in (gains.K_int, gains.K_err, gains.u0)):
+                    raise DesignError(f"operating point {p.get('surge')}: non-finite gains")
+                points.append((float(p["surge"]), gains))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DesignError(f"malformed controller file: {exc}") from None
+        return cls(points)
+
     def _weights(self, speed: float) -> tuple[int, int, float]:
         if len(self.speeds) == 1 or speed <= self.speeds[0]:
             return 0, 0, 0.0

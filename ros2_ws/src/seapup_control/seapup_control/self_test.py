@@ -46,7 +46,7 @@ from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
 __all__ = ["Phase", "SelfTestConfig", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
-           "DEFAULTS_FILE"]
+           "result_document", "refit", "tests_from_samples", "DEFAULTS_FILE"]
 
 #: The defaults (every key documented there).
 DEFAULTS_FILE = Path(__file__).with_name("data") / "self_test.yaml"
@@ -194,6 +194,9 @@ class SelfTest:
         The final point per speed once done (cycle 2 replaces cycle 1's at 0 m/s).
     tests : list of StepTest
         Every test's raw data.
+    last_logged : list of int
+        Indices in ``tests`` of the tests the last sample's outputs went into
+        (two when one test ends and the next starts at the same sample).
     reason : str
         Why it failed ("" otherwise).
     """
@@ -211,6 +214,7 @@ class SelfTest:
         self.start_time: float | None = None
         self.end_time: float | None = None
         self.reset_request: float | None = None
+        self.last_logged: list[int] = []  # indices in ``tests`` of the tests the last sample was logged into
         self._applied = config.zero_level.copy()
         self._next = 0
         self._phase_start = 0.0
@@ -258,6 +262,11 @@ class SelfTest:
         if not self.finished:
             self._finish(Phase.CANCELLED, reason)
 
+    def abort(self, reason: str) -> None:
+        """Fail the run from outside (e.g. its node gets no velocity data); then hover as after any failure."""
+        if not self.finished:
+            self._finish(Phase.FAILED, reason)
+
     def plant_reset(self, applied: Command) -> None:
         """Artificial mode: the driver has reset the plant to the operating point, holding ``applied``."""
         if self.phase != Phase.RESET:
@@ -273,6 +282,7 @@ class SelfTest:
         if self.start_time is None:
             self.start_time = self._phase_start = t
         self._last_t = t
+        self.last_logged = []
         try:
             command = self._decide(t, y)
         except (IdentificationError, DesignError) as exc:
@@ -343,6 +353,7 @@ class SelfTest:
     def _log_step(self, t: float, y: np.ndarray) -> np.ndarray:
         test = self._current
         test.outputs.append(y.copy())
+        self.last_logged.append(len(self.tests) - 1)
         if len(test.outputs) <= self.config.samples:
             command = test.quiescent_input.copy()
             command[test.thruster] += test.step
@@ -399,3 +410,62 @@ class SelfTest:
         self.reason = reason
         self.end_time = getattr(self, "_last_t", self.start_time)
         self.reset_request = None
+
+
+def tests_from_samples(samples) -> list[StepTest]:
+    """The step tests of a run rebuilt from its per-sample records (``seapup_msgs/SelfTestSample`` as dicts).
+
+    Each record with ``test_index >= 0`` is one output of that test; the
+    tests come back in index order with their outputs in time order.
+
+    Raises
+    ------
+    IdentificationError
+        If the indices have gaps (samples lost from the record) or a test's
+        records disagree about what it was.
+    """
+    grouped: dict[int, list[dict]] = {}
+    for record in samples:
+        if int(record["test_index"]) >= 0:
+            grouped.setdefault(int(record["test_index"]), []).append(record)
+    if sorted(grouped) != list(range(len(grouped))):
+        raise IdentificationError(f"the record misses step tests: indices {sorted(grouped)}")
+    tests = []
+    for index in range(len(grouped)):
+        records = sorted(grouped[index], key=lambda r: r["t"])
+        first = records[0]
+        keys = {(r["cycle"], r["surge"], r["thruster"], r["step"]) for r in records}
+        if len(keys) != 1:
+            raise IdentificationError(f"step test {index}: its records disagree about it")
+        tests.append(StepTest(int(first["cycle"]), float(first["surge"]), int(first["thruster"]), float(first["t"]),
+                              np.asarray(first["quiescent_input"], float), float(first["step"]),
+                              np.asarray(first["equilibrium"], float),
+                              [np.asarray(r["velocity"], float) for r in records]))
+    return tests
+
+
+def refit(tests: list[StepTest], sample_period: float, poles: LoopPoles) -> list[OperatingPoint]:
+    """The operating points a run's logged step tests give: for each surge speed its last four tests
+    (cycle 2 replaces cycle 1 at 0 m/s), fitted as live (:func:`fit_operating_point`)."""
+    points = {}
+    for surge in dict.fromkeys(t.surge for t in tests):
+        last = [t for t in tests if t.surge == surge][-4:]
+        if len(last) == 4 and len({t.cycle for t in last}) == 1:
+            points[surge] = fit_operating_point(last, sample_period, poles)
+    return [points[s] for s in sorted(points)]
+
+
+def result_document(test: SelfTest) -> dict:
+    """The self-test's result as plain data (the controller file; ``GainSchedule.from_document`` reads it).
+
+    SI units and radians; matrices as lists of rows; outputs (u, v, w, r),
+    inputs in ``BladePitch`` order.
+    """
+    return {"kind": "seapup/mfol_controller", "version": 1, "sample_period": test.sample_period,
+            "phase": test.phase.value, "reason": test.reason, "duration": test.duration,
+            "quiescence_speed": test.threshold,
+            "poles": {"k": test.config.poles.k.tolist(), "c": test.config.poles.c.tolist()},
+            "operating_points": [{"surge": p.surge, "cycle": p.cycle, "B0inv": p.model.B0inv.tolist(),
+                                  "B1inv": p.model.B1inv.tolist(), "y0": p.model.y0.tolist(),
+                                  "u0": p.model.u0.tolist(), "K_int": p.gains.K_int.tolist(),
+                                  "K_err": p.gains.K_err.tolist()} for p in test.points]}

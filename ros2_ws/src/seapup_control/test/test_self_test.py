@@ -142,3 +142,35 @@ def test_settings_are_checked_and_bad_measurements_change_nothing():
     with pytest.raises(ContractError):
         test.update(0.0, Measurement.build(0.0, rates=(0, 0, 0)))
     assert test.start_time is None and test.phase == Phase.DRIFT
+
+
+def test_a_run_rebuilt_from_its_sample_records_refits_to_the_same_result():
+    """The --from-bag path: per-sample records (as the node publishes them) -> step tests -> the same models."""
+    from seapup_control.self_test import refit, tests_from_samples
+
+    phi, delta, _ = exact_plant()
+    test = SelfTest(SelfTestConfig.load({"operating_points": [0.0, 0.3]}))
+    test.reset(Command(np.zeros(4)))
+    records, y = [], np.zeros(4)
+    for k in range(3000):
+        if test.finished:
+            break
+        u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
+        for index in test.last_logged:
+            logged = test.tests[index]
+            records.append({"t": k * T, "test_index": index, "cycle": logged.cycle, "surge": logged.surge,
+                            "thruster": logged.thruster, "step": logged.step,
+                            "quiescent_input": logged.quiescent_input.tolist(),
+                            "equilibrium": logged.equilibrium.tolist(), "velocity": logged.outputs[-1].tolist()})
+        y = phi @ y + delta @ (u - HOLD)
+    rebuilt = tests_from_samples(reversed(records))  # any order
+    assert len(rebuilt) == len(test.tests) == 12
+    for mine, live in zip(rebuilt, test.tests):
+        np.testing.assert_array_equal(mine.outputs, live.outputs)
+    points = refit(rebuilt, T, test.config.poles)
+    assert [p.surge for p in points] == [0.0, 0.3]
+    for mine, live in zip(points, test.points):
+        np.testing.assert_array_equal(mine.model.B1inv, live.model.B1inv)
+        np.testing.assert_array_equal(mine.gains.K_err, live.gains.K_err)
+    with pytest.raises(Exception, match="misses"):
+        tests_from_samples([r for r in records if r["test_index"] != 3])

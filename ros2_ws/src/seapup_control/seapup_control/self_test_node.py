@@ -1,0 +1,247 @@
+"""The ``self_test`` node: the ``/seapup/self_test`` action server (thesis sec. 4.5.2, 5.3).
+
+A thin shell over :class:`seapup_control.self_test.SelfTest`. It listens to
+``/seapup/sensors/velocity`` (u, v, w and the gyro rates: the four outputs of
+the velocity loop) and, while a goal runs, answers every sample with a
+blade-pitch command on ``/seapup/thrusters/command``:
+
+- ``lockstep`` (default): each sensor sample t_k of a lockstep simulator is
+  answered once with a command stamped t_k, triggered by the sample or by the
+  simulator's repeated ``/clock`` t_k (its graph-ready handshake);
+- otherwise on a timer of the node clock every ``sample_period``.
+
+Feedback (phase, cycle, thruster, operating point, progress, velocities)
+goes out every sample. Cancel is honoured at the next sample: the test stops
+and, as after success or failure, the node keeps flying the best controller
+it found at zero reference (hover) when ``hover_after`` is set. The result
+carries B0^-1, B1^-1, u0 and the gains of every operating point and the path
+of a controller file (YAML, :func:`~seapup_control.self_test.result_document`).
+
+Artificial quiescence (a plant reset before every step) needs the plant to
+be moved, which a vehicle cannot do: it is only offered in process
+(``./seapup selftest --mode artificial``).
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+import yaml
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.node import Node
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from seapup_msgs.action import SelfTest as SelfTestAction
+from seapup_msgs.msg import BladePitch, SelfTestSample
+
+from seapup_common.config import ConfigError
+from seapup_common.contract import ContractError
+from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_control.mfol import DesignError
+from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
+
+__all__ = ["SelfTestNode", "goal_overrides", "main"]
+
+
+def goal_overrides(goal) -> dict:
+    """The goal's non-default fields as self-test settings (zero / empty = the default)."""
+    overrides = {}
+    for name in ("sample_period", "step", "quiescence_speed", "closed_loop_divisor", "max_wait"):
+        value = float(getattr(goal, name))
+        if value != 0.0:
+            overrides[name] = value
+    if goal.samples:
+        overrides["samples"] = int(goal.samples)
+    if len(goal.operating_points):
+        overrides["operating_points"] = [float(v) for v in goal.operating_points]
+    return overrides
+
+
+class SelfTestNode(Node):
+    """rclpy shell around :class:`SelfTest` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("self_test", namespace="/seapup", **kwargs)
+        p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test")
+        self.lockstep = bool(p["lockstep"])
+        self.hover_after = bool(p["hover_after"])
+        root = Path(os.environ.get("SEAPUP_ROOT", "."))
+        self.result_dir = Path(p["result_dir"]) if p["result_dir"] else root / "runs" / "self_test"
+        self.no_data_timeout = float(p["no_data_timeout"])
+        self._last_sample_wall = 0.0
+        self.collector = MeasurementCollector()
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
+        self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS)
+        self.test: SelfTest | None = None      # the run in progress, or the last one (hovering)
+        self._goal = None
+        self._done: Future | None = None
+        self._answered_ns: int | None = None
+        self._latest_ns: int | None = None
+        self.rejected = 0
+        if self.lockstep:
+            self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
+        self._timer = None
+        self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
+                                   goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT)
+        self.get_logger().info(f"self-test action server ready ({'lockstep' if self.lockstep else 'timer'})")
+
+    # -- the action ------------------------------------------------------------------
+    def _accept(self, goal) -> GoalResponse:
+        if self._goal is not None:
+            self.get_logger().warn("self-test goal refused: one is running")
+            return GoalResponse.REJECT
+        try:
+            SelfTestConfig.load(goal_overrides(goal))
+        except (ConfigError, DesignError, ValueError) as exc:
+            self.get_logger().warn(f"self-test goal refused: {exc}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    async def _execute(self, goal_handle):
+        config = SelfTestConfig.load(goal_overrides(goal_handle.request))
+        self.test = SelfTest(config)
+        self._goal = goal_handle
+        self._done = Future()
+        if not self.lockstep:
+            if self._timer is not None:
+                self.destroy_timer(self._timer)
+            self._timer = self.create_timer(config.sample_period, self._on_timer)
+        self._last_sample_wall = time.monotonic()
+        watchdog = self.create_timer(0.5, self._watch_data)
+        self.get_logger().info(f"self-test started: operating points {list(config.operating_points)} m/s, "
+                               f"T = {config.sample_period:g} s")
+        await self._done
+        self.destroy_timer(watchdog)
+        test = self.test
+        self._goal = None
+        result = self._result(test)
+        if test.phase == Phase.CANCELLED:
+            goal_handle.canceled()
+        elif test.phase == Phase.DONE:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        self.get_logger().info(f"self-test {test.phase.value}: {result.message or 'ok'}")
+        return result
+
+    def _result(self, test: SelfTest):
+        result = SelfTestAction.Result()
+        result.success = test.phase == Phase.DONE
+        result.message = test.reason
+        result.duration = float(test.duration)
+        for point in test.points:
+            result.surge_speeds.append(point.surge)
+            result.b0_inverse.extend(point.model.B0inv.ravel().tolist())
+            result.b1_inverse.extend(point.model.B1inv.ravel().tolist())
+            result.u0.extend(point.model.u0.tolist())
+            result.k_int.extend(point.gains.K_int.ravel().tolist())
+            result.k_err.extend(point.gains.K_err.ravel().tolist())
+        if test.points:
+            self.result_dir.mkdir(parents=True, exist_ok=True)
+            path = self.result_dir / time.strftime("self_test_%Y%m%d_%H%M%S.yaml", time.gmtime())
+            path.write_text(yaml.safe_dump(result_document(test), sort_keys=False))
+            result.controller_file = str(path.resolve())
+        return result
+
+    def _watch_data(self) -> None:
+        """Fail a goal whose samples stopped coming (no simulator, a dead sensor): it ends, with the reason."""
+        idle = time.monotonic() - self._last_sample_wall
+        if self._goal is not None and idle > self.no_data_timeout and not self._done.done():
+            self.test.abort(f"no velocity data for {idle:.1f} s (is /seapup/sensors/velocity published?)")
+            self._done.set_result(True)
+
+    # -- sampling --------------------------------------------------------------------
+    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        if not self.collector.add(msg):
+            self.rejected += 1
+            self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
+                                   throttle_duration_sec=5.0)
+            return
+        self._latest_ns = stamp_to_ns(msg.header.stamp)
+        if self.lockstep:
+            self._answer(self._latest_ns)
+
+    def _on_clock(self, msg: Clock) -> None:
+        t_ns = stamp_to_ns(msg.clock)
+        if t_ns == self._latest_ns:  # the simulator repeats t_k until it is answered
+            self._answer(t_ns)
+
+    def _on_timer(self) -> None:
+        self._answer(self.get_clock().now().nanoseconds)
+
+    def _answer(self, t_ns: int) -> None:
+        test = self.test
+        if test is None or t_ns == self._answered_ns or (test.finished and not self.hover_after):
+            return
+        if test.finished and test.controller is None:
+            return  # nothing better than what the plant does by itself
+        t = t_ns * 1e-9
+        try:
+            command = test.update(t, self.collector.measurement(t))
+        except ContractError as exc:  # no fresh velocity: skip this sample (counted), never integrate it
+            self.rejected += 1
+            self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=5.0)
+            return
+        self._answered_ns = t_ns
+        self._last_sample_wall = time.monotonic()
+        self.publisher.publish(command_to_msg(command, t_ns))
+        if self._goal is not None:
+            for msg in self._sample_msgs(test, t_ns):
+                self.samples.publish(msg)
+        if self._goal is not None:
+            self._feedback(test)
+            if self._goal.is_cancel_requested and not test.finished:
+                test.cancel("cancelled by the client")
+            if test.finished and not self._done.done():
+                self._done.set_result(True)
+
+    def _sample_msgs(self, test: SelfTest, t_ns: int) -> list[SelfTestSample]:
+        """What this sample was used for, with the velocities used: one message per step test it was
+        logged into (two when one test ends and the next starts with it; one with test_index -1 if none)."""
+        cycle, surge, thruster = test.test_in_progress
+        messages = []
+        for index in test.last_logged or [-1]:
+            msg = SelfTestSample()
+            msg.header.stamp = ns_to_stamp(t_ns)
+            msg.header.frame_id = "base_link_frd"
+            msg.phase, msg.cycle, msg.thruster, msg.surge = test.phase.value, cycle, thruster, float(surge)
+            msg.progress, msg.sample_period = float(test.progress), float(test.sample_period)
+            msg.test_index = index
+            if index < 0:
+                msg.quiescent_input = msg.equilibrium = msg.velocity = [math.nan] * 4
+            else:
+                logged = test.tests[index]
+                msg.cycle, msg.thruster, msg.surge = logged.cycle, logged.thruster, float(logged.surge)
+                msg.step = float(logged.step)
+                msg.quiescent_input = logged.quiescent_input.tolist()
+                msg.equilibrium = logged.equilibrium.tolist()
+                msg.velocity = logged.outputs[-1].tolist()
+            messages.append(msg)
+        return messages
+
+    def _feedback(self, test: SelfTest) -> None:
+        cycle, surge, thruster = test.test_in_progress
+        feedback = SelfTestAction.Feedback()
+        feedback.phase = test.phase.value
+        feedback.cycle, feedback.thruster, feedback.surge = cycle, thruster, float(surge)
+        feedback.progress = float(test.progress)
+        velocity = self.collector.latest.get("velocity")
+        rates = self.collector.latest.get("rates")
+        if velocity is not None and rates is not None:
+            feedback.velocity = [*map(float, velocity.value), float(rates.value[2])]
+        else:
+            feedback.velocity = [math.nan] * 4
+        self._goal.publish_feedback(feedback)
+
+
+def main(args=None) -> int:
+    return run_node(SelfTestNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

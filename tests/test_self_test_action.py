@@ -1,0 +1,133 @@
+"""The /seapup/self_test action through the ROS graph, with the simulator in lockstep.
+
+Independent truth: the same self-test flown in one process on the same
+simulation (seapup_bringup.self_test_sil): lockstep makes the ROS run the
+same computation, so the results must agree to rounding.
+"""
+import math
+
+import numpy as np
+import yaml
+from rclpy.action import ActionClient
+from rclpy.executors import SingleThreadedExecutor
+from seapup_msgs.action import SelfTest
+from seapup_msgs.msg import BladePitch
+
+import rclpy
+from action_msgs.msg import GoalStatus
+from seapup_bringup.self_test_sil import fly_self_test
+from seapup_control.mfol_controller import GainSchedule
+from seapup_sim.analysis import hover_blade_pitch
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
+from tests.test_simulator_node import start_simulator
+
+HOVER = hover_blade_pitch(VehicleModel(load_vehicle_config("baseline")))
+
+
+class Client:
+    def __init__(self, context, spin):
+        self.node = rclpy.create_node("self_test_client", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.client = ActionClient(self.node, SelfTest, "/seapup/self_test")
+        self.feedback = []
+        self.commands = []
+        self.node.create_subscription(BladePitch, "/seapup/thrusters/command", self.commands.append, 1000)
+        self._spin = spin
+
+    def spin(self, predicate, timeout):
+        return self._spin(self.executor, predicate, timeout)
+
+    def send(self, goal, timeout=30.0):
+        assert self.spin(lambda: self.client.server_is_ready(), timeout), "no action server"
+        future = self.client.send_goal_async(goal, feedback_callback=lambda f: self.feedback.append(f.feedback))
+        assert self.spin(future.done, timeout)
+        return future.result()
+
+    def result(self, handle, timeout=180.0):
+        future = handle.get_result_async()
+        assert self.spin(future.done, timeout), "no result"
+        return future.result()
+
+
+def start_graph(node_process, *simulator_params, self_test_params=()):
+    start_simulator(node_process, "mode:=lockstep", "lockstep_timeout:=60.0", "start_depth:=50.0",
+                    "environment.sensors:=ideal", "wait_for_subscribers:=['/seapup/sensors/velocity']",
+                    *simulator_params)
+    args = ["--ros-args"] + [a for p in self_test_params for a in ("-p", p)]
+    return node_process(package="seapup_control", executable="self_test", args=args)
+
+
+def test_self_test_through_ros_equals_the_in_process_run(ros_context, node_process, spin, tmp_path):
+    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}"])
+    client = Client(ros_context, spin)
+    goal = SelfTest.Goal()
+    goal.operating_points = [0.0]
+    handle = client.send(goal)
+    assert handle.accepted
+    answer = client.result(handle)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, answer.result.message
+    result = answer.result
+    local = fly_self_test("baseline", {}, start_pitch=HOVER)
+    (point,) = local.test.points
+    np.testing.assert_allclose(np.reshape(result.b0_inverse, (4, 4)), point.model.B0inv, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.reshape(result.b1_inverse, (4, 4)), point.model.B1inv, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.reshape(result.k_int, (4, 4)), point.gains.K_int, rtol=1e-9)
+    np.testing.assert_allclose(result.u0, point.model.u0, atol=1e-12)
+    assert result.duration == local.test.duration and list(result.surge_speeds) == [0.0]
+    # feedback: every phase seen, progress monotone to 1, live velocities
+    phases = {f.phase for f in client.feedback}
+    assert {"drift", "quiesce", "step", "done"} <= phases
+    progress = [f.progress for f in client.feedback]
+    assert progress == sorted(progress) and progress[-1] == 1.0
+    assert all(math.isfinite(v) for v in client.feedback[-1].velocity)
+    # the controller file loads as a gain schedule
+    schedule = GainSchedule.from_document(yaml.safe_load(open(result.controller_file)))
+    np.testing.assert_allclose(schedule.gains_at(0.0)[0], point.gains.K_int, rtol=1e-9)
+    # every command stamped with its sample (lockstep), one per sample
+    stamps = [c.header.stamp.sec * 10**9 + c.header.stamp.nanosec for c in client.commands]
+    assert stamps[:5] == [0, 200_000_000, 400_000_000, 600_000_000, 800_000_000]
+    # after success it keeps flying the controller at zero reference: the simulator keeps stepping
+    count = len(client.commands)
+    assert client.spin(lambda: len(client.commands) > count + 20, 20.0)
+
+
+def test_cancel_leaves_the_vehicle_hovering_under_the_best_controller(ros_context, node_process, spin, tmp_path):
+    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}"])
+    client = Client(ros_context, spin)
+    handle = client.send(SelfTest.Goal())
+    assert client.spin(lambda: client.feedback and client.feedback[-1].cycle == 2, 120.0)
+    cancel = handle.cancel_goal_async()
+    assert client.spin(cancel.done, 10.0)
+    answer = client.result(handle)
+    assert answer.status == GoalStatus.STATUS_CANCELED and "cancel" in answer.result.message
+    assert not answer.result.success and len(answer.result.surge_speeds) == 1  # cycle 1's controller
+    count = len(client.commands)
+    assert client.spin(lambda: len(client.commands) > count + 50, 30.0)  # still answering: hovering
+    last = np.array([c.pitch for c in client.commands[-10:]])
+    np.testing.assert_allclose(last.mean(axis=0), HOVER, atol=np.radians(3.0))
+
+
+def test_failures_abort_with_the_reason(ros_context, node_process, spin, tmp_path):
+    # a step that would pass the blade limit at 0.95 m/s (the mains hold 29 deg there)
+    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}"])
+    client = Client(ros_context, spin)
+    goal = SelfTest.Goal()
+    goal.operating_points = [0.0, 0.95]
+    answer = client.result(client.send(goal))
+    assert answer.status == GoalStatus.STATUS_ABORTED and "saturate" in answer.result.message
+    assert list(answer.result.surge_speeds) == [0.0]  # the zero-speed result is still reported
+    # a goal the settings refuse is rejected at once
+    bad = SelfTest.Goal()
+    bad.operating_points = [0.7]
+    assert not client.send(bad).accepted
+
+
+def test_no_velocity_data_aborts_the_goal(ros_context, node_process, spin, tmp_path):
+    node_process(package="seapup_control", executable="self_test",
+                 args=["--ros-args", "-p", "no_data_timeout:=1.0", "-p", f"result_dir:={tmp_path}"])
+    client = Client(ros_context, spin)
+    answer = client.result(client.send(SelfTest.Goal()), timeout=30.0)
+    assert answer.status == GoalStatus.STATUS_ABORTED and "no velocity data" in answer.result.message
+    assert client.commands == []  # nothing was commanded without data
