@@ -12,11 +12,11 @@ from seapup_msgs.action import SelfTest
 
 async def execute(goal_handle):
     for i in range(4):
-        goal_handle.publish_feedback(SelfTest.Feedback(thruster_index=i, progress=(i + 1) / 4,
-                                                       stage="stepping"))
+        goal_handle.publish_feedback(SelfTest.Feedback(thruster=i, progress=(i + 1) / 4, phase="step",
+                                                       velocity=[0.1 * i, 0.0, 0.0, 0.0]))
     goal_handle.succeed()
-    result = SelfTest.Result(success=True, message=f"stepped by {goal_handle.request.step_amplitude}")
-    result.b1_inverse = [goal_handle.request.surge_speed] * 16
+    result = SelfTest.Result(success=True, message=f"stepped by {goal_handle.request.step}")
+    result.b1_inverse = list(goal_handle.request.operating_points) * 16
     return result
 
 
@@ -35,7 +35,7 @@ def test_self_test_action_round_trip(ros_context, spin):
     assert spin(executor, lambda: server_node.count_subscribers("/seapup/self_test/_action/feedback") > 0, 10.0)
 
     feedback = []
-    send = client.send_goal_async(SelfTest.Goal(surge_speed=0.5, step_amplitude=0.14, sample_period=0.2),
+    send = client.send_goal_async(SelfTest.Goal(operating_points=[0.5], step=0.14, sample_period=0.2),
                                   feedback_callback=lambda fb: feedback.append(fb.feedback))
     assert spin(executor, send.done, 10.0)
     handle = send.result()
@@ -48,6 +48,6 @@ def test_self_test_action_round_trip(ros_context, spin):
     response = result_future.result()
     assert response.result.success and response.result.message == "stepped by 0.14"
     assert list(response.result.b1_inverse) == [0.5] * 16
-    assert [f.thruster_index for f in feedback] == [0, 1, 2, 3]
+    assert [f.thruster for f in feedback] == [0, 1, 2, 3] and feedback[2].velocity[0] == 0.2
     assert feedback[-1].progress == 1.0
     executor.shutdown()

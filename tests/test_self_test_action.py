@@ -16,6 +16,7 @@ from seapup_msgs.msg import BladePitch
 import rclpy
 from action_msgs.msg import GoalStatus
 from seapup_bringup.self_test_sil import fly_self_test
+from seapup_common.ros.graph import send_goal
 from seapup_control.mfol_controller import GainSchedule
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.vehicle import VehicleModel
@@ -39,11 +40,8 @@ class Client:
     def spin(self, predicate, timeout):
         return self._spin(self.executor, predicate, timeout)
 
-    def send(self, goal, timeout=30.0):
-        assert self.spin(lambda: self.client.server_is_ready(), timeout), "no action server"
-        future = self.client.send_goal_async(goal, feedback_callback=lambda f: self.feedback.append(f.feedback))
-        assert self.spin(future.done, timeout)
-        return future.result()
+    def send(self, goal):
+        return send_goal(self.executor, self.client, goal, lambda f: self.feedback.append(f.feedback))
 
     def result(self, handle, timeout=180.0):
         future = handle.get_result_async()

@@ -187,7 +187,9 @@ def test_sigterm_under_command_spam_exits_0_every_time(ros_context, node_process
     probe = Probe(ros_context, spin)
     for run in range(20):
         sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=0.0")
-        assert probe.spin(lambda: probe.cmd.get_subscription_count() > 0, 20.0), sim.log_text()
+        # this simulator is up (its handlers installed), not just some subscriber on the domain
+        assert probe.spin(lambda: "simulator ready" in sim.log_text() and probe.cmd.get_subscription_count() > 0,
+                          20.0), sim.log_text()
         for _ in range(200):
             probe.cmd.publish(command([0.1, 0.1, 0.0, 0.0]))
         t0 = time.monotonic()

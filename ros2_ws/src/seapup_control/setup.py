@@ -24,6 +24,7 @@ setup(
         "console_scripts": [
             "open_loop = seapup_control.open_loop_node:main",
             "self_test = seapup_control.self_test_node:main",
+            "mfol_velocity_controller = seapup_control.mfol_controller_node:main",
         ],
     },
 )

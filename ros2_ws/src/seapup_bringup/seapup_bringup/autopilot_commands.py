@@ -96,6 +96,7 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
     from seapup_msgs.action import SelfTest as SelfTestAction
 
     from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+    from seapup_common.ros.graph import GoalNotAnswered, send_goal
     speeds = _speeds(args)
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
@@ -133,16 +134,16 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
             recorder.start()
             node.start()
             simulator.start()
-            if not spin_until(client.server_is_ready, 60.0):
-                raise SystemExit(f"seapup: the self-test action server did not come up; see {out}")
             goal = SelfTestAction.Goal()
             goal.sample_period = period
             goal.operating_points = speeds
-            sent = client.send_goal_async(goal, feedback_callback=lambda f: progress(
-                f"{f.feedback.phase} c{f.feedback.cycle} t{f.feedback.thruster}", f.feedback.progress))
-            spin_until(sent.done, 30.0)
-            handle = sent.result()
-            if handle is None or not handle.accepted:
+            try:
+                handle = send_goal(executor, client, goal, lambda f: progress(
+                    f"{f.feedback.phase} c{f.feedback.cycle} t{f.feedback.thruster}", f.feedback.progress),
+                    ready_timeout=60.0)
+            except GoalNotAnswered as exc:
+                raise SystemExit(f"seapup: {exc}; see the logs in {out}") from None
+            if not handle.accepted:
                 raise SystemExit("seapup: the self-test goal was refused")
             done = handle.get_result_async()
             spin_until(done.done, 3600.0)

@@ -5,6 +5,9 @@
   its publishers has the subscribers it was told to wait for -- so a recorder
   started beforehand misses nothing. Launchers and SIL graphs configure it
   with each node's ``wait_for_subscribers`` parameter.
+- :func:`send_goal`: an action goal that survives discovery races (a goal
+  request sent while the server has not yet matched the client is lost
+  without a trace; it is sent again).
 - :func:`qos_to_rosbag2` and :func:`adapted_qos`: the offered QoS of a topic's
   publishers in rosbag2's metadata keys, and the subscription QoS rosbag2
   would choose for them (reliable only if every publisher is reliable,
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos"]
+__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos", "send_goal", "GoalNotAnswered"]
 
 _INT64_MAX = 2**63 - 1
 
@@ -80,3 +83,40 @@ class SubscriberGate:
         """``topic (have/need)`` for every requirement not yet met."""
         return [f"{p.topic_name} ({p.get_subscription_count()}/{n})" for p, n in self.requirements
                 if p.get_subscription_count() < n]
+
+
+class GoalNotAnswered(RuntimeError):
+    """An action server that never answered a goal request."""
+
+
+def send_goal(executor, client, goal, feedback_callback=None, *, ready_timeout: float = 30.0,
+              response_timeout: float = 5.0, attempts: int = 4):
+    """Send an action goal and return its goal handle (accepted or not).
+
+    ``server_is_ready`` says the *client* has matched the server's services;
+    until the server has matched the client too, a request is dropped by the
+    middleware without an error (seen on a loaded machine). A request that
+    gets no response within ``response_timeout`` s is therefore sent again,
+    up to ``attempts`` times: the server never saw the lost one, so nothing
+    runs twice.
+
+    Raises
+    ------
+    GoalNotAnswered
+        If the server never became ready or never answered.
+    """
+    import time
+
+    def spin_until(predicate, timeout):
+        deadline = time.monotonic() + timeout
+        while not predicate() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        return predicate()
+
+    if not spin_until(client.server_is_ready, ready_timeout):
+        raise GoalNotAnswered(f"no action server {client._action_name!r} within {ready_timeout:g} s")
+    for _ in range(attempts):
+        future = client.send_goal_async(goal, feedback_callback=feedback_callback)
+        if spin_until(future.done, response_timeout):
+            return future.result()
+    raise GoalNotAnswered(f"the action server {client._action_name!r} did not answer {attempts} goal requests")

@@ -1,0 +1,197 @@
+"""The ``mfol_velocity_controller`` node: Owens and Chotai's velocity controller as a lifecycle node.
+
+A thin shell over :class:`seapup_control.mfol_controller.MFOLController`,
+managed like a ros2_control controller (configure, activate, deactivate), so
+a controller manager can swap it at run time:
+
+- **configure** loads the gains from ``controller_file`` (the YAML a
+  self-test writes, :func:`~seapup_control.self_test.result_document`):
+  every operating point as a gain schedule on surge speed, or only the
+  zero-speed point with ``schedule: false``;
+- **activate** starts it bumpless from the blade pitches the vehicle applies
+  (``/seapup/thrusters/applied``), then every sample it reads
+  ``/seapup/sensors/velocity`` and the latest reference on
+  ``/seapup/velocity_controller/reference`` (``geometry_msgs/TwistStamped``:
+  linear x, y, z = u, v, w [m/s], angular z = r [rad/s], ``base_link_frd``)
+  and publishes ``/seapup/thrusters/command`` stamped with the sample time
+  (``lockstep``: each sensor sample t_k of a lockstep simulator, or its
+  repeated ``/clock`` t_k, is answered once; otherwise a timer);
+- **deactivate** stops commanding.
+
+Non-finite or malformed references and sensor messages are rejected,
+counted and logged, never integrated. ``/diagnostics`` carries the loop's
+state: errors, integrator states, commands before saturation, saturated
+thrusters and the counts.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rosgraph_msgs.msg import Clock
+from seapup_msgs.msg import BladePitch
+
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.contract import Command, ContractError, Reference
+from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_control.mfol import DesignError
+from seapup_control.mfol_controller import GainSchedule, MFOLController
+
+__all__ = ["MFOLControllerNode", "reference_from_msg", "main"]
+
+
+def reference_from_msg(msg: TwistStamped) -> Reference:
+    """(u, v, w, r) from a TwistStamped in base_link_frd (ContractError if not finite or another frame)."""
+    if msg.header.frame_id not in ("", "base_link_frd"):
+        raise ContractError(f"reference frame {msg.header.frame_id!r}: expected base_link_frd")
+    return Reference([msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z])
+
+
+class MFOLControllerNode(LifecycleNode):
+    """rclpy lifecycle shell around :class:`MFOLController` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("mfol_velocity_controller", namespace="/seapup", **kwargs)
+        self.p = declare_from_package_file(self, "seapup_control", "mfol_velocity_controller.yaml",
+                                           defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT},
+                                           section="mfol_velocity_controller")
+        self.controller: MFOLController | None = None
+        self.active = False
+        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0}
+        self.reference = Reference()
+        self.applied: np.ndarray | None = None
+        self._answered_ns: int | None = None
+        self._latest_ns: int | None = None
+        self._interfaces = []
+        if self.p["autostart"]:
+            self.trigger_configure()
+            self.trigger_activate()
+
+    # -- life cycle ------------------------------------------------------------------
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        path = Path(self.get_parameter("controller_file").value or "")
+        try:
+            document = yaml.safe_load(path.read_text())
+            schedule = GainSchedule.from_document(document)
+            if not self.get_parameter("schedule").value:
+                schedule = GainSchedule([(schedule.speeds[0], schedule.gains[0])])
+            self.controller = MFOLController(schedule, limit=float(self.get_parameter("blade_pitch_limit").value))
+        except (OSError, yaml.YAMLError, DesignError) as exc:
+            self.get_logger().error(f"configure failed: controller_file {str(path)!r}: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self.collector = MeasurementCollector()
+        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._interfaces = [
+            self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
+            self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
+            self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)]
+        if self.get_parameter("lockstep").value:
+            self._interfaces.append(self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS))
+        else:
+            self._interfaces.append(self.create_timer(self.controller.sample_period, self._on_timer))
+        speeds = ", ".join(f"{s:g}" for s in self.controller.schedule.speeds)
+        self.get_logger().info(f"configured from {path}: operating points {speeds} m/s, "
+                               f"T = {self.controller.sample_period:g} s")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        applied = self.applied if self.applied is not None else self.controller.schedule.offset_at(0.0)
+        self.controller.reset(Command(applied))  # bumpless: from what the vehicle holds now
+        self.active = True
+        self.get_logger().info("active: starting from blade pitch "
+                               + ", ".join(f"{np.degrees(a):.2f}" for a in applied) + " deg")
+        return super().on_activate(state)
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self.active = False
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        for item in self._interfaces:
+            (self.destroy_timer if hasattr(item, "timer_period_ns") else self.destroy_subscription)(item)
+        self._interfaces = []
+        self.destroy_lifecycle_publisher(self.publisher)
+        self.destroy_publisher(self.diagnostics)
+        self.controller = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state) -> TransitionCallbackReturn:
+        self.active = False
+        return TransitionCallbackReturn.SUCCESS
+
+    # -- inputs ----------------------------------------------------------------------
+    def _on_reference(self, msg: TwistStamped) -> None:
+        try:
+            self.reference = reference_from_msg(msg)
+        except ContractError as exc:
+            self.counts["rejected_references"] += 1
+            self.get_logger().warn(f"reference rejected: {exc}", throttle_duration_sec=2.0)
+
+    def _on_applied(self, msg: BladePitch) -> None:
+        pitch = np.array(msg.pitch, dtype=float)
+        if pitch.shape == (4,) and np.all(np.isfinite(pitch)):
+            self.applied = pitch
+
+    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        if not self.collector.add(msg):
+            self.counts["rejected_measurements"] += 1
+            self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
+                                   throttle_duration_sec=2.0)
+            return
+        self._latest_ns = stamp_to_ns(msg.header.stamp)
+        if self.get_parameter("lockstep").value:
+            self._answer(self._latest_ns)
+
+    def _on_clock(self, msg: Clock) -> None:
+        if stamp_to_ns(msg.clock) == self._latest_ns:  # the simulator repeats t_k until answered
+            self._answer(self._latest_ns)
+
+    def _on_timer(self) -> None:
+        self._answer(self.get_clock().now().nanoseconds)
+
+    # -- the loop --------------------------------------------------------------------
+    def _answer(self, t_ns: int) -> None:
+        if not self.active or t_ns == self._answered_ns:
+            return
+        t = t_ns * 1e-9
+        try:
+            command = self.controller.update(t, self.collector.measurement(t), self.reference)
+        except ContractError as exc:  # no fresh velocity: nothing is integrated, the vehicle holds
+            self.counts["skipped_samples"] += 1
+            self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=2.0)
+            return
+        self._answered_ns = t_ns
+        self.counts["samples"] += 1
+        self.publisher.publish(command_to_msg(command, t_ns))
+        if self.counts["samples"] % max(1, int(self.get_parameter("diagnostics_every").value)) == 0:
+            self._diagnose(t_ns)
+
+    def _diagnose(self, t_ns: int) -> None:
+        state = self.controller.state
+        values = {**self.counts, "error": state.error.tolist(), "integrator": state.integrator.tolist(),
+                  "command_unsaturated": state.command_unsaturated.tolist(),
+                  "saturated": [bool(s) for s in state.saturated],
+                  "saturated_samples": self.controller.saturated_samples.tolist(),
+                  "reference": self.reference.velocity.tolist()}
+        rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
+        level = DiagnosticStatus.WARN if (rejected or any(state.saturated)) else DiagnosticStatus.OK
+        status = DiagnosticStatus(level=level, name="seapup/mfol_velocity_controller", hardware_id="seapup_control",
+                                  message="saturated" if any(state.saturated) else "tracking",
+                                  values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = ns_to_stamp(t_ns)
+        self.diagnostics.publish(array)
+
+
+def main(args=None) -> int:
+    return run_node(MFOLControllerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,110 @@
+"""The mfol_velocity_controller lifecycle node flying the simulator in lockstep.
+
+Independent truth: the same controller (from the same controller file) flown
+by the pure loop (Simulation.run): lockstep makes the graph the same
+computation, so the trajectories agree to rounding.
+"""
+import math
+
+import numpy as np
+import rclpy
+import yaml
+from geometry_msgs.msg import TwistStamped
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from seapup_msgs.msg import BladePitch
+
+from seapup_bringup.self_test_sil import fly_self_test
+from seapup_common.contract import Reference
+from seapup_control.mfol_controller import GainSchedule, MFOLController
+from seapup_control.self_test import result_document
+from seapup_sim.analysis import hover_blade_pitch
+from seapup_sim.simulation import Simulation
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
+from tests.test_simulator_node import start_simulator
+
+HOVER = hover_blade_pitch(VehicleModel(load_vehicle_config("baseline")))
+NAME = "/seapup/mfol_velocity_controller"
+
+
+def controller_file(tmp_path):
+    run = fly_self_test("baseline", {"operating_points": [0.0, 0.7]})
+    path = tmp_path / "controller.yaml"
+    path.write_text(yaml.safe_dump(result_document(run.test), sort_keys=False))
+    return path
+
+
+class Probe:
+    def __init__(self, context, spin):
+        self.node = rclpy.create_node("mfol_probe", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.odometry, self.commands = [], []
+        self.node.create_subscription(Odometry, "/seapup/truth/odometry", self.odometry.append, 1000)
+        self.node.create_subscription(BladePitch, "/seapup/thrusters/command", self.commands.append, 1000)
+        self.reference = self.node.create_publisher(TwistStamped, "/seapup/velocity_controller/reference", 10)
+        self.change = self.node.create_client(ChangeState, f"{NAME}/change_state")
+        self._spin = spin
+
+    def spin(self, predicate, timeout):
+        return self._spin(self.executor, predicate, timeout)
+
+    def transition(self, transition_id):
+        assert self.spin(self.change.service_is_ready, 20.0)
+        future = self.change.call_async(ChangeState.Request(transition=Transition(id=transition_id)))
+        assert self.spin(future.done, 20.0)
+        return future.result().success
+
+    def send_reference(self, u, v=0.0, w=0.0, r=0.0):
+        msg = TwistStamped()
+        msg.header.frame_id = "base_link_frd"
+        msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z = u, v, w, r
+        assert self.spin(lambda: self.reference.get_subscription_count() > 0, 20.0)
+        self.reference.publish(msg)
+        self.spin(lambda: False, 0.3)
+
+
+def test_lifecycle_node_flies_the_simulator_as_the_pure_loop_does(ros_context, node_process, spin, tmp_path):
+    path = controller_file(tmp_path)
+    start_simulator(node_process, "mode:=lockstep", "lockstep_timeout:=60.0", "start_depth:=50.0",
+                    "environment.sensors:=ideal", "wait_for_subscribers:=['/seapup/sensors/velocity']")
+    node_process(package="seapup_control", executable="mfol_velocity_controller",
+                 args=["--ros-args", "-p", f"controller_file:={path}"])
+    probe = Probe(ros_context, spin)
+    assert probe.transition(Transition.TRANSITION_CONFIGURE)  # subscriptions exist from now on
+    probe.send_reference(0.3)
+    assert probe.transition(Transition.TRANSITION_ACTIVATE)
+    assert probe.spin(lambda: len(probe.odometry) > 151, 60.0)
+    # the same controller in the pure loop, from the same start
+    schedule = GainSchedule.from_document(yaml.safe_load(path.read_text()))
+    simulation = Simulation.from_config("baseline", {"sensors": "ideal"}, state=np.r_[0, 0, 50.0, np.zeros(9)],
+                                        pitch=HOVER)
+    log = simulation.run(MFOLController(schedule), 30.0, reference=Reference([0.3, 0, 0, 0]))
+    graph = np.array([(o.pose.pose.position.x, o.twist.twist.linear.x) for o in probe.odometry[:151]])
+    np.testing.assert_allclose(graph, log.state[:151][:, [0, 6]], rtol=1e-9, atol=1e-12)
+    assert abs(graph[-1, 1] - 0.3) < 0.01  # tracking the reference
+    # a non-finite reference is rejected: the vehicle keeps flying the last good one
+    probe.send_reference(math.nan)
+    count = len(probe.odometry)
+    assert probe.spin(lambda: len(probe.odometry) > count + 50, 30.0)
+    assert abs(probe.odometry[-1].twist.twist.linear.x - 0.3) < 0.01
+    # deactivated, it stops commanding (the lockstep simulator then waits)
+    assert probe.transition(Transition.TRANSITION_DEACTIVATE)
+    probe.spin(lambda: False, 0.5)
+    count = len(probe.commands)
+    probe.spin(lambda: False, 1.0)
+    assert len(probe.commands) == count
+
+
+def test_configure_fails_cleanly_on_a_bad_controller_file(ros_context, node_process, spin, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("kind: something_else\n")
+    node = node_process(package="seapup_control", executable="mfol_velocity_controller",
+                        args=["--ros-args", "-p", f"controller_file:={bad}"])
+    probe = Probe(ros_context, spin)
+    assert not probe.transition(Transition.TRANSITION_CONFIGURE)
+    assert "configure failed" in node.log_text() and "not a seapup MFOL controller" in node.log_text()
+    assert node.running
