@@ -196,6 +196,7 @@ def test_sigterm_under_command_spam_exits_0_every_time(ros_context, node_process
         import os
         os.killpg(sim.popen.pid, signal.SIGTERM)
         code = sim.popen.wait(timeout=10)
-        assert code == 0 and time.monotonic() - t0 < 1.0, (run, code, sim.log_text()[-1500:])
+        # promptly: the executor returns to Python every 0.1 s; 2 s leaves room for a loaded machine
+        assert code == 0 and time.monotonic() - t0 < 2.0, (run, code, sim.log_text()[-1500:])
         probe.spin(lambda: probe.cmd.get_subscription_count() == 0, 5.0)
     probe.close()

@@ -116,7 +116,8 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
                                                                         or t.startswith("/seapup/truth")] + ["/clock"])],
                                 env, out / "simulator.log", "simulator")
         node = NodeProcess([find_executable("seapup_control", "self_test"), "--ros-args",
-                            "-p", f"result_dir:={out.resolve()}"], env, out / "self_test.log", "self_test")
+                            "-p", f"result_dir:={out.resolve()}", "-p", "wait_for_command_subscribers:=2",
+                            "-p", "wait_for_sample_subscribers:=1"], env, out / "self_test.log", "self_test")
         ctx = Context()
         rclpy.init(context=ctx, domain_id=lease.domain_id)
         client_node = rclpy.create_node("selftest_client", context=ctx)

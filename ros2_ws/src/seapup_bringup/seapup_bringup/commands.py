@@ -141,13 +141,18 @@ def bench(argv: list[str]) -> int:
     t0 = time.perf_counter()
     run_verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
+    from seapup_bringup.graph_bench import mfol_step_us
+    out["mfol_law"] = mfol_step_us()
     if not args.no_graph:
         from seapup_bringup import graph_bench
         print("graph: simulator + open_loop in lockstep (separate processes)...", file=out_text, flush=True)
         out["graph_lockstep_5hz"] = graph_bench.lockstep_rate(0.2, sim_seconds=120.0)
         out["graph_lockstep_20hz"] = graph_bench.lockstep_rate(0.05, sim_seconds=30.0)
         out["dds_round_trip_us"] = graph_bench.dds_round_trip()
-        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz"):
+        print("graph: simulator + mfol_velocity_controller in lockstep...", file=out_text, flush=True)
+        out["graph_mfol_lockstep_5hz"] = graph_bench.mfol_lockstep_rate(0.2, sim_seconds=120.0)
+        out["graph_mfol_lockstep_20hz"] = graph_bench.mfol_lockstep_rate(0.05, sim_seconds=30.0)
+        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz", "graph_mfol_lockstep_5hz", "graph_mfol_lockstep_20hz"):
             g = out[key]
             print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
                   f"{g['us_per_step']:.0f} us per step)", file=out_text)
@@ -165,5 +170,8 @@ def bench(argv: list[str]) -> int:
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)
     print(f"verify: {out['verify']['seconds']:.2f} s", file=out_text)
+    law = out["mfol_law"]
+    print(f"MFOL law (scheduled, eq. 5.6): {law['law_us']:.1f} us per sample; with building the measurement and "
+          f"reference {law['with_measurement_and_reference_us']:.1f} us", file=out_text)
     emit_json(args, out)
     return 0

@@ -20,7 +20,7 @@ import numpy as np
 
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 
-__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory"]
+__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate"]
 
 ECHO = """
 import rclpy
@@ -46,8 +46,12 @@ def _context(domain: int):
     return ctx
 
 
-def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
-    """Simulated seconds per wall second of simulator + open_loop in lockstep."""
+def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp", controller=None) -> dict:
+    """Simulated seconds per wall second of simulator + a controller in lockstep.
+
+    ``controller``: the controller's command line (default: ``open_loop``
+    holding the mains at 0.6 rad).
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -73,8 +77,9 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             deadline = time.monotonic() + 30
             while not stamps and time.monotonic() < deadline:
                 ex.spin_once(timeout_sec=0.05)
-            ctl = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args", "-p", "lockstep:=true",
-                               "-p", "pitches:=[0.6, 0.6, 0.0, 0.0]"], env, f"{log_dir}/bench_ctl.log").start()
+            command = controller or [str(find_executable("seapup_control", "open_loop")), "--ros-args",
+                                     "-p", "lockstep:=true", "-p", "pitches:=[0.6, 0.6, 0.0, 0.0]"]
+            ctl = NodeProcess(command, env, f"{log_dir}/bench_ctl.log").start()
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline and (not stamps or stamps[-1][1] < 1.0):
                 ex.spin_once(timeout_sec=0.05)
@@ -194,3 +199,49 @@ def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp",
             "rss_mb_start": float(rss[0]), "rss_mb_after_1min": float(rss[later][0]),
             "rss_mb_max": float(rss.max()), "rss_mb_end": float(rss[-1]), "rss_slope_mb_per_min": slope,
             "rss_samples": [[float(a), float(b)] for a, b in samples]}
+
+
+def _controller_file(directory: Path, control_period: float) -> Path:
+    """A controller file from a self-test flown in process (noise-free, zero speed)."""
+    import yaml
+
+    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_control.self_test import result_document
+    run = fly_self_test("baseline", {"sample_period": control_period})
+    path = directory / f"bench_controller_{int(round(1 / control_period))}hz.yaml"
+    path.write_text(yaml.safe_dump(result_document(run.test), sort_keys=False))
+    return path
+
+
+def mfol_step_us(n: int = 20000) -> dict:
+    """Cost of one sample of the MFOL law (scheduled over 0 and 0.7 m/s), measurement to command [us]."""
+    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_common.contract import Command, Measurement, Reference
+    from seapup_control.mfol_controller import GainSchedule, MFOLController
+    from seapup_control.self_test import result_document
+    run = fly_self_test("baseline", {"operating_points": [0.0, 0.7]})
+    schedule = GainSchedule.from_document(result_document(run.test))
+    controller = MFOLController(schedule)
+    controller.reset(Command(np.zeros(4)))
+    measurement = Measurement.build(0.0, velocity=(0.35, 0.01, 0.0), rates=(0.0, 0.0, 0.01))
+    reference = Reference([0.4, 0.0, 0.0, 0.0])
+    t0 = time.perf_counter()
+    for k in range(n):
+        controller.update(k * 0.2, measurement, reference)
+    law = (time.perf_counter() - t0) / n
+    t0 = time.perf_counter()
+    for k in range(n):
+        controller.update(k * 0.2, Measurement.build(k * 0.2, velocity=(0.35, 0.01, 0.0), rates=(0.0, 0.0, 0.01)),
+                          Reference([0.4, 0.0, 0.0, 0.0]))
+    with_contract = (time.perf_counter() - t0) / n
+    return {"law_us": law * 1e6, "with_measurement_and_reference_us": with_contract * 1e6, "n": n}
+
+
+def mfol_lockstep_rate(control_period: float, sim_seconds: float, log_dir="/tmp") -> dict:
+    """Simulator + mfol_velocity_controller (self-tested gains, autostart) in lockstep."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        path = _controller_file(Path(tmp), control_period)
+        command = [str(find_executable("seapup_control", "mfol_velocity_controller")), "--ros-args",
+                   "-p", f"controller_file:={path}", "-p", "autostart:=true"]
+        return lockstep_rate(control_period, sim_seconds, log_dir, controller=command)

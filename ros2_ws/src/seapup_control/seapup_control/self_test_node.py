@@ -40,6 +40,7 @@ from seapup_msgs.msg import BladePitch, SelfTestSample
 from seapup_common.config import ConfigError
 from seapup_common.contract import ContractError
 from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
@@ -76,6 +77,9 @@ class SelfTestNode(Node):
         self.collector = MeasurementCollector()
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
+        # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
+        self.gate = SubscriberGate([(self.publisher, p["wait_for_command_subscribers"]),
+                                    (self.samples, p["wait_for_sample_subscribers"])])
         self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS)
         self.test: SelfTest | None = None      # the run in progress, or the last one (hovering)
         self._goal = None
@@ -152,7 +156,9 @@ class SelfTestNode(Node):
         """Fail a goal whose samples stopped coming (no simulator, a dead sensor): it ends, with the reason."""
         idle = time.monotonic() - self._last_sample_wall
         if self._goal is not None and idle > self.no_data_timeout and not self._done.done():
-            self.test.abort(f"no velocity data for {idle:.1f} s (is /seapup/sensors/velocity published?)")
+            why = (f"no velocity data for {idle:.1f} s (is /seapup/sensors/velocity published?)" if self.gate.ready()
+                   else f"still waiting for subscribers after {idle:.1f} s: {', '.join(self.gate.missing())}")
+            self.test.abort(why)
             self._done.set_result(True)
 
     # -- sampling --------------------------------------------------------------------
@@ -177,6 +183,10 @@ class SelfTestNode(Node):
     def _answer(self, t_ns: int) -> None:
         test = self.test
         if test is None or t_ns == self._answered_ns or (test.finished and not self.hover_after):
+            return
+        if not self.gate.ready():
+            self.get_logger().info(f"waiting for subscribers: {', '.join(self.gate.missing())}",
+                                   throttle_duration_sec=5.0)
             return
         if test.finished and test.controller is None:
             return  # nothing better than what the plant does by itself

@@ -160,7 +160,7 @@ def _drain(executor, node, budget: float = 3.0) -> None:
         pass
 
 
-def _await_acknowledgements(node, budget: float = 1.0) -> None:
+def _await_acknowledgements(node, budget: float = 0.5) -> None:
     """Give reliable subscribers up to ``budget`` seconds to acknowledge what was published.
 
     A process that exits right after publishing (a controller stopped just after
