@@ -178,6 +178,13 @@ def _closed_loop(argv: list[str]) -> int:
     return closed_loop_command(argv)
 
 
+@command("scenario", "a closed-loop case of the thesis (sec. 5.4) flown with the self-tested controller",
+         "NAME [--rate 5|20] [--config C] [--schedule] [--plots DIR] [--json [F]] | --list")
+def _scenario(argv: list[str]) -> int:
+    from seapup_bringup.scenarios import scenario_command
+    return scenario_command(argv)
+
+
 @command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
          "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--flush-interval S]")
 def _record(argv: list[str]) -> int:

@@ -143,10 +143,6 @@ def declare_from_package_file(node, package: str, file_name: str, descriptors: d
     return {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt(f"signal {signum}")
-
-
 def _drain(executor, node, budget: float = 3.0) -> None:
     """Run the callbacks already queued (e.g. a recorder's received messages) before stopping."""
     deadline = time.monotonic() + budget
@@ -183,22 +179,29 @@ def _await_acknowledgements(node, budget: float = 0.5) -> None:
 def run_node(make_node, args=None) -> int:
     """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
 
-    Both signals raise ``KeyboardInterrupt`` in the main thread between two
-    Python operations (the executor returns to Python at least every 0.1 s,
-    also when the node has nothing to do), so the executor stops, the node (its timers, callbacks
-    and publishers) is destroyed, and only then is the context shut down: no
-    callback ever runs on a dead context, and the exit code is 0. Before the
-    node goes, reliable publishers wait (briefly) until their subscribers have
-    acknowledged every message, so the last command of a stopped controller is
-    not lost for one subscriber while another has it.
+    Both signals only *ask* the node to stop (a flag checked between two
+    executor iterations, at least every 0.1 s, also when the node has nothing
+    to do): an exception thrown from a signal handler into whatever runs at
+    that moment could be swallowed by it -- a ``KeyboardInterrupt`` raised
+    inside a message deserialisation comes back from pybind11 as an ordinary
+    error, which the simulator counts as a malformed command and keeps
+    running (seen: 1 SIGTERM in 30 with queued commands at full rate). Then
+    the executor stops, the node (its timers, callbacks and publishers) is
+    destroyed, and only then is the context shut down: no callback ever runs
+    on a dead context, and the exit code is 0. Before the node goes, reliable
+    publishers wait (briefly) until their subscribers have acknowledged every
+    message, so the last command of a stopped controller is not lost for one
+    subscriber while another has it. A callback may still end the node on
+    purpose by raising ``KeyboardInterrupt`` (the recorder's ``max_duration``).
     """
     try:
         rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl refuses the command line (e.g. a malformed -p rule)
         print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
         return 1
-    signal.signal(signal.SIGINT, _interrupt)
-    signal.signal(signal.SIGTERM, _interrupt)
+    stop: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: stop.append(signum))
+    signal.signal(signal.SIGTERM, lambda signum, frame: stop.append(signum))
     node = None
     routed = []
     try:
@@ -207,13 +210,16 @@ def run_node(make_node, args=None) -> int:
         routed = _route_core_logs(node)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while True:  # back in Python at least every 0.1 s, so a signal is handled promptly
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        if node is not None and getattr(node, "drain_on_shutdown", False):
+        try:
+            while not stop:  # back here at least every 0.1 s, so a signal is acted on promptly
+                executor.spin_once(timeout_sec=0.1)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        if getattr(node, "drain_on_shutdown", False):
             _drain(executor, node)
-        if node is not None:
-            _await_acknowledgements(node)
+        _await_acknowledgements(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
     except Exception as exc:  # construction or callback failure: report and exit non-zero
         name = node.get_name() if node is not None else getattr(make_node, "__name__", "node")
         print(f"[{name}] fatal: {exc}", file=sys.stderr)
