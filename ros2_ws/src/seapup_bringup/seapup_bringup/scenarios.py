@@ -131,8 +131,11 @@ def _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled)
     prev_ref = steps[-2][1] if len(steps) > 1 else np.zeros(4)
     window = min(1.0, 0.2 * float(case["duration"]))
     outputs = {}
+    current = case.get("current") or {}
+    disturbed = float(current.get("at", 0.0))
+    end = disturbed if disturbed > last_change else math.inf  # the step response ends where a disturbance starts
     for j, key in enumerate(OUTPUTS):
-        sel = t >= last_change - 1e-9
+        sel = (t >= last_change - 1e-9) & (t < end)
         entry = {"reference": final_ref[j] * to_thesis[j], "final": settled_value(t, y[:, j], window) * to_thesis[j]}
         if final_ref[j] != prev_ref[j]:
             entry["rise95_s"] = rise_time(t[sel], y[sel, j], final_ref[j], start=prev_ref[j])
