@@ -3,6 +3,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from seapup_bringup.scenarios import run_scenario, scenario_command, scenarios
 
@@ -34,3 +35,19 @@ def test_current_step_and_station_keeping_reject_the_current():
     sk = keep["station_keep"]
     assert sk["max_abs_x"] < 1.0 and sk["max_abs_y"] < 0.3 and sk["max_abs_z"] < 0.3  # thesis 0.60, 0.06, 0.06 m
     assert sk["max_abs_yaw_deg"] < 10.0 and math.isfinite(keep["outputs"]["u"]["final"])
+
+
+@pytest.mark.graph
+def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(tmp_path):
+    """surge through simulator + mfol_velocity_controller nodes in lockstep: the same numbers."""
+    from seapup_bringup.scenarios import fly_scenario_graph
+    from seapup_bringup.self_test_sil import fly_self_test
+
+    test = fly_self_test("baseline", {"operating_points": [0.0, 0.7]}).test
+    graph = fly_scenario_graph("surge", self_test=test, out=tmp_path)
+    local = run_scenario("surge", self_test=test)
+    for key in ("u", "w", "r"):
+        for name, value in local["outputs"][key].items():
+            assert graph["outputs"][key][name] == pytest.approx(value, rel=1e-6, abs=1e-9), (key, name)
+    np.testing.assert_allclose(graph["history"]["velocity"], local["history"]["velocity"], atol=1e-9)
+    assert graph["through"] == "ros graph (lockstep)"

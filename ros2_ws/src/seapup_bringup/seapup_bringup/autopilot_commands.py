@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
 from seapup_bringup.self_test_sil import fly_self_test
 from seapup_control.closed_loop import closed_loop
@@ -87,8 +88,6 @@ SELF_TEST_TOPICS = [("/clock", "rosgraph_msgs/msg/Clock"), ("/seapup/thrusters/c
 def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
     """The self-test through the ROS graph in lockstep: simulator, self_test action server and
     recorder as processes on a leased domain; this process is the action client."""
-    import time
-
     import rclpy
     from rclpy.action import ActionClient
     from rclpy.context import Context
@@ -127,10 +126,7 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
         procs = [node, simulator, recorder]
 
         def spin_until(predicate, timeout):
-            deadline = time.monotonic() + timeout
-            while not predicate() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-            return predicate()
+            return graph_spin_until(executor, predicate, timeout)
         try:
             recorder.start()
             node.start()

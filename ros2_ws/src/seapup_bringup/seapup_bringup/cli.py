@@ -179,7 +179,7 @@ def _closed_loop(argv: list[str]) -> int:
 
 
 @command("scenario", "a closed-loop case of the thesis (sec. 5.4) flown with the self-tested controller",
-         "NAME [--rate 5|20] [--config C] [--schedule] [--plots DIR] [--json [F]] | --list")
+         "NAME [--rate 5|20] [--config C] [--schedule] [--graph] [--plots DIR] [--json [F]] | --list")
 def _scenario(argv: list[str]) -> int:
     from seapup_bringup.scenarios import scenario_command
     return scenario_command(argv)

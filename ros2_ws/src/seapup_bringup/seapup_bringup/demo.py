@@ -28,6 +28,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
+from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
 from seapup_common import frames
 from seapup_common.bag import read_bag
@@ -128,10 +129,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
         procs = [controller, simulator, recorder]  # stop order: source first, recorder last
 
         def spin_until(predicate, timeout):
-            deadline = time.monotonic() + timeout
-            while not predicate() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-            return predicate()
+            return graph_spin_until(executor, predicate, timeout)
 
         try:
             recorder.start()

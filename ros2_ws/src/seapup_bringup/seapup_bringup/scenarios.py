@@ -3,12 +3,11 @@
 Each case (``config/scenarios.yaml``) flies the self-tested Owens-Chotai
 controller (the self-test flown on the baseline vehicle, as the thesis
 designs once and then changes the vehicle, sec. 5.5) against reference steps
-and current disturbances, here in one process (pure cores in lockstep:
-:class:`~seapup_sim.simulation.Simulation` with the controller object the
-``mfol_velocity_controller`` node runs, which a graph test shows flies
-identically through ROS), and measures what the thesis reports: 95 % rise
-time, overshoot, steady error, interaction, saturation, limit cycles,
-station keeping.
+and current disturbances -- in one process (:func:`run_scenario`: the pure
+loop with the controller object the ``mfol_velocity_controller`` node runs)
+or through the ROS graph in lockstep (:func:`fly_scenario_graph`) -- and
+measures what the thesis reports: 95 % rise time, overshoot, steady error,
+interaction, saturation, limit cycles, station keeping.
 """
 from __future__ import annotations
 
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
 from seapup_bringup.self_test_sil import fly_self_test
 from seapup_common.contract import Command, Reference
@@ -32,7 +32,7 @@ from seapup_sim.simulation import Event, Simulation
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
 
-__all__ = ["scenarios", "run_scenario", "scenario_command", "OUTPUTS"]
+__all__ = ["scenarios", "run_scenario", "fly_scenario_graph", "scenario_command", "OUTPUTS"]
 
 OUTPUTS = ("u", "v", "w", "r")
 STATE_INDEX = (6, 7, 8, 11)
@@ -120,6 +120,159 @@ def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedu
     log = sim.run(flown, float(case["duration"]), reference=reference,
                   progress=lambda f: progress(name, f))
     return _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled)
+
+
+def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
+                       out: Path | None = None, self_test=None) -> dict:
+    """The same case through the ROS graph in lockstep: ``simulator`` and ``mfol_velocity_controller``
+    as processes on a leased domain; this process publishes the references, switches the current and
+    connects the controller (lifecycle activate) at the case's times, and records the truth.
+
+    The controller is activated once the first reference is in place, so the run starts exactly as
+    in process. Events at later times (a reference step, a current switched on, the controller
+    connected after drifting) take effect at the sample this process sees them at: up to one
+    sample later than in process.
+    """
+    import tempfile
+
+    import rclpy
+    from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState
+    from nav_msgs.msg import Odometry
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from seapup_msgs.msg import BladePitch
+    from seapup_msgs.srv import SetCurrent
+
+    from seapup_common import frames
+    from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+    from seapup_common.ros.messages import command_to_msg, stamp_to_ns
+    from seapup_control.self_test import result_document
+    case = scenarios()[name]
+    period = 1.0 / rate
+    scheduled = bool(case.get("schedule", False)) if schedule is None else bool(schedule)
+    if self_test is None:
+        self_test = fly_self_test("baseline", {"sample_period": period,
+                                               "operating_points": case.get("speeds", [0.0, 0.7])}).test
+    out = Path(tempfile.mkdtemp(prefix="seapup_scenario_")) if out is None else out
+    out.mkdir(parents=True, exist_ok=True)
+    controller_file = out / "controller.yaml"
+    controller_file.write_text(yaml.safe_dump(result_document(self_test), sort_keys=False))
+    hover = hover_blade_pitch(VehicleModel(load_vehicle_config(vehicle)))
+    current = case.get("current")
+    current_at = float(current.get("at", 0.0)) if current else math.inf
+    parameters = ["-p", f"vehicle:={vehicle}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
+                  "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
+                  "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=2.0",
+                  "-p", "wait_for_subscribers:=['/seapup/sensors/velocity', '/seapup/truth/odometry']"]
+    if current and current_at == 0.0:
+        params = _current(current)
+        parameters += ["-p", "environment.current.enabled:=true",
+                       "-p", f"environment.current.mean_speed:={params.mean_speed}",
+                       "-p", f"environment.current.speed_std:={params.speed_std}",
+                       "-p", f"environment.current.mean_direction:={params.mean_direction}",
+                       "-p", f"environment.current.direction_std:={params.direction_std}"]
+    reference, steps = _reference(case["reference"])
+    t_on = float(case.get("controller_on", 0.0))
+    truth, applied = {}, {}
+    with DomainLease() as lease:
+        env = ros_environment(lease.domain_id)
+        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", *parameters],
+                                env, out / "simulator.log", "simulator")
+        controller = NodeProcess([find_executable("seapup_control", "mfol_velocity_controller"), "--ros-args",
+                                  "-p", f"controller_file:={controller_file}",
+                                  "-p", f"schedule:={str(scheduled).lower()}"], env, out / "controller.log",
+                                 "mfol_velocity_controller")
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=lease.domain_id)
+        node = rclpy.create_node("scenario_driver", context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        ref_pub = node.create_publisher(TwistStamped, "/seapup/velocity_controller/reference", 10)
+        hold_pub = node.create_publisher(BladePitch, "/seapup/thrusters/command", 10)
+        change = node.create_client(ChangeState, "/seapup/mfol_velocity_controller/change_state")
+        set_current = node.create_client(SetCurrent, "/seapup/simulator/set_current")
+        state = {"reference": None, "active": False, "current": False, "t": -1.0}
+
+        def send_reference(value):
+            msg = TwistStamped()
+            msg.header.frame_id = "base_link_frd"
+            (msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z) = map(float, value)
+            ref_pub.publish(msg)
+            state["reference"] = tuple(value)
+
+        def on_truth(msg):
+            t_ns = stamp_to_ns(msg.header.stamp)
+            p, q = msg.pose.pose.position, msg.pose.pose.orientation
+            v, w = msg.twist.twist.linear, msg.twist.twist.angular
+            truth[t_ns] = np.r_[p.x, p.y, p.z, frames.quaternion_to_euler([q.x, q.y, q.z, q.w]),
+                                v.x, v.y, v.z, w.x, w.y, w.z]
+
+        def on_velocity(msg):
+            t_ns = stamp_to_ns(msg.header.stamp)
+            t = t_ns * 1e-9
+            state["t"] = t
+            wanted = tuple(reference(t).velocity)
+            if wanted != state["reference"]:
+                send_reference(wanted)
+            if t >= current_at - 1e-9 and not state["current"]:
+                request = SetCurrent.Request()
+                params = _current(current)
+                request.enabled, request.mean_speed, request.speed_std = True, params.mean_speed, params.speed_std
+                request.mean_direction, request.direction_std = params.mean_direction, params.direction_std
+                request.break_time = params.break_time
+                set_current.call_async(request)
+                state["current"] = True
+            if not state["active"]:
+                if t < t_on - 1e-9:  # drifting: hold the hover setting until the controller is connected
+                    hold_pub.publish(command_to_msg(Command(hover), t_ns))
+                else:
+                    change.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVATE)))
+                    state["active"] = True
+
+        node.create_subscription(Odometry, "/seapup/truth/odometry", on_truth, 1000)
+        node.create_subscription(BladePitch, "/seapup/thrusters/applied",
+                                 lambda m: applied.__setitem__(stamp_to_ns(m.header.stamp), np.array(m.pitch)), 1000)
+
+        def spin_until(predicate, timeout):
+            return graph_spin_until(executor, predicate, timeout)
+        try:
+            controller.start()
+            simulator.start()
+            if not spin_until(change.service_is_ready, 60.0):
+                raise RuntimeError(f"the controller node did not come up; see {out}")
+            configure = change.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_CONFIGURE)))
+            if not (spin_until(configure.done, 30.0) and configure.result().success):
+                raise RuntimeError(f"the controller did not configure; see {out / 'controller.log'}")
+            spin_until(lambda: ref_pub.get_subscription_count() > 0, 30.0)
+            send_reference(tuple(reference(0.0).velocity))
+            spin_until(lambda: False, 0.3)
+            node.create_subscription(TwistWithCovarianceStamped, "/seapup/sensors/velocity", on_velocity, 1000)
+            if t_on == 0.0:  # connected from the start, before the first sample is answered
+                activate = change.call_async(ChangeState.Request(
+                    transition=Transition(id=Transition.TRANSITION_ACTIVATE)))
+                spin_until(activate.done, 30.0)
+                state["active"] = True
+            duration = float(case["duration"])
+            spin_until(lambda: max(truth, default=-1) * 1e-9 >= duration - 1e-9, 600.0)
+        finally:
+            for process in (controller, simulator):
+                process.stop()
+            executor.shutdown()
+            node.destroy_node()
+            ctx.try_shutdown()
+    stamps = sorted(t for t in truth if t * 1e-9 <= float(case["duration"]) + 1e-9)
+    from types import SimpleNamespace
+    t = np.array(stamps) * 1e-9
+    blade = np.array([applied.get(k, np.full(4, np.nan)) for k in stamps])
+    log = SimpleNamespace(t=t, state=np.array([truth[k] for k in stamps]), blade_pitch=blade,
+                          command=np.vstack([blade[1:], np.full((1, 4), np.nan)]))  # held k -> k+1 ~ applied at k+1
+    limit_holder = SimpleNamespace(limit=MFOLController(GainSchedule(
+        [(p.surge, p.gains) for p in self_test.points])).limit)
+    result = _measure(name, case, log, steps, t_on, limit_holder, rate, vehicle, scheduled)
+    result["through"] = "ros graph (lockstep)"
+    return result
 
 
 def _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled) -> dict:
@@ -245,6 +398,8 @@ def scenario_command(argv: list[str]) -> int:
     parser.add_argument("--config", default="baseline", help=f"vehicle flown ({', '.join(available_configs())})")
     parser.add_argument("--schedule", action="store_true", default=None, help="gain-scheduled controller")
     parser.add_argument("--plots", type=Path, help="write a figure like figs 5.10-5.24 into this directory")
+    parser.add_argument("--graph", action="store_true",
+                        help="fly it through the ROS graph in lockstep (simulator and controller nodes)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     text = text_stream(args)
@@ -253,7 +408,10 @@ def scenario_command(argv: list[str]) -> int:
             print(f"{name:14} {case['duration']:5.0f} s  reference {case['reference']}", file=text)
         return 0 if args.list else 2
     try:
-        result = run_scenario(args.name, args.config, args.rate, args.schedule)
+        if args.graph:
+            result = fly_scenario_graph(args.name, args.config, args.rate, args.schedule)
+        else:
+            result = run_scenario(args.name, args.config, args.rate, args.schedule)
     except (KeyError, ConfigError) as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos", "send_goal", "GoalNotAnswered"]
+__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos", "send_goal", "GoalNotAnswered", "spin_until"]
 
 _INT64_MAX = 2**63 - 1
 
@@ -85,6 +85,15 @@ class SubscriberGate:
                 if p.get_subscription_count() < n]
 
 
+def spin_until(executor, predicate, timeout: float, step: float = 0.05) -> bool:
+    """Spin ``executor`` until ``predicate()`` holds or ``timeout`` seconds pass; the predicate's last value."""
+    import time
+    deadline = time.monotonic() + timeout
+    while not predicate() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=step)
+    return bool(predicate())
+
+
 class GoalNotAnswered(RuntimeError):
     """An action server that never answered a goal request."""
 
@@ -105,18 +114,10 @@ def send_goal(executor, client, goal, feedback_callback=None, *, ready_timeout: 
     GoalNotAnswered
         If the server never became ready or never answered.
     """
-    import time
-
-    def spin_until(predicate, timeout):
-        deadline = time.monotonic() + timeout
-        while not predicate() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        return predicate()
-
-    if not spin_until(client.server_is_ready, ready_timeout):
+    if not spin_until(executor, client.server_is_ready, ready_timeout):
         raise GoalNotAnswered(f"no action server {client._action_name!r} within {ready_timeout:g} s")
     for _ in range(attempts):
         future = client.send_goal_async(goal, feedback_callback=feedback_callback)
-        if spin_until(future.done, response_timeout):
+        if spin_until(executor, future.done, response_timeout):
             return future.result()
     raise GoalNotAnswered(f"the action server {client._action_name!r} did not answer {attempts} goal requests")
