@@ -49,6 +49,7 @@ def _typed_recording(ros_context, node_process, spin, tmp_path, qos):
     executor.add_node(node)
     pub = node.create_publisher(String, "/typed", qos)
     assert spin(executor, lambda: pub.get_subscription_count() >= 1, 20.0), rec.log_text()
+    spin(executor, lambda: False, 0.5)  # the match is seen here first; give the recorder's side time too
     for k in range(20):
         pub.publish(String(data=f"m{k}"))
         spin(executor, lambda: False, 0.02)
