@@ -85,8 +85,12 @@ def _current(spec) -> CurrentParams:
 
 
 def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
-                 seed: int = 0, self_test=None) -> dict:
-    """Fly one case; return its figures of merit (thesis units: m/s, deg/s, degrees, metres) and histories."""
+                 seed: int = 0, self_test=None, start_from_offset: bool = False) -> dict:
+    """Fly one case; return its figures of merit (thesis units: m/s, deg/s, degrees, metres) and histories.
+
+    ``start_from_offset``: start the controller from its zero-speed offset u0 instead of the applied
+    hover setting (what the controller node does when it has not heard the applied pitch yet).
+    """
     cases = scenarios()
     if name not in cases:
         raise KeyError(f"no scenario {name!r}; known: {', '.join(cases)}")
@@ -98,6 +102,9 @@ def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedu
                                                "operating_points": case.get("speeds", [0.0, 0.7])}).test
     points = [(p.surge, p.gains) for p in self_test.points]
     controller = MFOLController(GainSchedule(points if scheduled else points[:1]))
+    if start_from_offset:
+        controller.reset = lambda applied, c=controller: MFOLController.reset(
+            c, Command(c.schedule.offset_at(0.0)))
     model = VehicleModel(load_vehicle_config(vehicle))
     hover = hover_blade_pitch(model)
     events, environment = [], {"sensors": "ideal"}
@@ -119,7 +126,7 @@ def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedu
     flown = SwitchedOn(controller, hover, t_on) if t_on > 0 else controller
     log = sim.run(flown, float(case["duration"]), reference=reference,
                   progress=lambda f: progress(name, f))
-    return _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled)
+    return _measure(name, case, log, steps, t_on, controller.limit, rate, vehicle, scheduled)
 
 
 def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
@@ -165,7 +172,8 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
     parameters = ["-p", f"vehicle:={vehicle}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
                   "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
                   "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=2.0",
-                  "-p", "wait_for_subscribers:=['/seapup/sensors/velocity', '/seapup/truth/odometry']"]
+                  "-p", "wait_for_subscribers:=['/seapup/sensors/velocity', '/seapup/truth/odometry', "
+                  "'/seapup/thrusters/applied']"]
     if current and current_at == 0.0:
         params = _current(current)
         parameters += ["-p", "environment.current.enabled:=true",
@@ -232,8 +240,13 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
                     state["active"] = True
 
         node.create_subscription(Odometry, "/seapup/truth/odometry", on_truth, 1000)
-        node.create_subscription(BladePitch, "/seapup/thrusters/applied",
-                                 lambda m: applied.__setitem__(stamp_to_ns(m.header.stamp), np.array(m.pitch)), 1000)
+
+        def record_applied():
+            # subscribed only once the controller runs: the simulator's first sample waits for an
+            # applied-pitch subscriber, and that must be the controller's (its bumpless start reads it)
+            node.create_subscription(BladePitch, "/seapup/thrusters/applied",
+                                     lambda m: applied.__setitem__(stamp_to_ns(m.header.stamp), np.array(m.pitch)),
+                                     1000)
 
         def spin_until(predicate, timeout):
             return graph_spin_until(executor, predicate, timeout)
@@ -254,6 +267,7 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
                     transition=Transition(id=Transition.TRANSITION_ACTIVATE)))
                 spin_until(activate.done, 30.0)
                 state["active"] = True
+            record_applied()
             duration = float(case["duration"])
             spin_until(lambda: max(truth, default=-1) * 1e-9 >= duration - 1e-9, 600.0)
         finally:
@@ -268,14 +282,12 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
     blade = np.array([applied.get(k, np.full(4, np.nan)) for k in stamps])
     log = SimpleNamespace(t=t, state=np.array([truth[k] for k in stamps]), blade_pitch=blade,
                           command=np.vstack([blade[1:], np.full((1, 4), np.nan)]))  # held k -> k+1 ~ applied at k+1
-    limit_holder = SimpleNamespace(limit=MFOLController(GainSchedule(
-        [(p.surge, p.gains) for p in self_test.points])).limit)
-    result = _measure(name, case, log, steps, t_on, limit_holder, rate, vehicle, scheduled)
+    result = _measure(name, case, log, steps, t_on, self_test.config.limit, rate, vehicle, scheduled)
     result["through"] = "ros graph (lockstep)"
     return result
 
 
-def _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled) -> dict:
+def _measure(name, case, log, steps, t_on, limit, rate, vehicle, scheduled) -> dict:
     t = log.t
     y = log.state[:, STATE_INDEX]
     to_thesis = np.array([1.0, 1.0, 1.0, 180.0 / math.pi])  # r in deg/s
@@ -302,7 +314,7 @@ def _measure(name, case, log, steps, t_on, controller, rate, vehicle, scheduled)
     cycle = limit_cycle(t[half], y[half, 1], min_amplitude=0.005)
     pitch = np.degrees(log.state[:, 4])
     result = {"scenario": name, "controller": "mfol", "rate_hz": rate, "config": vehicle, "scheduled": scheduled,
-              "outputs": outputs, "saturation_s": saturation_time(t[:-1], commands, controller.limit),
+              "outputs": outputs, "saturation_s": saturation_time(t[:-1], commands, limit),
               "limit_cycle": {"detected": cycle.detected, "period_s": cycle.period, "amplitude": cycle.amplitude},
               "pitch_deg": {"peak": float(pitch[np.argmax(np.abs(pitch))]), "final": float(pitch[-1])},
               "roll_deg": {"peak": float(np.degrees(log.state[np.argmax(np.abs(log.state[:, 3])), 3]))},

@@ -37,7 +37,8 @@ from seapup_msgs.msg import BladePitch
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, ContractError, Reference
-from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
+                                        stamp_to_ns)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.mfol import DesignError
 from seapup_control.mfol_controller import GainSchedule, MFOLController
@@ -65,8 +66,6 @@ class MFOLControllerNode(LifecycleNode):
         self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0}
         self.reference = Reference()
         self.applied: np.ndarray | None = None
-        self._answered_ns: int | None = None
-        self._latest_ns: int | None = None
         self._interfaces = []
         if self.p["autostart"]:
             self.trigger_configure()
@@ -85,6 +84,7 @@ class MFOLControllerNode(LifecycleNode):
             self.get_logger().error(f"configure failed: controller_file {str(path)!r}: {exc}")
             return TransitionCallbackReturn.FAILURE
         self.collector = MeasurementCollector()
+        self.sampler = LockstepSampler(self.collector, bool(self.get_parameter("lockstep").value))
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
         self._interfaces = [
@@ -139,25 +139,26 @@ class MFOLControllerNode(LifecycleNode):
             self.applied = pitch
 
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        if not self.collector.add(msg):
+        refused = self.collector.rejected
+        t_ns = self.sampler.on_velocity(msg)
+        if self.collector.rejected > refused:  # non-finite or malformed: counted, never used
             self.counts["rejected_measurements"] += 1
             self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
                                    throttle_duration_sec=2.0)
-            return
-        self._latest_ns = stamp_to_ns(msg.header.stamp)
-        if self.get_parameter("lockstep").value:
-            self._answer(self._latest_ns)
+        elif t_ns is not None:
+            self._answer(t_ns)
 
     def _on_clock(self, msg: Clock) -> None:
-        if stamp_to_ns(msg.clock) == self._latest_ns:  # the simulator repeats t_k until answered
-            self._answer(self._latest_ns)
+        t_ns = self.sampler.on_clock(msg)
+        if t_ns is not None:
+            self._answer(t_ns)
 
     def _on_timer(self) -> None:
         self._answer(self.get_clock().now().nanoseconds)
 
     # -- the loop --------------------------------------------------------------------
     def _answer(self, t_ns: int) -> None:
-        if not self.active or t_ns == self._answered_ns:
+        if not self.active or self.sampler.pending(t_ns) is None:
             return
         t = t_ns * 1e-9
         try:
@@ -166,7 +167,7 @@ class MFOLControllerNode(LifecycleNode):
             self.counts["skipped_samples"] += 1
             self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=2.0)
             return
-        self._answered_ns = t_ns
+        self.sampler.answered(t_ns)
         self.counts["samples"] += 1
         self.publisher.publish(command_to_msg(command, t_ns))
         if self.counts["samples"] % max(1, int(self.get_parameter("diagnostics_every").value)) == 0:

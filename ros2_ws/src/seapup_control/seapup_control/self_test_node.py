@@ -39,7 +39,8 @@ from seapup_msgs.msg import BladePitch, SelfTestSample
 
 from seapup_common.config import ConfigError
 from seapup_common.contract import ContractError
-from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
+                                        stamp_to_ns)
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.mfol import DesignError
@@ -75,6 +76,7 @@ class SelfTestNode(Node):
         self.no_data_timeout = float(p["no_data_timeout"])
         self._last_sample_wall = 0.0
         self.collector = MeasurementCollector()
+        self.sampler = LockstepSampler(self.collector, self.lockstep)
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
         # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
@@ -84,8 +86,6 @@ class SelfTestNode(Node):
         self.test: SelfTest | None = None      # the run in progress, or the last one (hovering)
         self._goal = None
         self._done: Future | None = None
-        self._answered_ns: int | None = None
-        self._latest_ns: int | None = None
         self.rejected = 0
         if self.lockstep:
             self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
@@ -163,18 +163,18 @@ class SelfTestNode(Node):
 
     # -- sampling --------------------------------------------------------------------
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        if not self.collector.add(msg):
+        refused = self.collector.rejected
+        t_ns = self.sampler.on_velocity(msg)
+        if self.collector.rejected > refused:  # non-finite or malformed: counted, never used
             self.rejected += 1
             self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
                                    throttle_duration_sec=5.0)
-            return
-        self._latest_ns = stamp_to_ns(msg.header.stamp)
-        if self.lockstep:
-            self._answer(self._latest_ns)
+        elif t_ns is not None:
+            self._answer(t_ns)
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = stamp_to_ns(msg.clock)
-        if t_ns == self._latest_ns:  # the simulator repeats t_k until it is answered
+        t_ns = self.sampler.on_clock(msg)
+        if t_ns is not None:
             self._answer(t_ns)
 
     def _on_timer(self) -> None:
@@ -182,7 +182,7 @@ class SelfTestNode(Node):
 
     def _answer(self, t_ns: int) -> None:
         test = self.test
-        if test is None or t_ns == self._answered_ns or (test.finished and not self.hover_after):
+        if test is None or self.sampler.pending(t_ns) is None or (test.finished and not self.hover_after):
             return
         if not self.gate.ready():
             self.get_logger().info(f"waiting for subscribers: {', '.join(self.gate.missing())}",
@@ -197,7 +197,7 @@ class SelfTestNode(Node):
             self.rejected += 1
             self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=5.0)
             return
-        self._answered_ns = t_ns
+        self.sampler.answered(t_ns)
         self._last_sample_wall = time.monotonic()
         self.publisher.publish(command_to_msg(command, t_ns))
         if self._goal is not None:

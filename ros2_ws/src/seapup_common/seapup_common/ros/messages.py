@@ -32,7 +32,8 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
            "position_to_msg", "position_from_msg", "depth_to_msg", "depth_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
-           "vector3_stamped", "wrench_stamped", "MeasurementCollector", "UNKNOWN_VARIANCE"]
+           "vector3_stamped", "wrench_stamped", "MeasurementCollector", "LockstepSampler",
+           "UNKNOWN_VARIANCE"]
 
 #: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
 UNKNOWN_VARIANCE = 1e9
@@ -288,3 +289,40 @@ class MeasurementCollector:
             if -1e-9 <= age <= self.max_age[name] + 1e-9:
                 fields[name] = reading
         return Measurement(float(t), **fields)
+
+
+class LockstepSampler:
+    """When a controller node answers: once per sample t_k of a lockstep simulator (or of a timer).
+
+    The simulator publishes ``/clock`` t_k and the sensor samples stamped t_k,
+    then waits for a command stamped t_k; until the first answer it repeats
+    ``/clock`` t_k (its graph-ready handshake). A node feeds this object its
+    velocity messages and ``/clock`` samples; :meth:`on_velocity` and
+    :meth:`on_clock` return the sample time to answer (or None), and
+    :meth:`answered` marks it done, so each sample is answered exactly once
+    and a sample's measurement is always in the collector before it is.
+    """
+
+    def __init__(self, collector: MeasurementCollector, lockstep: bool = True):
+        self.collector = collector
+        self.lockstep = lockstep
+        self.latest_ns: int | None = None
+        self.answered_ns: int | None = None
+
+    def on_velocity(self, msg) -> int | None:
+        """Take a velocity message; the sample to answer (lockstep), or None (rejected: see the collector)."""
+        if not self.collector.add(msg):
+            return None
+        self.latest_ns = stamp_to_ns(msg.header.stamp)
+        return self.pending(self.latest_ns) if self.lockstep else None
+
+    def on_clock(self, msg) -> int | None:
+        """A repeated ``/clock`` t_k whose sample has arrived and is not answered yet: answer it now."""
+        t_ns = stamp_to_ns(msg.clock)
+        return self.pending(t_ns) if t_ns == self.latest_ns else None
+
+    def pending(self, t_ns: int) -> int | None:
+        return None if t_ns == self.answered_ns else t_ns
+
+    def answered(self, t_ns: int) -> None:
+        self.answered_ns = t_ns
