@@ -9,6 +9,7 @@ import math
 import numpy as np
 import rclpy
 import yaml
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
@@ -17,7 +18,7 @@ from rclpy.executors import SingleThreadedExecutor
 from seapup_msgs.msg import BladePitch
 
 from seapup_bringup.self_test_sil import fly_self_test
-from seapup_common.contract import Command, Reference
+from seapup_common.contract import Reference
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.self_test import result_document
 from seapup_sim.analysis import hover_blade_pitch
@@ -45,6 +46,8 @@ class Probe:
         self.odometry, self.commands = [], []
         self.node.create_subscription(Odometry, "/seapup/truth/odometry", self.odometry.append, 1000)
         self.node.create_subscription(BladePitch, "/seapup/thrusters/command", self.commands.append, 1000)
+        self.diagnostics = []
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 1000)
         self.reference = self.node.create_publisher(TwistStamped, "/seapup/velocity_controller/reference", 10)
         self.change = self.node.create_client(ChangeState, f"{NAME}/change_state")
         self._spin = spin
@@ -58,9 +61,10 @@ class Probe:
         assert self.spin(future.done, 20.0)
         return future.result().success
 
-    def send_reference(self, u, v=0.0, w=0.0, r=0.0):
+    def send_reference(self, u, v=0.0, w=0.0, r=0.0, at_ns=0):
         msg = TwistStamped()
         msg.header.frame_id = "base_link_frd"
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(at_ns, 10**9)
         msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z = u, v, w, r
         assert self.spin(lambda: self.reference.get_subscription_count() > 0, 20.0)
         self.reference.publish(msg)
@@ -77,36 +81,36 @@ def test_lifecycle_node_flies_the_simulator_as_the_pure_loop_does(ros_context, n
     probe = Probe(ros_context, spin)
     assert probe.transition(Transition.TRANSITION_CONFIGURE)  # subscriptions exist from now on
     probe.send_reference(0.3)
+    probe.send_reference(0.5, v=0.1, at_ns=20 * 10**9)  # takes effect exactly at the sample t = 20 s
     assert probe.transition(Transition.TRANSITION_ACTIVATE)
+    assert not probe.transition(Transition.TRANSITION_ACTIVATE)  # a second activate is refused, not fatal
     def stamp_ns(o):
         return o.header.stamp.sec * 10**9 + o.header.stamp.nanosec
     assert probe.spin(lambda: probe.odometry and stamp_ns(probe.odometry[-1]) >= 30 * 10**9, 60.0)
-    # the same controller in the pure loop, from the same start, compared sample by sample at every
-    # stamp this process received (on a loaded machine its subscription may match after the first ones)
+    # the same controller in the pure loop, from the same start (bumpless from the applied hover
+    # setting, which the node waits for in lockstep), compared sample by sample at every stamp this
+    # process received (on a loaded machine its subscription may match after the first ones)
     schedule = GainSchedule.from_document(yaml.safe_load(path.read_text()))
     simulation = Simulation.from_config("baseline", {"sensors": "ideal"}, state=np.r_[0, 0, 50.0, np.zeros(9)],
                                         pitch=HOVER)
-    log = simulation.run(MFOLController(schedule), 30.0, reference=Reference([0.3, 0, 0, 0]))
-    # the node starts bumpless from the applied pitch if it has heard it by activation (hover, as the
-    # pure loop), else from the zero-speed offset u0: the run must be exactly one of the two
-    from_u0 = Simulation.from_config("baseline", {"sensors": "ideal"}, state=np.r_[0, 0, 50.0, np.zeros(9)],
-                                     pitch=HOVER)
-    started_at_u0 = MFOLController(schedule)
-    started_at_u0.reset = lambda applied, c=started_at_u0: MFOLController.reset(c, Command(schedule.offset_at(0.0)))
-    log_u0 = from_u0.run(started_at_u0, 30.0, reference=Reference([0.3, 0, 0, 0]))
+    log = simulation.run(MFOLController(schedule), 30.0,
+                         reference=lambda t: Reference([0.3, 0, 0, 0] if t < 20.0 - 1e-9 else [0.5, 0.1, 0, 0]))
     received = {round(stamp_ns(o) / 2e8): (o.pose.pose.position.x, o.twist.twist.linear.x)
                 for o in probe.odometry if stamp_ns(o) <= 30 * 10**9}
-    assert len(received) >= 100 and 150 in received
+    assert len(received) >= 100 and 100 in received and 150 in received
     k = sorted(received)
     graph = np.array([received[i] for i in k])
-    if not np.allclose(graph, log.state[k][:, [0, 6]], rtol=1e-9, atol=1e-12):
-        np.testing.assert_allclose(graph, log_u0.state[k][:, [0, 6]], rtol=1e-9, atol=1e-12)
-    assert abs(received[150][1] - 0.3) < 0.01  # tracking the reference
+    np.testing.assert_allclose(graph, log.state[k][:, [0, 6]], rtol=1e-9, atol=1e-12)
+    assert abs(received[100][1] - 0.3) < 0.01 and abs(received[150][1] - 0.5) < 0.02  # tracking the references
     # a non-finite reference is rejected: the vehicle keeps flying the last good one
     probe.send_reference(math.nan)
+    probe.send_reference(0.2, at_ns=1_795_000_000 * 10**9)  # a wall-clock stamp on sim time: refused, not queued
     count = len(probe.odometry)
     assert probe.spin(lambda: len(probe.odometry) > count + 50, 30.0)
-    assert abs(probe.odometry[-1].twist.twist.linear.x - 0.3) < 0.01
+    assert abs(probe.odometry[-1].twist.twist.linear.x - 0.5) < 0.01
+    counts = [dict((kv.key, kv.value) for kv in status.values) for array in probe.diagnostics
+              for status in array.status if status.name == "seapup/mfol_velocity_controller"]
+    assert counts[-1]["rejected_references"] == "2" and counts[-1]["references_waiting"] == "0"
     # deactivated, it stops commanding (the lockstep simulator then waits)
     assert probe.transition(Transition.TRANSITION_DEACTIVATE)
     probe.spin(lambda: False, 0.5)

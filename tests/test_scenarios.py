@@ -37,20 +37,50 @@ def test_current_step_and_station_keeping_reject_the_current():
     assert sk["max_abs_yaw_deg"] < 10.0 and math.isfinite(keep["outputs"]["u"]["final"])
 
 
-@pytest.mark.graph
-def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(tmp_path):
-    """surge through simulator + mfol_velocity_controller nodes in lockstep: the same numbers."""
-    from seapup_bringup.scenarios import fly_scenario_graph
-    from seapup_bringup.self_test_sil import fly_self_test
+def test_at_20_hz_the_loops_are_no_slower_and_still_hold_station():
+    """Sec. 5.4.5: the same continuous poles at 20 Hz (eq. 5.1) — surge no slower than at 5 Hz
+    (thesis: faster, 0.35 % overshoot), station keeping of the same order."""
+    fast, slow = run_scenario("surge", rate=20.0), run_scenario("surge", rate=5.0)
+    u = fast["outputs"]["u"]
+    assert fast["rate_hz"] == 20.0 and abs(u["final"] - 0.85) < 0.01 and u["overshoot_pct"] < 5.0
+    assert u["rise95_s"] <= 1.05 * slow["outputs"]["u"]["rise95_s"]
+    assert run_scenario("yaw", rate=20.0)["outputs"]["r"]["rise95_s"] < 2.6  # thesis 95 % within 2.6 s at 5 Hz
+    sk = run_scenario("station-keep", rate=20.0)["station_keep"]
+    assert sk["max_abs_x"] < 0.6 and sk["max_abs_y"] < 0.3 and sk["max_abs_z"] < 0.1 and sk["max_abs_yaw_deg"] < 5.0
 
-    test = fly_self_test("baseline", {"operating_points": [0.0, 0.7]}).test
-    graph = fly_scenario_graph("surge", self_test=test, out=tmp_path)
-    local = run_scenario("surge", self_test=test)
-    # the node starts bumpless from the applied hover if it heard it by activation, else from u0
-    if not np.allclose(graph["history"]["velocity"], local["history"]["velocity"], atol=1e-9):
-        local = run_scenario("surge", self_test=test, start_from_offset=True)
-    for key in ("u", "w", "r"):
-        for name, value in local["outputs"][key].items():
-            assert graph["outputs"][key][name] == pytest.approx(value, rel=1e-6, abs=1e-9), (key, name)
-    np.testing.assert_allclose(graph["history"]["velocity"], local["history"]["velocity"], atol=1e-9)
+
+def test_the_camera_vehicle_flown_with_the_baseline_controller_still_responds_well():
+    """Sec. 5.5: the controller self-tested on the baseline flies the camera configuration."""
+    surge = run_scenario("surge", vehicle="camera")
+    u = surge["outputs"]["u"]
+    assert surge["config"] == "camera" and abs(u["final"] - 0.85) < 0.015 and u["overshoot_pct"] < 10.0
+    assert u["rise95_s"] < 10.0 and 5.0 < surge["pitch_deg"]["peak"] < 35.0  # bow up, as the baseline
+    sway = run_scenario("sway", vehicle="camera")["outputs"]["v"]
+    assert sway["final"] > 0.25  # 0.29 asked: a vectored thruster saturates first, as on the baseline
+    yaw = run_scenario("yaw", vehicle="camera")["outputs"]["r"]
+    assert yaw["rise95_s"] < 2.6 and yaw["overshoot_pct"] < 10.0 and abs(yaw["steady_error"]) < 0.5
+
+
+@pytest.fixture(scope="module")
+def self_test_0_07():
+    from seapup_bringup.self_test_sil import fly_self_test
+    return fly_self_test("baseline", {"operating_points": [0.0, 0.7]}).test
+
+
+@pytest.mark.graph
+@pytest.mark.parametrize("name", ["fast", "current-step", "station-keep"])
+def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(name, self_test_0_07, tmp_path):
+    """Through simulator + mfol_velocity_controller nodes in lockstep: the same numbers, including the
+    events after the start — a stamped reference step at 15 s (fast), a current the simulator
+    switches on at 10 s (current-step), the controller connected at 10 s after drifting
+    (station-keep, in a stochastic current)."""
+    from seapup_bringup.scenarios import fly_scenario_graph
+
+    graph = fly_scenario_graph(name, self_test=self_test_0_07, out=tmp_path)
+    local = run_scenario(name, self_test=self_test_0_07)
+    np.testing.assert_allclose(graph["history"]["velocity"], local["history"]["velocity"], rtol=1e-9, atol=1e-12)
+    for key in ("u", "v", "w", "r"):
+        for metric, value in local["outputs"][key].items():
+            assert graph["outputs"][key][metric] == pytest.approx(value, rel=1e-6, abs=1e-9), (key, metric)
+    assert graph.get("station_keep") == pytest.approx(local.get("station_keep"))
     assert graph["through"] == "ros graph (lockstep)"

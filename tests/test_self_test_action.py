@@ -12,6 +12,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from seapup_msgs.action import SelfTest
 from seapup_msgs.msg import BladePitch
+from seapup_msgs.srv import SetThrusterEfficiency
 
 import rclpy
 from action_msgs.msg import GoalStatus
@@ -121,6 +122,23 @@ def test_failures_abort_with_the_reason(ros_context, node_process, spin, tmp_pat
     bad = SelfTest.Goal()
     bad.operating_points = [0.7]
     assert not client.send(bad).accepted
+
+
+def test_a_dead_thruster_aborts_with_b0_singular(ros_context, node_process, spin, tmp_path):
+    """Eq. 4.9 needs |B0| != 0: the port main switched off through the simulator's service
+    (efficiency 0) leaves cycle 1 a model that is singular to the test's resolution."""
+    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}"])
+    client = Client(ros_context, spin)
+    request = SetThrusterEfficiency.Request(efficiency=[0.0, 1.0, 1.0, 1.0])
+    service = client.node.create_client(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency")
+    assert client.spin(service.service_is_ready, 10.0)
+    future = service.call_async(request)
+    assert client.spin(future.done, 10.0) and future.result().success, future.result()
+    answer = client.result(client.send(SelfTest.Goal()))
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert "singular" in answer.result.message and "main_port" in answer.result.message, answer.result.message
+    assert not answer.result.success and list(answer.result.surge_speeds) == []  # no controller was designed
+    assert not any(f.cycle == 2 and f.phase == "step" for f in client.feedback)  # failed at cycle 1's end
 
 
 def test_no_velocity_data_aborts_the_goal(ros_context, node_process, spin, tmp_path):

@@ -88,3 +88,35 @@ def test_the_self_tested_controller_flies_a_surge_step():
     log = sim.run(controller, 40.0, reference=Reference([0.5, 0.0, 0.0, 0.0]))
     u = log.state[:, 6]
     assert abs(u[-1] - 0.5) < 0.01 and np.abs(log.state[-25:, 7]).max() < 0.02
+
+
+def with_efficiency(efficiency):
+    config = load_vehicle_config("baseline")
+    config["thruster_efficiency"] = list(efficiency)
+    return config
+
+
+@pytest.mark.parametrize("mode", ["realistic", "artificial"])
+@pytest.mark.parametrize("dead", [0, 3])
+def test_a_dead_thruster_fails_the_self_test_naming_it(mode, dead):
+    """|B0| != 0 (eq. 4.9): with one thruster dead the design is refused and the vehicle is left at the
+    zero level, not flown by a controller that would put its largest gains on the dead thruster."""
+    efficiency = np.ones(4)
+    efficiency[dead] = 0.0
+    run = fly_self_test(with_efficiency(efficiency), {"mode": mode})
+    test = run.test
+    assert test.phase == Phase.FAILED, test.reason
+    if mode == "artificial" and dead >= 2:  # no vectored thruster setting holds the trim
+        assert "cannot be reset" in test.reason
+    else:
+        assert "singular" in test.reason and f"thruster {dead}" in test.reason, test.reason
+    assert test.controller is None
+
+
+def test_a_half_fouled_thruster_still_gets_a_controller():
+    """Fouling (sec. 7.4.4) weakens a column but leaves B0 invertible: the test passes and the
+    fouled thruster's surge gain is about half the healthy one's."""
+    run = fly_self_test("fouled_main_port", {})
+    assert run.test.phase == Phase.DONE, run.test.reason
+    b1inv = run.test.points[0].model.B1inv
+    assert 0.35 < b1inv[0, 0] / b1inv[0, 1] < 0.7

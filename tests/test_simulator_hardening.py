@@ -67,7 +67,9 @@ def test_refused_requests_change_nothing_and_the_node_lives(ros_context, node_pr
         assert probe.spin(lambda: sim_time(probe) > before + 0.2, 10.0)  # not reset: time went on
     for kw, words in (({"break_time": 1e16}, "break_time"), ({"mean_speed": 100.0}, "maximum"),
                       ({"mean_speed": 1e308}, "maximum"), ({"speed_std": 1e300}, "maximum"),
-                      ({"direction_std": 1e300}, "direction_std"), ({"speed_std": math.nan}, "finite")):
+                      ({"direction_std": 1e300}, "direction_std"), ({"speed_std": math.nan}, "finite"),
+                      ({"at": math.nan}, "at must be"), ({"at": math.inf}, "at must be"), ({"at": -1.0}, "at must be"),
+                      ({"at": 1e9, "mean_speed": 100.0}, "maximum")):  # a scheduled change is checked when asked
         r = probe.call(SetCurrent, "/seapup/simulator/set_current", current(**kw))
         assert not r.success and words in r.message and len(r.message) < 300, (kw, r.message)
     assert probe.call(SetCurrent, "/seapup/simulator/set_current", current(break_time=0.0)).success  # keeps T_c

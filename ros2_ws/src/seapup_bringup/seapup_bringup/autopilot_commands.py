@@ -189,7 +189,7 @@ def _from_bag(bag_dir: Path) -> dict:
     if not records:
         raise SystemExit(f"seapup: {bag_dir} has no /seapup/self_test/samples: not a self-test bag")
     config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
-    points = refit(tests_from_samples(records), config.sample_period, config.poles)
+    points = refit(tests_from_samples(records), config.sample_period, config.poles, config.max_condition)
     # the box of water of the run itself: truth from its first to its last sample
     position = np.array([p[1:] for p in positions if min(stamps) - 1e-9 <= p[0] <= max(stamps) + 1e-9]
                         or [(0.0, 0.0, 0.0)])

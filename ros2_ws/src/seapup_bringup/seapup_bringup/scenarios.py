@@ -85,12 +85,8 @@ def _current(spec) -> CurrentParams:
 
 
 def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
-                 seed: int = 0, self_test=None, start_from_offset: bool = False) -> dict:
-    """Fly one case; return its figures of merit (thesis units: m/s, deg/s, degrees, metres) and histories.
-
-    ``start_from_offset``: start the controller from its zero-speed offset u0 instead of the applied
-    hover setting (what the controller node does when it has not heard the applied pitch yet).
-    """
+                 seed: int = 0, self_test=None) -> dict:
+    """Fly one case; return its figures of merit (thesis units: m/s, deg/s, degrees, metres) and histories."""
     cases = scenarios()
     if name not in cases:
         raise KeyError(f"no scenario {name!r}; known: {', '.join(cases)}")
@@ -102,9 +98,6 @@ def run_scenario(name: str, vehicle: str = "baseline", rate: float = 5.0, schedu
                                                "operating_points": case.get("speeds", [0.0, 0.7])}).test
     points = [(p.surge, p.gains) for p in self_test.points]
     controller = MFOLController(GainSchedule(points if scheduled else points[:1]))
-    if start_from_offset:
-        controller.reset = lambda applied, c=controller: MFOLController.reset(
-            c, Command(c.schedule.offset_at(0.0)))
     model = VehicleModel(load_vehicle_config(vehicle))
     hover = hover_blade_pitch(model)
     events, environment = [], {"sensors": "ideal"}
@@ -135,10 +128,11 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
     as processes on a leased domain; this process publishes the references, switches the current and
     connects the controller (lifecycle activate) at the case's times, and records the truth.
 
-    The controller is activated once the first reference is in place, so the run starts exactly as
-    in process. Events at later times (a reference step, a current switched on, the controller
-    connected after drifting) take effect at the sample this process sees them at: up to one
-    sample later than in process.
+    Every event lands on the sample it is meant for, so the run equals the in-process one: the
+    references go out before the start stamped with their times (the controller applies a
+    reference at its stamp), a current switched on later is scheduled in the simulator
+    (``~/set_current`` with ``at``), and a controller connected later is activated at its sample,
+    which it then answers (until then this process holds the hover setting).
     """
     import tempfile
 
@@ -154,7 +148,7 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
 
     from seapup_common import frames
     from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-    from seapup_common.ros.messages import command_to_msg, stamp_to_ns
+    from seapup_common.ros.messages import command_to_msg, ns_to_stamp, stamp_to_ns
     from seapup_control.self_test import result_document
     case = scenarios()[name]
     period = 1.0 / rate
@@ -181,7 +175,7 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
                        "-p", f"environment.current.speed_std:={params.speed_std}",
                        "-p", f"environment.current.mean_direction:={params.mean_direction}",
                        "-p", f"environment.current.direction_std:={params.direction_std}"]
-    reference, steps = _reference(case["reference"])
+    _, steps = _reference(case["reference"])
     t_on = float(case.get("controller_on", 0.0))
     truth, applied = {}, {}
     with DomainLease() as lease:
@@ -201,14 +195,14 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
         hold_pub = node.create_publisher(BladePitch, "/seapup/thrusters/command", 10)
         change = node.create_client(ChangeState, "/seapup/mfol_velocity_controller/change_state")
         set_current = node.create_client(SetCurrent, "/seapup/simulator/set_current")
-        state = {"reference": None, "active": False, "current": False, "t": -1.0}
+        state = {"active": False}
 
-        def send_reference(value):
+        def send_reference(value, at: float):
             msg = TwistStamped()
             msg.header.frame_id = "base_link_frd"
+            msg.header.stamp = ns_to_stamp(round(at * 1e9))  # 0: at once
             (msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z) = map(float, value)
             ref_pub.publish(msg)
-            state["reference"] = tuple(value)
 
         def on_truth(msg):
             t_ns = stamp_to_ns(msg.header.stamp)
@@ -220,18 +214,6 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
         def on_velocity(msg):
             t_ns = stamp_to_ns(msg.header.stamp)
             t = t_ns * 1e-9
-            state["t"] = t
-            wanted = tuple(reference(t).velocity)
-            if wanted != state["reference"]:
-                send_reference(wanted)
-            if t >= current_at - 1e-9 and not state["current"]:
-                request = SetCurrent.Request()
-                params = _current(current)
-                request.enabled, request.mean_speed, request.speed_std = True, params.mean_speed, params.speed_std
-                request.mean_direction, request.direction_std = params.mean_direction, params.direction_std
-                request.break_time = params.break_time
-                set_current.call_async(request)
-                state["current"] = True
             if not state["active"]:
                 if t < t_on - 1e-9:  # drifting: hold the hover setting until the controller is connected
                     hold_pub.publish(command_to_msg(Command(hover), t_ns))
@@ -259,14 +241,26 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
             if not (spin_until(configure.done, 30.0) and configure.result().success):
                 raise RuntimeError(f"the controller did not configure; see {out / 'controller.log'}")
             spin_until(lambda: ref_pub.get_subscription_count() > 0, 30.0)
-            send_reference(tuple(reference(0.0).velocity))
+            for start, value in steps:  # the whole reference profile, each stamped with its time
+                send_reference(value, max(start, 0.0))
+            if current and current_at > 0.0:  # switched on later: scheduled in the simulator
+                request = SetCurrent.Request()
+                params = _current(current)
+                request.enabled, request.mean_speed, request.speed_std = True, params.mean_speed, params.speed_std
+                request.mean_direction, request.direction_std = params.mean_direction, params.direction_std
+                request.break_time, request.at = params.break_time, current_at
+                if not spin_until(set_current.service_is_ready, 30.0):
+                    raise RuntimeError(f"the simulator's ~/set_current is not available; see {out}")
+                answer = set_current.call_async(request)
+                if not (spin_until(answer.done, 30.0) and answer.result().success):
+                    raise RuntimeError(f"the current could not be scheduled: {answer.result()}")
             spin_until(lambda: False, 0.3)
             node.create_subscription(TwistWithCovarianceStamped, "/seapup/sensors/velocity", on_velocity, 1000)
             if t_on == 0.0:  # connected from the start, before the first sample is answered
+                state["active"] = True  # (before spinning: on_velocity must not activate it a second time)
                 activate = change.call_async(ChangeState.Request(
                     transition=Transition(id=Transition.TRANSITION_ACTIVATE)))
                 spin_until(activate.done, 30.0)
-                state["active"] = True
             record_applied()
             duration = float(case["duration"])
             spin_until(lambda: max(truth, default=-1) * 1e-9 >= duration - 1e-9, 600.0)

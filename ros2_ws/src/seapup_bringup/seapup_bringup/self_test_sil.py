@@ -16,7 +16,7 @@ import numpy as np
 
 from seapup_common.contract import Command
 from seapup_control.self_test import SelfTest, SelfTestConfig
-from seapup_sim.analysis import trim
+from seapup_sim.analysis import TrimError, trim
 from seapup_sim.simulation import Simulation
 
 __all__ = ["SelfTestRun", "fly_self_test"]
@@ -77,7 +77,11 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
             break
         command = test.update(t, sample.measurement)
         if test.reset_request is not None:  # artificial quiescence: restart at the operating point
-            held = trim(sim.model, test.reset_request)
+            try:
+                held = trim(sim.model, test.reset_request)
+            except TrimError as exc:  # e.g. a dead thruster: no setting holds the operating point
+                test.abort(f"the plant cannot be reset to {test.reset_request:g} m/s: {exc}")
+                continue
             state = start.copy()
             state[:3] = sample.state[:3]
             state[3:12] = held.state[3:12]

@@ -19,6 +19,7 @@ Units SI and radians; vehicle quantities in NED (world, ``odom_ned``) and FRD
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -27,7 +28,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import InvalidBladePitchError
 
-__all__ = ["ContractError", "Reading", "Measurement", "Reference", "Command", "VelocityController",
+__all__ = ["ContractError", "Reading", "Measurement", "Reference", "ReferenceSchedule", "Command", "VelocityController",
            "HoldCommand", "MEASUREMENT_FIELDS"]
 
 #: Measurement fields, their sizes (0 = scalar) and meanings.
@@ -169,6 +170,59 @@ class Reference:
 
     def __post_init__(self):
         object.__setattr__(self, "velocity", _finite_array(self.velocity, 4, "velocity reference"))
+
+
+class ReferenceSchedule:
+    """References that take effect at their own time: what a controller uses at sample t_k.
+
+    A reference stamped in the future waits; at each sample the latest one
+    stamped at or before the sample is in force. A reference without a time
+    (``None``) takes effect at once and drops everything scheduled. This is
+    how a stamped setpoint (``TwistStamped`` with its header stamp) reaches a
+    controller exactly at the sample it is meant for, whatever the transport
+    delay, as long as it arrives before that sample.
+
+    Parameters
+    ----------
+    capacity : int
+        Most references waiting at once; more are refused (:class:`ContractError`).
+
+    Examples
+    --------
+    >>> schedule = ReferenceSchedule()
+    >>> schedule.add(Reference([0.3, 0, 0, 0]), at=10.0)
+    >>> float(schedule.at(9.8).velocity[0]), float(schedule.at(10.0).velocity[0])
+    (0.0, 0.3)
+    """
+
+    def __init__(self, capacity: int = 1000):
+        self.capacity = int(capacity)
+        self.current = Reference()
+        self._waiting: list[tuple[float, int, Reference]] = []  # (time, arrival order, reference), sorted
+        self._arrivals = 0
+
+    def add(self, reference: Reference, at: float | None = None) -> None:
+        """Schedule ``reference`` for time ``at`` [s] (None: now)."""
+        if at is None:
+            self._waiting.clear()
+            self.current = reference
+            return
+        if not math.isfinite(at):
+            raise ContractError(f"reference time must be finite, got {at!r}")
+        if len(self._waiting) >= self.capacity:
+            raise ContractError(f"{self.capacity} references are already waiting")
+        self._arrivals += 1
+        bisect.insort(self._waiting, (float(at), self._arrivals, reference), key=lambda item: item[:2])
+
+    def at(self, t: float) -> Reference:
+        """The reference in force at time ``t`` (those due by then are taken in time order)."""
+        while self._waiting and self._waiting[0][0] <= t + 1e-9:
+            self.current = self._waiting.pop(0)[2]
+        return self.current
+
+    @property
+    def waiting(self) -> int:
+        return len(self._waiting)
 
 
 @dataclass(frozen=True)

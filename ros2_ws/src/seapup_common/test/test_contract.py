@@ -50,3 +50,23 @@ def test_hold_command_is_a_velocity_controller():
     assert not isinstance(object(), VelocityController)
     with pytest.raises(ContractError):
         HoldCommand([0.0] * 4, 0.0)
+
+
+def test_reference_schedule_applies_each_reference_at_its_time():
+    from seapup_common.contract import ReferenceSchedule
+    schedule = ReferenceSchedule(capacity=3)
+    schedule.add(Reference([0.5, 0, 0, 0]), at=20.0)   # arrives first, due later
+    schedule.add(Reference([0.3, 0, 0, 0]), at=10.0)
+    schedule.add(Reference([0.4, 0, 0, 0]), at=10.0)   # same time: the later arrival wins
+    with pytest.raises(ContractError, match="waiting"):
+        schedule.add(Reference([0.9, 0, 0, 0]), at=30.0)
+    assert schedule.at(9.8).velocity[0] == 0.0 and schedule.waiting == 3
+    assert schedule.at(10.0).velocity[0] == 0.4 and schedule.waiting == 1
+    assert schedule.at(15.0).velocity[0] == 0.4
+    assert schedule.at(25.0).velocity[0] == 0.5 and schedule.waiting == 0
+    schedule.add(Reference([0.1, 0, 0, 0]), at=40.0)
+    schedule.add(Reference([0.2, 0, 0, 0]))              # no time: at once, and nothing stays scheduled
+    assert schedule.at(25.2).velocity[0] == 0.2 and schedule.at(50.0).velocity[0] == 0.2
+    with pytest.raises(ContractError, match="finite"):
+        schedule.add(Reference(), at=float("nan"))
+    assert schedule.waiting == 0

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["DesignError", "MFOLModel", "LoopPoles", "TwoTermGains", "design", "THESIS_POLES_5HZ"]
+__all__ = ["DesignError", "MFOLModel", "LoopPoles", "TwoTermGains", "design", "equilibrated_condition",
+           "THESIS_POLES_5HZ"]
 
 
 class DesignError(ValueError):
@@ -134,6 +135,40 @@ class MFOLModel:
         scale = np.full(self.size, math.pi / 180.0)  # m/s per rad -> m/s per deg
         scale[yaw_row] = 1.0                          # rad/s per rad == deg/s per deg
         return self.B0inv * scale[:, None], self.B1inv * scale[:, None]
+
+
+def equilibrated_condition(matrix) -> tuple[float, int]:
+    """Condition number of a response matrix with each output row scaled to a largest entry of 1.
+
+    The rows of B0^-1 and B1^-1 mix units (m/s and rad/s per rad), so the
+    plain condition number depends on the units chosen; scaling every row
+    by its largest magnitude (row equilibration, van der Sluis) removes that
+    and leaves how nearly dependent the *inputs'* effects are. A column that
+    is small in every scaled row is an input that moves nothing: a dead or
+    disconnected thruster.
+
+    Returns
+    -------
+    condition : float
+        inf for a zero row or a singular matrix.
+    weakest : int
+        Index of the column with the smallest largest scaled entry.
+
+    Examples
+    --------
+    >>> c, j = equilibrated_condition([[1.0, 0.0], [0.0, 1e-3]])   # units differ: well conditioned
+    >>> round(c, 6), j
+    (1.0, 0)
+    >>> c, j = equilibrated_condition([[1.0, 0.01], [1.0, 0.02]])  # input 1 barely moves anything
+    >>> round(c), j
+    (200, 1)
+    """
+    m = np.abs(np.asarray(matrix, dtype=float))
+    scale = m.max(axis=1, keepdims=True)
+    if not np.all(np.isfinite(m)) or np.any(scale == 0.0):
+        return math.inf, int(np.argmin(m.max(axis=0))) if np.all(np.isfinite(m)) else 0
+    scaled = np.asarray(matrix, dtype=float) / scale
+    return float(np.linalg.cond(scaled)), int(np.argmin(np.abs(scaled).max(axis=0)))
 
 
 def _inverse(matrix: np.ndarray, what: str) -> np.ndarray:

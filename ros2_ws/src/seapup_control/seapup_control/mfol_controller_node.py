@@ -9,10 +9,17 @@ a controller manager can swap it at run time:
   every operating point as a gain schedule on surge speed, or only the
   zero-speed point with ``schedule: false``;
 - **activate** starts it bumpless from the blade pitches the vehicle applies
-  (``/seapup/thrusters/applied``), then every sample it reads
-  ``/seapup/sensors/velocity`` and the latest reference on
+  (``/seapup/thrusters/applied``; in lockstep, when none has been heard yet,
+  a sample waits up to ``applied_wait`` wall seconds for the one
+  the simulator publishes with it, then falls back to the file's zero-speed
+  offset u0; a sample that arrived before activation is answered at once),
+  then every sample it reads
+  ``/seapup/sensors/velocity`` and the reference in force on
   ``/seapup/velocity_controller/reference`` (``geometry_msgs/TwistStamped``:
-  linear x, y, z = u, v, w [m/s], angular z = r [rad/s], ``base_link_frd``)
+  linear x, y, z = u, v, w [m/s], angular z = r [rad/s], ``base_link_frd``;
+  a reference takes effect at its header stamp — at once when the stamp is
+  zero or past — so a stamped setpoint lands exactly on its sample:
+  :class:`~seapup_common.contract.ReferenceSchedule`)
   and publishes ``/seapup/thrusters/command`` stamped with the sample time
   (``lockstep``: each sensor sample t_k of a lockstep simulator, or its
   repeated ``/clock`` t_k, is answered once; otherwise a timer);
@@ -25,6 +32,7 @@ thrusters and the counts.
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +44,11 @@ from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.contract import Command, ContractError, Reference
+from seapup_common.contract import Command, ContractError, Reference, ReferenceSchedule
 from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
                                         stamp_to_ns)
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions,
+                                    run_node)
 from seapup_control.mfol import DesignError
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 
@@ -64,9 +73,12 @@ class MFOLControllerNode(LifecycleNode):
         self.controller: MFOLController | None = None
         self.active = False
         self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0}
-        self.reference = Reference()
+        self.references = ReferenceSchedule()
         self.applied: np.ndarray | None = None
+        self._start_pending = False  # lockstep: active, waiting for the applied pitch to start from
+        self._sample_waiting_since: float | None = None  # when a sample first waited for it
         self._interfaces = []
+        refuse_invalid_transitions(self)  # e.g. a second activate: refused, not fatal
         if self.p["autostart"]:
             self.trigger_configure()
             self.trigger_activate()
@@ -101,15 +113,29 @@ class MFOLControllerNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state) -> TransitionCallbackReturn:
-        applied = self.applied if self.applied is not None else self.controller.schedule.offset_at(0.0)
-        self.controller.reset(Command(applied))  # bumpless: from what the vehicle holds now
         self.active = True
-        self.get_logger().info("active: starting from blade pitch "
+        if self.applied is None and self.get_parameter("lockstep").value:
+            # the simulator publishes the applied pitch with every sample: start from it, not from u0
+            self._start_pending, self._sample_waiting_since = True, None
+            self.get_logger().info("active: waiting for the applied blade pitch to start bumpless")
+        else:
+            self._start(self.applied, "the applied blade pitch")
+        result = super().on_activate(state)
+        if self.get_parameter("lockstep").value and self.sampler.latest_ns is not None:
+            self._answer(self.sampler.latest_ns)  # a sample that arrived before activation waits for its answer
+        return result
+
+    def _start(self, applied, source: str) -> None:
+        if applied is None:
+            applied, source = self.controller.schedule.offset_at(0.0), "the zero-speed offset u0 (no applied pitch heard)"
+        self.controller.reset(Command(applied))  # bumpless: from what the vehicle holds now
+        self._start_pending = False
+        self.get_logger().info(f"starting from {source}: "
                                + ", ".join(f"{np.degrees(a):.2f}" for a in applied) + " deg")
-        return super().on_activate(state)
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
         self.active = False
+        self._start_pending = False
         return super().on_deactivate(state)
 
     def on_cleanup(self, state) -> TransitionCallbackReturn:
@@ -128,7 +154,15 @@ class MFOLControllerNode(LifecycleNode):
     # -- inputs ----------------------------------------------------------------------
     def _on_reference(self, msg: TwistStamped) -> None:
         try:
-            self.reference = reference_from_msg(msg)
+            reference = reference_from_msg(msg)
+            stamp_ns = stamp_to_ns(msg.header.stamp)
+            at = None if stamp_ns == 0 else stamp_ns * 1e-9
+            latest = self.sampler.latest_ns
+            horizon = float(self.get_parameter("reference_horizon").value)
+            if at is not None and latest is not None and at > latest * 1e-9 + horizon:
+                raise ContractError(f"stamped {at - latest * 1e-9:.3g} s after the latest sample (more than "
+                                    f"reference_horizon {horizon:g} s): a wall-clock stamp on a sim-time graph?")
+            self.references.add(reference, at)
         except ContractError as exc:
             self.counts["rejected_references"] += 1
             self.get_logger().warn(f"reference rejected: {exc}", throttle_duration_sec=2.0)
@@ -137,6 +171,8 @@ class MFOLControllerNode(LifecycleNode):
         pitch = np.array(msg.pitch, dtype=float)
         if pitch.shape == (4,) and np.all(np.isfinite(pitch)):
             self.applied = pitch
+            if self.active and self._start_pending and self.sampler.latest_ns is not None:
+                self._answer(self.sampler.latest_ns)  # a sample that waited for it
 
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
         refused = self.collector.rejected
@@ -160,9 +196,16 @@ class MFOLControllerNode(LifecycleNode):
     def _answer(self, t_ns: int) -> None:
         if not self.active or self.sampler.pending(t_ns) is None:
             return
+        if self._start_pending:
+            if self._sample_waiting_since is None:
+                self._sample_waiting_since = time.monotonic()
+            waited = time.monotonic() - self._sample_waiting_since
+            if self.applied is None and waited < float(self.get_parameter("applied_wait").value):
+                return  # the applied pitch of this sample, or the simulator's /clock repeats, bring it back
+            self._start(self.applied, "the applied blade pitch")
         t = t_ns * 1e-9
         try:
-            command = self.controller.update(t, self.collector.measurement(t), self.reference)
+            command = self.controller.update(t, self.collector.measurement(t), self.references.at(t))
         except ContractError as exc:  # no fresh velocity: nothing is integrated, the vehicle holds
             self.counts["skipped_samples"] += 1
             self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=2.0)
@@ -179,7 +222,8 @@ class MFOLControllerNode(LifecycleNode):
                   "command_unsaturated": state.command_unsaturated.tolist(),
                   "saturated": [bool(s) for s in state.saturated],
                   "saturated_samples": self.controller.saturated_samples.tolist(),
-                  "reference": self.reference.velocity.tolist()}
+                  "reference": self.references.current.velocity.tolist(),
+                  "references_waiting": self.references.waiting}
         rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
         level = DiagnosticStatus.WARN if (rejected or any(state.saturated)) else DiagnosticStatus.OK
         status = DiagnosticStatus(level=level, name="seapup/mfol_velocity_controller", hardware_id="seapup_control",

@@ -38,10 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, THRUSTER_NAMES
 from seapup_common.config import ConfigError, ConfigView, load_yaml, merge
 from seapup_common.contract import Command, Measurement, Reference
-from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains, design
+from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains, design, equilibrated_condition
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
@@ -80,6 +80,7 @@ class SelfTestConfig:
     mode: str
     poles: LoopPoles
     settle: bool
+    max_condition: float
     limit: float = BLADE_PITCH_LIMIT
 
     @classmethod
@@ -113,7 +114,8 @@ class SelfTestConfig:
                    view.number("max_wait", lo=period, hi=36_000.0), speeds,
                    view.number("reach_tolerance", lo=1e-4, hi=1.0),
                    view.vector("zero_level", 4, lo=-limit, hi=limit),
-                   view.choice("mode", ("realistic", "artificial")), poles, view.flag("settle"), float(limit))
+                   view.choice("mode", ("realistic", "artificial")), poles, view.flag("settle"),
+                   view.number("max_condition", lo=1.0, hi=1e12), float(limit))
 
 
 @dataclass
@@ -156,11 +158,20 @@ class OperatingPoint:
     cycle: int
 
 
-def fit_operating_point(tests: list[StepTest], sample_period: float, poles: LoopPoles) -> OperatingPoint:
+def fit_operating_point(tests: list[StepTest], sample_period: float, poles: LoopPoles,
+                        max_condition: float = math.inf) -> OperatingPoint:
     """The MFOL model and controller from one set of four step tests (eq. 4.20-4.24, 5.5, 4.11).
 
     The offset u0 is the mean quiescent setting of the tests (the setting that
     holds the operating point, eq. 5.6); y0 = (surge, 0, 0, 0).
+
+    ``max_condition`` bounds the row-equilibrated condition number of B0^-1
+    and B1^-1 (:func:`~seapup_control.mfol.equilibrated_condition`): the
+    thesis needs |B0| != 0 (eq. 4.9), but fitted data are never exactly
+    singular. A thruster that does not work still "responds" with whatever
+    the vehicle was doing anyway (the rest of its drift), so its column is
+    small but not zero, and the design would put a huge gain on it. Beyond
+    the bound the model counts as singular.
 
     Raises
     ------
@@ -174,6 +185,15 @@ def fit_operating_point(tests: list[StepTest], sample_period: float, poles: Loop
     for j, test in by_thruster.items():
         b0inv[:, j], b1inv[:, j] = test.column(sample_period)
     surge = tests[0].surge
+    for name, matrix in (("B0^-1", b0inv), ("B1^-1", b1inv)):
+        condition, weakest = equilibrated_condition(matrix)
+        if not condition <= max_condition:
+            raise DesignError(
+                f"{name} is singular to the test's resolution at {surge:g} m/s (condition number {condition:.3g} "
+                f"with each output scaled, limit {max_condition:g}): thruster {weakest} "
+                f"({THRUSTER_NAMES[weakest]}) moved "
+                + ("no output; " if math.isinf(condition) else "no output much beyond the vehicle's own drift; ")
+                + "is it dead, disconnected or fouled?")
     u0 = np.mean([t.quiescent_input for t in tests], axis=0)
     model = MFOLModel(b0inv, b1inv, sample_period, y0=[surge, 0.0, 0.0, 0.0], u0=u0)
     return OperatingPoint(surge, model, design(model, poles), tests[0].cycle)
@@ -341,9 +361,10 @@ class SelfTest:
             raise DesignError(f"thruster {thruster} would saturate: {math.degrees(base[thruster]):.1f} deg + "
                               f"{math.degrees(self.config.step):.1f} deg step exceeds the "
                               f"{math.degrees(self.config.limit):.0f} deg limit")
-        if cycle == 1:  # open loop: the zero level holds the settled drift (or, without it, where we are)
+        if cycle == 1 and self.config.mode == "realistic":
+            # open loop: the zero level holds the settled drift (or, without it, where we are)
             equilibrium = self._drift if self._drift is not None else np.asarray(y if y is not None else 0.0)
-        else:           # the controller holds the operating point
+        else:  # the controller, or the artificial reset's trim, holds the operating point
             equilibrium = np.array([surge, 0.0, 0.0, 0.0])
         self._current = StepTest(cycle, surge, thruster, t, base, self.config.step,
                                  np.broadcast_to(np.asarray(equilibrium, float), (4,)).copy())
@@ -363,7 +384,8 @@ class SelfTest:
         done_point = self._next == len(self.plan) or self.plan[self._next][:2] != (test.cycle, test.surge)
         if done_point:
             point_tests = [s for s in self.tests if (s.cycle, s.surge) == (test.cycle, test.surge)][-4:]
-            point = fit_operating_point(point_tests, self.sample_period, self.config.poles)
+            point = fit_operating_point(point_tests, self.sample_period, self.config.poles,
+                                        self.config.max_condition)
             self.points = [p for p in self.points if p.surge != point.surge] + [point]
             self.points.sort(key=lambda p: p.surge)
             self.controller = MFOLController(self.schedule(), limit=self.config.limit)
@@ -444,14 +466,15 @@ def tests_from_samples(samples) -> list[StepTest]:
     return tests
 
 
-def refit(tests: list[StepTest], sample_period: float, poles: LoopPoles) -> list[OperatingPoint]:
+def refit(tests: list[StepTest], sample_period: float, poles: LoopPoles,
+          max_condition: float = math.inf) -> list[OperatingPoint]:
     """The operating points a run's logged step tests give: for each surge speed its last four tests
     (cycle 2 replaces cycle 1 at 0 m/s), fitted as live (:func:`fit_operating_point`)."""
     points = {}
     for surge in dict.fromkeys(t.surge for t in tests):
         last = [t for t in tests if t.surge == surge][-4:]
         if len(last) == 4 and len({t.cycle for t in last}) == 1:
-            points[surge] = fit_operating_point(last, sample_period, poles)
+            points[surge] = fit_operating_point(last, sample_period, poles, max_condition)
     return [points[s] for s in sorted(points)]
 
 

@@ -27,7 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-__all__ = ["IdentificationError", "FirstOrderLag", "fit_first_order", "fit_arx", "PronyStep", "fit_prony_step"]
+__all__ = ["IdentificationError", "FirstOrderLag", "fit_first_order", "fit_arx", "PronyStep", "fit_prony_step",
+           "NO_RESPONSE"]
+
+#: An output whose deviations never exceed this times the input's did not
+#: respond (rounding of an exactly decoupled channel): a zero-gain lag.
+NO_RESPONSE = 1e-9
 
 
 class IdentificationError(ValueError):
@@ -164,6 +169,8 @@ def fit_first_order(y, u, sample_period: float, y0: float = 0.0, u0: float = 0.0
     Notes
     -----
     Implements eq. 4.30-4.33 (and eq. 5.5 about a non-zero operating point).
+    An output that does not move (every deviation at most ``NO_RESPONSE``
+    times the input's) is a zero-gain channel (f = g = 0), not an error.
     With noise on the measured output the least-squares pole is biased
     towards zero (the regressor y(t) carries the noise): Table 4.1's shorter
     time constants. It stays usable where Prony's method fails.
@@ -179,6 +186,11 @@ def fit_first_order(y, u, sample_period: float, y0: float = 0.0, u0: float = 0.0
         raise IdentificationError(f"sample_period must be > 0 s, got {sample_period!r}")
     y = _finite_series(y, "outputs") - float(y0)
     u = _finite_series(u, "inputs", y.size) - float(u0)
+    if np.any(u != 0.0) and np.max(np.abs(y)) <= NO_RESPONSE * np.max(np.abs(u)):
+        # the output never left its operating point (a decoupled channel, or a
+        # dead input): zero gain. f is then undetermined; 0 is the minimum-norm
+        # solution and gives B0^-1 = B1^-1 = 0 for the channel, as it should.
+        return FirstOrderLag(0.0, 0.0, float(sample_period), float(np.sqrt(np.mean(y ** 2))))
     a, b, std = fit_arx(y, u, 1)
     return FirstOrderLag(float(a[0]), float(b[0]), float(sample_period), std)
 

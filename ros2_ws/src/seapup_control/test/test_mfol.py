@@ -11,7 +11,8 @@ import pytest
 import scipy.linalg
 
 from seapup_control.closed_loop import closed_loop, closed_loop_discrete, discretise
-from seapup_control.mfol import THESIS_POLES_5HZ, DesignError, LoopPoles, MFOLModel, design
+from seapup_control.mfol import (THESIS_POLES_5HZ, DesignError, LoopPoles, MFOLModel, design,
+                                 equilibrated_condition)
 
 
 def random_mfol_plant(rng, m=4):
@@ -142,3 +143,17 @@ def test_step_tests_give_the_mfol_by_eq_4_20_4_21():
     thesis_b0, _ = model.in_thesis_units(yaw_row=2)
     np.testing.assert_allclose(thesis_b0[0], b0inv[0] * np.pi / 180)
     np.testing.assert_allclose(thesis_b0[2], b0inv[2])
+
+
+def test_equilibrated_condition_ignores_units_and_finds_the_input_that_does_nothing():
+    rng = np.random.default_rng(5)
+    b0inv = rng.normal(size=(4, 4))
+    units = np.diag([1.0, 1e-3, 1e2, 57.3])  # rescaling an output (m/s -> mm/s, rad -> deg) changes nothing
+    assert equilibrated_condition(units @ b0inv)[0] == pytest.approx(equilibrated_condition(b0inv)[0], rel=1e-9)
+    weak = b0inv.copy()
+    weak[:, 2] *= 1e-3                       # input 2 barely acts on anything
+    condition, weakest = equilibrated_condition(weak)
+    assert weakest == 2 and condition > 100 * equilibrated_condition(b0inv)[0]
+    weak[:, 2] = 0.0
+    assert equilibrated_condition(weak) == (np.inf, 2)
+    assert equilibrated_condition(np.zeros((2, 2)))[0] == np.inf

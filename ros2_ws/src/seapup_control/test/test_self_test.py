@@ -40,7 +40,7 @@ def fly(test, phi, delta, y=None, limit=3000):
         u = test.update(k * T, Measurement.build(k * T, velocity=y[:3], rates=(0, 0, y[3]))).blade_pitch
         if test.reset_request is not None:
             y = np.array([test.reset_request, 0.0, 0.0, 0.0])
-            test.plant_reset(Command(HOLD + np.linalg.solve(b1inv, y)))
+            test.plant_reset(Command(HOLD + np.linalg.lstsq(b1inv, y)[0]))  # (a dead input: lstsq)
             continue
         commands.append(u)
         y = phi @ y + delta @ (u - HOLD)
@@ -93,6 +93,34 @@ def test_refitting_the_logged_steps_gives_the_live_result():
     again = fit_operating_point([t for t in test.tests if t.cycle == 2], T, test.config.poles)
     np.testing.assert_array_equal(again.model.B0inv, test.points[0].model.B0inv)
     np.testing.assert_array_equal(again.gains.K_err, test.points[0].gains.K_err)
+
+
+def test_a_decoupled_plant_gets_exact_zeros_off_the_diagonal():
+    """Channels that do not respond at all are zero gains (not a failed fit)."""
+    phi = np.diag([0.88, 0.93, 0.80, 0.82])
+    delta = np.diag([0.16, 0.034, 0.057, 0.33])
+    test = SelfTest(SelfTestConfig.load({"mode": "artificial"}))
+    test.reset(Command(np.zeros(4)))
+    fly(test, phi, delta)
+    assert test.phase == Phase.DONE, test.reason
+    np.testing.assert_allclose(test.points[0].model.B0inv, delta, rtol=1e-9, atol=0.0)
+    np.testing.assert_allclose(test.points[0].model.B1inv, np.linalg.solve(np.eye(4) - phi, delta),
+                               rtol=1e-9, atol=0.0)
+
+
+@pytest.mark.parametrize("mode", ["artificial", "realistic"])
+@pytest.mark.parametrize("dead", [0, 3])
+def test_a_dead_input_makes_b0_singular_and_fails_naming_it(mode, dead):
+    """|B0| != 0 (eq. 4.9) fails for a dead thruster: exactly with artificial quiescence, to the
+    test's resolution in realistic mode, where the dead channel 'responds' with the drift."""
+    phi, delta, _ = exact_plant()
+    delta[:, dead] = 0.0
+    test = SelfTest(SelfTestConfig.load({"mode": mode}))
+    test.reset(Command(np.zeros(4)))
+    _, commands = fly(test, phi, delta)
+    assert test.phase == Phase.FAILED and "singular" in test.reason, test.reason
+    assert f"thruster {dead}" in test.reason and test.points == [] and test.controller is None
+    np.testing.assert_array_equal(commands[-1], np.zeros(4))  # no controller: back to the zero level
 
 
 def test_failures_end_in_hover_with_a_reason():

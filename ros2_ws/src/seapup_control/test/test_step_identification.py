@@ -101,3 +101,14 @@ def test_bad_data_is_refused_with_a_reason():
         fit_first_order(np.zeros(20), np.ones(20), 0.0)
     with pytest.raises(IdentificationError, match="does not move"):
         fit_prony_step(np.ones(10), T)
+
+
+def test_an_output_that_does_not_move_is_a_zero_gain_channel():
+    """A decoupled channel (or a dead input): the output stays at its operating point to rounding.
+    The regressor is rank 1 there; the fit is the zero lag, not an error, so B0^-1 gets a 0."""
+    lag = fit_first_order(np.full(51, 0.3) + 1e-17, np.full(51, 0.14), T, y0=0.3, u0=0.0)
+    assert (lag.f, lag.g, lag.steady_state_gain) == (0.0, 0.0, 0.0)
+    # a real (small) response is still fitted, not zeroed
+    k = np.arange(51)
+    lag = fit_first_order(1e-6 * (1 - 0.9 ** k), np.ones(51), T)
+    assert lag.f == pytest.approx(0.9) and lag.g == pytest.approx(1e-7)

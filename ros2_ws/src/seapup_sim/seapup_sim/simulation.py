@@ -26,6 +26,7 @@ next to every measurement and reference the controller saw.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -227,6 +228,13 @@ class Simulation:
         if self.sensors is None:
             raise ValueError("this simulation has no sensors")
         self.sensors.profile = profile
+
+    def schedule(self, event: Event) -> None:
+        """Add an event while running: it takes effect at the first step from ``event.time``
+        (at once, before the next step, when that time has passed), as events given at construction."""
+        pending = self.events[self._next_event:]
+        bisect.insort(pending, event, key=lambda e: e.time)  # after any event of the same time: arrival order
+        self.events = self.events[:self._next_event] + pending
 
     def _apply_events(self) -> None:
         while self._next_event < len(self.events) and self.events[self._next_event].time <= self.t + 1e-9:

@@ -28,7 +28,7 @@ from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import load_environment, load_limits
 from seapup_sim.sensors import load_sensor_profile
-from seapup_sim.simulation import Simulation
+from seapup_sim.simulation import Event, Simulation
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
@@ -199,6 +199,15 @@ class Simulator:
         if params is not None:
             self.limits.check_current(params)
         self.simulation.set_current(params)
+
+    def schedule_current(self, params: CurrentParams | None, at: float) -> None:
+        """:meth:`set_current` at simulated time ``at`` [s] (exactly at that step, whatever the transport
+        delay of the request; at once when it has passed)."""
+        if params is not None:
+            self.limits.check_current(params)
+        if not (math.isfinite(at) and at >= 0.0):
+            raise ValueError(f"the time of a change must be finite and >= 0 s, got {at!r}")
+        self.simulation.schedule(Event(max(float(at), self.simulation.t), "current", params))
 
     def current_params(self) -> CurrentParams:
         """The present current's statistics, or the environment's when there is no current."""

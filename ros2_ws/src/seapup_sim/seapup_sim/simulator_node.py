@@ -26,6 +26,7 @@ without touching the simulation.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -117,6 +118,8 @@ class SimulatorNode(Node):
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
                             "the first sample is published"),
+            "discovery_grace": _float_range(0.0, 10.0, "wall seconds the awaited subscribers must stay matched "
+                                                       "before the first sample", **ro),
         }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="simulator")
         if p["mode"] not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {p['mode']!r}")
@@ -195,7 +198,7 @@ class SimulatorNode(Node):
                 raise ValueError(f"wait_for_subscribers: {topic[:80]!r} is not a topic this node publishes "
                                  f"({', '.join(sorted(by_topic))})")
             requirements.append((by_topic[name], 1))
-        return SubscriberGate(requirements)
+        return SubscriberGate(requirements, grace=float(self.get_parameter("discovery_grace").value))
 
     def _start_when_ready(self) -> bool:
         """Publish the first sample once every awaited subscriber is matched."""
@@ -420,13 +423,22 @@ class SimulatorNode(Node):
 
     def _srv_current(self, request, response):
         def act():
-            if not request.enabled:
-                self.simulator.set_current(None)
-                return
-            tc = request.break_time or self.simulator.current_params().break_time  # 0: keep the present T_c
-            self.simulator.set_current(CurrentParams(request.mean_speed, request.speed_std,
-                                                     request.mean_direction, request.direction_std, tc))
-        return self._answer(response, act, lambda: "current " + ("set" if request.enabled else "off"))
+            if not (math.isfinite(request.at) and request.at >= 0.0):
+                raise ValueError(f"at must be a finite time >= 0 s, got {request.at!r}")
+            params = None
+            if request.enabled:
+                tc = request.break_time or self.simulator.current_params().break_time  # 0: keep the present T_c
+                params = CurrentParams(request.mean_speed, request.speed_std, request.mean_direction,
+                                       request.direction_std, tc)
+            if request.at > self.simulator.t:
+                self.simulator.schedule_current(params, request.at)
+            else:
+                self.simulator.set_current(params)
+
+        def said():
+            when = f" at t = {request.at:g} s" if request.at > self.simulator.t else ""
+            return "current " + ("set" if request.enabled else "off") + when
+        return self._answer(response, act, said)
 
     def _srv_sensor_profile(self, request, response):
         def act():

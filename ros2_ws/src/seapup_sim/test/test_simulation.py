@@ -140,6 +140,19 @@ def test_events_switch_configuration_fouling_and_current():
         Event(1.0, "teleport", None)
 
 
+def test_an_event_scheduled_while_running_equals_one_given_at_construction():
+    current = CurrentParams(0.3, 0.0, 0.0, 0.0, 10.0)
+    given = Simulation.from_config("baseline", {"sensors": "ideal"}, events=[Event(3.0, "current", current)],
+                                   pitch=SURGE)
+    later = Simulation.from_config("baseline", {"sensors": "ideal"}, pitch=SURGE)
+    a = given.run(hold(SURGE), 1.0)
+    b = later.run(hold(SURGE), 1.0)
+    later.schedule(Event(3.0, "current", current))  # scheduled at t = 1 s for t = 3 s
+    a, b = given.run(hold(SURGE), 5.0), later.run(hold(SURGE), 5.0)
+    np.testing.assert_array_equal(a.state, b.state)
+    assert np.all(b.current_ned[b.t < 3.0 - 1e-9] == 0.0) and b.current_ned[-1][0] > 0.0
+
+
 def test_umbilical_slows_the_vehicle_and_pulls_back():
     x0 = np.zeros(12)
     x0[2] = 50.0

@@ -61,22 +61,37 @@ def adapted_qos(publisher_infos, depth: int = 1000) -> QoSProfile:
 
 
 class SubscriberGate:
-    """Open once every listed publisher has at least its required matched subscribers.
+    """Open once every listed publisher has had at least its required matched subscribers for ``grace`` s.
+
+    A publisher counts a subscription as matched as soon as *it* has
+    discovered the reader; the reader may discover the writer a little later
+    and, being volatile, drops what was sent before that. ``grace`` covers
+    that second half of discovery, so the first message reaches every awaited
+    subscriber.
 
     Parameters
     ----------
     requirements : list of (publisher, int)
         Each publisher and how many subscriptions must be matched to it.
+    grace : float
+        Wall seconds the requirements must hold before the gate opens.
     """
 
-    def __init__(self, requirements):
+    def __init__(self, requirements, grace: float = 0.0):
         self.requirements = [(p, int(n)) for p, n in requirements if int(n) > 0]
+        self.grace = float(grace)
         self._open = not self.requirements
+        self._met_since: float | None = None
 
     def ready(self) -> bool:
-        """True once every requirement was met (it then stays open)."""
+        """True once every requirement was met for ``grace`` seconds (it then stays open)."""
+        import time
         if not self._open:
-            self._open = all(p.get_subscription_count() >= n for p, n in self.requirements)
+            if not all(p.get_subscription_count() >= n for p, n in self.requirements):
+                self._met_since = None
+            elif self._met_since is None:
+                self._met_since = time.monotonic()
+            self._open = self._met_since is not None and time.monotonic() - self._met_since >= self.grace
         return self._open
 
     def missing(self) -> list[str]:

@@ -29,6 +29,7 @@ from rclpy.signals import SignalHandlerOptions
 from seapup_common.parameters import load_node_parameters
 
 __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
+           "refuse_invalid_transitions",
            "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
@@ -141,6 +142,33 @@ def declare_from_package_file(node, package: str, file_name: str, descriptors: d
     values = {**(defaults or {}), **flatten(load_node_parameters(path, section or node.get_name()))}
     descriptors = descriptors or {}
     return {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
+
+
+def refuse_invalid_transitions(node) -> None:
+    """Make ``~/change_state`` answer ``success: false`` to a transition the present state does not have.
+
+    rclpy's LifecycleNode (Jazzy) lets the state machine's RCLError escape
+    its service callback, so e.g. a second ``activate`` kills the node from
+    inside the executor; rclcpp answers false. This wraps the service's
+    callback to do the same (logged as a warning).
+    """
+    from lifecycle_msgs.srv import ChangeState
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    service = node._service_change_state  # rclpy has no public hook for this service
+    handle = service.callback
+
+    def guarded(request, response):
+        try:
+            return handle(request, response)
+        except _rclpy.RCLError as exc:
+            state = node._state_machine.current_state[1]
+            node.get_logger().warn(f"transition {request.transition.id} {request.transition.label!r} refused in "
+                                   f"state {state!r}: {str(exc).splitlines()[0][:200]}")
+            response = ChangeState.Response()
+            response.success = False
+            return response
+    service.callback = guarded
 
 
 def _drain(executor, node, budget: float = 3.0) -> None:
