@@ -25,7 +25,7 @@ from seapup_sim.model_check import check_model as run_model_check
 from seapup_sim.report import format_rows, write_plots
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
-from seapup_sim.verification import check_targets
+from seapup_sim.verification import check_targets, summary
 from seapup_sim.verification import verify as run_verify
 
 __all__ = ["verify", "check_model", "bench"]
@@ -57,8 +57,9 @@ def verify(argv: list[str]) -> int:
     res, hist = run_verify(model)
     res["verify_seconds"] = time.perf_counter() - t0
     rows = check_targets(res, model.config_name)
-    print(format_rows(rows, f"seapup verify: configuration '{model.config_name}' "
-                            f"({res['verify_seconds']:.1f} s)"), file=out)
+    table = format_rows(rows, f"seapup verify: configuration '{model.config_name}' ({res['verify_seconds']:.1f} s)")
+    *body, summary_line = table.splitlines()
+    print("\n".join(body), file=out)
     b1 = np.array(res["step_gains_5hz"]["B1inv"])
     b0 = np.array(res["step_gains_5hz"]["B0inv"])
     print("\nstep gains from hover, 8 deg steps, T_s = 0.2 s (eq. 5.3; rows u v w [m/s] r [deg/s], "
@@ -71,11 +72,13 @@ def verify(argv: list[str]) -> int:
     print("\neigenvalues at hover [1/s]: " + ", ".join(
         f"{re:.4f}{im:+.4f}j" if abs(im) > 1e-9 else f"{re:.4f}" for re, im in ev), file=out)
     res["checks"] = rows
+    res["summary"] = summary(rows)
     emit_json(args, res)
     if args.plots:
         for p in write_plots(res, hist, args.plots):
             print(f"wrote {p}", file=out)
-    return 0 if all(r["pass"] for r in rows if r["primary"]) else 1
+    print("\n" + summary_line, file=out)  # last: what decides the exit status
+    return 0 if res["summary"]["ok"] else 1
 
 
 def check_model(argv: list[str]) -> int:

@@ -43,7 +43,9 @@ def test_cli_writes_the_documented_json(tmp_path, capsys):
     assert "PASS" in text
     data = json.loads(out.read_text())
     primary_failed = [r for r in data["checks"] if r["primary"] and not r["pass"]]
-    assert code == (1 if primary_failed else 0)
+    assert code == (1 if primary_failed else 0) and data["summary"]["ok"] == (not primary_failed)
+    assert text.rstrip().splitlines()[-1].startswith("summary: primary ")  # the summary comes last
+    assert {r["status"] for r in data["checks"]} <= {"PASS", "FAIL", "DEV"}
     for key in ("config", "rest_trim_deg", "surge", "sway_4a", "sway_4b", "heave_down", "heave_up",
                 "roll_release", "pitch_release", "hover_blade_pitch_deg", "trim_0_7",
                 "eigenvalues_quiescent", "nmp_onset_surge", "step_gains_5hz", "current", "umbilical"):

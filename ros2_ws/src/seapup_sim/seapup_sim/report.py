@@ -22,19 +22,25 @@ def _fmt(v) -> str:
 
 
 def format_rows(rows: list[dict], title: str) -> str:
-    """A fixed-width table: target, simulated, thesis, accepted range, PASS/FAIL."""
+    """A fixed-width table: target, simulated, thesis, accepted range, PASS/FAIL/DEV, then a summary.
+
+    Tags: P primary, s secondary, D documented deviation (its reason on the next line).
+    """
+    from seapup_sim.verification import summary
     lines = [title, f"{'':2}{'quantity':<42}{'simulated':>11}{'thesis':>10}  {'accepted':<21}{'':6}source"]
     for r in rows:
         rng = f"[{_fmt(r['low'])}, {_fmt(r['high'])}]"
-        status = "PASS" if r["pass"] else "FAIL"
-        tag = "P" if r["primary"] else "s"
+        status = r.get("status") or ("PASS" if r["pass"] else "FAIL")
+        tag = "D" if r.get("deviation") else ("P" if r["primary"] else "s")
         lines.append(f"{tag:<2}{r['label']:<42}{_fmt(r['value']):>11}{_fmt(r['thesis']):>10}  "
                      f"{rng:<21}{status:<6}{r['source']}")
-    n_p = sum(r["primary"] for r in rows)
-    ok_p = sum(r["primary"] and r["pass"] for r in rows)
-    ok_s = sum((not r["primary"]) and r["pass"] for r in rows)
-    lines.append(f"primary {ok_p}/{n_p} PASS, secondary {ok_s}/{len(rows) - n_p} PASS "
-                 "(P = primary target, s = secondary)")
+        if r.get("deviation") and not r["pass"]:
+            lines.append(f"{'':4}deviation: {r['deviation']}")
+    s = summary(rows)
+    lines.append(f"summary: primary {s['primary_passed']}/{s['primary']} PASS, secondary "
+                 f"{s['secondary_passed']}/{s['secondary']} PASS, {s['deviations']} documented deviation(s) "
+                 f"(P = primary, s = secondary, D = documented deviation) -> "
+                 + ("all primaries pass" if s["ok"] else "a primary target FAILS"))
     return "\n".join(lines)
 
 

@@ -34,7 +34,7 @@ from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.vehicle import VehicleModel
 
 __all__ = ["run_open_loop", "rest_trim", "oscillatory_mode", "step_gains", "verify", "verify_current",
-           "verify_umbilical", "Target", "TARGETS", "check_targets"]
+           "verify_umbilical", "Target", "TARGETS", "check_targets", "summary"]
 
 D = math.radians
 
@@ -270,6 +270,9 @@ class Target:
     high: float
     primary: bool
     source: str
+    #: A documented deviation: why the model does not reach this number (one line, with a pointer
+    #: to the README's explanation). Shown as DEV, kept in the JSON, never a reason to exit 1.
+    deviation: str = ""
 
     def value(self, res: dict):
         node = res
@@ -291,9 +294,14 @@ class Target:
         return float(v), self.low <= float(v) <= self.high
 
 
-def _rel(key, label, value, tol, primary, source):
+def _rel(key, label, value, tol, primary, source, deviation=""):
     lo, hi = sorted((value * (1 - tol), value * (1 + tol)))
-    return Target(key, label, value, lo, hi, primary, source)
+    return Target(key, label, value, lo, hi, primary, source, deviation)
+
+
+#: Why the umbilical table's F_z is not reached (issue 11 decided to keep the exact cable solution).
+UMBILICAL_FZ_DEVIATION = ("exact solution of the thesis's stated cable assumptions leaves the cable ~26 deg above "
+                          "horizontal where the table implies ~35 deg; README 'Documented deviations: umbilical F_z'")
 
 
 def _abs(key, label, value, tol, primary, source):
@@ -350,7 +358,8 @@ TARGETS = {
                                           ("200", (0.259, -172.0, -119.0)))
         for target in (_rel(f"umbilical.{depth}.max_u", f"umbilical {depth} m: top speed [m/s]", u, 0.10, True, "sec. 3.8"),
                        _rel(f"umbilical.{depth}.Fx", f"umbilical {depth} m: F_x [N]", fx, 0.15, True, "sec. 3.8"),
-                       _rel(f"umbilical.{depth}.Fz", f"umbilical {depth} m: F_z [N]", fz, 0.15, True, "sec. 3.8"))
+                       _rel(f"umbilical.{depth}.Fz", f"umbilical {depth} m: F_z [N]", fz, 0.15, False, "sec. 3.8",
+                            UMBILICAL_FZ_DEVIATION))
     ],
     "camera": [
         _abs("rest_trim_deg", "rest trim [deg]", -6.3, 1.0, True, "sec. 3.6"),
@@ -368,11 +377,25 @@ TARGETS = {
 
 
 def check_targets(res: dict, config: str) -> list[dict]:
-    """PASS/FAIL rows for the targets of ``config`` ('baseline' or 'camera')."""
+    """Rows for the targets of ``config`` ('baseline' or 'camera'): ``status`` PASS, FAIL, or DEV (a
+    documented deviation that is missed; its ``deviation`` says why). ``primary`` is false for a
+    documented deviation: only primary rows decide ``./seapup verify``'s exit status."""
     rows = []
     for tg in TARGETS.get(config, []):
         value, ok = tg.check(res)
+        status = "PASS" if ok else ("DEV" if tg.deviation else "FAIL")
         rows.append({"label": tg.label, "key": tg.key, "value": value, "thesis": tg.thesis,
-                     "low": tg.low, "high": tg.high, "primary": tg.primary, "pass": ok,
-                     "source": tg.source})
+                     "low": tg.low, "high": tg.high, "primary": tg.primary and not tg.deviation, "pass": ok,
+                     "status": status, "deviation": tg.deviation, "source": tg.source})
     return rows
+
+
+def summary(rows: list[dict]) -> dict:
+    """Counts of what passed: primaries, secondaries, documented deviations; ``ok`` iff every primary passed."""
+    primary = [r for r in rows if r["primary"]]
+    secondary = [r for r in rows if not r["primary"] and not r["deviation"]]
+    deviations = [r for r in rows if r["deviation"]]
+    return {"primary_passed": sum(r["pass"] for r in primary), "primary": len(primary),
+            "secondary_passed": sum(r["pass"] for r in secondary), "secondary": len(secondary),
+            "deviations": sum(not r["pass"] for r in deviations),
+            "ok": all(r["pass"] for r in primary)}

@@ -10,7 +10,7 @@ import pytest
 
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
-from seapup_sim.verification import check_targets, verify
+from seapup_sim.verification import check_targets, summary, verify
 
 
 @pytest.fixture(scope="module")
@@ -18,18 +18,24 @@ def baseline_results():
     return verify(VehicleModel(load_vehicle_config("baseline")))
 
 
-# The sec. 3.8 umbilical table's F_z is not reproduced yet (issue #4 stays
-# open): the cable leaves the vehicle at ~26 deg above horizontal where the
-# thesis's forces imply ~35 deg, so F_z is 25-45 % low. Top speeds and F_x are
-# within tolerance and asserted.
-UMBILICAL_OPEN = {f"umbilical {d} m: F_z [N]" for d in (50, 100, 200)}
-
-
 def test_every_primary_target_passes(baseline_results):
     res, _ = baseline_results
-    failed = [(r["label"], r["value"], r["thesis"]) for r in check_targets(res, "baseline")
-              if r["primary"] and not r["pass"] and r["label"] not in UMBILICAL_OPEN]
-    assert failed == []
+    rows = check_targets(res, "baseline")
+    failed = [(r["label"], r["value"], r["thesis"]) for r in rows if r["primary"] and not r["pass"]]
+    assert failed == [] and summary(rows)["ok"]
+
+
+def test_the_umbilical_f_z_rows_are_documented_deviations(baseline_results):
+    """Issue 11 decided: the exact cable solution stays; sec. 3.8's F_z is shown as DEV with its reason,
+    and only the F_z rows are deviations (top speeds and F_x stay primary)."""
+    res, _ = baseline_results
+    rows = check_targets(res, "baseline")
+    dev = [r for r in rows if r["deviation"]]
+    assert {r["label"] for r in dev} == {f"umbilical {d} m: F_z [N]" for d in (50, 100, 200)}
+    assert all(r["status"] == "DEV" and not r["primary"] and "README" in r["deviation"] for r in dev)
+    assert all(r["value"] < 0 for r in dev)  # still measured and reported: the cable pulls up
+    assert summary(rows)["deviations"] == 3
+    assert all(r["primary"] for r in rows if r["key"].startswith("umbilical.") and not r["key"].endswith("Fz"))
 
 
 def test_umbilical_speed_and_drag_force_match_the_table(baseline_results):
@@ -78,3 +84,14 @@ def test_camera_rest_trim():
     rows = {r["label"]: r for r in check_targets(res, "camera")}
     assert rows["rest trim [deg]"]["pass"], rows["rest trim [deg]"]
     assert math.isclose(res["rest_trim_deg"], -6.3, abs_tol=1.0)
+
+
+def test_only_a_failing_primary_decides_the_outcome(baseline_results):
+    res, _ = baseline_results
+    rows = check_targets(res, "baseline")
+    worse = {**res, "umbilical": {**res["umbilical"], "50": {**res["umbilical"]["50"], "Fz": 0.0}}}
+    assert summary(check_targets(worse, "baseline"))["ok"]          # a deviation further off: still ok
+    worse = {**res, "surge": {**res["surge"], "max_u": 0.5}}
+    bad = check_targets(worse, "baseline")
+    assert not summary(bad)["ok"] and summary(bad)["primary_passed"] == summary(rows)["primary_passed"] - 1
+    assert [r["status"] for r in bad if r["key"] == "surge.max_u"] == ["FAIL"]
