@@ -151,6 +151,13 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
         res[name] = {"max_v": float(np.abs(x[:, 7]).max()),
                      "max_roll_deg": float(np.degrees(np.abs(x[:, 3]).max())),
                      "max_roll_rate_dps": float(np.degrees(np.abs(x[:, 9]).max()))}
+    # full yaw input from rest, the zero-radius turn of App. A.3 / Table A.1: mains push-pull, vectored 0
+    for name, cmd, sign in (("yaw_starboard", [lim, -lim, 0.0, 0.0], 1.0), ("yaw_port", [-lim, lim, 0.0, 0.0], -1.0)):
+        t, x, _ = run_open_loop(model, np.array(cmd), duration)
+        hist[name] = (t, x)
+        res[name] = {"max_r_dps": float(np.degrees((sign * x[:, 11]).max())),
+                     "max_roll_deg": float(np.degrees(np.abs(x[:, 3]).max())),
+                     "max_pitch_rate_dps": float(np.degrees(np.abs(x[:, 10]).max()))}
     for name, cmd, sign in (("heave_down", [0.0, 0.0, lim, lim], 1.0),
                             ("heave_up", [0.0, 0.0, -lim, -lim], -1.0)):
         t, x, _ = run_open_loop(model, np.array(cmd), duration)
@@ -339,6 +346,15 @@ TARGETS = {
         _abs("trim_0_7.blade_pitch_deg.0", "trim 0.7 m/s mains [deg]", 14.6, 3.0, False, "sec. 3.7"),
         _abs("trim_0_7.blade_pitch_deg.2", "trim 0.7 m/s vectored [deg]", -5.9, 3.0, False, "sec. 3.7"),
         _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.7, 0.1, False, "sec. 3.7"),
+        # large amplitude (issue 11): the vehicle's measured zero-radius turn
+        _rel("yaw_starboard.max_r_dps", "full yaw to stbd: max yaw rate [deg/s]", 53.3, 0.15, False,
+             "App. A.3 (gyro; timed 53.0)"),
+        _rel("yaw_port.max_r_dps", "full yaw to port: max yaw rate [deg/s]", 50.0, 0.15, False,
+             "App. A.3 (gyro; timed 51.7)"),
+        _abs("yaw_starboard.max_roll_deg", "zero-radius turn max roll [deg]", 4.9, 1.5, False,
+             "Table A.1 (b) 3: 6.2/3.6"),
+        _rel("yaw_starboard.max_pitch_rate_dps", "zero-radius turn max pitch rate [deg/s]", 9.6, 0.3, False,
+             "Table A.1 (b) 4: 9.8/9.4"),
         _rel("step_gains_5hz.B1inv.0.0", "B1inv[u, main port]", 0.0246, 0.5, False, "eq. 5.3b"),
         _rel("step_gains_5hz.B1inv.3.0", "B1inv[r, main port] [deg/s/deg]", 1.96, 0.5, False, "eq. 5.3b"),
         _rel("step_gains_5hz.B1inv.2.2", "B1inv[w, vect stbd]", 0.004875, 0.5, False, "eq. 5.3b"),
