@@ -112,7 +112,10 @@ def test_demo_bag_is_what_the_model_flies_today(reflown):
     np.testing.assert_allclose([(v.twist.twist.linear.x, v.twist.twist.linear.y) for v in vel[:n]],
                                reflown.measured["velocity"][:n, :2], rtol=0, atol=1e-6)
     # the recorded commands are the schedule's, stamped with their samples
-    np.testing.assert_allclose([c.pitch for c in cmd], reflown.command[:len(cmd)], rtol=0, atol=1e-12)
+    # (the pure run logs no command at its final sample; the graph may have answered that one too)
+    held = int(np.isfinite(reflown.command[:, 0]).sum())
+    assert len(cmd) in (held, held + 1)
+    np.testing.assert_allclose([c.pitch for c in cmd[:held]], reflown.command[:held], rtol=0, atol=1e-12)
 
 
 SELFTEST = ROOT / "bags" / "selftest_5hz"

@@ -9,8 +9,17 @@ minimising the misfit to the targets of ``seapup_sim.verification.TARGETS``
 is solved so that hovering needs exactly -13.098 deg (eq. 5.2).
 
 Usage (inside ``eval "$(./seapup env)"``):
-    python tools/calibrate_vehicle.py [--iterations N] [--write]
---write stores the result into baseline.yaml (values only; comments kept).
+    python tools/calibrate_vehicle.py [--iterations N] [--only P1,P2,...] [--write]
+--write stores the result into baseline.yaml (values only; comments kept);
+--only frees just those parameters (the others stay at baseline.yaml's values).
+
+Round 2 (issue 11) added the large-amplitude yaw of App. A.3 (full push-pull
+of the mains from rest: 53.3 / 50.0 deg/s) and the non-minimum-phase crossover
+of sec. 3.7 (the pitch transmission-zero pair on the imaginary axis at
+0.7 m/s) as targets, and the heave-pitch added-mass coupling
+``added_mass[2][4] = [4][2]`` (-Z_qdot = -M_wdot, kg m) as a free parameter:
+    python tools/calibrate_vehicle.py --only "hydrodynamics.N_r,hydrodynamics.N_r|r|,added_mass.2.4" --write
+takes about 2 minutes on 2 cores.
 """
 from __future__ import annotations
 
@@ -18,6 +27,7 @@ import argparse
 import copy
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +37,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "ros2_ws/src/seapup_sim"))
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT  # noqa: E402
-from seapup_sim.analysis import TrimError, linearise, trim  # noqa: E402
+from seapup_sim.analysis import TrimError, linearise, system_zeros, trim  # noqa: E402
 from seapup_sim.vehicle import VehicleModel  # noqa: E402
 from seapup_sim.vehicle_config import load_vehicle_config  # noqa: E402
-from seapup_sim.verification import oscillatory_mode, run_open_loop  # noqa: E402
+from seapup_sim.verification import oscillatory_mode, output_matrix, run_open_loop  # noqa: E402
 
 D = math.radians
 YAML = ROOT / "ros2_ws/src/seapup_sim/seapup_sim/vehicles/baseline.yaml"
@@ -61,10 +71,14 @@ FREE = {
     "added_mass.0.0": (30.0, 150.0),
     "added_mass.4.4": (2.0, 40.0),
     "rigid_body.inertia_cg.1.1": (5.0, 30.0),
+    # heave-pitch added-mass coupling (fore-aft asymmetric frame): -x of the heave added mass's centre
+    # times the heave added mass; bounded well inside positive definiteness of the mass matrix
+    "added_mass.2.4": (-40.0, 40.0),
 }
 TIED = {"thrusters.installation.0.0": ["thrusters.installation.0.1"],
         "thrusters.installation.1.2": ["thrusters.installation.1.3"],
-        "thrusters.positions.2.2": ["thrusters.positions.3.2"]}
+        "thrusters.positions.2.2": ["thrusters.positions.3.2"],
+        "added_mass.2.4": ["added_mass.4.2"]}
 
 
 def get(cfg, path):
@@ -85,9 +99,9 @@ def put(cfg, path, value):
         node[last] = float(value)
 
 
-def apply(base, z):
+def apply(base, z, free=None):
     cfg = copy.deepcopy(base)
-    for (path, _), value in zip(FREE.items(), z):
+    for path, value in zip(free or FREE, z):
         put(cfg, path, value)
         for other in TIED.get(path, []):
             put(cfg, other, value)
@@ -104,6 +118,18 @@ def solve_hover(cfg):
     c = net_weight / (2 * abs(t_hover) * th.open_water[2, 2])
     for j in (2, 3):
         put(cfg, f"thrusters.installation.2.{j}", c)
+
+
+def pitch_zero_real(model, speed):
+    """Largest real part of the transmission zeros at ``speed`` (sec. 3.7): 0 where the model turns
+    non-minimum phase."""
+    guess = None
+    for s in np.linspace(0.0, speed, 8):  # warm-started trims up to the speed
+        tr = trim(model, float(s), guess, enforce_limits=False)
+        guess = tr.unknowns
+    a, b = linearise(model, tr.state, tr.blade_pitch)
+    zs = [z.value for z in system_zeros(a, b, output_matrix()) if z.kind == "transmission"]
+    return max(z.real for z in zs)
 
 
 def measure(cfg):
@@ -139,6 +165,10 @@ def measure(cfg):
         out["trim_vect"] = math.degrees(t07.blade_pitch[2])
     except TrimError:
         out["trim_pitch"], out["trim_main"], out["trim_vect"] = 40.0, 40.0, 40.0
+    for key, cmd, sign in (("yaw_stbd", [lim, -lim, 0, 0], 1.0), ("yaw_port", [-lim, lim, 0, 0], -1.0)):
+        _, x, _ = run_open_loop(model, np.array(cmd), 20.0)
+        out[key] = math.degrees((sign * x[:, 11]).max())
+    out["zero_re_0_7"] = pitch_zero_real(model, 0.7)
     t10 = trim(model, 1.0, [0.3, 0.6, 0.1], enforce_limits=False)
     out["trim1_main"] = math.degrees(t10.blade_pitch[0])
     for j, key in ((0, "main"), (2, "vect")):
@@ -160,17 +190,19 @@ OBJECTIVE = [
     ("max_pitch", 32.5, 3.0, 0.3), ("max_pitch_rate", 23.2, 4.6, 0.3),
     ("max_roll_rate", 32.7, 6.5, 0.3), ("rise95", 2.2, 0.55, 1.0),
     ("trim_pitch", 10.0, 3.0, 0.3), ("trim_main", 14.6, 3.0, 0.3), ("trim_vect", -5.9, 3.0, 0.3),
+    # round 2 (issue 11): App. A.3's zero-radius turn; sec. 3.7's crossover at 0.7 m/s
+    ("yaw_stbd", 53.3, 8.0, 1.0), ("yaw_port", 50.0, 7.5, 1.0), ("zero_re_0_7", 0.0, 0.05, 1.0),
 ]
 
 
-def residuals(z, base, verbose=False):
-    cfg = apply(base, z)
+def residuals(z, base, verbose=False, free=None):
+    cfg = apply(base, z, free)
     try:
         m = measure(cfg)
     except Exception as exc:  # a diverged trial: large, finite misfit
         if verbose:
             print("diverged:", exc)
-        return np.full(len(OBJECTIVE) + 6, 50.0)
+        return np.full(len(OBJECTIVE) + 9, 50.0)
     res = [w * (m[k] - v) / tol for k, v, tol, w in OBJECTIVE]
     # trim must exist up to 1 m/s within the blade limits (primary)
     res.append(max(0.0, m["trim1_main"] - 33.0) / 2.0)
@@ -207,23 +239,26 @@ def main():
     ap.add_argument("--iterations", type=int, default=30)
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--start", help="start from a .npy vector of FREE values")
+    ap.add_argument("--only", help="comma-separated parameters of FREE to fit (default: all)")
     args = ap.parse_args()
     base = load_vehicle_config("baseline")
-    z0 = np.array([get(base, p) for p in FREE])
-    lo = np.array([b[0] for b in FREE.values()])
-    hi = np.array([b[1] for b in FREE.values()])
+    free = {p: FREE[p] for p in args.only.split(",")} if args.only else FREE
+    z0 = np.array([get(base, p) for p in free])
+    lo = np.array([b[0] for b in free.values()])
+    hi = np.array([b[1] for b in free.values()])
     if args.start:
         z0 = np.load(args.start)
     z0 = np.clip(z0, lo + 1e-9, hi - 1e-9)
-    print("start cost", 0.5 * np.sum(residuals(z0, base) ** 2))
-    sol = scipy.optimize.least_squares(residuals, z0, args=(base,), bounds=(lo, hi),
+    t0 = time.perf_counter()
+    print("start cost", 0.5 * np.sum(residuals(z0, base, free=free) ** 2))
+    sol = scipy.optimize.least_squares(residuals, z0, args=(base, False, free), bounds=(lo, hi),
                                        x_scale=np.abs(hi - lo) / 10, diff_step=1e-3,
                                        max_nfev=args.iterations, verbose=1)
-    print("final cost", sol.cost)
-    residuals(sol.x, base, verbose=True)
+    print(f"final cost {sol.cost:.4g} after {time.perf_counter() - t0:.0f} s")
+    residuals(sol.x, base, verbose=True, free=free)
     np.save(ROOT / "tools" / ".calibration_last.npy", sol.x)
-    cfg = apply(base, sol.x)
-    for path in FREE:
+    cfg = apply(base, sol.x, free)
+    for path in free:
         print(f"{path:<36} {get(cfg, path):.6g}")
     print("vectored Z installation", get(cfg, "thrusters.installation.2.2"))
     if args.write:

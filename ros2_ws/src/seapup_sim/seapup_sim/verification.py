@@ -306,6 +306,11 @@ def _rel(key, label, value, tol, primary, source, deviation=""):
     return Target(key, label, value, lo, hi, primary, source, deviation)
 
 
+#: Why the camera's crossover comes later than the thesis's (issue 11).
+CAMERA_NMP_DEVIATION = ("the bow payload's own heave-pitch added mass and its forward CG stabilise the pitch "
+                        "zero dynamics, so the camera crosses after the baseline, not before; README "
+                        "'Documented deviations: camera crossover'")
+
 #: Why the umbilical table's F_z is not reached (issue 11 decided to keep the exact cable solution).
 UMBILICAL_FZ_DEVIATION = ("exact solution of the thesis's stated cable assumptions leaves the cable ~26 deg above "
                           "horizontal where the table implies ~35 deg; README 'Documented deviations: umbilical F_z'")
@@ -345,11 +350,11 @@ TARGETS = {
         _abs("trim_0_7.pitch_deg", "trim 0.7 m/s pitch [deg]", 10.0, 3.0, False, "sec. 3.7"),
         _abs("trim_0_7.blade_pitch_deg.0", "trim 0.7 m/s mains [deg]", 14.6, 3.0, False, "sec. 3.7"),
         _abs("trim_0_7.blade_pitch_deg.2", "trim 0.7 m/s vectored [deg]", -5.9, 3.0, False, "sec. 3.7"),
-        _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.7, 0.1, False, "sec. 3.7"),
+        _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.7, 0.1, True, "sec. 3.7"),
         # large amplitude (issue 11): the vehicle's measured zero-radius turn
-        _rel("yaw_starboard.max_r_dps", "full yaw to stbd: max yaw rate [deg/s]", 53.3, 0.15, False,
+        _rel("yaw_starboard.max_r_dps", "full yaw to stbd: max yaw rate [deg/s]", 53.3, 0.15, True,
              "App. A.3 (gyro; timed 53.0)"),
-        _rel("yaw_port.max_r_dps", "full yaw to port: max yaw rate [deg/s]", 50.0, 0.15, False,
+        _rel("yaw_port.max_r_dps", "full yaw to port: max yaw rate [deg/s]", 50.0, 0.15, True,
              "App. A.3 (gyro; timed 51.7)"),
         _abs("yaw_starboard.max_roll_deg", "zero-radius turn max roll [deg]", 4.9, 1.5, False,
              "Table A.1 (b) 3: 6.2/3.6"),
@@ -387,7 +392,8 @@ TARGETS = {
         _rel("sway_4a.max_v", "sway top speed [m/s]", 0.35, 0.10, False, "sec. 3.6"),
         _abs("sway_4a.max_roll_deg", "sway max roll [deg]", 22.6, 3.0, False, "sec. 3.6"),
         _rel("sway_4a.max_roll_rate_dps", "sway max roll rate [deg/s]", 29.4, 0.2, False, "sec. 3.6"),
-        _abs("nmp_onset_surge", "non-minimum phase from [m/s]", 0.45, 0.1, False, "sec. 3.7"),
+        Target("nmp_onset_surge", "non-minimum phase from [m/s]", 0.45, 0.35, 0.55, False, "sec. 3.7, 5.5",
+               CAMERA_NMP_DEVIATION),
     ],
 }
 
