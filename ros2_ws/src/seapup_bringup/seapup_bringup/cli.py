@@ -205,6 +205,21 @@ def _replay(argv: list[str]) -> int:
     return replay(argv)
 
 
+def _ros2_verb(name: str, summary: str, usage_text: str):
+    def run(argv: list[str]) -> int:
+        from seapup_bringup import ros2_commands
+        return getattr(ros2_commands, name)(argv)
+    command(name, summary, usage_text)(run)
+
+
+_ros2_verb("topic", "topics, as 'ros2 topic'", "list [-t] | info T [-v] | echo T [--once] [--field F] [--csv] | "
+           "pub T TYPE 'YAML' [-1|-r HZ] | hz T")
+_ros2_verb("node", "nodes, as 'ros2 node'", "list | info NODE")
+_ros2_verb("param", "parameters, as 'ros2 param'", "list|dump NODE | get NODE NAME | set NODE NAME VALUE")
+_ros2_verb("service", "services, as 'ros2 service'", "list [-t] | call SERVICE TYPE 'YAML'")
+_ros2_verb("interface", "interface definitions, as 'ros2 interface show'", "show TYPE")
+
+
 def usage() -> str:
     lines = ["usage: ./seapup <command> [args...]", ""]
     width = min(max(len(f"{e.name} {e.usage}".strip()) for e in COMMANDS.values()) + 2, 34)
