@@ -105,7 +105,10 @@ def test_bad_input_is_one_line_and_exit_1(realtime_simulator, ros_env):
                         (["service", "call", "/seapup/simulator/reset", "seapup_msgs/srv/Reset", "{sed: 3}"],
                          "no field 'sed'"),
                         (["param", "get", "/nobody", "x", "--timeout", "1"], "not available"),
-                        (["interface", "show", "seapup_msgs/msg/Nope"], "has no 'Nope'")):
+                        (["interface", "show", "seapup_msgs/msg/Nope"], "has no 'Nope'"),
+                        (["topic", "pub", "/x", "seapup_msgs/srv/Reset", "{}", "-1"], "is not a message type"),
+                        (["service", "call", "/x", "seapup_msgs/msg/BladePitch", "{}"], "is not a service type"),
+                        (["topic", "pub", "/x", "seapup_msgs/msg/BladePitch", "{pitch: [1, 2, 3", "-1"], "")):
         out = cli(ros_env, *args)
         assert out.returncode == 1 and words in out.stderr and len(out.stderr.strip().splitlines()) == 1, \
             (args, out.stderr)
@@ -121,3 +124,23 @@ def test_interface_show_lists_the_fields_nested():
                              "seapup_msgs/msg/BladePitch"], capture_output=True, text=True, timeout=60).stdout
     assert nested.splitlines() == ["std_msgs/Header header", "\tbuiltin_interfaces/Time stamp", "\t\tint32 sec",
                                    "\t\tuint32 nanosec", "\tstring frame_id", "float64[4] pitch"]
+
+
+def test_action_list_and_send_goal_run_the_self_test(node_process, ros_env, tmp_path):
+    from tests.test_self_test_action import start_graph
+    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}", "wait_for_command_subscribers:=1"])
+    listed = cli(ros_env, "action", "list", "-t")
+    assert "/seapup/self_test [seapup_msgs/action/SelfTest]" in listed.stdout.splitlines(), listed.stdout
+    run = cli(ros_env, "action", "send_goal", "/seapup/self_test", "seapup_msgs/action/SelfTest",
+              "{operating_points: [0.0]}", "--feedback", "--json", timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    result = json.loads(run.stdout)
+    assert result["status"] == "succeeded" and result["result"]["success"] is True
+    assert len(result["result"]["b0_inverse"]) == 16 and result["result"]["surge_speeds"] == [0.0]
+    phases = {f["phase"] for f in result["feedback"]}
+    assert {"quiesce", "step"} <= phases and result["feedback"][-1]["progress"] == 1.0
+    assert "Goal finished with status: SUCCEEDED" in run.stderr and "Feedback:\nphase: " in run.stderr
+    # a goal the server refuses: exit 1, said so
+    refused = cli(ros_env, "action", "send_goal", "/seapup/self_test", "seapup_msgs/action/SelfTest",
+                  "{operating_points: [0.7]}")
+    assert refused.returncode == 1 and "Goal was rejected." in refused.stdout

@@ -212,11 +212,19 @@ def _ros2_verb(name: str, summary: str, usage_text: str):
     command(name, summary, usage_text)(run)
 
 
+@command("launch", "start a graph of nodes from YAML, as 'ros2 launch' (Ctrl-C stops them all)",
+         "GRAPH.yaml|PKG FILE [name:=value ...] [--show-args]")
+def _launch(argv: list[str]) -> int:
+    from seapup_bringup.launch import launch
+    return launch(argv)
+
+
 _ros2_verb("topic", "topics, as 'ros2 topic'", "list [-t] | info T [-v] | echo T [--once] [--field F] [--csv] | "
            "pub T TYPE 'YAML' [-1|-r HZ] | hz T")
 _ros2_verb("node", "nodes, as 'ros2 node'", "list | info NODE")
 _ros2_verb("param", "parameters, as 'ros2 param'", "list|dump NODE | get NODE NAME | set NODE NAME VALUE")
 _ros2_verb("service", "services, as 'ros2 service'", "list [-t] | call SERVICE TYPE 'YAML'")
+_ros2_verb("action", "actions, as 'ros2 action'", "list [-t] | send_goal ACTION TYPE 'YAML' [--feedback]")
 _ros2_verb("interface", "interface definitions, as 'ros2 interface show'", "show TYPE")
 
 

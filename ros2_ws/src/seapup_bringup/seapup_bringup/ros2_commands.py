@@ -18,7 +18,7 @@ import time
 
 import yaml
 
-__all__ = ["topic", "node", "param", "service", "interface"]
+__all__ = ["topic", "node", "param", "service", "action", "interface"]
 
 
 class CommandError(RuntimeError):
@@ -97,6 +97,35 @@ def _verb_parser(name: str, description: str):
     return parser, parser.add_subparsers(dest="verb", required=True)
 
 
+def _list_and_request(sub, verb: str, target: str, type_help: str):
+    """The ``list [-t]`` verb and a request verb (``TARGET TYPE ['YAML'] [--timeout]``); the latter's parser."""
+    p = sub.add_parser("list")
+    p.add_argument("-t", "--show-types", action="store_true")
+    p.add_argument("--timeout", type=float, default=1.0, help="seconds of discovery first")
+    p = sub.add_parser(verb)
+    p.add_argument(target)
+    p.add_argument("type", help=type_help)
+    p.add_argument("values", nargs="?", default="", help="YAML mapping of the fields")
+    p.add_argument("--timeout", type=float, default=10.0, help="wait this long for the server and its answer")
+    return p
+
+
+def _typed_request(args, part: str, kind: str):
+    """(interface class, its ``part`` filled from ``args.values``); ``part`` "" means the class itself."""
+    from seapup_common.ros.introspection import fill, interface_class
+    cls = interface_class(args.type)
+    if not hasattr(getattr(cls, part, None) if part else cls, "get_fields_and_field_types"):
+        raise CommandError(f"{args.type} is not {kind}")
+    return cls, fill((getattr(cls, part) if part else cls)(), yaml.safe_load(args.values) if args.values else {})
+
+
+def _listed(entries, show_types: bool, key: str) -> dict:
+    """Print ``name [types]`` lines as ros2cli does; the JSON result."""
+    for name, types in entries:
+        print(f"{name} [{', '.join(types)}]" if show_types else name)
+    return {key: [{"name": n, "types": list(t)} for n, t in entries]}
+
+
 def _json_options(parser: argparse.ArgumentParser) -> None:
     """``--json [FILE]`` on every verb (the ./seapup convention)."""
     from seapup_bringup.cli import add_json_argument
@@ -141,10 +170,8 @@ def _qos_for(probe: Probe, topic: str):
 
 # -- topic ------------------------------------------------------------------------------
 def _topic_list(probe, args):
-    topics = probe.settle(probe.node.get_topic_names_and_types, args.timeout)
-    for name, types in topics:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
-    args.result = {"topics": [{"name": n, "types": list(t)} for n, t in topics]}
+    args.result = _listed(probe.settle(probe.node.get_topic_names_and_types, args.timeout), args.show_types,
+                          "topics")
     return 0
 
 
@@ -230,10 +257,8 @@ def _flatten(value):
 
 
 def _topic_pub(probe, args):
-    from seapup_common.ros.introspection import fill, interface_class, to_yaml
-    cls = interface_class(args.type)
-    data = yaml.safe_load(args.values) if args.values else {}
-    msg = fill(cls(), data)
+    from seapup_common.ros.introspection import to_yaml
+    cls, msg = _typed_request(args, "", "a message type")
     publisher = probe.node.create_publisher(cls, args.topic, 10)
     print(f"publisher: beginning loop\npublishing #1: {type(msg).__name__}(...)")
     if args.once or args.times:
@@ -497,34 +522,83 @@ def param(argv: list[str]) -> int:
 def service(argv: list[str]) -> int:
     """``./seapup service list|call``."""
     parser, sub = _verb_parser("service", "services, as 'ros2 service'")
-    p = sub.add_parser("list")
-    p.add_argument("-t", "--show-types", action="store_true")
-    p.add_argument("--timeout", type=float, default=1.0)
-    p = sub.add_parser("call")
-    p.add_argument("service")
-    p.add_argument("type")
-    p.add_argument("values", nargs="?", default="")
-    p.add_argument("--timeout", type=float, default=10.0)
+    _list_and_request(sub, "call", "service", "pkg/srv/Type")
     _json_options(parser)
     args = parser.parse_args(argv)
 
     def run(probe, args):
-        from seapup_common.ros.introspection import fill, interface_class, to_data, to_yaml, type_name
+        from seapup_common.ros.introspection import to_data, to_yaml, type_name
         if args.verb == "list":
-            services = probe.settle(probe.node.get_service_names_and_types, args.timeout)
-            for name, types in services:
-                print(f"{name} [{', '.join(types)}]" if args.show_types else name)
-            args.result = {"services": [{"name": n, "types": list(t)} for n, t in services]}
+            args.result = _listed(probe.settle(probe.node.get_service_names_and_types, args.timeout),
+                                  args.show_types, "services")
             return 0
-        srv = interface_class(args.type)
-        if not hasattr(srv, "Request"):
-            raise CommandError(f"{args.type} is not a service type")
-        request = fill(srv.Request(), yaml.safe_load(args.values) if args.values else {})
+        srv, request = _typed_request(args, "Request", "a service type")
         print(f"requester: making request: {type_name(srv.Request)}(...)")
         response = probe.call(srv, args.service, request, args.timeout)
         print("\nresponse:\n" + to_yaml(response) + "\n")
         args.result = {"service": args.service, "type": args.type, "response": to_data(response)}
         return 0
+    return _run(run, args)
+
+
+# -- action ------------------------------------------------------------------------------------
+_STATUS = {1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
+
+
+def action(argv: list[str]) -> int:
+    """``./seapup action list|send_goal``."""
+    parser, sub = _verb_parser("action", "actions, as 'ros2 action'")
+    p = _list_and_request(sub, "send_goal", "action_name", "pkg/action/Type")
+    p.add_argument("-f", "--feedback", action="store_true", help="print the feedback")
+    p.add_argument("--result-timeout", type=float, default=3600.0, help="wall seconds to wait for the result")
+    _json_options(parser)
+    args = parser.parse_args(argv)
+
+    def run(probe, args):
+        from rclpy.action import ActionClient, get_action_names_and_types
+
+        from seapup_common.ros.graph import GoalNotAnswered, send_goal
+        from seapup_common.ros.introspection import to_data, to_yaml
+        if args.verb == "list":
+            args.result = _listed(probe.settle(lambda: get_action_names_and_types(probe.node), args.timeout),
+                                  args.show_types, "actions")
+            return 0
+        kind, goal = _typed_request(args, "Goal", "an action type")
+        feedback = []
+
+        def on_feedback(message):
+            feedback.append(to_data(message.feedback))
+            if args.feedback:
+                print("Feedback:\n" + to_yaml(message.feedback) + "\n")
+                sys.stdout.flush()
+        client = ActionClient(probe.node, kind, args.action_name)
+        print("Waiting for an action server to become available...")
+        print("Sending goal:\n" + to_yaml(goal) + "\n")
+        try:
+            handle = send_goal(probe.executor, client, goal, on_feedback, ready_timeout=args.timeout,
+                               response_timeout=min(5.0, args.timeout))
+        except GoalNotAnswered as exc:
+            raise CommandError(str(exc)) from None
+        if not handle.accepted:
+            print("Goal was rejected.")
+            args.result = {"action": args.action_name, "accepted": False}
+            return 1
+        print(f"Goal accepted with ID: {bytes(handle.goal_id.uuid).hex()}\n")
+        future = handle.get_result_async()
+        try:
+            if not probe.spin_until(future.done, args.result_timeout):
+                raise CommandError(f"no result within {args.result_timeout:g} s")
+        except KeyboardInterrupt:  # Ctrl-C cancels the goal, as ros2cli does
+            cancel = handle.cancel_goal_async()
+            probe.spin_until(cancel.done, 5.0)
+            print("Goal canceled.")
+            return 130
+        answer = future.result()
+        status = _STATUS.get(answer.status, str(answer.status))
+        print("Result:\n" + to_yaml(answer.result) + f"\n\nGoal finished with status: {status}")
+        args.result = {"action": args.action_name, "accepted": True, "status": status.lower(),
+                       "result": to_data(answer.result), "feedback": feedback}
+        return 0 if status == "SUCCEEDED" else 1
     return _run(run, args)
 
 

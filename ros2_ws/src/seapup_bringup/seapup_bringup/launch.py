@@ -1,0 +1,349 @@
+"""``./seapup launch``: start a graph of nodes from a YAML description (what ``ros2 launch`` does).
+
+There is no launch wheel. A graph file lists nodes and their defaults::
+
+    arguments:              # defaults; override with name:=value on the command line
+      mode: realtime
+    nodes:
+      - package: seapup_sim
+        executable: simulator
+        name: simulator         # optional: remaps the node name (__node)
+        namespace: /seapup      # optional: remaps the namespace (__ns)
+        parameters:             # mappings (nested = dotted names) and/or parameter files
+          - {mode: $(arg mode)}
+          - $(find seapup_sim)/config/simulator.yaml
+        remappings: {thrusters/command: /other/command}
+        args: []                # extra command-line arguments before --ros-args
+        required: true          # its exit stops the graph, exit 1 naming it
+        respawn: false          # restart it when it exits ...
+        respawn_limit: 3        # ... at most this many times
+        respawn_delay: 1.0      # [s]
+
+Substitutions, in the file's text before it is read as YAML (so ``true`` or
+``5.0`` keep their types): ``$(arg NAME)`` and ``$(find PACKAGE)`` (its share
+directory). An argument without a default and not given, or one given that
+the file does not declare, is an error that starts nothing.
+
+Each node runs in its own process group on the current ROS domain (loopback
+discovery), its output prefixed with ``[name]``. Ctrl-C or SIGTERM stops every
+node: SIGINT, then SIGTERM after ``stop_grace`` s, then SIGKILL. The launch
+ends when every node has ended: exit 0 if all ended cleanly, else 1.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch"]
+
+_SUBSTITUTION = re.compile(r"\$\((arg|find) ([A-Za-z0-9_./-]+)\)")
+
+
+class LaunchError(ValueError):
+    """A graph file that cannot be started (the reason names the node, argument or key)."""
+
+
+@dataclass
+class NodeSpec:
+    """One node of a graph (see the module docstring for the keys)."""
+
+    package: str
+    executable: str
+    name: str = ""
+    namespace: str = ""
+    parameters: list = field(default_factory=list)
+    remappings: dict = field(default_factory=dict)
+    args: list = field(default_factory=list)
+    required: bool = False
+    respawn: bool = False
+    respawn_limit: int = 0
+    respawn_delay: float = 1.0
+
+    @property
+    def label(self) -> str:
+        return self.name or self.executable
+
+
+def _share(package: str) -> str:
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    try:
+        return get_package_share_directory(package)
+    except PackageNotFoundError:
+        raise LaunchError(f"$(find {package}): no package {package!r} on AMENT_PREFIX_PATH") from None
+
+
+def find_graph(spec: str, file_name: str | None = None) -> Path:
+    """A graph file: a path, or ``PACKAGE FILE`` in the package's ``share/<pkg>/launch`` (as ros2 launch)."""
+    if file_name is None:
+        path = Path(spec)
+        if not path.is_file():
+            raise LaunchError(f"no graph file {spec!r}")
+        return path
+    path = Path(_share(spec)) / "launch" / file_name
+    if not path.is_file():
+        raise LaunchError(f"package {spec} has no launch/{file_name}")
+    return path
+
+
+def load_graph(path, arguments: dict[str, str] | None = None) -> list[NodeSpec]:
+    """The nodes of a graph file with its arguments substituted (``arguments`` override the defaults)."""
+    text = Path(path).read_text()
+    try:
+        head = yaml.safe_load(_SUBSTITUTION.sub("0", text)) or {}
+    except yaml.YAMLError as exc:
+        raise LaunchError(f"{path}: not YAML: {exc}") from None
+    declared = head.get("arguments") or {}
+    if not isinstance(declared, dict):
+        raise LaunchError(f"{path}: 'arguments' must be a mapping of names to defaults")
+    given = dict(arguments or {})
+    unknown = sorted(set(given) - set(declared))
+    if unknown:
+        raise LaunchError(f"{path}: unknown argument {unknown[0]!r} (declared: {', '.join(declared) or 'none'})")
+    values = {k: ("" if v is None else str(v)) for k, v in declared.items()}
+    values.update(given)
+
+    def substitute(match):
+        kind, name = match.groups()
+        if kind == "find":
+            return _share(name)
+        if name not in values:
+            raise LaunchError(f"{path}: $(arg {name}) is not declared under 'arguments'")
+        return values[name]
+    body = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
+    graph = yaml.safe_load(_SUBSTITUTION.sub(substitute, body)) or {}
+    nodes = graph.get("nodes")
+    if not isinstance(nodes, list) or not nodes:
+        raise LaunchError(f"{path}: 'nodes' must be a non-empty list")
+    specs = []
+    allowed = set(NodeSpec.__dataclass_fields__)
+    for i, entry in enumerate(nodes):
+        if not isinstance(entry, dict) or not {"package", "executable"} <= set(entry):
+            raise LaunchError(f"{path}: node {i} needs 'package' and 'executable'")
+        extra = sorted(set(entry) - allowed)
+        if extra:
+            raise LaunchError(f"{path}: node {i}: unknown key {extra[0]!r} (keys: {', '.join(sorted(allowed))})")
+        spec = NodeSpec(**entry)
+        if not isinstance(spec.parameters, list):
+            spec.parameters = [spec.parameters]
+        if spec.respawn_limit < 0 or spec.respawn_delay < 0:
+            raise LaunchError(f"{path}: node {spec.label}: respawn_limit and respawn_delay must be >= 0")
+        specs.append(spec)
+    labels = [s.label for s in specs]
+    if len(set(labels)) != len(labels):
+        raise LaunchError(f"{path}: two nodes named {next(x for x in labels if labels.count(x) > 1)!r}")
+    return specs
+
+
+def _flatten(mapping: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in mapping.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def command_line(spec: NodeSpec) -> list[str]:
+    """The node's command: its executable, ``args``, then ``--ros-args`` with names, parameters, remappings."""
+    from seapup_common.processes import find_executable
+    try:
+        exe = find_executable(spec.package, spec.executable)
+    except FileNotFoundError as exc:
+        raise LaunchError(f"node {spec.label}: {exc}") from None
+    ros = []
+    if spec.name:
+        ros += ["-r", f"__node:={spec.name}"]
+    if spec.namespace:
+        ros += ["-r", f"__ns:={spec.namespace}"]
+    for item in spec.parameters:
+        if isinstance(item, dict):
+            for name, value in _flatten(item).items():
+                text = yaml.safe_dump(value, default_flow_style=True).strip()
+                ros += ["-p", f"{name}:={text.removesuffix(chr(10) + '...').removesuffix(' ...')}"]
+        else:
+            if not Path(str(item)).is_file():
+                raise LaunchError(f"node {spec.label}: no parameter file {item!r}")
+            ros += ["--params-file", str(item)]
+    for source, target in (spec.remappings or {}).items():
+        ros += ["-r", f"{source}:={target}"]
+    return [str(exe), *[str(a) for a in spec.args], *(["--ros-args", *ros] if ros else [])]
+
+
+class _Running:
+    def __init__(self, spec: NodeSpec):
+        self.spec = spec
+        self.popen: subprocess.Popen | None = None
+        self.starts = 0
+        self.thread: threading.Thread | None = None
+        self.restart_at: float | None = None
+        self.reported = False  # its exit has been handled
+
+
+class Launch:
+    """Start, watch and stop a graph's nodes (see the module docstring).
+
+    Parameters
+    ----------
+    specs : list of NodeSpec
+    env : dict, optional
+        The nodes' environment (default: this process's, loopback discovery).
+    out : file, optional
+        Where the prefixed output goes (default stdout).
+    stop_grace : float
+        Seconds after SIGINT before SIGTERM (and again before SIGKILL).
+    """
+
+    def __init__(self, specs: list[NodeSpec], env: dict | None = None, out=None, stop_grace: float = 5.0):
+        self.specs = specs
+        self.env = dict(os.environ if env is None else env)
+        self.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        self.env["PYTHONUNBUFFERED"] = "1"
+        self.out = out or sys.stdout
+        self.stop_grace = float(stop_grace)
+        self.nodes = [_Running(s) for s in specs]
+        self.commands = {s.label: command_line(s) for s in specs}  # LaunchError before anything starts
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.reason = ""
+
+    def say(self, label: str, line: str) -> None:
+        with self._lock:
+            self.out.write(f"[{label}] {line}\n")
+            self.out.flush()
+
+    def _start(self, node: _Running) -> None:
+        node.popen = subprocess.Popen(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
+                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+        node.starts += 1
+        node.restart_at = None
+        self.say("launch", f"started {node.spec.label} (pid {node.popen.pid})"
+                 + (f", respawn {node.starts - 1} of {node.spec.respawn_limit}" if node.starts > 1 else ""))
+
+        def pump(popen=node.popen, label=node.spec.label):
+            for raw in iter(popen.stdout.readline, b""):
+                self.say(label, raw.decode(errors="replace").rstrip("\n"))
+        node.thread = threading.Thread(target=pump, daemon=True)
+        node.thread.start()
+
+    def request_stop(self, reason: str = "") -> None:
+        if reason and not self.reason:
+            self.reason = reason
+        self._stop.set()
+
+    def run(self) -> int:
+        """Start every node and supervise until all have ended; the exit status."""
+        handlers = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                handlers[sig] = signal.signal(sig, lambda s, _f: self.request_stop(f"{signal.Signals(s).name}"))
+        failed = []
+        try:
+            for node in self.nodes:
+                self._start(node)
+            while not self._stop.is_set():
+                alive = False
+                for node in self.nodes:
+                    code = node.popen.poll() if node.popen else None
+                    if node.popen is not None and code is None:
+                        alive = True
+                        continue
+                    if node.restart_at is not None:
+                        alive = True
+                        if time.monotonic() >= node.restart_at:
+                            self._start(node)
+                        continue
+                    if node.popen is None or node.reported:
+                        continue
+                    node.reported = True
+                    node.thread.join(1.0)
+                    self.say("launch", f"{node.spec.label} exited with {code}")
+                    if node.spec.required:
+                        self.request_stop(f"required node {node.spec.label} exited with {code}")
+                        failed.append(node.spec.label)
+                        break
+                    if node.spec.respawn and node.starts <= node.spec.respawn_limit:
+                        node.reported = False
+                        node.restart_at = time.monotonic() + node.spec.respawn_delay
+                        alive = True
+                    elif code != 0:
+                        failed.append(node.spec.label)
+                if not alive:
+                    break
+                self._stop.wait(0.05)
+        finally:
+            self._stop_all()
+            for sig, handler in handlers.items():
+                signal.signal(sig, handler)
+        if self.reason:
+            self.say("launch", f"stopped: {self.reason}")
+        if self.reason.startswith("required"):
+            return 1
+        return 0 if self.reason else (1 if failed else 0)  # stopped by a signal: a clean stop
+
+    def _stop_all(self) -> None:
+        running = [n for n in self.nodes if n.popen is not None and n.popen.poll() is None]
+        for sig, wait in ((signal.SIGINT, self.stop_grace), (signal.SIGTERM, self.stop_grace),
+                          (signal.SIGKILL, 2.0)):
+            running = [n for n in running if n.popen.poll() is None]
+            if not running:
+                break
+            for n in running:
+                try:
+                    os.killpg(n.popen.pid, sig)
+                except ProcessLookupError:
+                    pass
+            deadline = time.monotonic() + wait
+            while any(n.popen.poll() is None for n in running) and time.monotonic() < deadline:
+                time.sleep(0.02)
+        for n in self.nodes:
+            if n.thread is not None:
+                n.thread.join(1.0)
+
+
+def launch(argv: list[str]) -> int:
+    """``./seapup launch GRAPH.yaml [name:=value ...]`` or ``./seapup launch PACKAGE FILE [name:=value ...]``."""
+    import argparse
+    parser = argparse.ArgumentParser(prog="./seapup launch", description="start a graph of nodes, as 'ros2 launch'",
+                                     epilog="Graphs shipped: seapup_bringup simulator.yaml, "
+                                            "seapup_bringup simulator_controller.yaml. --json [FILE] writes the "
+                                            "nodes started and how they ended.")
+    parser.add_argument("graph", nargs="+", help="GRAPH.yaml, or PACKAGE FILE, then name:=value arguments")
+    parser.add_argument("--show-args", action="store_true", help="print the graph's arguments and exit")
+    parser.add_argument("--stop-grace", type=float, default=5.0, help="seconds between SIGINT, SIGTERM, SIGKILL")
+    from seapup_bringup.cli import add_json_argument, emit_json
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    words = [w for w in args.graph if ":=" not in w]
+    given = dict(w.split(":=", 1) for w in args.graph if ":=" in w)
+    try:
+        if len(words) not in (1, 2):
+            raise LaunchError("give GRAPH.yaml or PACKAGE FILE")
+        path = find_graph(*words)
+        if args.show_args:
+            declared = (yaml.safe_load(_SUBSTITUTION.sub("0", path.read_text())) or {}).get("arguments") or {}
+            for name, default in declared.items():
+                print(f"    '{name}': default '{default}'")
+            return 0
+        specs = load_graph(path, given)
+        runner = Launch(specs, stop_grace=args.stop_grace)
+    except LaunchError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    code = runner.run()
+    emit_json(args, {"graph": str(path), "exit": code, "reason": runner.reason,
+                     "nodes": [{"name": n.spec.label, "starts": n.starts,
+                                "exit": None if n.popen is None else n.popen.returncode} for n in runner.nodes]})
+    if code and runner.reason:
+        print(f"seapup: launch stopped: {runner.reason}", file=sys.stderr)
+    return code

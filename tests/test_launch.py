@@ -1,0 +1,142 @@
+"""./seapup launch through real processes: graphs start, stop cleanly, end on a required node's death,
+respawn up to their limit, and the shipped graphs fly the simulator."""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+import yaml
+
+from seapup_bringup.launch import LaunchError, load_graph
+
+
+class Launched:
+    """A ``./seapup launch`` process whose stdout is read by a thread (to search it while it runs)."""
+
+    def __init__(self, env, *args):
+        self.proc = subprocess.Popen([sys.executable, "-m", "seapup_bringup.cli", "launch", *args], env=env,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     start_new_session=True)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=lambda: self.lines.extend(iter(self.proc.stdout.readline, "")),
+                                       daemon=True)
+        self.reader.start()
+        self.pid = self.proc.pid
+
+    @property
+    def stdout(self) -> str:
+        return "".join(self.lines)
+
+    def wait_for(self, pattern, timeout=60.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            match = re.search(pattern, self.stdout)
+            if match:
+                return match
+            if self.proc.poll() is not None and not self.reader.is_alive():
+                break
+            time.sleep(0.05)
+        raise AssertionError(f"{pattern!r} not seen in:\n{self.stdout}")
+
+    def finish(self, timeout=60.0):
+        """Wait for the exit; (stdout, stderr)."""
+        self.proc.wait(timeout)
+        self.reader.join(5.0)
+        return self.stdout, self.proc.stderr.read()
+
+    @property
+    def returncode(self):
+        return self.proc.returncode
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:
+        return f.read().split()[2] != "Z"
+
+
+def graph(tmp_path, nodes, arguments=None):
+    path = tmp_path / "graph.yaml"
+    path.write_text(yaml.safe_dump({"arguments": arguments or {}, "nodes": nodes}, sort_keys=False))
+    return str(path)
+
+
+def test_arguments_are_substituted_and_checked(tmp_path):
+    path = graph(tmp_path, [{"package": "seapup_sim", "executable": "simulator",
+                             "parameters": [{"real_time_factor": "$(arg rtf)", "environment": {"sensors": "ideal"}}]}],
+                 {"rtf": 2.0})
+    (spec,) = load_graph(path, {"rtf": "3.5"})
+    assert spec.parameters == [{"real_time_factor": 3.5, "environment": {"sensors": "ideal"}}]  # typed after substitution
+    with pytest.raises(LaunchError, match="unknown argument 'rate'"):
+        load_graph(path, {"rate": "1"})
+    (tmp_path / "bad.yaml").write_text("nodes:\n  - {package: seapup_sim, executable: simulator, colour: red}\n")
+    with pytest.raises(LaunchError, match="unknown key 'colour'"):
+        load_graph(tmp_path / "bad.yaml")
+
+
+def test_a_required_node_that_dies_stops_the_graph_and_is_named(tmp_path, ros_env):
+    path = graph(tmp_path, [
+        {"package": "seapup_sim", "executable": "simulator", "required": True,
+         "parameters": [{"mode": "realtime", "real_time_factor": 1.0}]},
+        {"package": "seapup_control", "executable": "open_loop", "name": "helper",
+         "parameters": [{"lockstep": False}]}])
+    proc = Launched(ros_env, path, "--json")
+    sim = int(proc.wait_for(r"started simulator \(pid (\d+)\)").group(1))
+    helper = int(proc.wait_for(r"started helper \(pid (\d+)\)").group(1))
+    proc.wait_for(r"\[simulator\] .*simulator ready")
+    os.kill(sim, signal.SIGKILL)
+    stdout, stderr = proc.finish()
+    assert proc.returncode == 1 and "required node simulator exited with -9" in stderr
+    assert not alive(helper)  # the rest were stopped
+    result = json.loads(stdout[stdout.index("{\n \"graph\""):])
+    assert result["exit"] == 1 and [n["name"] for n in result["nodes"]] == ["simulator", "helper"]
+
+
+def test_respawn_up_to_its_limit(tmp_path, ros_env):
+    # a node that cannot start (an invalid mode) exits 1 at once: started 1 + 2 times, then the launch ends
+    path = graph(tmp_path, [{"package": "seapup_sim", "executable": "simulator", "respawn": True, "respawn_limit": 2,
+                             "respawn_delay": 0.2, "parameters": [{"mode": "bogus"}]}])
+    proc = Launched(ros_env, path, "--json")
+    stdout, _ = proc.finish(120)
+    assert proc.returncode == 1
+    assert stdout.count("started simulator") == 3 and "respawn 2 of 2" in stdout
+    result = json.loads(stdout[stdout.index('{\n "graph"'):])
+    assert result["nodes"][0]["starts"] == 3 and result["nodes"][0]["exit"] == 1
+
+
+def test_sigterm_stops_every_node_cleanly(tmp_path, ros_env):
+    proc = Launched(ros_env, "seapup_bringup", "simulator.yaml", "real_time_factor:=2.0")
+    sim = int(proc.wait_for(r"started simulator \(pid (\d+)\)").group(1))
+    proc.wait_for(r"simulator ready")
+    os.kill(proc.pid, signal.SIGTERM)
+    proc.finish(30)
+    assert proc.returncode == 0 and not alive(sim)
+
+
+def test_shipped_controller_graph_flies_the_simulator_in_lockstep(tmp_path, ros_env):
+    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_control.self_test import result_document
+    controller = tmp_path / "controller.yaml"
+    controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))
+    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.yaml", f"controller_file:={controller}",
+                    "mode:=lockstep", "lockstep:=true", "sensors:=ideal")
+    try:
+        proc.wait_for(r"starting from the applied blade pitch")
+        # the lockstep simulator advances only because the controller answers every sample
+        echo = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "topic", "echo", "/seapup/thrusters/command",
+                               "--count", "20", "--field", "header.stamp.sec", "--csv"], env=ros_env,
+                              capture_output=True, text=True, timeout=60)
+        seconds = [int(x) for x in echo.stdout.split()]
+        assert len(seconds) == 20 and seconds[-1] >= seconds[0]
+    finally:
+        os.kill(proc.pid, signal.SIGINT)
+        proc.finish(30)
+    assert proc.returncode == 0
