@@ -156,7 +156,8 @@ class SelfTestNode(Node):
         """Fail a goal whose samples stopped coming (no simulator, a dead sensor): it ends, with the reason."""
         idle = time.monotonic() - self._last_sample_wall
         if self._goal is not None and idle > self.no_data_timeout and not self._done.done():
-            why = (f"no velocity data for {idle:.1f} s (is /seapup/sensors/velocity published?)" if self.gate.ready()
+            why = (f"no velocity data for {idle:.1f} s (is /seapup/sensors/velocity published?)"
+                   if not self.gate.missing()
                    else f"still waiting for subscribers after {idle:.1f} s: {', '.join(self.gate.missing())}")
             self.test.abort(why)
             self._done.set_result(True)

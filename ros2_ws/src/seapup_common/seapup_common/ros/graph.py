@@ -60,6 +60,10 @@ def adapted_qos(publisher_infos, depth: int = 1000) -> QoSProfile:
                       durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
+#: Wall seconds a gate's subscribers must stay matched before it opens (see :class:`SubscriberGate`).
+DISCOVERY_GRACE = 0.25
+
+
 class SubscriberGate:
     """Open once every listed publisher has had at least its required matched subscribers for ``grace`` s.
 
@@ -77,7 +81,7 @@ class SubscriberGate:
         Wall seconds the requirements must hold before the gate opens.
     """
 
-    def __init__(self, requirements, grace: float = 0.0):
+    def __init__(self, requirements, grace: float = DISCOVERY_GRACE):
         self.requirements = [(p, int(n)) for p, n in requirements if int(n) > 0]
         self.grace = float(grace)
         self._open = not self.requirements
