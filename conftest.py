@@ -57,15 +57,35 @@ def ros_domain():
 
 
 @pytest.fixture
-def ros_context(ros_domain):
-    """A private rclpy Context on the test's domain; shut down at teardown."""
+def ros_context(ros_domain, monkeypatch):
+    """A private rclpy Context on the test's domain; at teardown every node made in it is destroyed
+    and the context shut down and destroyed.
+
+    Destroying the nodes matters: a failed test's traceback keeps its nodes alive, and a live node
+    keeps the context's DDS participant announcing itself on a domain the next test reuses (seen: a
+    later test's probe overheard nothing from child processes)."""
     import rclpy
     from rclpy.context import Context
+    from rclpy.node import Node
 
     context = Context()
     rclpy.init(context=context, domain_id=ros_domain)
+    nodes = []
+    original = Node.__init__
+
+    def tracked(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        if self.context is context:
+            nodes.append(self)
+    monkeypatch.setattr(Node, "__init__", tracked)
     yield context
+    for node in nodes:
+        try:
+            node.destroy_node()
+        except Exception:  # noqa: BLE001 - already destroyed by the test
+            pass
     context.try_shutdown()
+    context.destroy()
 
 
 @pytest.fixture

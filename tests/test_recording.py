@@ -4,7 +4,6 @@ import sys
 import time
 
 import numpy as np
-import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from nav_msgs.msg import Odometry
@@ -134,11 +133,6 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     # its sample, equal to the command the bag holds for that sample
     answers = probe.msgs["/seapup/thrusters/command"]
     probe.spin(lambda: len(answers) >= samples, 30.0)
-    if not answers:
-        # Known defect (closing note of 2026-11-23): late in the full suite this process's new
-        # participant is not discovered by child processes (probes of failed tests linger), so it
-        # overhears nothing; the replay's own count above still proves every sample was answered.
-        pytest.xfail("the test process overheard nothing (discovery late in the full suite)")
     assert len(answers) >= 0.9 * samples, (len(answers), samples, stamp(answers[-1]))
     stamps = [stamp(a) for a in answers]
     assert stamps == sorted(set(stamps)) and all(s % 200_000_000 == 0 for s in stamps)
