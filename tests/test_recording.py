@@ -133,7 +133,8 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     # its sample, equal to the command the bag holds for that sample
     answers = probe.msgs["/seapup/thrusters/command"]
     probe.spin(lambda: len(answers) >= samples, 30.0)
-    assert len(answers) >= 0.9 * samples, (len(answers), samples, stamp(answers[-1]))
+    assert len(answers) >= 0.9 * samples, (len(answers), samples, answers[-1:] and stamp(answers[-1]))
+    assert stamp(answers[-1]) == (samples - 1) * 200_000_000  # the last sample's answer too
     stamps = [stamp(a) for a in answers]
     assert stamps == sorted(set(stamps)) and all(s % 200_000_000 == 0 for s in stamps)
     by_stamp = {stamp(r): r.pitch for r in recorded}

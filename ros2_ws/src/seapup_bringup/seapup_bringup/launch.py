@@ -292,20 +292,8 @@ class Launch:
         return 0 if self.reason else (1 if failed else 0)  # stopped by a signal: a clean stop
 
     def _stop_all(self) -> None:
-        running = [n for n in self.nodes if n.popen is not None and n.popen.poll() is None]
-        for sig, wait in ((signal.SIGINT, self.stop_grace), (signal.SIGTERM, self.stop_grace),
-                          (signal.SIGKILL, 2.0)):
-            running = [n for n in running if n.popen.poll() is None]
-            if not running:
-                break
-            for n in running:
-                try:
-                    os.killpg(n.popen.pid, sig)
-                except ProcessLookupError:
-                    pass
-            deadline = time.monotonic() + wait
-            while any(n.popen.poll() is None for n in running) and time.monotonic() < deadline:
-                time.sleep(0.02)
+        from seapup_common.processes import stop_process_groups
+        stop_process_groups([n.popen for n in self.nodes if n.popen is not None], self.stop_grace, self.stop_grace)
         for n in self.nodes:
             if n.thread is not None:
                 n.thread.join(1.0)

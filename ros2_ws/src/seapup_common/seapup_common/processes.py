@@ -29,6 +29,7 @@ __all__ = [
     "ros_environment",
     "find_executable",
     "NodeProcess",
+    "stop_process_groups",
 ]
 
 #: Domain IDs seapup leases. 0 is left to users; the Linux port mapping of
@@ -131,6 +132,23 @@ def find_executable(package: str, executable: str) -> Path:
         f"({len(prefixes)} prefixes); run through ./seapup or source the workspace")
 
 
+def stop_process_groups(popens, grace: float, term_grace: float) -> None:
+    """Stop the process groups led by ``popens`` together: SIGINT, then SIGTERM after ``grace`` s,
+    then SIGKILL after ``term_grace`` s more (each step only to those still running)."""
+    for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, term_grace), (signal.SIGKILL, 2.0)):
+        running = [p for p in popens if p.poll() is None]
+        if not running:
+            return
+        for p in running:
+            try:
+                os.killpg(p.pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + wait
+        while any(p.poll() is None for p in running) and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+
 class NodeProcess:
     """One node (or any command) in its own process group, logging to a file.
 
@@ -180,16 +198,7 @@ class NodeProcess:
         """Stop with SIGINT, then SIGTERM, then SIGKILL; return the exit code."""
         if self.popen is None:
             return None
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-            if self.popen.poll() is not None:
-                break
-            try:
-                os.killpg(self.popen.pid, sig)
-            except ProcessLookupError:
-                break
-            deadline = time.monotonic() + wait
-            while self.popen.poll() is None and time.monotonic() < deadline:
-                time.sleep(0.02)
+        stop_process_groups([self.popen], grace, 2.0)
         return self.popen.wait()
 
     def __enter__(self) -> "NodeProcess":

@@ -17,6 +17,7 @@ no per-type code:
 """
 from __future__ import annotations
 
+import array
 import importlib
 import math
 
@@ -85,18 +86,13 @@ def to_data(msg):
         return {name: to_data(getattr(msg, name)) for name, _ in _fields(msg)}
     if isinstance(msg, np.ndarray):
         return msg.tolist()
-    if isinstance(msg, (list, tuple, array_type())):
+    if isinstance(msg, (list, tuple, array.array)):
         return [to_data(v) for v in msg]
     if isinstance(msg, bytes):
         return list(msg)
     if isinstance(msg, np.generic):
         return msg.item()
     return msg
-
-
-def array_type():
-    import array
-    return array.array
 
 
 def _scalar(value, slot, where: str):
