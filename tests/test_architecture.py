@@ -6,7 +6,8 @@ seapup_control and seapup_ident must install and run on a real vehicle without
 the simulator, so they never import seapup_sim (outside their tests). Pure-core
 modules import numpy/scipy/yaml/rosbags but never rclpy or ROS message
 packages, directly or through another seapup module; rclpy shells are the
-``*_node.py`` modules, ``seapup_common.ros`` and the bringup package (graphs).
+``*_node.py`` modules, each package's ``ros`` subpackage (``seapup_common.ros``,
+``seapup_control.ros``: the SIL harness) and the bringup package (graphs).
 """
 import ast
 import re
@@ -45,7 +46,7 @@ def imports_of(path: Path) -> set[str]:
 
 def is_shell(module: str) -> bool:
     package = module.split(".")[0]
-    return (package == "seapup_bringup" or module.startswith("seapup_common.ros")
+    return (package == "seapup_bringup" or module.startswith(f"{package}.ros.") or module == f"{package}.ros"
             or module.split(".")[-1].endswith("_node"))
 
 

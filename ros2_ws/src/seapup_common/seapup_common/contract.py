@@ -29,7 +29,7 @@ import numpy as np
 from seapup_common.blade_pitch import InvalidBladePitchError
 
 __all__ = ["ContractError", "Reading", "Measurement", "Reference", "ReferenceSchedule", "Command", "VelocityController",
-           "HoldCommand", "MEASUREMENT_FIELDS"]
+           "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate"]
 
 #: Measurement fields, their sizes (0 = scalar) and meanings.
 MEASUREMENT_FIELDS = {
@@ -186,6 +186,9 @@ class ReferenceSchedule:
     ----------
     capacity : int
         Most references waiting at once; more are refused (:class:`ContractError`).
+    initial : object, optional
+        What is in force before anything was added (default: a zero :class:`Reference`). The
+        schedule holds any object: the position controller schedules pose setpoints with it.
 
     Examples
     --------
@@ -195,10 +198,13 @@ class ReferenceSchedule:
     (0.0, 0.3)
     """
 
-    def __init__(self, capacity: int = 1000):
+    _ZERO = object()
+
+    def __init__(self, capacity: int = 1000, initial=_ZERO):
         self.capacity = int(capacity)
-        self.current = Reference()
+        self.current = Reference() if initial is ReferenceSchedule._ZERO else initial
         self._waiting: list[tuple[float, int, Reference]] = []  # (time, arrival order, reference), sorted
+        self._immediate: list = []  # added without a time since the last due()
         self._arrivals = 0
 
     def add(self, reference: Reference, at: float | None = None) -> None:
@@ -206,6 +212,7 @@ class ReferenceSchedule:
         if at is None:
             self._waiting.clear()
             self.current = reference
+            self._immediate.append(reference)
             return
         if not math.isfinite(at):
             raise ContractError(f"reference time must be finite, got {at!r}")
@@ -216,9 +223,20 @@ class ReferenceSchedule:
 
     def at(self, t: float) -> Reference:
         """The reference in force at time ``t`` (those due by then are taken in time order)."""
-        while self._waiting and self._waiting[0][0] <= t + 1e-9:
-            self.current = self._waiting.pop(0)[2]
+        self.due(t)
         return self.current
+
+    def due(self, t: float) -> list:
+        """Take everything due by time ``t`` (in time order) and return it; the last becomes current.
+
+        Also returns what was added without a time since the last call.
+        """
+        taken, self._immediate = self._immediate, []
+        while self._waiting and self._waiting[0][0] <= t + 1e-9:
+            taken.append(self._waiting.pop(0)[2])
+        if taken:
+            self.current = taken[-1]
+        return taken
 
     @property
     def waiting(self) -> int:
@@ -288,3 +306,29 @@ class HoldCommand:
 
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
         return Command(self.blade_pitch, stamp=t)
+
+
+@dataclass(frozen=True)
+class NavigationEstimate:
+    """The navigator's answer at time ``t``: pose, body velocity and uncertainty.
+
+    ``position`` (x, y, z) [m] in odom_ned with covariance ``position_cov``
+    (3x3); ``attitude`` (phi, theta, psi) [rad] and ``velocity`` (u, v, w)
+    [m/s], ``rates`` (p, q, r) [rad/s] as last measured.
+    """
+
+    t: float
+    position: np.ndarray
+    position_cov: np.ndarray
+    attitude: np.ndarray
+    velocity: np.ndarray
+    rates: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def yaw(self) -> float:
+        return float(self.attitude[2])
+
+    @property
+    def horizontal_std(self) -> float:
+        """sqrt of the trace of the horizontal covariance [m]."""
+        return float(math.sqrt(max(0.0, self.position_cov[0, 0] + self.position_cov[1, 1])))

@@ -15,12 +15,14 @@ Quaternions are (x, y, z, w) as in ROS messages; conversions use
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 __all__ = ["NED_TO_ENU", "FRD_TO_FLU", "FRAME_NED", "FRAME_FRD", "FRAME_ENU", "FRAME_FLU",
            "euler_to_quaternion", "quaternion_to_euler", "ned_to_enu", "frd_to_flu",
-           "orientation_ned_frd_to_enu_flu", "covariance6_to_enu_flu"]
+           "orientation_ned_frd_to_enu_flu", "covariance6_to_enu_flu", "rotation_body_to_ned", "wrap_angle"]
 
 FRAME_NED, FRAME_FRD = "odom_ned", "base_link_frd"
 FRAME_ENU, FRAME_FLU = "odom", "base_link"
@@ -67,3 +69,26 @@ def covariance6_to_enu_flu(cov, world_first: bool) -> np.ndarray:
     j[:3, :3] = NED_TO_ENU if world_first else FRD_TO_FLU
     j[3:, 3:] = FRD_TO_FLU
     return j @ c @ j.T
+
+
+def rotation_body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
+    """Rotation matrix R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1)."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    return np.array([
+        [cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
+        [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
+        [-st, ct * sf, ct * cf],
+    ])
+
+
+def wrap_angle(angle):
+    """An angle (or array of angles) wrapped to (-pi, pi] [rad].
+
+    >>> float(wrap_angle(3 * math.pi / 2))
+    -1.5707963267948966
+    """
+    wrapped = np.mod(np.asarray(angle, dtype=float) + math.pi, 2 * math.pi) - math.pi
+    wrapped = np.where(wrapped == -math.pi, math.pi, wrapped)
+    return float(wrapped) if np.ndim(wrapped) == 0 else wrapped

@@ -46,20 +46,13 @@ from seapup_msgs.msg import BladePitch
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, ContractError, Reference, ReferenceSchedule
 from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
-                                        stamp_to_ns)
+                                        reference_from_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions,
                                     run_node)
 from seapup_control.mfol import DesignError
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 
-__all__ = ["MFOLControllerNode", "reference_from_msg", "main"]
-
-
-def reference_from_msg(msg: TwistStamped) -> Reference:
-    """(u, v, w, r) from a TwistStamped in base_link_frd (ContractError if not finite or another frame)."""
-    if msg.header.frame_id not in ("", "base_link_frd"):
-        raise ContractError(f"reference frame {msg.header.frame_id!r}: expected base_link_frd")
-    return Reference([msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z])
+__all__ = ["MFOLControllerNode", "main"]
 
 
 class MFOLControllerNode(LifecycleNode):
@@ -226,7 +219,7 @@ class MFOLControllerNode(LifecycleNode):
                   "references_waiting": self.references.waiting}
         rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
         level = DiagnosticStatus.WARN if (rejected or any(state.saturated)) else DiagnosticStatus.OK
-        status = DiagnosticStatus(level=level, name="seapup/mfol_velocity_controller", hardware_id="seapup_control",
+        status = DiagnosticStatus(level=level, name=f"seapup/{self.get_name()}", hardware_id="seapup_control",
                                   message="saturated" if any(state.saturated) else "tracking",
                                   values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
         array = DiagnosticArray(status=[status])

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from seapup_common.frames import rotation_body_to_ned
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.config import ConfigView
 from seapup_sim.hydrodynamics import HydroTable
@@ -70,18 +71,6 @@ def kirchhoff_coriolis(mass: np.ndarray, nu: np.ndarray) -> np.ndarray:
 def skew(a) -> np.ndarray:
     """Cross-product matrix S(a) with S(a) b = a x b."""
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
-def rotation_body_to_ned(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Rotation matrix R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1)."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    return np.array([
-        [cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
-        [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
-        [-st, ct * sf, ct * cf],
-    ])
 
 
 def specific_force(state, accel_body, g: float) -> np.ndarray:

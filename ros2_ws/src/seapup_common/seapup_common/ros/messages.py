@@ -19,20 +19,22 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import (PoseWithCovarianceStamped, TwistWithCovarianceStamped,
+from geometry_msgs.msg import (PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped,
                                Vector3Stamped, WrenchStamped)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, Range
 from seapup_msgs.msg import BladePitch, Depth
 
 from seapup_common import frames
-from seapup_common.contract import Command, ContractError, Measurement, Reading
+from seapup_common.contract import Command, ContractError, Measurement, NavigationEstimate, Reading, Reference
 
 __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
            "position_to_msg", "position_from_msg", "depth_to_msg", "depth_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
            "vector3_stamped", "wrench_stamped", "MeasurementCollector", "LockstepSampler",
+           "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
+           "reference_to_msg", "reference_from_msg",
            "UNKNOWN_VARIANCE"]
 
 #: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
@@ -213,6 +215,80 @@ def odometry_enu(state, t_ns: int) -> Odometry:
     _set_xyz(msg.twist.twist.linear, frames.frd_to_flu(x[6:9]))
     _set_xyz(msg.twist.twist.angular, frames.frd_to_flu(x[9:12]))
     return msg
+
+
+# -- the hierarchy: navigation estimate, pose setpoints, velocity references ---------
+def estimate_to_odometry(estimate: NavigationEstimate, t_ns: int) -> Odometry:
+    """A navigation estimate as nav_msgs/Odometry, odom_ned -> base_link_frd, with its covariances.
+
+    Pose covariance: position from the filter, orientation unknown
+    (:data:`UNKNOWN_VARIANCE`, the navigator does not estimate it); twist
+    covariance zero (unknown, REP-145).
+    """
+    msg = _header(Odometry(), t_ns, frames.FRAME_NED)
+    msg.child_frame_id = frames.FRAME_FRD
+    _set_xyz(msg.pose.pose.position, estimate.position)
+    _set_quaternion(msg.pose.pose.orientation, frames.euler_to_quaternion(*estimate.attitude))
+    cov = np.zeros((6, 6))
+    cov[:3, :3] = estimate.position_cov
+    cov[3:, 3:] = np.eye(3) * UNKNOWN_VARIANCE
+    msg.pose.covariance = cov.ravel().tolist()
+    _set_xyz(msg.twist.twist.linear, estimate.velocity)
+    _set_xyz(msg.twist.twist.angular, estimate.rates)
+    return msg
+
+
+def estimate_from_odometry(msg: Odometry) -> NavigationEstimate:
+    """A navigation estimate from odom_ned Odometry (ContractError on another frame or non-finite values)."""
+    if msg.header.frame_id != frames.FRAME_NED:
+        raise ContractError(f"navigation odometry in frame {msg.header.frame_id!r}: expected {frames.FRAME_NED}")
+    position = np.array(_xyz(msg.pose.pose.position))
+    attitude = frames.quaternion_to_euler(_quaternion(msg.pose.pose.orientation))
+    cov = np.array(msg.pose.covariance, dtype=float).reshape(6, 6)[:3, :3]
+    velocity, rates = np.array(_xyz(msg.twist.twist.linear)), np.array(_xyz(msg.twist.twist.angular))
+    if not all(np.all(np.isfinite(a)) for a in (position, attitude, cov, velocity, rates)):
+        raise ContractError("navigation odometry with non-finite values")
+    return NavigationEstimate(stamp_to_ns(msg.header.stamp) * 1e-9, position, cov, attitude, velocity, rates)
+
+
+def pose_setpoint_to_msg(position, yaw: float, t_ns: int) -> PoseStamped:
+    """A setpoint (x, y, z in odom_ned, yaw) as PoseStamped stamped with the time it is for."""
+    msg = _header(PoseStamped(), t_ns, frames.FRAME_NED)
+    _set_xyz(msg.pose.position, position)
+    _set_quaternion(msg.pose.orientation, frames.euler_to_quaternion(0.0, 0.0, yaw))
+    return msg
+
+
+def pose_setpoint_from_msg(msg: PoseStamped) -> tuple[np.ndarray, float, int]:
+    """(position, yaw, stamp_ns) of a PoseStamped setpoint in odom_ned (ContractError otherwise).
+
+    Only the yaw of the orientation is used (the hierarchy controls x, y, z, yaw; roll and pitch are
+    the vehicle's own, sec. 4.2); a non-unit or non-finite quaternion is refused.
+    """
+    if msg.header.frame_id != frames.FRAME_NED:
+        raise ContractError(f"pose reference in frame {msg.header.frame_id!r}: expected {frames.FRAME_NED}")
+    position = np.array(_xyz(msg.pose.position))
+    q = _quaternion(msg.pose.orientation)
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(q))):
+        raise ContractError(f"pose reference must be finite, got {position.tolist()}, {q.tolist()}")
+    if abs(float(np.linalg.norm(q)) - 1.0) > 1e-3:
+        raise ContractError(f"pose reference orientation is not a unit quaternion (norm {np.linalg.norm(q):.4g})")
+    return position, float(frames.quaternion_to_euler(q)[2]), stamp_to_ns(msg.header.stamp)
+
+
+def reference_to_msg(reference: Reference, t_ns: int) -> TwistStamped:
+    """A body-velocity reference (u, v, w, r) as TwistStamped in base_link_frd, for sample ``t_ns``."""
+    msg = _header(TwistStamped(), t_ns, frames.FRAME_FRD)
+    _set_xyz(msg.twist.linear, reference.velocity[:3])
+    msg.twist.angular.z = float(reference.velocity[3])
+    return msg
+
+
+def reference_from_msg(msg: TwistStamped) -> Reference:
+    """(u, v, w, r) from a TwistStamped in base_link_frd (ContractError if not finite or another frame)."""
+    if msg.header.frame_id not in ("", frames.FRAME_FRD):
+        raise ContractError(f"reference frame {msg.header.frame_id!r}: expected {frames.FRAME_FRD}")
+    return Reference([msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z])
 
 
 def vector3_stamped(vector, t_ns: int, frame_id: str) -> Vector3Stamped:

@@ -1,0 +1,263 @@
+"""``./seapup mission``: the mission -- the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3) flying the Seapup.
+
+Starts the whole graph (``seapup_bringup/launch/hierarchy.yaml`` in lockstep,
+faster than real time, every node its own process, plus the recorder) with
+:class:`seapup_control.ros.sil.SilGraph`, then flies, through ROS only:
+
+1. the self-test (sec. 4.5.2) through its action; both velocity controllers
+   are configured from its result and the fixed-gain one is activated;
+2. hover, swapping the velocity controller (fixed gain -> gain scheduled)
+   half way through;
+3. a goto of ~10 m with a 90 deg heading change;
+4. the inspection manoeuvre (sec. 5.4.2: body velocities 0.2, 0.1, 0.1 m/s,
+   "a diagonal creeping motion"), as a goto along that diagonal at its speed;
+5. seabed following at a set height up the slope;
+6. station keeping in the thesis's 0.26 m/s Gauss-Markov current (sec. 3.9).
+
+Everything is recorded to an MCAP bag (``<out>/bag``); the demo prints a table
+per leg (duration, tracking errors, position-hold RMS and max from the truth,
+thruster saturation, the swap's command step), writes PNG plots next to the
+bag and the numbers as JSON (``--json``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+
+__all__ = ["MISSION", "main", "fly_mission"]
+
+#: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
+MISSION = "mission.yaml"
+
+RECORDED = ["/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/truth/odometry",
+            "/seapup/sensors/velocity", "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/position",
+            "/seapup/sensors/altitude", "/seapup/navigation/odometry", "/seapup/velocity_controller/reference",
+            "/seapup/position_controller/reference", "/seapup/self_test/samples", "/diagnostics"]
+
+
+def mission_config() -> dict:
+    from ament_index_python.packages import get_package_share_directory
+    return yaml.safe_load((Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION).read_text())
+
+
+def _set_parameter(sil, node: str, name: str, value: str) -> None:
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    parameter = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value))
+    response = sil.call(f"/seapup/{node}/set_parameters", "rcl_interfaces/srv/SetParameters", {"parameters": [parameter]})
+    if not response.results[0].successful:
+        raise RuntimeError(f"{node}: {name} refused: {response.results[0].reason}")
+
+
+def _leg_numbers(logs: dict, t0: float, t1: float) -> dict:
+    """Truth-based numbers of one leg: hold error from its last setpoint, saturation."""
+    t, truth = logs["truth_t"], logs["truth_position"]
+    window = (t >= t0) & (t <= t1)
+    ct = logs["command_t"]
+    commands = logs["command"][(ct >= t0) & (ct <= t1)]
+    saturated = float(np.mean(np.any(np.abs(commands) >= BLADE_PITCH_LIMIT - 1e-6, axis=1))) if len(commands) else 0.0
+    st = logs["setpoint_t"]
+    held = logs["setpoint"][(st >= t0) & (st <= t1)]
+    out = {"saturation_pct": 100 * saturated, "duration": t1 - t0}
+    if len(held) and window.any():
+        index = np.searchsorted(st, t[window]).clip(0, len(st) - 1)
+        errors = truth[window] - logs["setpoint"][index, :3]
+        horizontal = np.hypot(errors[:, 0], errors[:, 1])
+        out.update(hold_rms=float(np.sqrt(np.mean(horizontal ** 2))), hold_max=float(horizontal.max()),
+                   depth_rms=float(np.sqrt(np.mean(errors[:, 2] ** 2))))
+    return out
+
+
+def _swap_bump(logs: dict, t_switch: float) -> dict:
+    t, c = logs["command_t"], logs["command"]
+    steps = np.abs(np.diff(c, axis=0)).max(axis=1)
+    ts = t[1:]
+    at = steps[(ts > t_switch - 0.3) & (ts < t_switch + 1.0)]
+    before = steps[(ts > t_switch - 15.0) & (ts <= t_switch - 0.3)]
+    return {"switch_step_deg": math.degrees(float(at.max())) if len(at) else math.nan,
+            "normal_step_deg": math.degrees(float(before.max())) if len(before) else math.nan}
+
+
+def fly_mission(out: Path, config: dict, text) -> dict:
+    """Fly the mission in a SIL graph; the per-leg numbers (and the logs as arrays under ``logs``)."""
+    from seapup_control.ros.sil import SilGraph
+
+    legs, swap = [], {}
+    plan = config["mission"]
+    total = sum(leg.get("expected", 60.0) for leg in plan)
+    done = 0.0
+    with SilGraph(arguments=config["graph"], out_dir=out, record=RECORDED, ready_status="") as sil:
+        print(f"seapup mission: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
+        for leg in plan:
+            kind, t0, wall = leg["kind"], sil.t, time.monotonic()
+            progress(f"{leg['name']:<16}", done / total)
+            numbers = _fly_leg(sil, leg, swap)
+            t1 = sil.t
+            done += leg.get("expected", 60.0)
+            legs.append({"name": leg["name"], "kind": kind, "t0": t0, "t1": t1, "wall_s": time.monotonic() - wall,
+                         **numbers})
+            print(f"seapup mission: {leg['name']}: {numbers.get('status', 'done')} in {t1 - t0:.1f} s simulated "
+                  f"({time.monotonic() - wall:.1f} s wall)", file=text)
+        progress("mission", 1.0)
+        logs = sil.logs()
+        bag = sil.bag
+    for leg in legs:
+        leg.update(_leg_numbers(logs, leg["t0"], leg["t1"]))
+    if swap:
+        legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
+    return {"legs": legs, "bag": str(bag), "logs": logs}
+
+
+def _fly_leg(sil, leg: dict, swap: dict) -> dict:
+    kind = leg["kind"]
+    if kind == "self_test":
+        from seapup_msgs.action import SelfTest
+        from rclpy.action import ActionClient
+        from seapup_common.ros.graph import send_goal
+        client = ActionClient(sil._node, SelfTest, "/seapup/self_test")
+        handle = send_goal(sil._executor, client, SelfTest.Goal())
+        future = handle.get_result_async()
+        sil.spin_until(future.done, 600.0)
+        result = future.result().result
+        if not result.success:
+            raise RuntimeError(f"self-test failed: {result.message}")
+        for node in leg["configure"]:
+            _set_parameter(sil, node, "controller_file", result.controller_file)
+        reply = sil.switch(activate=[leg["activate"]])
+        if not reply.ok:
+            raise RuntimeError(f"activating {leg['activate']}: {reply.message}")
+        return {"status": "succeeded", "controller_file": result.controller_file,
+                "self_test_duration": result.duration}
+    if kind == "current":
+        reply = sil.call("/seapup/simulator/set_current", "seapup_msgs/srv/SetCurrent", leg["current"])
+        if not reply.success:
+            raise RuntimeError(f"set_current: {reply.message}")
+        kind = "hover"
+    here = sil.logs()["estimate_position"][-1]
+    yaw = sil.logs()["estimate_attitude"][-1, 2]
+    goal = dict(leg.get("goal", {}))
+    if leg["kind"] == "inspection":
+        body = np.asarray(leg["body_velocity"], dtype=float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        travel = np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
+        target = here + travel
+        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": float(yaw),
+                "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
+        kind = "goto"
+    elif "offset" in leg:
+        target = here + np.asarray(leg["offset"], dtype=float)
+        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    during = None
+    if "switch" in leg:
+        def do_switch():
+            swap["t"] = sil.t
+            return sil.switch(**leg["switch"]["request"])
+        during = (leg["switch"]["after"], do_switch)
+    result = sil.goal(kind, timeout=600.0, during=during, **{k: float(v) if not isinstance(v, bool) else v
+                                                             for k, v in goal.items()})
+    if during is not None:
+        swap["leg"] = leg["index"]
+        swap["ok"] = bool(result["during"].ok)
+    return {k: (v if not hasattr(v, "ok") else v.ok) for k, v in result.items() if k != "during"}
+
+
+def _table(legs: list, text) -> None:
+    head = (f"{'leg':<18}{'status':<11}{'sim s':>7}{'wall s':>7}{'track err':>11}{'hold rms':>10}{'hold max':>10}"
+            f"{'sat %':>7}{'swap step':>11}")
+    print(head, file=text)
+    print("-" * len(head), file=text)
+    for leg in legs:
+        track = leg.get("distance", leg.get("altitude_rms", leg.get("horizontal_rms", math.nan)))
+        swap = leg.get("switch_step_deg", math.nan)
+        print(f"{leg['name']:<18}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}"
+              f"{track:>9.3f} m{leg.get('hold_rms', math.nan):>8.3f} m{leg.get('hold_max', math.nan):>8.3f} m"
+              f"{leg['saturation_pct']:>7.1f}" + (f"{swap:>7.3f} deg" if not math.isnan(swap) else ""), file=text)
+
+
+def _plots(result: dict, out: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    logs = result["logs"]
+    paths = []
+    fig, (top, side) = plt.subplots(1, 2, figsize=(12, 5))
+    top.plot(logs["truth_position"][:, 1], logs["truth_position"][:, 0], label="truth")
+    top.plot(logs["estimate_position"][:, 1], logs["estimate_position"][:, 0], lw=0.6, label="navigation")
+    top.plot(logs["setpoint"][:, 1], logs["setpoint"][:, 0], "--", lw=0.8, label="setpoint")
+    top.set_xlabel("east y [m]"), top.set_ylabel("north x [m]"), top.set_aspect("equal"), top.legend()
+    top.set_title("top view (odom_ned)")
+    side.plot(logs["truth_t"], logs["truth_position"][:, 2], label="depth (truth)")
+    side.plot(logs["setpoint_t"], logs["setpoint"][:, 2], "--", lw=0.8, label="depth setpoint")
+    side.invert_yaxis(), side.set_xlabel("t [s]"), side.set_ylabel("depth [m]"), side.legend()
+    for leg in result["legs"]:
+        side.axvline(leg["t0"], color="grey", lw=0.5)
+        side.text(leg["t0"], side.get_ylim()[1], leg["name"], rotation=90, fontsize=7, va="top")
+    fig.tight_layout()
+    paths.append(out / "mission_path.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, axes = plt.subplots(4, 1, figsize=(12, 9), sharex=True)
+    names = ["u [m/s]", "v [m/s]", "w [m/s]", "r [rad/s]"]
+    columns = [0, 1, 2, 5]
+    for ax, name, col, ref in zip(axes, names, columns, range(4)):
+        ax.plot(logs["truth_t"], logs["truth_velocity"][:, col], lw=0.8, label="truth")
+        ax.plot(logs["reference_t"], logs["reference"][:, ref], lw=0.8, label="reference")
+        ax.set_ylabel(name)
+    axes[0].legend(), axes[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    paths.append(out / "mission_velocities.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(12, 4))
+    for i, name in enumerate(["main port", "main starboard", "vectored starboard", "vectored port"]):
+        ax.plot(logs["command_t"], np.degrees(logs["command"][:, i]), lw=0.7, label=name)
+    ax.set_xlabel("t [s]"), ax.set_ylabel("blade pitch [deg]"), ax.legend(ncol=4)
+    fig.tight_layout()
+    paths.append(out / "mission_blade_pitch.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return [str(p) for p in paths]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="./seapup mission", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", help="output directory (default runs/mission_<UTC time>)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    out = Path(args.out) if args.out else Path("runs") / time.strftime("mission_%Y%m%d_%H%M%S", time.gmtime())
+    config = mission_config()
+    for index, leg in enumerate(config["mission"]):
+        leg["index"] = index
+    wall = time.monotonic()
+    try:
+        result = fly_mission(out, config, text)
+    except Exception as exc:  # a failed leg or graph: say which, point at the logs
+        print(f"seapup mission: failed: {exc}; node logs in {out}", file=text)
+        return 1
+    _table(result["legs"], text)
+    if not args.no_plots:
+        result["plots"] = _plots(result, out)
+        print(f"seapup mission: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
+    result["wall_s"] = time.monotonic() - wall
+    print(f"seapup mission: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
+    summary = {k: v for k, v in result.items() if k != "logs"}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    emit_json(args, summary)
+    failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
+    if failed:
+        print(f"seapup mission: legs that did not succeed: {', '.join(failed)}", file=text)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

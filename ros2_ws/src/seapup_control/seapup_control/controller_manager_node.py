@@ -1,0 +1,281 @@
+"""The ``controller_manager`` node: runtime swaps and failover of the velocity controller (ros2_control's semantics).
+
+A thin shell over :class:`seapup_control.controller_manager.ControllerManagerCore`.
+The managed velocity controllers are lifecycle nodes in ``/seapup``, each
+publishing its blade pitches on a topic of its own (``command_topic``); the
+manager forwards the active one's commands to ``/seapup/thrusters/command``,
+at most one per sample, so exactly one controller commands the thrusters.
+
+Services (``/seapup/controller_manager/...``):
+
+- ``list_controllers`` (seapup_msgs/srv/ListControllers): each controller's
+  lifecycle state (asked of the node), type, counters; the active one.
+- ``switch_controller`` (seapup_msgs/srv/SwitchController): deactivate, then
+  activate, through each node's ``change_state`` service; an unconfigured
+  controller is configured first. From the moment the outgoing controller is
+  told to stop, the samples not yet forwarded belong to the incoming one, so
+  the switch falls on a tick boundary; the incoming one starts from the
+  applied blade pitch (bumpless). If it fails to activate, the outgoing one
+  is activated again (rollback) and the reply says why.
+
+Failover: when the vehicle's sample t_k (``thrusters/applied``) has waited
+``command_deadline`` wall seconds without a command from the active
+controller (its process died, it missed its deadline), the manager activates
+the ``fallback`` controller, which answers that sample; reported at ERROR on
+``/diagnostics`` (``seapup/controller_manager``) and in the log.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from seapup_msgs.msg import BladePitch, ControllerState
+from seapup_msgs.srv import ListControllers, SwitchController
+
+from seapup_common.ros.messages import ns_to_stamp, stamp_to_ns
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
+from seapup_control.controller_manager import ControllerManagerCore, SwitchError
+
+__all__ = ["ControllerManagerNode", "main"]
+
+
+class ControllerManagerNode(Node):
+    """rclpy shell around :class:`ControllerManagerCore` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("controller_manager", namespace="/seapup", **kwargs)
+        p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager")
+        names, types = list(p["controllers"]), list(p["types"])
+        if types and len(types) != len(names):
+            raise ValueError(f"types: {len(types)} given for {len(names)} controllers")
+        self.core = ControllerManagerCore(names, p["fallback"], dict(zip(names, types)))
+        self.deadline = float(p["command_deadline"])
+        self.switch_timeout = float(p["switch_timeout"])
+        self.topics = {n: p["command_topic"].format(name=n) for n in names}
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        for name in names:
+            self.create_subscription(BladePitch, self.topics[name],
+                                     lambda msg, name=name: self._on_command(name, msg), COMMAND_QOS)
+        self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)
+        self._client_node = rclpy.create_node("controller_manager_lifecycle_client", namespace="/seapup",
+                                              context=self.context)
+        self._client_executor = SingleThreadedExecutor(context=self.context)
+        self._client_executor.add_node(self._client_node)
+        self.change = {n: self._client_node.create_client(ChangeState, f"/seapup/{n}/change_state") for n in names}
+        self.get_state = {n: self._client_node.create_client(GetState, f"/seapup/{n}/get_state") for n in names}
+        self.create_service(ListControllers, "~/list_controllers", self._list, qos_profile=SERVICE_QOS)
+        self.create_service(SwitchController, "~/switch_controller", self._switch, qos_profile=SERVICE_QOS)
+        self.latest_sample_ns: int | None = None
+        self._unanswered_since: float | None = None
+        self.invalid_commands = 0
+        self.failover_message = ""
+        self.create_timer(0.02, self._watch)
+        self.create_timer(1.0, self._diagnose)
+        self._initial = p["initial"]
+        if self._initial:
+            if self._initial not in self.core.controllers:
+                raise ValueError(f"initial controller {self._initial!r} is not one of {names}")
+            self._initial_timer = self.create_timer(0.1, self._start_initial)
+
+    # -- lifecycle calls -----------------------------------------------------------------------
+    # The calls block inside a service or timer callback: they go through a private client node
+    # spun by an executor of its own (coroutine callbacks that await futures stall Jazzy's
+    # SingleThreadedExecutor here). Meanwhile nothing is forwarded, which in lockstep only makes
+    # the simulator wait; a transition takes a few milliseconds.
+    def _call(self, client, request, timeout: float):
+        """The service's response, or None after ``timeout`` wall seconds."""
+        if not client.wait_for_service(timeout_sec=min(timeout, 1.0)):
+            return None
+        future = client.call_async(request)
+        self._client_executor.spin_until_future_complete(future, timeout_sec=timeout)
+        return future.result() if future.done() else None
+
+    def _state(self, name: str, timeout: float) -> str:
+        response = self._call(self.get_state[name], GetState.Request(), timeout)
+        label = response.current_state.label if response is not None else "unknown"
+        self.core.controllers[name].state = label
+        return label
+
+    def _transition(self, name: str, transition: int, timeout: float) -> str | None:
+        """Run one lifecycle transition; None on success, else why not."""
+        request = ChangeState.Request()
+        request.transition.id = transition
+        response = self._call(self.change[name], request, timeout)
+        if response is None:
+            return f"{name} did not answer transition {transition} within {timeout:g} s (is it running?)"
+        if not response.success:
+            return f"{name} refused transition {transition} (see its log)"
+        return None
+
+    def _activate(self, name: str, timeout: float) -> str | None:
+        state = self._state(name, timeout)
+        if state == "unconfigured":
+            problem = self._transition(name, Transition.TRANSITION_CONFIGURE, timeout)
+            if problem:
+                return f"configure: {problem}"
+        self.core.handover(name)  # its answer to the pending sample is the first forwarded
+        problem = self._transition(name, Transition.TRANSITION_ACTIVATE, timeout)
+        if problem:
+            self.core.handover(None)
+            return f"activate: {problem}"
+        self.core.set_state(name, "active")
+        return None
+
+    def _deactivate(self, name: str, timeout: float) -> str | None:
+        self.core.handover(None)  # from now on nothing of it is forwarded
+        problem = self._transition(name, Transition.TRANSITION_DEACTIVATE, timeout)
+        self.core.set_state(name, "inactive" if problem is None else "unknown")
+        return problem
+
+    def _start_initial(self) -> None:
+        if not self.change[self._initial].service_is_ready():
+            return  # the controller node is not up yet: try again at the next tick
+        self.destroy_timer(self._initial_timer)
+        self._configure_all(self.switch_timeout)
+        problem = self._activate(self._initial, self.switch_timeout)
+        if problem:
+            self.get_logger().error(f"initial controller {self._initial}: {problem}")
+        else:
+            self.get_logger().info(f"initial controller {self._initial} active")
+
+    # -- services ------------------------------------------------------------------------------
+    def _list(self, request, response):
+        for name, controller in self.core.controllers.items():
+            state = self._state(name, 1.0)
+            response.controller.append(ControllerState(
+                name=name, state=state, type=controller.type, fallback=name == self.core.fallback,
+                command_topic=self.topics[name], commands_forwarded=controller.commands_forwarded,
+                commands_dropped=controller.commands_dropped))
+        response.active = self.core.active or ""
+        return response
+
+    def _switch(self, request, response):
+        timeout = request.timeout if request.timeout > 0 else self.switch_timeout
+        try:
+            plan = self.core.plan_switch(list(request.activate_controllers), list(request.deactivate_controllers),
+                                         request.strictness)
+        except SwitchError as exc:
+            response.ok, response.message = False, str(exc)
+            self.get_logger().warn(f"switch refused: {exc}")
+            return response
+        response.ok, response.message = self._run_plan(plan, timeout)
+        log = self.get_logger().info if response.ok else self.get_logger().error
+        log(f"switch: {response.message}")
+        self._diagnose()
+        return response
+
+    def _configure_all(self, timeout: float) -> None:
+        """Configure every unconfigured controller (as ros2_control loads controllers before switching):
+        an inactive controller already hears the applied blade pitch, so it starts bumpless."""
+        for name in self.core.controllers:
+            if name != self.core.active and self._state(name, timeout) == "unconfigured":
+                problem = self._transition(name, Transition.TRANSITION_CONFIGURE, timeout)
+                if problem:
+                    self.get_logger().warn(f"configure {name}: {problem}")
+
+    def _run_plan(self, plan, timeout: float) -> tuple[bool, str]:
+        self._configure_all(timeout)
+        outgoing = plan.deactivate[0] if plan.deactivate else None
+        for name in plan.deactivate:
+            problem = self._deactivate(name, timeout)
+            if problem:
+                return False, f"deactivate: {problem}"
+        for name in plan.activate:
+            problem = self._activate(name, timeout)
+            if problem:
+                if outgoing is not None:  # rollback: the outgoing controller takes over again
+                    back = self._activate(outgoing, timeout)
+                    return False, f"{problem}; rolled back to {outgoing}" + (f" (failed too: {back})" if back else "")
+                return False, problem
+        done = [f"deactivated {', '.join(plan.deactivate)}"] if plan.deactivate else []
+        done += [f"activated {', '.join(plan.activate)}"] if plan.activate else []
+        return True, "; ".join(done + plan.skipped) or "nothing to do"
+
+    # -- forwarding and failover -------------------------------------------------------------
+    def _on_command(self, name: str, msg: BladePitch) -> None:
+        pitch = np.asarray(msg.pitch, dtype=float)
+        if pitch.shape != (4,) or not np.all(np.isfinite(pitch)):
+            self.invalid_commands += 1
+            self.get_logger().warn(f"invalid command from {name} dropped", throttle_duration_sec=2.0)
+            return
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if self.core.accept_command(name, stamp_ns):
+            self.publisher.publish(msg)
+            if self.latest_sample_ns is None or stamp_ns >= self.latest_sample_ns:
+                self._unanswered_since = None
+
+    def _on_applied(self, msg: BladePitch) -> None:
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if self.latest_sample_ns is not None and stamp_ns <= self.latest_sample_ns:
+            return
+        self.latest_sample_ns = stamp_ns
+        answered = self.core.last_forwarded_ns is not None and self.core.last_forwarded_ns >= stamp_ns
+        if not answered and self._unanswered_since is None:
+            self._unanswered_since = time.monotonic()
+
+    def _watch(self) -> None:
+        if self._unanswered_since is None:
+            return
+        waited = time.monotonic() - self._unanswered_since
+        if self.core.overdue(self.latest_sample_ns, waited, self.deadline):
+            self._failover()
+
+    def _failover(self) -> None:
+        failed, fallback, sample = self.core.active, self.core.fallback, self.latest_sample_ns
+        reason = (f"{failed} did not answer sample t = {sample * 1e-9:.3f} s within {self.deadline:g} s "
+                  f"(process dead or deadline missed)")
+        self._unanswered_since = None  # one failover per unanswered stretch
+        if failed == fallback:
+            self.failover_message = f"{reason}; it is the fallback: nothing to fail over to"
+            self.get_logger().error(self.failover_message, throttle_duration_sec=5.0)
+            return
+        self.core.set_state(failed, "unknown")
+        self.core.record_failover(failed, sample, reason)
+        self._transition_quietly(failed)
+        problem = self._activate(fallback, self.switch_timeout)
+        self.failover_message = f"failover: {reason}; " + (f"{fallback} failed too: {problem}" if problem
+                                                          else f"{fallback} active")
+        self.get_logger().error(self.failover_message)
+        self._diagnose()
+
+    def _transition_quietly(self, name: str) -> None:
+        """Ask a failed controller to deactivate (it may be dead: nobody waits for the answer)."""
+        if self.change[name].service_is_ready():
+            request = ChangeState.Request()
+            request.transition.id = Transition.TRANSITION_DEACTIVATE
+            self.change[name].call_async(request)
+
+    def destroy_node(self):
+        self._client_executor.shutdown()
+        self._client_node.destroy_node()
+        return super().destroy_node()
+
+    def _diagnose(self) -> None:
+        values = {"active": self.core.active or "", "fallback": self.core.fallback,
+                  "failovers": len(self.core.failovers), "invalid_commands": self.invalid_commands,
+                  "last_failover": self.failover_message}
+        for name, c in self.core.controllers.items():
+            values[f"{name}.forwarded"] = c.commands_forwarded
+            values[f"{name}.dropped"] = c.commands_dropped
+        level = DiagnosticStatus.ERROR if self.core.failovers else DiagnosticStatus.OK
+        message = self.failover_message or (f"{self.core.active} active" if self.core.active else "no controller active")
+        status = DiagnosticStatus(level=level, name="seapup/controller_manager", hardware_id="seapup_control",
+                                  message=message, values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = ns_to_stamp(self.latest_sample_ns or 0)
+        self.diagnostics.publish(array)
+
+
+def main(args=None) -> int:
+    return run_node(ControllerManagerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,213 @@
+"""Navigation: where the vehicle is, from the instruments the thesis lists (sec. 1.3).
+
+The global position controller needs a position estimate at every control
+sample, but the only absolute position sensor is an acoustic fix: slow (at
+most 1 Hz), noisy ("a large fraction of a metre") and subject to drop-outs
+(sec. 1.3). Dead reckoning -- the doppler log's body velocity rotated into
+the world frame with the attitude (eq. 2.1) and integrated -- is smooth and
+fast but drifts. A linear Kalman filter fuses the two, with the depth gauge
+as a third, precise measurement of z.
+
+State and model (sample period T, world frame ``odom_ned``)::
+
+    x_k = (x, y, z)_k                                   position of the body origin [m]
+    x_{k+1} = x_k + T R(phi, theta, psi) v_k + n_k      v_k = (u, v, w) from the log (eq. 2.1)
+    Q_k = T^2 R Sigma_v R^T + q_walk T I                log noise + model error (attitude noise,
+                                                        the velocity's change within a sample)
+    fix:    y = x + e_fix,   Var e_fix = diag(sigma_fix^2)     when a fix is valid
+    depth:  y = z + e_depth, Var e_depth = sigma_depth^2       every sample
+
+The filter is linear (R is known from the attitude measurement each sample),
+so it is the standard predict/update (Kalman 1960) in Joseph form. A fix
+whose normalised innovation squared exceeds the chi-square quantile
+``gate_probability`` for 3 degrees of freedom (``scipy.stats.chi2``) is an
+outlier (multipath, sec. 1.3): rejected and counted, never fused. A missing
+velocity reading makes the prediction hold the last velocity with the
+process noise inflated by ``coast_inflation``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from seapup_common.contract import ContractError, Measurement, NavigationEstimate
+from seapup_common.frames import rotation_body_to_ned
+
+__all__ = ["NavigatorParams", "Navigator"]
+
+
+@dataclass(frozen=True)
+class NavigatorParams:
+    """Tuning of :class:`Navigator` (YAML: ``seapup_control/config/navigator.yaml``).
+
+    Parameters
+    ----------
+    q_walk : float
+        Position random-walk intensity [m^2/s] (model error beyond the log's white noise).
+    velocity_std : tuple of 3 float
+        Doppler-log noise [m/s] used when a reading carries no variance (0 = unknown).
+    fix_std : float
+        Acoustic-fix noise [m] used when a fix carries no variance.
+    depth_std : float
+        Depth-gauge noise [m] used when a reading carries no variance.
+    initial_std : float
+        Standard deviation [m] of the first estimate (from the first fix or depth).
+    gate_probability : float
+        Fixes beyond this chi-square quantile (3 dof) of the innovation are rejected; 1 = no gate.
+    coast_inflation : float
+        Process-noise factor while the velocity log is lost.
+    """
+
+    q_walk: float = 1e-4
+    velocity_std: tuple = (0.0034, 0.0034, 0.0034)
+    fix_std: float = 0.5
+    depth_std: float = 0.05
+    initial_std: float = 2.0
+    gate_probability: float = 0.9999
+    coast_inflation: float = 100.0
+
+    def __post_init__(self):
+        values = [self.q_walk, *self.velocity_std, self.fix_std, self.depth_std, self.initial_std]
+        if len(self.velocity_std) != 3 or not all(math.isfinite(v) and v >= 0 for v in values):
+            raise ValueError(f"navigator: q_walk, velocity_std (3), fix_std, depth_std, initial_std must be "
+                             f"finite and >= 0, got {values}")
+        if self.fix_std <= 0 or self.depth_std <= 0 or self.initial_std <= 0:
+            raise ValueError("navigator: fix_std, depth_std and initial_std must be > 0")
+        if not 0 < self.gate_probability <= 1 or self.coast_inflation < 1:
+            raise ValueError(f"navigator: gate_probability in (0, 1] and coast_inflation >= 1, got "
+                             f"{self.gate_probability}, {self.coast_inflation}")
+
+    @classmethod
+    def from_mapping(cls, mapping: dict) -> "NavigatorParams":
+        known = {k: mapping[k] for k in cls.__dataclass_fields__ if k in mapping}
+        unknown = set(mapping) - set(known)
+        if unknown:
+            raise ValueError(f"navigator: unknown parameter(s) {sorted(unknown)}")
+        if "velocity_std" in known:
+            known["velocity_std"] = tuple(float(v) for v in known["velocity_std"])
+        return cls(**known)
+
+
+class Navigator:
+    """Linear Kalman filter of the module docstring: dead reckoning corrected by fixes and depth.
+
+    Feed it one :class:`~seapup_common.contract.Measurement` per control
+    sample with :meth:`update`; it returns the estimate, or None until it
+    has an attitude and a first position (a fix; until then nothing is
+    known about x, y).
+
+    Parameters
+    ----------
+    params : NavigatorParams
+    """
+
+    def __init__(self, params: NavigatorParams | None = None):
+        self.params = params or NavigatorParams()
+        self.chi2_gate = (math.inf if self.params.gate_probability >= 1
+                          else float(stats.chi2.ppf(self.params.gate_probability, 3)))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything (the next fix starts the filter again)."""
+        self.x: np.ndarray | None = None
+        self.P: np.ndarray | None = None
+        self.t: float | None = None
+        self.velocity = np.zeros(3)
+        self.rates = np.zeros(3)
+        self.attitude: np.ndarray | None = None
+        self.counts = {"samples": 0, "fixes_fused": 0, "fixes_rejected": 0, "depths_fused": 0,
+                       "coasting_samples": 0, "rejected_samples": 0}
+        self._last_fix_stamp = -math.inf
+        self._last_depth_stamp = -math.inf
+
+    # -- the filter ------------------------------------------------------------------------
+    def _predict(self, dt: float, velocity_variance: np.ndarray, coasting: bool) -> None:
+        R = rotation_body_to_ned(*self.attitude)
+        self.x = self.x + dt * (R @ self.velocity)
+        Q = dt * dt * R @ np.diag(velocity_variance) @ R.T + self.params.q_walk * dt * np.eye(3)
+        self.P = self.P + (self.params.coast_inflation * Q if coasting else Q)
+
+    def _fuse(self, H: np.ndarray, y: np.ndarray, Rm: np.ndarray, gate: float) -> bool:
+        innovation = y - H @ self.x
+        S = H @ self.P @ H.T + Rm
+        if float(innovation @ np.linalg.solve(S, innovation)) > gate:
+            return False
+        K = np.linalg.solve(S, H @ self.P).T
+        I_KH = np.eye(3) - K @ H
+        self.x = self.x + K @ innovation
+        self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T  # Joseph form: stays symmetric positive definite
+        self.P = 0.5 * (self.P + self.P.T)
+        return True
+
+    def _variance(self, reading, default_std) -> np.ndarray:
+        var = np.atleast_1d(np.asarray(reading.variance, dtype=float))
+        default = np.broadcast_to(np.asarray(default_std, dtype=float) ** 2, var.shape)
+        return np.where(var > 0, var, default)
+
+    def update(self, measurement: Measurement) -> NavigationEstimate | None:
+        """Advance to ``measurement.t`` and fuse what it holds; the estimate (None until initialised).
+
+        Raises
+        ------
+        ContractError
+            If the measurement's time goes backwards (nothing changes).
+        """
+        t = float(measurement.t)
+        if self.t is not None and t < self.t - 1e-9:
+            self.counts["rejected_samples"] += 1
+            raise ContractError(f"navigation sample at t = {t:.3f} s is before the last one ({self.t:.3f} s)")
+        if measurement.attitude.valid:
+            self.attitude = np.array(measurement.attitude.value, dtype=float)
+        coasting = not measurement.velocity.valid
+        if not coasting:
+            self.velocity = np.array(measurement.velocity.value, dtype=float)
+            velocity_variance = self._variance(measurement.velocity, self.params.velocity_std)
+        else:
+            velocity_variance = np.asarray(self.params.velocity_std, dtype=float) ** 2
+        if measurement.rates.valid:
+            self.rates = np.array(measurement.rates.value, dtype=float)
+        if self.attitude is None:
+            return None
+        if self.x is not None and self.t is not None:
+            self._predict(t - self.t, velocity_variance, coasting)
+            self.counts["coasting_samples"] += int(coasting)
+        self.t = t
+        self.counts["samples"] += 1
+        self._take_fix(measurement)
+        self._take_depth(measurement)
+        return self.estimate()
+
+    def _take_fix(self, measurement: Measurement) -> None:
+        fix = measurement.position
+        if not fix.valid or fix.stamp <= self._last_fix_stamp:
+            return
+        self._last_fix_stamp = fix.stamp
+        variance = self._variance(fix, self.params.fix_std)
+        if self.x is None:  # the first fix starts the filter
+            self.x = np.array(fix.value, dtype=float)
+            self.P = np.diag(np.maximum(variance, self.params.initial_std ** 2))
+            self.counts["fixes_fused"] += 1
+            return
+        if self._fuse(np.eye(3), np.asarray(fix.value, float), np.diag(variance), self.chi2_gate):
+            self.counts["fixes_fused"] += 1
+        else:
+            self.counts["fixes_rejected"] += 1
+
+    def _take_depth(self, measurement: Measurement) -> None:
+        depth = measurement.depth
+        if self.x is None or not depth.valid or depth.stamp <= self._last_depth_stamp:
+            return
+        self._last_depth_stamp = depth.stamp
+        variance = self._variance(depth, self.params.depth_std)
+        if self._fuse(np.array([[0.0, 0.0, 1.0]]), np.array([float(depth.value)]), np.diag(variance), math.inf):
+            self.counts["depths_fused"] += 1
+
+    def estimate(self) -> NavigationEstimate | None:
+        """The present estimate (None before the first fix or attitude)."""
+        if self.x is None or self.attitude is None:
+            return None
+        return NavigationEstimate(self.t, self.x.copy(), self.P.copy(), self.attitude.copy(),
+                                  self.velocity.copy(), self.rates.copy())

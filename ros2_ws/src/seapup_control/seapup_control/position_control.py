@@ -1,0 +1,172 @@
+"""The global position controller: the middle level of the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3).
+
+"The global position controller, using the ROV's Euler angles as a feedback
+signal, will convert a global position error into a body coordinate position
+error and demand local velocities to reduce this error" (sec. 4.2); "these
+velocity references ... should take the vehicle's capabilities into account"
+(sec. 8.2). At each sample::
+
+    e_ned  = p_ref - p_hat                                   (odom_ned)
+    e_body = R(phi, theta, psi)^T e_ned                      (eq. 2.1 inverted: R is orthonormal)
+    v_ff   = R^T dp_ref/dt                                   (a moving setpoint's own velocity)
+    (u, v, w) = K_p e_body + v_ff,  scaled down as a whole until every axis is within its speed limit
+    r      = k_psi wrap(psi_ref - psi_hat) + dpsi_ref/dt,    within the yaw-rate limit
+
+and each reference changes by at most its acceleration limit times T from
+one sample to the next, so a large step of the setpoint never drives the
+thrusters into saturation (sec. 8.3: "thruster saturation was avoided by ...
+limiting the reference velocities' magnitudes"). Scaling the whole vector,
+not clipping each axis, keeps the direction of travel: the vehicle still
+heads for the setpoint. ``wrap`` takes the short way round (yaw 350 deg ->
+10 deg turns 20 deg, not 340).
+
+The setpoint's rate comes from successive stamped setpoints (a task
+controller that moves the setpoint along a line produces a steady rate); a
+jump faster than the speed limits is a step, not a trajectory, and gives no
+feed-forward.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from seapup_common.contract import ContractError, Reference
+from seapup_common.frames import rotation_body_to_ned, wrap_angle
+
+__all__ = ["PositionControllerParams", "PoseReference", "PositionController"]
+
+
+@dataclass(frozen=True)
+class PositionControllerParams:
+    """Gains and the velocity loop's capabilities (YAML: ``config/position_controller.yaml``).
+
+    Parameters
+    ----------
+    gains : tuple of 3 float
+        K_p for the body-frame position error (x, y, z) [1/s].
+    yaw_gain : float
+        k_psi [1/s].
+    speed_limits : tuple of 3 float
+        Largest |u|, |v|, |w| references [m/s].
+    max_yaw_rate : float
+        Largest |r| reference [rad/s].
+    acceleration_limits : tuple of 4 float
+        Largest change of u, v, w [m/s^2] and r [rad/s^2] references per second.
+    feedforward : bool
+        Add the setpoint's own velocity.
+    """
+
+    gains: tuple = (0.2, 0.2, 0.3)
+    yaw_gain: float = 0.5
+    speed_limits: tuple = (0.3, 0.15, 0.15)
+    max_yaw_rate: float = 0.26
+    acceleration_limits: tuple = (0.05, 0.05, 0.05, 0.1)
+    feedforward: bool = True
+
+    def __post_init__(self):
+        vectors = {"gains": (self.gains, 3), "speed_limits": (self.speed_limits, 3),
+                   "acceleration_limits": (self.acceleration_limits, 4)}
+        for name, (value, n) in vectors.items():
+            if len(value) != n or not all(math.isfinite(float(v)) and float(v) > 0 for v in value):
+                raise ValueError(f"position controller: {name} needs {n} finite values > 0, got {list(value)}")
+            object.__setattr__(self, name, tuple(float(v) for v in value))
+        for name in ("yaw_gain", "max_yaw_rate"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"position controller: {name} must be finite and > 0, got {value}")
+
+    @classmethod
+    def from_mapping(cls, mapping: dict) -> "PositionControllerParams":
+        unknown = set(mapping) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"position controller: unknown parameter(s) {sorted(unknown)}")
+        return cls(**mapping)
+
+
+@dataclass(frozen=True)
+class PoseReference:
+    """A setpoint: position (x, y, z) [m] in odom_ned and yaw [rad], in force from time ``t`` [s]."""
+
+    position: np.ndarray
+    yaw: float
+    t: float = 0.0
+
+    def __post_init__(self):
+        position = np.array(self.position, dtype=float)
+        if position.shape != (3,) or not np.all(np.isfinite(position)):
+            raise ContractError(f"pose reference position needs 3 finite values, got {self.position!r}")
+        if not math.isfinite(float(self.yaw)) or not math.isfinite(float(self.t)):
+            raise ContractError(f"pose reference yaw and time must be finite, got {self.yaw!r}, {self.t!r}")
+        position.setflags(write=False)
+        object.__setattr__(self, "position", position)
+        object.__setattr__(self, "yaw", float(self.yaw))
+
+
+class PositionController:
+    """Pose error to body-velocity references (module docstring); pure, one call per sample.
+
+    Parameters
+    ----------
+    params : PositionControllerParams
+    sample_period : float
+        T [s] of the velocity loop it feeds.
+    """
+
+    def __init__(self, params: PositionControllerParams, sample_period: float):
+        if not (math.isfinite(sample_period) and sample_period > 0):
+            raise ValueError(f"sample period must be finite and > 0 s, got {sample_period!r}")
+        self.params = params
+        self.sample_period = float(sample_period)
+        self.reference: PoseReference | None = None
+        self._feedforward = np.zeros(4)  # (dx, dy, dz [m/s] odom_ned, dpsi [rad/s])
+        self.reset()
+
+    def reset(self, velocity_reference=None) -> None:
+        """Start again from the body-velocity reference in force (zero by default): the slew limit starts there."""
+        self.last = np.zeros(4) if velocity_reference is None else np.array(velocity_reference, dtype=float)
+        self.limited = np.zeros(4, dtype=bool)
+
+    def set_reference(self, reference: PoseReference) -> None:
+        """A new setpoint; its rate from the previous one becomes the feed-forward (if a trajectory)."""
+        previous = self.reference
+        self.reference = reference
+        self._feedforward = np.zeros(4)
+        if previous is None or not self.params.feedforward:
+            return
+        dt = reference.t - previous.t
+        if dt <= 1e-9:
+            return
+        rate = np.array([*(reference.position - previous.position) / dt, wrap_angle(reference.yaw - previous.yaw) / dt])
+        limits = np.array([*self.params.speed_limits, self.params.max_yaw_rate])
+        horizontal = math.hypot(rate[0], rate[1])
+        if horizontal <= max(limits[:2]) and abs(rate[2]) <= limits[2] and abs(rate[3]) <= limits[3]:
+            self._feedforward = rate  # a trajectory, not a step
+
+    def update(self, position, attitude) -> Reference:
+        """Body-velocity reference (u, v, w, r) for the estimated ``position`` (odom_ned) and ``attitude``.
+
+        Without a setpoint the reference is zero (hold velocity zero).
+        """
+        position = np.asarray(position, dtype=float)
+        attitude = np.asarray(attitude, dtype=float)
+        if position.shape != (3,) or attitude.shape != (3,) or not (np.all(np.isfinite(position))
+                                                                    and np.all(np.isfinite(attitude))):
+            raise ContractError(f"position controller needs a finite position (3) and attitude (3), got "
+                                f"{position.tolist()}, {attitude.tolist()}")
+        p = self.params
+        if self.reference is None:
+            wanted = np.zeros(4)
+        else:
+            R = rotation_body_to_ned(*attitude)
+            e_body = R.T @ (self.reference.position - position)
+            v = np.asarray(p.gains) * e_body + R.T @ self._feedforward[:3]
+            scale = max(1.0, float(np.max(np.abs(v) / np.asarray(p.speed_limits))))
+            r = p.yaw_gain * wrap_angle(self.reference.yaw - attitude[2]) + self._feedforward[3]
+            wanted = np.array([*(v / scale), float(np.clip(r, -p.max_yaw_rate, p.max_yaw_rate))])
+        step = np.asarray(p.acceleration_limits) * self.sample_period
+        out = self.last + np.clip(wanted - self.last, -step, step)
+        self.limited = np.abs(wanted - out) > 1e-12
+        self.last = out
+        return Reference(out)

@@ -1,0 +1,137 @@
+"""The ``position_controller`` lifecycle node: the global position controller (thesis sec. 4.2) on the graph.
+
+A thin shell over :class:`seapup_control.position_control.PositionController`.
+Subscribes (namespace ``/seapup``) to ``position_controller/reference``
+(geometry_msgs/PoseStamped in ``odom_ned``: x, y, z and yaw; a setpoint takes
+effect at its header stamp, at once when the stamp is zero) and
+``navigation/odometry`` (the navigator's estimate); at every estimate t_k it
+publishes ``velocity_controller/reference`` (geometry_msgs/TwistStamped in
+``base_link_frd``: u, v, w, r) stamped t_k + ``reference_delay`` x T, the
+sample it is meant for. Without a setpoint it publishes nothing (the
+velocity controller holds its last reference). Non-finite or wrong-frame
+setpoints are rejected, counted and logged. Inactive, it publishes nothing.
+"""
+from __future__ import annotations
+
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+
+from seapup_common.contract import ContractError, ReferenceSchedule
+from seapup_common.ros.messages import (estimate_from_odometry, ns_to_stamp, pose_setpoint_from_msg,
+                                        reference_to_msg)
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions, \
+    run_node
+from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
+
+__all__ = ["PositionControllerNode", "main"]
+
+_LAW = ("gains", "yaw_gain", "speed_limits", "max_yaw_rate", "acceleration_limits", "feedforward")
+
+
+class PositionControllerNode(LifecycleNode):
+    """rclpy lifecycle shell around :class:`PositionController` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("position_controller", namespace="/seapup", **kwargs)
+        self.p = declare_from_package_file(self, "seapup_control", "position_controller.yaml",
+                                           section="position_controller")
+        self.controller: PositionController | None = None
+        self.active = False
+        self.counts = {"estimates": 0, "references": 0, "rejected_setpoints": 0, "rejected_estimates": 0,
+                       "limited_samples": 0}
+        self._interfaces = []
+        refuse_invalid_transitions(self)
+        if self.p["autostart"]:
+            self.trigger_configure()
+            self.trigger_activate()
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        try:
+            params = PositionControllerParams.from_mapping({k: self.get_parameter(k).value for k in _LAW})
+            self.controller = PositionController(params, float(self.get_parameter("sample_period").value))
+        except ValueError as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self.setpoints = ReferenceSchedule(initial=None)
+        self.delay = int(self.get_parameter("reference_delay").value) * self.controller.sample_period
+        self.publisher = self.create_lifecycle_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._interfaces = [
+            self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),
+            self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]
+        self._last_setpoint: PoseReference | None = None
+        self._last_diag = 0.0
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self.controller.reset()
+        self.active = True
+        return super().on_activate(state)
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self.active = False
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        for sub in self._interfaces:
+            self.destroy_subscription(sub)
+        self._interfaces = []
+        self.destroy_lifecycle_publisher(self.publisher)
+        self.destroy_publisher(self.diagnostics)
+        self.controller = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def _on_setpoint(self, msg: PoseStamped) -> None:
+        try:
+            position, yaw, stamp_ns = pose_setpoint_from_msg(msg)
+            self.setpoints.add(PoseReference(position, yaw, stamp_ns * 1e-9), None if stamp_ns == 0 else stamp_ns * 1e-9)
+        except ContractError as exc:
+            self.counts["rejected_setpoints"] += 1
+            self.get_logger().warn(f"setpoint rejected: {exc}", throttle_duration_sec=2.0)
+
+    def _on_estimate(self, msg: Odometry) -> None:
+        if not self.active:
+            return
+        try:
+            estimate = estimate_from_odometry(msg)
+        except ContractError as exc:
+            self.counts["rejected_estimates"] += 1
+            self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
+            return
+        self.counts["estimates"] += 1
+        for setpoint in self.setpoints.due(estimate.t):
+            self.controller.set_reference(setpoint)
+        if self.controller.reference is None:
+            return
+        reference = self.controller.update(estimate.position, estimate.attitude)
+        self.counts["limited_samples"] += int(bool(self.controller.limited.any()))
+        self.counts["references"] += 1
+        t_ns = int(round((estimate.t + self.delay) * 1e9))
+        self.publisher.publish(reference_to_msg(reference, t_ns))
+        if time.monotonic() - self._last_diag > 1.0:
+            self._diagnose(t_ns, reference)
+
+    def _diagnose(self, t_ns: int, reference) -> None:
+        self._last_diag = time.monotonic()
+        setpoint = self.controller.reference
+        values = {**self.counts, "setpoint": [*setpoint.position.tolist(), setpoint.yaw],
+                  "velocity_reference": reference.velocity.tolist(),
+                  "limited": [bool(x) for x in self.controller.limited]}
+        level = DiagnosticStatus.WARN if self.counts["rejected_setpoints"] else DiagnosticStatus.OK
+        status = DiagnosticStatus(level=level, name=f"seapup/{self.get_name()}", hardware_id="seapup_control",
+                                  message="tracking", values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = ns_to_stamp(t_ns)
+        self.diagnostics.publish(array)
+
+
+def main(args=None) -> int:
+    return run_node(PositionControllerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,301 @@
+"""Software-in-the-loop harness: fly a graph of nodes on a private ROS domain and get the logs as arrays.
+
+A test (or a script) describes the graph with a graph file (the format of
+``./seapup launch``; default: ``seapup_bringup hierarchy.yaml``, the whole
+supervisory hierarchy in lockstep), then drives it with goals and service
+calls; every node runs in its own process, exactly as on a vehicle::
+
+    from seapup_control.ros.sil import SilGraph
+
+    with SilGraph(arguments={"controller_file": "ctrl.yaml"}, out_dir=tmp_path) as sil:
+        result = sil.goal("goto", x=5.0, y=3.0, z=31.0, yaw=1.0)
+        assert result["status"] == "succeeded"
+        logs = sil.logs()          # numpy arrays: truth, estimate, references, commands
+        sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
+
+The harness leases a ``ROS_DOMAIN_ID`` of its own (machine-wide lock, so
+parallel runs never hear each other), keeps DDS on loopback, starts each
+node in its own process group (stopped with SIGINT, SIGTERM, SIGKILL at the
+end, also when the test fails), optionally records topics to an MCAP bag
+with the ``recorder`` node, and listens in with a probe node of its own on a
+private rclpy Context. ``tests/test_sil_example.py`` is a complete example to
+copy for your own velocity controller: put your node in the graph file (or
+pass your own file) and register it with the controller manager.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["SilGraph", "SilError", "TOPICS"]
+
+#: What the probe logs: name -> (topic, message type).
+TOPICS = {
+    "truth": ("/seapup/truth/odometry", "nav_msgs.msg.Odometry"),
+    "estimate": ("/seapup/navigation/odometry", "nav_msgs.msg.Odometry"),
+    "reference": ("/seapup/velocity_controller/reference", "geometry_msgs.msg.TwistStamped"),
+    "setpoint": ("/seapup/position_controller/reference", "geometry_msgs.msg.PoseStamped"),
+    "command": ("/seapup/thrusters/command", "seapup_msgs.msg.BladePitch"),
+    "applied": ("/seapup/thrusters/applied", "seapup_msgs.msg.BladePitch"),
+    "altitude": ("/seapup/sensors/altitude", "sensor_msgs.msg.Range"),
+    "rejections": ("/seapup/task/rejections", "std_msgs.msg.String"),
+    "diagnostics": ("/diagnostics", "diagnostic_msgs.msg.DiagnosticArray"),
+}
+
+_ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
+
+
+class SilError(RuntimeError):
+    """The graph did not come up, a node died, or a goal was never answered."""
+
+
+def _import(path: str):
+    module, name = path.rsplit(".", 1)
+    return getattr(__import__(module, fromlist=[name]), name)
+
+
+class SilGraph:
+    """A graph started in SIL (see the module docstring); use it as a context manager.
+
+    Parameters
+    ----------
+    graph : str or Path
+        ``"PACKAGE FILE"`` (a graph in the package's ``launch`` directory) or a path.
+    arguments : dict
+        The graph file's arguments (``name: value``).
+    out_dir : Path
+        Where node logs (and the bag) go.
+    record : list of str, optional
+        Topics the ``recorder`` writes to ``out_dir/bag`` (``/t`` or ``/t:pkg/msg/Type``).
+    ready_timeout : float
+        Wall seconds for the first navigation estimate.
+    ready_status : str, optional
+        The graph is ready once a ``/diagnostics`` status of this name says OK (default
+        ``seapup/task_controller``: it hears the navigator, so goals can be accepted). The
+        simulator starts once *its* subscribers are there; the rest of the graph discovers
+        itself meanwhile, and a goal sent before the task controller hears the navigator would be
+        refused for want of navigation. "" waits only for the first estimate.
+    """
+
+    def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
+                 out_dir, record: list[str] | None = None, ready_timeout: float = 60.0,
+                 ready_status: str = "seapup/task_controller"):
+        self.graph = str(graph)
+        self.arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in (arguments or {}).items()}
+        self.out_dir = Path(out_dir)
+        self.record = list(record or [])
+        self.ready_timeout = float(ready_timeout)
+        self.ready_status = ready_status
+        self.processes: dict = {}
+        self.log: dict[str, list] = {name: [] for name in TOPICS}
+        self.feedback: list = []
+        self._lease = self._context = self._node = self._executor = None
+
+    # -- start and stop --------------------------------------------------------------------------
+    def __enter__(self) -> "SilGraph":
+        try:
+            self._start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _start(self) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+
+        from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+        from seapup_common.ros.launch_graph import command_line, find_graph, load_graph
+
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._lease = DomainLease()
+        domain = self._lease.acquire()
+        self.env = ros_environment(domain)
+        specs = load_graph(find_graph(*self.graph.split()), self.arguments)
+        self._context = Context()
+        rclpy.init(context=self._context, domain_id=domain)
+        self._node = rclpy.create_node("sil_probe", context=self._context)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+        for name, (topic, kind) in TOPICS.items():
+            self._node.create_subscription(_import(kind), topic, self.log[name].append, 10000)
+        if self.record:
+            self.bag = self.out_dir / "bag"
+            self.processes["recorder"] = NodeProcess(
+                [str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
+                 "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
+                self.env, self.out_dir / "recorder.log", "recorder").start()
+        for spec in specs:
+            self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
+                                                     self.out_dir / f"{spec.label}.log", spec.label).start()
+        def ready():
+            return any(status.name == self.ready_status and status.level in (0, b"\x00")
+                       for array in self.log["diagnostics"][-20:] for status in array.status)
+        if not self.spin_until(lambda: self.log["estimate"] and self.log["truth"]
+                               and (not self.ready_status or ready()), self.ready_timeout):
+            raise SilError(f"no navigation estimate or no OK {self.ready_status!r} within "
+                           f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
+
+    def _dead(self) -> str:
+        dead = [f"{name} (exit {p.returncode})" for name, p in self.processes.items() if not p.running]
+        return f"; exited: {', '.join(dead)}" if dead else ""
+
+    def close(self) -> None:
+        """Stop every node (the recorder last, so it has everything), the probe and the lease."""
+        for name, process in list(self.processes.items()):
+            if name != "recorder":
+                process.stop()
+        if "recorder" in self.processes:
+            self.processes["recorder"].stop(grace=10.0)
+        if self._node is not None:
+            self._node.destroy_node()
+            self._node = None
+        if self._context is not None:
+            self._context.try_shutdown()
+            self._context = None
+        if self._lease is not None:
+            self._lease.release()
+            self._lease = None
+
+    def kill(self, name: str) -> None:
+        """Kill one node's process at once (SIGKILL: a crash)."""
+        import os
+        import signal
+        process = self.processes[name]
+        os.killpg(process.popen.pid, signal.SIGKILL)
+        process.popen.wait(5.0)
+
+    # -- driving ---------------------------------------------------------------------------------
+    def spin_until(self, predicate, timeout: float) -> bool:
+        """Spin the probe until ``predicate()`` holds or ``timeout`` wall seconds pass."""
+        deadline = time.monotonic() + timeout
+        while not predicate() and time.monotonic() < deadline:
+            self._executor.spin_once(timeout_sec=0.02)
+        return bool(predicate())
+
+    @property
+    def t(self) -> float:
+        """Latest simulated time heard [s] (from the truth)."""
+        return self.log["truth"][-1].header.stamp.sec + 1e-9 * self.log["truth"][-1].header.stamp.nanosec \
+            if self.log["truth"] else 0.0
+
+    def run_for(self, seconds: float, timeout: float | None = None) -> None:
+        """Let simulated time advance by ``seconds``."""
+        end = self.t + seconds
+        if not self.spin_until(lambda: self.t >= end - 1e-9, timeout or max(30.0, 2 * seconds)):
+            raise SilError(f"simulated time stuck at {self.t:.1f} s (wanted {end:.1f} s){self._dead()}")
+
+    def goal(self, kind: str, *, timeout: float = 300.0, cancel_after: float | None = None,
+             during: tuple | None = None, **fields) -> dict:
+        """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", <result fields>}``.
+
+        ``cancel_after`` [s simulated]: cancel the goal that long after it was accepted.
+        ``during = (seconds, function)``: call ``function()`` once, that many simulated seconds
+        after the goal was accepted (e.g. a controller switch mid-manoeuvre); its return value is
+        in the result as ``during``. Rejected goals return ``accepted: False`` and the reason the
+        task controller published.
+        """
+        from rclpy.action import ActionClient
+
+        from seapup_common.ros.graph import send_goal
+
+        action = _import(f"seapup_msgs.action.{_ACTIONS[kind]}")
+        client = ActionClient(self._node, action, f"/seapup/task/{kind}")
+        try:
+            goal = action.Goal(**fields)
+            rejections = len(self.log["rejections"])
+            handle = send_goal(self._executor, client, goal, lambda fb: self.feedback.append((kind, fb.feedback)))
+            if not handle.accepted:
+                self.spin_until(lambda: len(self.log["rejections"]) > rejections, 5.0)
+                reason = self.log["rejections"][-1].data if len(self.log["rejections"]) > rejections else ""
+                return {"status": "rejected", "accepted": False, "rejection": reason}
+            future = handle.get_result_async()
+            during_result = None
+            if during is not None:
+                start = self.t
+                self.spin_until(lambda: self.t >= start + during[0] or future.done(), timeout)
+                during_result = during[1]()
+            if cancel_after is not None:
+                start = self.t
+                self.spin_until(lambda: self.t >= start + cancel_after or future.done(), timeout)
+                if not future.done():
+                    cancel = handle.cancel_goal_async()
+                    self.spin_until(cancel.done, 10.0)
+            if not self.spin_until(future.done, timeout):
+                raise SilError(f"{kind} goal not finished within {timeout:g} s{self._dead()}")
+            response = future.result()
+            status = {4: "succeeded", 5: "canceled", 6: "aborted"}.get(response.status, str(response.status))
+            result = response.result
+            out = {name: getattr(result, name) for name in result.get_fields_and_field_types()}
+            return {"status": status, "accepted": True, "rejection": "", "during": during_result, **out}
+        finally:
+            client.destroy()
+
+    def call(self, service: str, srv_type: str, fields: dict | None = None, timeout: float = 10.0):
+        """Call a service (``srv_type`` like ``seapup_msgs/srv/SwitchController``); the response."""
+        package, _, name = srv_type.split("/")
+        kind = _import(f"{package}.srv.{name}")
+        client = self._node.create_client(kind, service)
+        try:
+            if not self.spin_until(client.service_is_ready, timeout):
+                raise SilError(f"service {service} not available{self._dead()}")
+            future = client.call_async(kind.Request(**(fields or {})))
+            if not self.spin_until(future.done, timeout):
+                raise SilError(f"service {service} did not answer within {timeout:g} s")
+            return future.result()
+        finally:
+            self._node.destroy_client(client)
+
+    def switch(self, activate=(), deactivate=(), strict: bool = True, timeout: float = 10.0):
+        """The controller manager's switch_controller; the response (``ok``, ``message``)."""
+        return self.call("/seapup/controller_manager/switch_controller", "seapup_msgs/srv/SwitchController",
+                         {"activate_controllers": list(activate), "deactivate_controllers": list(deactivate),
+                          "strictness": 2 if strict else 1, "timeout": float(timeout)}, timeout=timeout + 5.0)
+
+    # -- logs ------------------------------------------------------------------------------------
+    def logs(self) -> dict[str, np.ndarray]:
+        """Everything heard so far as arrays (times in s, SI units, NED/FRD).
+
+        ``truth_t``, ``truth_position`` (N, 3), ``truth_attitude`` (N, 3), ``truth_velocity`` (N, 6);
+        ``estimate_t``, ``estimate_position``; ``reference_t``, ``reference`` (N, 4: u, v, w, r);
+        ``command_t``, ``command`` (N, 4 blade pitches); ``applied_t``, ``applied``;
+        ``setpoint_t``, ``setpoint`` (N, 4: x, y, z, yaw); ``altitude_t``, ``altitude`` (NaN out of range).
+        """
+        from seapup_common import frames
+
+        def stamp(msg):
+            return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+        def xyz(v):
+            return [v.x, v.y, v.z]
+
+        def quat(q):
+            return frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
+        out = {}
+        for name in ("truth", "estimate"):
+            msgs = self.log[name]
+            out[f"{name}_t"] = np.array([stamp(m) for m in msgs])
+            out[f"{name}_position"] = np.array([xyz(m.pose.pose.position) for m in msgs]).reshape(-1, 3)
+            out[f"{name}_attitude"] = np.array([quat(m.pose.pose.orientation) for m in msgs]).reshape(-1, 3)
+            out[f"{name}_velocity"] = np.array([xyz(m.twist.twist.linear) + xyz(m.twist.twist.angular)
+                                                for m in msgs]).reshape(-1, 6)
+        out["reference_t"] = np.array([stamp(m) for m in self.log["reference"]])
+        out["reference"] = np.array([xyz(m.twist.linear) + [m.twist.angular.z] for m in self.log["reference"]]
+                                    ).reshape(-1, 4)
+        for name in ("command", "applied"):
+            out[f"{name}_t"] = np.array([stamp(m) for m in self.log[name]])
+            out[name] = np.array([list(m.pitch) for m in self.log[name]]).reshape(-1, 4)
+        out["setpoint_t"] = np.array([stamp(m) for m in self.log["setpoint"]])
+        out["setpoint"] = np.array([xyz(m.pose.position) + [quat(m.pose.orientation)[2]]
+                                    for m in self.log["setpoint"]]).reshape(-1, 4)
+        out["altitude_t"] = np.array([stamp(m) for m in self.log["altitude"]])
+        out["altitude"] = np.array([m.range if m.min_range <= m.range <= m.max_range else math.nan
+                                    for m in self.log["altitude"]])
+        return out

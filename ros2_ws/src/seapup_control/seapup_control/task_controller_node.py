@@ -1,0 +1,206 @@
+"""The ``task_controller`` node: hover, go to a point, follow the seabed (thesis sec. 4.2) as ROS actions.
+
+A thin shell over :mod:`seapup_control.tasks`. Action servers (namespace
+``/seapup``): ``task/hover`` (seapup_msgs/action/Hover), ``task/goto``
+(Goto), ``task/follow_seabed`` (FollowSeabed). One task runs at a time; at
+each navigation estimate t_k (``navigation/odometry``) it publishes the
+task's setpoint on ``position_controller/reference`` (PoseStamped in
+``odom_ned``, stamped t_k + T) and the goal's feedback. When a task ends
+badly or is cancelled, the vehicle hovers where it is; after a success it
+holds the task's last setpoint. A goal that cannot be met -- beyond the
+limits of ``config/task_controller.yaml``, no navigation, the altimeter
+seeing no seabed, another task running without ``preempt`` -- is rejected;
+the reason is logged and published on ``task/rejections``
+(std_msgs/String), since an action's goal response has no field for it.
+"""
+from __future__ import annotations
+
+import collections
+import functools
+import math
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from sensor_msgs.msg import Range
+from seapup_msgs.action import FollowSeabed, Goto, Hover
+from std_msgs.msg import String
+
+from seapup_common.contract import ContractError
+from seapup_common.ros.messages import altitude_from_msg, estimate_from_odometry, pose_setpoint_to_msg
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_control.tasks import FollowSeabed as FollowSeabedTask
+from seapup_control.tasks import Goto as GotoTask
+from seapup_control.tasks import Hover as HoverTask
+from seapup_control.tasks import TaskLimits, TaskRejected
+
+__all__ = ["TaskControllerNode", "main"]
+
+#: Rejection reasons are kept for late joiners (a client that subscribes just before sending).
+REJECTIONS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+_ACTIONS = {"hover": Hover, "goto": Goto, "follow_seabed": FollowSeabed}
+
+
+class _Running:
+    """The task in progress with its goal handle and the future its execute callback awaits."""
+
+    def __init__(self, task, handle):
+        self.task, self.handle, self.done = task, handle, Future()
+
+
+class TaskControllerNode(Node):
+    """rclpy shell around the tasks of :mod:`seapup_control.tasks` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("task_controller", namespace="/seapup", **kwargs)
+        p = declare_from_package_file(self, "seapup_control", "task_controller.yaml", section="task_controller")
+        self.limits = TaskLimits.from_mapping({k.removeprefix("limits."): v for k, v in p.items()
+                                               if k.startswith("limits.")})
+        self.period = float(p["sample_period"])
+        self.navigation_timeout = float(p["navigation_timeout"])
+        self.estimate = None
+        self._estimate_wall = -math.inf
+        self.altitude = None
+        self._altitudes = collections.deque(maxlen=100)
+        self.running: _Running | None = None
+        self.setpoint = None
+        self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0}
+        self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
+        self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.create_timer(0.5, self._diagnose)
+        self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)
+        self.create_subscription(Range, "sensors/altitude", self._on_altitude, COMMAND_QOS)
+        self.servers = [ActionServer(self, action, f"task/{kind}",
+                                     execute_callback=functools.partial(self._execute, kind),
+                                     goal_callback=lambda goal, kind=kind: self._accept(kind, goal),
+                                     cancel_callback=lambda _: CancelResponse.ACCEPT)
+                        for kind, action in _ACTIONS.items()]
+
+    # -- goals -------------------------------------------------------------------------------
+    def _build(self, kind: str, goal):
+        estimate = self.estimate if time.monotonic() - self._estimate_wall <= self.navigation_timeout else None
+        if kind == "hover":
+            return HoverTask(self.limits, estimate, hold_current=goal.hold_current,
+                             pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration)
+        if kind == "goto":
+            return GotoTask(self.limits, estimate, (goal.x, goal.y, goal.z), goal.yaw, speed=goal.speed,
+                            tolerance=goal.tolerance, yaw_tolerance=goal.yaw_tolerance, timeout=goal.timeout)
+        return FollowSeabedTask(self.limits, estimate, self.altitude, height=goal.altitude, yaw=goal.yaw,
+                                speed=goal.speed, duration=goal.duration)
+
+    def _reject(self, kind: str, reason: str) -> GoalResponse:
+        self.counts["rejected_goals"] += 1
+        text = f"{kind} goal rejected: {reason}"
+        self.get_logger().warn(text)
+        self.rejections.publish(String(data=text))
+        return GoalResponse.REJECT
+
+    def _accept(self, kind: str, goal) -> GoalResponse:
+        if self.running is not None and not goal.preempt:
+            return self._reject(kind, f"a {self.running.task.kind} task is running (set preempt to replace it)")
+        try:
+            self._build(kind, goal)
+        except TaskRejected as exc:
+            return self._reject(kind, str(exc))
+        return GoalResponse.ACCEPT
+
+    async def _execute(self, kind: str, handle):
+        action = _ACTIONS[kind]
+        try:
+            task = self._build(kind, handle.request)
+        except TaskRejected as exc:  # the world changed between acceptance and execution
+            handle.abort()
+            return action.Result(success=False, message=str(exc))
+        if self.running is not None:
+            self.running.done.set_result(("aborted", f"preempted by a {kind} goal", {}))
+        running = self.running = _Running(task, handle)
+        self.get_logger().info(f"{kind} started")
+        status, message, numbers = await running.done
+        if self.running is running:
+            self.running = None
+        out = action.Result(success=status == "succeeded", message=message)
+        for key, value in numbers.items():
+            setattr(out, key, float(value))
+        {"succeeded": handle.succeed, "canceled": handle.canceled}.get(status, handle.abort)()
+        self.get_logger().info(f"{kind} {status}: {message}")
+        return out
+
+    # -- the loop ----------------------------------------------------------------------------
+    def _on_altitude(self, msg: Range) -> None:
+        try:
+            reading = altitude_from_msg(msg)
+        except (ContractError, ValueError):
+            return
+        if reading.valid:
+            self.altitude = reading
+            self._altitudes.append(reading)
+
+    def _altitude_at(self, t: float):
+        """The latest altimeter reading taken at or before ``t`` and at most 1 s older (the topics are
+        processed in their own order: the altitude may run ahead of the estimate being handled)."""
+        for reading in reversed(self._altitudes):
+            if reading.stamp <= t + 1e-9:
+                return reading if t - reading.stamp <= 1.0 else None
+        return None
+
+    def _on_estimate(self, msg: Odometry) -> None:
+        try:
+            estimate = estimate_from_odometry(msg)
+        except ContractError as exc:
+            self.counts["rejected_estimates"] += 1
+            self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
+            return
+        self.estimate, self._estimate_wall = estimate, time.monotonic()
+        running = self.running
+        if running is not None and not running.done.done():
+            self._step(running, estimate)
+        if self.setpoint is not None:
+            t_ns = int(round((estimate.t + self.period) * 1e9))
+            self.setpoints.publish(pose_setpoint_to_msg(self.setpoint.position, self.setpoint.yaw, t_ns))
+            self.counts["setpoints"] += 1
+
+    def _step(self, running: _Running, estimate) -> None:
+        if running.handle.is_cancel_requested:
+            self.setpoint = running.task.hold(estimate, estimate.t)
+            running.done.set_result(("canceled", "cancelled: hovering where it is", {}))
+            return
+        altitude = self._altitude_at(estimate.t)
+        step = running.task.step(estimate.t, estimate, altitude)
+        self.setpoint = step.setpoint
+        fb = _ACTIONS[running.task.kind].Feedback()
+        for key, value in step.feedback.items():
+            setattr(fb, key, float(value))
+        running.handle.publish_feedback(fb)
+        if step.done:
+            running.done.set_result(("succeeded" if step.success else "aborted", step.message, step.result))
+
+
+    def _diagnose(self) -> None:
+        """``seapup/task_controller``: OK while the navigation is fresh (goals can be accepted), else WARN."""
+        fresh = self.estimate is not None and time.monotonic() - self._estimate_wall <= self.navigation_timeout
+        running = self.running.task.kind if self.running is not None else ""
+        values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none"}
+        status = DiagnosticStatus(level=DiagnosticStatus.OK if fresh else DiagnosticStatus.WARN,
+                                  name="seapup/task_controller", hardware_id="seapup_control",
+                                  message=(running or "idle") if fresh else "no navigation estimate",
+                                  values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics.publish(array)
+
+
+def main(args=None) -> int:
+    return run_node(TaskControllerNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

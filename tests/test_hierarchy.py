@@ -1,0 +1,136 @@
+"""SIL tests of the supervisory hierarchy through ROS, every node in its own process (issue 13).
+
+Graph: ``seapup_bringup/launch/hierarchy.yaml`` in lockstep (simulator, navigator, two
+velocity controllers under the controller manager, position and task controllers).
+"""
+import numpy as np
+import pytest
+
+from tests.test_sil_example import controller_file  # noqa: F401 - the session's self-test result
+
+pytestmark = pytest.mark.graph
+
+
+def sil_graph(controller_file, tmp_path, **arguments):
+    from seapup_control.ros.sil import SilGraph
+    return SilGraph(arguments={"controller_file": controller_file, **arguments}, out_dir=tmp_path)
+
+
+def test_hover_holds_station_in_the_stochastic_current(controller_file, tmp_path):  # noqa: F811
+    """The thesis's 0.26 m/s Gauss-Markov current (sec. 3.9), acoustic fixes 0.5 m at 1 Hz with dropouts."""
+    with sil_graph(controller_file, tmp_path, current=True, seed=3) as sil:
+        sil.run_for(20.0)  # the current builds up against the velocity loop first
+        result = sil.goal("hover", hold_current=True, duration=120.0)
+        logs = sil.logs()
+    assert result["status"] == "succeeded", result
+    t, truth = logs["truth_t"], logs["truth_position"]
+    held = logs["setpoint"][-1, :3]
+    window = t >= t[-1] - 120.0
+    horizontal = np.hypot(*(truth[window, :2] - held[:2]).T)
+    rms = float(np.sqrt(np.mean(horizontal ** 2)))
+    print(f"hover in current: horizontal rms {rms:.3f} m, max {horizontal.max():.3f} m; "
+          f"estimate's own rms {result['horizontal_rms']:.3f} m")
+    assert rms <= 0.5
+    assert abs(truth[window, 2] - held[2]).max() < 0.5
+    # navigation error against truth at the estimate's stamps
+    est_t, est = logs["estimate_t"], logs["estimate_position"]
+    index = np.searchsorted(t, est_t).clip(0, len(t) - 1)
+    error = np.hypot(*(est[:, :2] - truth[index, :2]).T)[est_t >= t[-1] - 120.0]
+    assert np.sqrt(np.mean(error ** 2)) < 0.3
+
+
+def _step_sizes(logs, t0, t1):
+    t, c = logs["command_t"], logs["command"]
+    keep = (t >= t0) & (t <= t1)
+    return t[keep][1:], np.abs(np.diff(c[keep], axis=0)).max(axis=1)
+
+
+def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  # noqa: F811
+    with sil_graph(controller_file, tmp_path) as sil:
+        start = sil.logs()["truth_position"][-1]
+        swap = []
+
+        def switch():
+            swap.append(sil.t)
+            return sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
+        result = sil.goal("goto", x=start[0] + 10.0, y=start[1], z=start[2], yaw=0.5, during=(25.0, switch))
+        listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        logs = sil.logs()
+    assert result["status"] == "succeeded", result
+    assert result["during"].ok, result["during"].message
+    assert listing.active == "mfol_scheduled"
+    t_switch = swap[0]
+    times, steps = _step_sizes(logs, t_switch - 15.0, t_switch + 15.0)
+    at_switch = steps[(times > t_switch - 0.3) & (times < t_switch + 1.0)].max()
+    normal = steps[times < t_switch - 0.3].max()
+    print(f"swap at {t_switch:.1f} s: largest command step {np.degrees(at_switch):.3f} deg; "
+          f"largest in the 15 s before {np.degrees(normal):.3f} deg")
+    assert at_switch <= normal
+    # one command per sample throughout: nothing doubled, nothing missing
+    stamps = np.round(logs["command_t"] / 0.2).astype(int)
+    assert len(set(stamps)) == len(stamps)
+
+
+def test_killing_the_active_controller_fails_over_and_keeps_station(controller_file, tmp_path):  # noqa: F811
+    with sil_graph(controller_file, tmp_path) as sil:
+        assert sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"]).ok
+        hover = {}
+
+        def kill():
+            hover["t"] = sil.t
+            sil.kill("mfol_scheduled")
+        result = sil.goal("hover", hold_current=True, duration=60.0, during=(10.0, kill))
+        listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        logs = sil.logs()
+    assert result["status"] == "succeeded", result
+    assert listing.active == "mfol_fixed"
+    fixed = next(c for c in listing.controller if c.name == "mfol_fixed")
+    assert fixed.commands_forwarded > 0
+    t = logs["command_t"]
+    after = t[t >= hover["t"] - 1.0]
+    gaps = np.diff(after)
+    print(f"killed at {hover['t']:.1f} s: largest gap between forwarded commands {gaps.max():.2f} s")
+    assert gaps.max() <= 2 * 0.2 + 1e-6  # failover within two control periods
+    truth = logs["truth_position"][logs["truth_t"] >= hover["t"]]
+    assert np.hypot(*(truth[:, :2] - truth[0, :2]).T).max() < 1.0
+
+
+def test_invalid_goals_are_rejected_with_reasons_and_cancel_hovers(controller_file, tmp_path):  # noqa: F811
+    with sil_graph(controller_file, tmp_path) as sil:
+        here = sil.logs()["estimate_position"][-1]
+        far = sil.goal("goto", x=here[0] + 500.0, y=here[1], z=here[2], yaw=0.0)
+        shallow = sil.goal("goto", x=here[0], y=here[1], z=-5.0, yaw=0.0)
+        nan = sil.goal("goto", x=float("nan"), y=0.0, z=30.0, yaw=0.0)
+        fast = sil.goal("goto", x=here[0] + 5, y=here[1], z=here[2], yaw=0.0, speed=2.0)
+        low = sil.goal("follow_seabed", altitude=0.2, yaw=0.0, speed=0.1, duration=10.0)
+        # a running task refuses another goal unless it preempts; cancel returns to hover
+        from seapup_msgs.action import Hover
+        from rclpy.action import ActionClient
+        from seapup_common.ros.graph import send_goal
+        client = ActionClient(sil._node, Hover, "/seapup/task/hover")
+        handle = send_goal(sil._executor, client, Hover.Goal(hold_current=True, duration=0.0))
+        assert handle.accepted
+        sil.run_for(2.0)
+        busy = sil.goal("goto", x=here[0] + 2, y=here[1], z=here[2], yaw=0.0)
+        preempting = sil.goal("goto", x=here[0] + 2, y=here[1], z=here[2], yaw=0.0, preempt=True,
+                              cancel_after=5.0)
+        hover_result = handle.get_result_async()
+        assert sil.spin_until(hover_result.done, 10.0)
+        position = sil.logs()["estimate_position"][-1]
+        sil.run_for(10.0)
+        logs = sil.logs()
+    reasons = {name: r["rejection"] for name, r in
+               {"far": far, "shallow": shallow, "nan": nan, "fast": fast, "low": low, "busy": busy}.items()}
+    print(reasons)
+    assert all(r["status"] == "rejected" for r in (far, shallow, nan, fast, low, busy))
+    assert "max_distance" in reasons["far"]
+    assert "z -5" in reasons["shallow"] and "outside" in reasons["shallow"]
+    assert "finite" in reasons["nan"]
+    assert "speed 2" in reasons["fast"]
+    assert "altitude 0.2" in reasons["low"]
+    assert "hover task is running" in reasons["busy"]
+    assert hover_result.result().status == 6  # aborted: preempted
+    assert "preempted" in hover_result.result().result.message
+    assert preempting["status"] == "canceled"
+    # after the cancel the setpoint is where the vehicle was: it hovers there
+    assert np.linalg.norm(logs["setpoint"][-1, :3] - position) < 0.5
