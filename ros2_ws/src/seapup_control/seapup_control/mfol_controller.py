@@ -158,14 +158,22 @@ class MFOLController:
         self.sample_period = self.schedule.sample_period
         m = self.schedule.size
         self.q = np.zeros(m)
+        self._start_from: np.ndarray | None = None  # set by reset(): the command to start from
         self.state: ControllerState | None = None
         self.saturated_samples = np.zeros(m, dtype=int)
 
     def reset(self, applied: Command) -> None:
-        """Bumpless start: the integrator state that makes the first command the applied one (zero error)."""
+        """Bumpless start: the integrator state that makes the first command the applied one at zero error.
+
+        The state is set here for the zero-speed point and set again at the first :meth:`update`
+        with the gains and offset scheduled for that sample, so a gain-scheduled controller
+        switched in at speed does not step the thrusters by the schedule's difference from zero
+        speed; the proportional term on that sample's error acts as it would have.
+        """
         pitch = np.clip(np.asarray(applied.blade_pitch, float), -self.limit, self.limit)
         k_int, _ = self.schedule.gains_at(0.0)
         self.q = np.linalg.solve(k_int, pitch - self.schedule.offset_at(0.0))
+        self._start_from = pitch
         self.state = None
         self.saturated_samples[:] = 0
 
@@ -185,6 +193,9 @@ class MFOLController:
         error = r - y
         k_int, k_err = self.schedule.gains_at(float(y[SURGE]))
         u0 = self.schedule.offset_at(float(r[SURGE]))
+        if self._start_from is not None:  # first sample after reset(): bumpless at this operating point
+            self.q = np.linalg.solve(k_int, self._start_from - u0)
+            self._start_from = None
         raw = k_int @ self.q + k_err @ error + u0
         command = np.clip(raw, -self.limit, self.limit)
         saturated = np.abs(raw) > self.limit

@@ -37,15 +37,15 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.contract import Command, ContractError, Reference, ReferenceSchedule
-from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
+from seapup_common.contract import Command, ContractError, ReferenceSchedule
+from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, diagnostic_array,
                                         reference_from_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions,
                                     run_node)
@@ -187,7 +187,13 @@ class MFOLControllerNode(LifecycleNode):
 
     # -- the loop --------------------------------------------------------------------
     def _answer(self, t_ns: int) -> None:
-        if not self.active or self.sampler.pending(t_ns) is None:
+        if not self.active:
+            # an inactive controller keeps the reference in force up to date (the position level
+            # streams one per sample: waiting ones would pile up to the schedule's capacity and the
+            # newest be refused), so when it is switched in it uses the present reference
+            self.references.at(t_ns * 1e-9)
+            return
+        if self.sampler.pending(t_ns) is None:
             return
         if self._start_pending:
             if self._sample_waiting_since is None:
@@ -219,12 +225,8 @@ class MFOLControllerNode(LifecycleNode):
                   "references_waiting": self.references.waiting}
         rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
         level = DiagnosticStatus.WARN if (rejected or any(state.saturated)) else DiagnosticStatus.OK
-        status = DiagnosticStatus(level=level, name=f"seapup/{self.get_name()}", hardware_id="seapup_control",
-                                  message="saturated" if any(state.saturated) else "tracking",
-                                  values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = ns_to_stamp(t_ns)
-        self.diagnostics.publish(array)
+        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
+                                                  "saturated" if any(state.saturated) else "tracking", values, t_ns))
 
 
 def main(args=None) -> int:

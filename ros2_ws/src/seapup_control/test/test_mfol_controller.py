@@ -65,6 +65,25 @@ def test_bumpless_start_from_the_applied_command_and_the_offset():
     np.testing.assert_allclose(first, applied, atol=1e-12)
 
 
+def test_a_scheduled_controller_switched_in_at_speed_starts_bumpless():
+    """Switched in while moving: the first command is the applied one plus only the proportional
+    term on that sample's error (as at zero speed), not the schedule's offset and gain difference."""
+    phi, delta, model = plant()
+    slow = design(model, LoopPoles([0.8] * 4, [0.8] * 4, T))
+    fast = design(MFOLModel(model.B0inv * 1.5, model.B1inv * 1.2, T, u0=np.radians([1.0, 1.0, -5.0, -5.0])),
+                  LoopPoles([0.8] * 4, [0.8] * 4, T))
+    ctl = MFOLController(GainSchedule([(0.0, slow), (0.7, fast)]))
+    applied = np.radians([12.0, 8.0, -6.0, -9.0])
+    ctl.reset(Command(applied))
+    y = np.array([0.35, 0.02, -0.01, 0.05])
+    r = y + np.array([0.01, -0.005, 0.005, 0.002])  # small error: the P term stays inside the blade limits
+    first = ctl.update(0.0, measure(0.0, y), Reference(r)).blade_pitch
+    _, k_err = ctl.schedule.gains_at(y[0])
+    np.testing.assert_allclose(first, applied + k_err @ (r - y), atol=1e-12)
+    ctl.reset(Command(applied))
+    np.testing.assert_allclose(ctl.update(0.0, measure(0.0, y), Reference(y)).blade_pitch, applied, atol=1e-12)
+
+
 def test_anti_windup_leaves_saturation_at_once_where_a_plain_integrator_stays():
     phi, delta, model = plant()
     gains = design(model, LoopPoles([0.8] * 4, [0.8] * 4, T))
@@ -109,7 +128,8 @@ def test_gain_schedule_interpolates_gains_on_measured_surge_and_the_offset_on_th
     np.testing.assert_allclose(schedule.gains_at(2.0)[1], fast.K_err)
     ctl = MFOLController(schedule)
     ctl.reset(Command(np.zeros(4)))
-    cmd = ctl.update(0.0, measure(0.0, np.array([0.7, 0, 0, 0])), Reference([0.7, 0, 0, 0])).blade_pitch
+    ctl.update(0.0, measure(0.0, np.zeros(4)), Reference(np.zeros(4)))  # started at rest
+    cmd = ctl.update(T, measure(T, np.array([0.7, 0, 0, 0])), Reference([0.7, 0, 0, 0])).blade_pitch
     np.testing.assert_allclose(cmd, np.full(4, 0.25))  # zero error at 0.7 m/s: the fast offset, fast gains
 
 
