@@ -165,8 +165,8 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
                                                              for k, v in goal.items()})
     if during is not None:
         swap["leg"] = leg["index"]
-        swap["ok"] = bool(result["during"].ok)
-    return {k: (v if not hasattr(v, "ok") else v.ok) for k, v in result.items() if k != "during"}
+        result["switch_ok"] = bool(result["during"].ok)
+    return {k: v for k, v in result.items() if k != "during"}
 
 
 def _table(legs: list, text) -> None:

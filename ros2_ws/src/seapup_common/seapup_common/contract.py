@@ -212,7 +212,7 @@ class ReferenceSchedule:
         if at is None:
             self._waiting.clear()
             self.current = reference
-            self._immediate.append(reference)
+            self._immediate = [*self._immediate[-(self.capacity - 1):], reference]  # a caller that never asks keeps few
             return
         if not math.isfinite(at):
             raise ContractError(f"reference time must be finite, got {at!r}")

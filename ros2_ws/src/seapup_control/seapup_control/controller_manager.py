@@ -100,22 +100,13 @@ class ControllerManagerCore:
         both = set(activate) & set(deactivate)
         if both:
             raise SwitchError(f"{sorted(both)} both activated and deactivated")
-        for name in deactivate:
-            problem = self._unknown(name) or (None if self.active == name else f"{name} is not active")
-            if problem:
-                if strict:
+        for names, bucket, wrong in ((deactivate, plan.deactivate, lambda n: None if self.active == n else "is not active"),
+                                     (activate, plan.activate, lambda n: "is already active" if self.active == n else None)):
+            for name in names:
+                problem = self._unknown(name) or (f"{name} {wrong(name)}" if wrong(name) else None)
+                if problem and strict:
                     raise SwitchError(problem)
-                plan.skipped.append(problem)
-            else:
-                plan.deactivate.append(name)
-        for name in activate:
-            problem = self._unknown(name) or (f"{name} is already active" if self.active == name else None)
-            if problem:
-                if strict:
-                    raise SwitchError(problem)
-                plan.skipped.append(problem)
-            else:
-                plan.activate.append(name)
+                (plan.skipped if problem else bucket).append(problem or name)
         if len(plan.activate) > 1:
             raise SwitchError(f"exactly one velocity controller may be active: asked to activate {plan.activate}")
         remaining = None if (self.active is None or self.active in plan.deactivate) else self.active

@@ -29,7 +29,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 import rclpy
@@ -38,7 +38,7 @@ from rclpy.node import Node
 from seapup_msgs.msg import BladePitch, ControllerState
 from seapup_msgs.srv import ListControllers, SwitchController
 
-from seapup_common.ros.messages import ns_to_stamp, stamp_to_ns
+from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
@@ -266,11 +266,8 @@ class ControllerManagerNode(Node):
             values[f"{name}.dropped"] = c.commands_dropped
         level = DiagnosticStatus.ERROR if self.core.failovers else DiagnosticStatus.OK
         message = self.failover_message or (f"{self.core.active} active" if self.core.active else "no controller active")
-        status = DiagnosticStatus(level=level, name="seapup/controller_manager", hardware_id="seapup_control",
-                                  message=message, values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = ns_to_stamp(self.latest_sample_ns or 0)
-        self.diagnostics.publish(array)
+        self.diagnostics.publish(diagnostic_array("seapup/controller_manager", level,
+                                                  message, values, self.latest_sample_ns or 0))
 
 
 def main(args=None) -> int:

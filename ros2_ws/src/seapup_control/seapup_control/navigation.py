@@ -11,7 +11,7 @@ as a third, precise measurement of z.
 State and model (sample period T, world frame ``odom_ned``)::
 
     x_k = (x, y, z)_k                                   position of the body origin [m]
-    x_{k+1} = x_k + T R(phi, theta, psi) v_k + n_k      v_k = (u, v, w) from the log (eq. 2.1)
+    x_{k+1} = x_k + T R(phi, theta, psi)_k v_k + n_k    v_k = (u, v, w) from the log (eq. 2.1), held over the sample
     Q_k = T^2 R Sigma_v R^T + q_walk T I                log noise + model error (attitude noise,
                                                         the velocity's change within a sample)
     fix:    y = x + e_fix,   Var e_fix = diag(sigma_fix^2)     when a fix is valid
@@ -118,6 +118,8 @@ class Navigator:
         self.velocity = np.zeros(3)
         self.rates = np.zeros(3)
         self.attitude: np.ndarray | None = None
+        self._velocity_lost = False
+        self._velocity_variance = np.asarray(self.params.velocity_std, dtype=float) ** 2
         self.counts = {"samples": 0, "fixes_fused": 0, "fixes_rejected": 0, "depths_fused": 0,
                        "coasting_samples": 0, "rejected_samples": 0}
         self._last_fix_stamp = -math.inf
@@ -159,21 +161,21 @@ class Navigator:
         if self.t is not None and t < self.t - 1e-9:
             self.counts["rejected_samples"] += 1
             raise ContractError(f"navigation sample at t = {t:.3f} s is before the last one ({self.t:.3f} s)")
+        # dead reckoning over [t_prev, t] with the readings of t_prev (held, like the log's output)
+        coasting = self._velocity_lost
+        if self.x is not None and self.t is not None and self.attitude is not None:
+            self._predict(t - self.t, self._velocity_variance, coasting)
+            self.counts["coasting_samples"] += int(coasting)
         if measurement.attitude.valid:
             self.attitude = np.array(measurement.attitude.value, dtype=float)
-        coasting = not measurement.velocity.valid
-        if not coasting:
+        self._velocity_lost = not measurement.velocity.valid
+        if not self._velocity_lost:
             self.velocity = np.array(measurement.velocity.value, dtype=float)
-            velocity_variance = self._variance(measurement.velocity, self.params.velocity_std)
-        else:
-            velocity_variance = np.asarray(self.params.velocity_std, dtype=float) ** 2
+            self._velocity_variance = self._variance(measurement.velocity, self.params.velocity_std)
         if measurement.rates.valid:
             self.rates = np.array(measurement.rates.value, dtype=float)
         if self.attitude is None:
             return None
-        if self.x is not None and self.t is not None:
-            self._predict(t - self.t, velocity_variance, coasting)
-            self.counts["coasting_samples"] += int(coasting)
         self.t = t
         self.counts["samples"] += 1
         self._take_fix(measurement)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -23,7 +23,7 @@ from sensor_msgs.msg import Imu
 from seapup_msgs.msg import Depth
 
 from seapup_common.contract import ContractError
-from seapup_common.ros.messages import MeasurementCollector, estimate_to_odometry, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.navigation import Navigator, NavigatorParams
 
@@ -92,12 +92,8 @@ class NavigatorNode(Node):
                   "horizontal_std": estimate.horizontal_std if estimate else math.nan,
                   "depth_std": math.sqrt(estimate.position_cov[2, 2]) if estimate else math.nan}
         level = DiagnosticStatus.OK if estimate is not None else DiagnosticStatus.WARN
-        status = DiagnosticStatus(level=level, name="seapup/navigator", hardware_id="seapup_control",
-                                  message="tracking" if estimate is not None else "waiting for a position fix",
-                                  values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = ns_to_stamp(int(self.navigator.t * 1e9) if self.navigator.t is not None else 0)
-        self.diagnostics.publish(array)
+        self.diagnostics.publish(diagnostic_array("seapup/navigator", level,
+                                                  "tracking" if estimate is not None else "waiting for a position fix", values, int(self.navigator.t * 1e9) if self.navigator.t is not None else 0))
 
 
 def main(args=None) -> int:

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
 from seapup_common.contract import ContractError, ReferenceSchedule
-from seapup_common.ros.messages import (estimate_from_odometry, ns_to_stamp, pose_setpoint_from_msg,
+from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
                                         reference_to_msg)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions, \
     run_node
@@ -63,7 +63,6 @@ class PositionControllerNode(LifecycleNode):
         self._interfaces = [
             self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),
             self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]
-        self._last_setpoint: PoseReference | None = None
         self._last_diag = 0.0
         return TransitionCallbackReturn.SUCCESS
 
@@ -122,11 +121,8 @@ class PositionControllerNode(LifecycleNode):
                   "velocity_reference": reference.velocity.tolist(),
                   "limited": [bool(x) for x in self.controller.limited]}
         level = DiagnosticStatus.WARN if self.counts["rejected_setpoints"] else DiagnosticStatus.OK
-        status = DiagnosticStatus(level=level, name=f"seapup/{self.get_name()}", hardware_id="seapup_control",
-                                  message="tracking", values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = ns_to_stamp(t_ns)
-        self.diagnostics.publish(array)
+        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
+                                                  "tracking", values, t_ns))
 
 
 def main(args=None) -> int:

@@ -20,7 +20,7 @@ import functools
 import math
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -32,7 +32,8 @@ from seapup_msgs.action import FollowSeabed, Goto, Hover
 from std_msgs.msg import String
 
 from seapup_common.contract import ContractError
-from seapup_common.ros.messages import altitude_from_msg, estimate_from_odometry, pose_setpoint_to_msg
+from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
+                                        pose_setpoint_to_msg)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -68,8 +69,7 @@ class TaskControllerNode(Node):
         self.navigation_timeout = float(p["navigation_timeout"])
         self.estimate = None
         self._estimate_wall = -math.inf
-        self.altitude = None
-        self._altitudes = collections.deque(maxlen=100)
+        self._altitudes = collections.deque(maxlen=100)  # valid altimeter readings, oldest first
         self.running: _Running | None = None
         self.setpoint = None
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0}
@@ -94,7 +94,8 @@ class TaskControllerNode(Node):
         if kind == "goto":
             return GotoTask(self.limits, estimate, (goal.x, goal.y, goal.z), goal.yaw, speed=goal.speed,
                             tolerance=goal.tolerance, yaw_tolerance=goal.yaw_tolerance, timeout=goal.timeout)
-        return FollowSeabedTask(self.limits, estimate, self.altitude, height=goal.altitude, yaw=goal.yaw,
+        altitude = self._altitudes[-1] if self._altitudes else None
+        return FollowSeabedTask(self.limits, estimate, altitude, height=goal.altitude, yaw=goal.yaw,
                                 speed=goal.speed, duration=goal.duration)
 
     def _reject(self, kind: str, reason: str) -> GoalResponse:
@@ -141,7 +142,6 @@ class TaskControllerNode(Node):
         except (ContractError, ValueError):
             return
         if reading.valid:
-            self.altitude = reading
             self._altitudes.append(reading)
 
     def _altitude_at(self, t: float):
@@ -189,13 +189,8 @@ class TaskControllerNode(Node):
         fresh = self.estimate is not None and time.monotonic() - self._estimate_wall <= self.navigation_timeout
         running = self.running.task.kind if self.running is not None else ""
         values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none"}
-        status = DiagnosticStatus(level=DiagnosticStatus.OK if fresh else DiagnosticStatus.WARN,
-                                  name="seapup/task_controller", hardware_id="seapup_control",
-                                  message=(running or "idle") if fresh else "no navigation estimate",
-                                  values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
-        self.diagnostics.publish(array)
+        self.diagnostics.publish(diagnostic_array("seapup/task_controller", DiagnosticStatus.OK if fresh else DiagnosticStatus.WARN,
+                                                  (running or "idle") if fresh else "no navigation estimate", values, self.get_clock().now().nanoseconds))
 
 
 def main(args=None) -> int:

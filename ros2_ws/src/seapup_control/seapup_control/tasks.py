@@ -23,6 +23,7 @@ and, when it ends, its outcome and result numbers.
 """
 from __future__ import annotations
 
+import abc
 import math
 from dataclasses import dataclass, field
 
@@ -133,7 +134,7 @@ class TaskStep:
     result: dict = field(default_factory=dict)
 
 
-class Task:
+class Task(abc.ABC):
     """A task: ``step(t, estimate, altitude)`` once per sample until it says done."""
 
     kind = "task"
@@ -147,8 +148,9 @@ class Task:
             self.t0 = t
         return t - self.t0
 
+    @abc.abstractmethod
     def step(self, t: float, estimate: NavigationEstimate, altitude: Reading | None = None) -> TaskStep:
-        raise NotImplementedError
+        """The setpoint, feedback and (when done) outcome at sample ``t``."""
 
     def hold(self, estimate: NavigationEstimate, t: float) -> PoseReference:
         """Where to hover when this task is cancelled or ends badly: the estimated pose now."""

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped,
                                Vector3Stamped, WrenchStamped)
 from nav_msgs.msg import Odometry
@@ -34,7 +35,7 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
            "vector3_stamped", "wrench_stamped", "MeasurementCollector", "LockstepSampler",
            "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
-           "reference_to_msg", "reference_from_msg",
+           "reference_to_msg", "reference_from_msg", "diagnostic_array",
            "UNKNOWN_VARIANCE"]
 
 #: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
@@ -289,6 +290,16 @@ def reference_from_msg(msg: TwistStamped) -> Reference:
     if msg.header.frame_id not in ("", frames.FRAME_FRD):
         raise ContractError(f"reference frame {msg.header.frame_id!r}: expected {frames.FRAME_FRD}")
     return Reference([msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z, msg.twist.angular.z])
+
+
+def diagnostic_array(name: str, level, message: str, values: dict, t_ns: int,
+                     hardware_id: str = "seapup_control") -> DiagnosticArray:
+    """One node's ``/diagnostics`` status: ``values`` as key/value strings, stamped ``t_ns``."""
+    status = DiagnosticStatus(level=level, name=name, hardware_id=hardware_id, message=message,
+                              values=[KeyValue(key=str(k), value=str(v)) for k, v in values.items()])
+    array = DiagnosticArray(status=[status])
+    array.header.stamp = ns_to_stamp(t_ns)
+    return array
 
 
 def vector3_stamped(vector, t_ns: int, frame_id: str) -> Vector3Stamped:

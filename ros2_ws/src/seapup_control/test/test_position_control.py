@@ -1,0 +1,55 @@
+"""The global position controller (sec. 4.2): frames, wrap-around, limits, feed-forward."""
+import math
+
+import numpy as np
+
+from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
+
+T = 0.2
+FAST = PositionControllerParams(acceleration_limits=(100, 100, 100, 100))
+
+
+def settled(controller, position, attitude, n=50):
+    for _ in range(n):
+        out = controller.update(position, attitude)
+    return out.velocity
+
+
+def test_a_north_error_is_a_sway_demand_when_heading_east():
+    c = PositionController(FAST, T)
+    c.set_reference(PoseReference([1.0, 0.0, 30.0], math.pi / 2))
+    v = settled(c, [0.0, 0.0, 30.0], [0.0, 0.0, math.pi / 2])
+    # body y points south when heading east: the north error is to port (negative sway)
+    np.testing.assert_allclose(v[:3], [0.0, -0.15, 0.0], atol=1e-12)  # 0.2 x -1 clipped to the 0.15 limit
+
+
+def test_yaw_takes_the_short_way_round():
+    c = PositionController(FAST, T)
+    c.set_reference(PoseReference([0, 0, 30], math.radians(10)))
+    r = settled(c, [0, 0, 30], [0, 0, math.radians(350)])[3]
+    assert r > 0 and math.isclose(r, 0.5 * math.radians(20), rel_tol=1e-9)
+
+
+def test_speed_limits_scale_the_vector_and_keep_its_direction():
+    c = PositionController(FAST, T)
+    c.set_reference(PoseReference([10.0, 5.0, 30.0], 0.0))
+    u, v, w, _ = settled(c, [0, 0, 30], [0, 0, 0])
+    assert math.isclose(u, 0.3) and abs(v) <= 0.15 + 1e-12
+    assert math.isclose(v / u, 0.5)  # same direction as the 10:5 error
+
+
+def test_reference_changes_are_slew_limited():
+    c = PositionController(PositionControllerParams(), T)
+    c.set_reference(PoseReference([10.0, 0.0, 30.0], 0.0))
+    first = c.update([0, 0, 30], [0, 0, 0]).velocity
+    assert math.isclose(first[0], 0.05 * T) and c.limited[0]
+
+
+def test_a_moving_setpoint_is_followed_without_lag_and_a_step_gives_no_feedforward():
+    c = PositionController(FAST, T)
+    for k in range(3):
+        c.set_reference(PoseReference([0.2 * k * T, 0.0, 30.0], 0.0, k * T))
+    u = settled(c, [0.2 * 2 * T, 0.0, 30.0], [0, 0, 0])[0]
+    assert math.isclose(u, 0.2, rel_tol=1e-9)  # on the setpoint, moving with it
+    c.set_reference(PoseReference([50.0, 0.0, 30.0], 0.0, 3 * T))  # a jump: no feed-forward
+    np.testing.assert_array_equal(c._feedforward, 0.0)

@@ -1,0 +1,55 @@
+"""Tasks: goal checks with reasons, the moving setpoint of goto, arrival, seabed depth."""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_common.contract import NavigationEstimate, Reading
+from seapup_control.tasks import FollowSeabed, Goto, Hover, TaskLimits, TaskRejected
+
+LIMITS = TaskLimits()
+
+
+def estimate(position=(0.0, 0.0, 30.0), yaw=0.0, t=0.0, std=0.1):
+    return NavigationEstimate(t, np.array(position, float), np.eye(3) * std ** 2, np.array([0, 0, yaw]),
+                              np.zeros(3))
+
+
+@pytest.mark.parametrize("kwargs, reason", [
+    ({"target": (500, 0, 30)}, "max_distance"),
+    ({"target": (5, 0, -1)}, "z -1 m is outside"),
+    ({"target": (math.nan, 0, 30)}, "x must be finite"),
+    ({"target": (5, 0, 30), "speed": 1.0}, "speed 1 m/s is outside"),
+    ({"target": (50, 0, 30), "speed": 0.1, "timeout": 60.0}, "shorter than"),
+])
+def test_goals_that_cannot_be_met_are_refused_with_the_reason(kwargs, reason):
+    target = kwargs.pop("target")
+    with pytest.raises(TaskRejected, match=reason):
+        Goto(LIMITS, estimate(), target, 0.0, **kwargs)
+
+
+def test_no_navigation_or_too_uncertain_navigation_is_refused():
+    with pytest.raises(TaskRejected, match="no navigation"):
+        Hover(LIMITS, None)
+    with pytest.raises(TaskRejected, match="too uncertain"):
+        Hover(LIMITS, estimate(std=5.0))
+
+
+def test_goto_setpoint_moves_along_the_line_at_its_speed_and_arrival_needs_settling():
+    task = Goto(LIMITS, estimate(), (6.0, 8.0, 30.0), 1.0, speed=0.2)
+    step = task.step(0.0, estimate())
+    np.testing.assert_allclose(step.setpoint.position, [0, 0, 30])
+    step = task.step(10.0, estimate(t=10.0))
+    np.testing.assert_allclose(step.setpoint.position, [1.2, 1.6, 30])  # 2 m along the 3-4-5 line
+    there = estimate((6.0, 8.0, 30.0), 1.0)
+    assert not task.step(50.0, there).done                 # inside, not yet settled
+    done = task.step(50.0 + LIMITS.settle_time, there)
+    assert done.done and done.success and done.result["distance"] == 0.0
+
+
+def test_seabed_depth_is_depth_plus_altitude_along_the_vertical():
+    pitched = NavigationEstimate(0.0, np.array([0, 0, 30.0]), np.eye(3) * 0.01, np.array([0, 0.2, 0]), np.zeros(3))
+    task = FollowSeabed(LIMITS, pitched, Reading(10.0, 0.0, 0.0), height=5.0, yaw=0.0, speed=0.2, duration=10)
+    assert math.isclose(task.seabed, 30.0 + 10.0 * math.cos(0.2))
+    with pytest.raises(TaskRejected, match="sees no seabed"):
+        FollowSeabed(LIMITS, pitched, Reading.invalid(), height=5.0, yaw=0.0, speed=0.2, duration=10)
