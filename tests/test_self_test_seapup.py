@@ -68,6 +68,19 @@ def test_self_test_at_zero_speed_recovers_the_noise_free_steps(mode, velocity_lo
         assert np.all(box < 20.0)
 
 
+def test_under_the_baseline_log_noise_the_dominant_channels_stay_within_20_percent(velocity_log):
+    """sec. 6.5.1's instrument fit (log 0.02 kt, gyro 0.005 deg/s, 3 sigma): the self-test still finishes
+    in about the noise-free time and its steady-state gains agree with the noise-free steps."""
+    run = fly_self_test("baseline", {}, environment={"sensors": "baseline"}, seed=1)
+    assert run.test.phase == Phase.DONE, run.test.reason
+    (point,) = run.test.points
+    _, final = velocity_log
+    for i, j in DOMINANT:
+        assert point.model.B1inv[i, j] == pytest.approx(final[i, j], rel=0.2), (i, j)
+    np.testing.assert_allclose(point.model.u0, HOVER, atol=np.radians(0.5))
+    assert 60.0 < run.test.duration < 240.0
+
+
 def test_a_second_operating_point_at_0_7_m_s(velocity_log):
     test, box = run_self_test({"operating_points": [0.0, 0.7]})
     assert test.phase == Phase.DONE, test.reason

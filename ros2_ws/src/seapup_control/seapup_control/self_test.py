@@ -73,6 +73,7 @@ class SelfTestConfig:
     closed_loop_divisor: float
     drift_tolerance: float
     drift_window: float
+    drift_noise_sigmas: float
     max_wait: float
     operating_points: tuple[float, ...]
     reach_tolerance: float
@@ -111,6 +112,7 @@ class SelfTestConfig:
         return cls(period, step, view.integer("samples", lo=5, hi=100_000), quiescence,
                    view.number("closed_loop_divisor", lo=1.0, hi=1000.0),
                    view.number("drift_tolerance", lo=1e-6, hi=1.0), view.number("drift_window", lo=period, hi=600.0),
+                   view.number("drift_noise_sigmas", lo=0.0, hi=10.0),
                    view.number("max_wait", lo=period, hi=36_000.0), speeds,
                    view.number("reach_tolerance", lo=1e-4, hi=1.0),
                    view.vector("zero_level", 4, lo=-limit, hi=limit),
@@ -240,7 +242,8 @@ class SelfTest:
         self._phase_start = 0.0
         self._last_t = 0.0
         self._drift: np.ndarray | None = None  # settled outputs at the zero level
-        self._speeds: list[tuple[float, float]] = []   # (t, total speed) for the settling test
+        self._log_sigma = 0.0   # the velocity log's noise standard deviation, from its readings
+        self._window: list[tuple[float, np.ndarray]] = []   # (t, outputs) over drift_window, for the settling test
         self._current: StepTest | None = None
         self.phase = Phase.DRIFT if self.threshold is None else Phase.QUIESCE
 
@@ -298,6 +301,7 @@ class SelfTest:
     def update(self, t: float, measurement: Measurement, reference: Reference | None = None) -> Command:
         """One sample: decide, log, and return the command to hold (the reference is not used)."""
         y = measurement.body_velocity()  # ContractError on an invalid reading: nothing changes
+        self._log_sigma = math.sqrt(float(np.max(measurement.velocity.variance)))
         t = float(t)
         if self.start_time is None:
             self.start_time = self._phase_start = t
@@ -317,8 +321,8 @@ class SelfTest:
             return self._hover(t, y)
         if self.phase == Phase.DRIFT:
             if self._settled(t, y):
-                self._drift = y.copy()
-                self.threshold = 1.2 * float(np.linalg.norm(y[:3])) + 0.01
+                self._drift = np.mean([v for _, v in self._window], axis=0)  # the window's mean: noise averaged
+                self.threshold = 1.2 * float(np.linalg.norm(self._drift[:3])) + 0.01
                 self._enter(Phase.QUIESCE, t)
             else:
                 self._check_wait(t, y, "the drift at the zero level did not settle")
@@ -407,15 +411,24 @@ class SelfTest:
         return Measurement.build(t, velocity=y[:3], rates=(0.0, 0.0, y[3]))
 
     def _settled(self, t: float, y: np.ndarray) -> bool:
-        speed = float(np.linalg.norm(y[:3]))
-        self._speeds.append((t, speed))
+        """Has the speed stopped changing? Its range over ``drift_window`` is under the tolerance.
+
+        The tolerance is ``drift_tolerance`` plus ``drift_noise_sigmas`` standard
+        deviations of the log's white noise (the reading's own variance, sec.
+        6.5.1): the range of eleven noise samples exceeds 5 sigma in 2 % of
+        windows, so noisy logs cannot hold the test open forever, while a drift
+        or an oscillation larger than the noise still fails it. Noise-free logs
+        (variance 0) get the tolerance alone.
+        """
+        self._window.append((t, np.asarray(y, float).copy()))
         window = self.config.drift_window
-        while self._speeds and self._speeds[0][0] < t - window - 1e-9:
-            self._speeds.pop(0)
+        while self._window and self._window[0][0] < t - window - 1e-9:
+            self._window.pop(0)
         if t - self._phase_start < window:
             return False
-        values = [s for _, s in self._speeds]
-        return max(values) - min(values) < self.config.drift_tolerance
+        speeds = np.linalg.norm([v[:3] for _, v in self._window], axis=1)
+        allowance = self.config.drift_tolerance + self.config.drift_noise_sigmas * self._log_sigma
+        return float(speeds.max() - speeds.min()) < allowance
 
     def _check_wait(self, t: float, y: np.ndarray, what: str) -> None:
         if t - self._phase_start > self.config.max_wait:
@@ -425,7 +438,7 @@ class SelfTest:
     def _enter(self, phase: Phase, t: float) -> None:
         self.phase = phase
         self._phase_start = t
-        self._speeds.clear()
+        self._window.clear()
 
     def _finish(self, phase: Phase, reason: str) -> None:
         self.phase = phase

@@ -202,3 +202,31 @@ def test_a_run_rebuilt_from_its_sample_records_refits_to_the_same_result():
         np.testing.assert_array_equal(mine.gains.K_err, live.gains.K_err)
     with pytest.raises(Exception, match="misses"):
         tests_from_samples([r for r in records if r["test_index"] != 3])
+
+
+def drift_phase(speeds, variance):
+    """Feed the drift phase a sequence of surge speeds with the log's stated variance; the time it settled."""
+    test = SelfTest(SelfTestConfig.load({}))
+    test.reset(Command(np.zeros(4)))
+    for k, u in enumerate(speeds):
+        test.update(k * T, Measurement.build(k * T, velocity=(u, 0, 0), rates=(0, 0, 0),
+                                             variances={"velocity": np.full(3, variance)}))
+        if test.phase != Phase.DRIFT:
+            return (k * T if test.phase == Phase.QUIESCE else None), test  # FAILED after max_wait
+    return None, test
+
+
+def test_the_drift_settles_through_log_noise_but_not_through_a_real_drift():
+    """sec. 6.5.1's log noise (0.02 kt, 3 sigma) is wider than the 2 mm/s tolerance: the reading's variance
+    widens it by 5 sigma, so a steady drift under noise settles within seconds and its mean is taken."""
+    rng = np.random.default_rng(4)
+    sigma = 0.02 * 1852 / 3600 / 3
+    noisy = 0.25 + sigma * rng.normal(size=1000)
+    t, test = drift_phase(noisy, sigma ** 2)
+    assert t is not None and t < 10.0
+    assert test.threshold == pytest.approx(1.2 * 0.25 + 0.01, abs=1.2 * 3 * sigma)  # the window's mean
+    # the same noise without its variance is never quiet enough (the thesis's noise-free tolerance)
+    assert drift_phase(noisy, 0.0)[0] is None
+    # a drift that still changes 10 sigma per window, or oscillates by that much, does not settle
+    assert drift_phase(noisy + np.arange(1000) * 10 * sigma / 10, sigma ** 2)[0] is None
+    assert drift_phase(noisy + 5 * sigma * np.sin(np.arange(1000) * 2 * np.pi / 8), sigma ** 2)[0] is None
