@@ -22,7 +22,14 @@ a controller manager can swap it at run time:
   :class:`~seapup_common.contract.ReferenceSchedule`)
   and publishes ``/seapup/thrusters/command`` stamped with the sample time
   (``lockstep``: each sensor sample t_k of a lockstep simulator, or its
-  repeated ``/clock`` t_k, is answered once; otherwise a timer);
+  repeated ``/clock`` t_k, is answered once; otherwise a timer). In lockstep,
+  while stamped references stream in (the newest two stamped within
+  ``reference_stream`` s of each other and of the sample), sample t_k waits
+  up to ``reference_wait`` wall seconds for the reference stamped t_k (then
+  goes on with the one in force, counted as ``late_references``): the simulator then waits for the whole
+  hierarchy, not only this loop, and the outer loops keep their designed
+  delay however fast the simulation runs (without it they fell up to 5 s
+  behind in the demo mission);
 - **deactivate** stops commanding.
 
 Non-finite or malformed references and sensor messages are rejected,
@@ -40,6 +47,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
@@ -65,7 +73,11 @@ class MFOLControllerNode(LifecycleNode):
                                            section="mfol_velocity_controller")
         self.controller: MFOLController | None = None
         self.active = False
-        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0}
+        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0,
+                       "late_references": 0}
+        self._newest_reference: float | None = None   # latest reference stamp heard [s]
+        self._previous_reference: float | None = None  # the one before it (a stream has both, close)
+        self._reference_waiting: tuple[int, float] | None = None  # (sample, wall time) waiting for its reference
         self.references = ReferenceSchedule()
         self.applied: np.ndarray | None = None
         self._start_pending = False  # lockstep: active, waiting for the applied pitch to start from
@@ -156,6 +168,10 @@ class MFOLControllerNode(LifecycleNode):
                 raise ContractError(f"stamped {at - latest * 1e-9:.3g} s after the latest sample (more than "
                                     f"reference_horizon {horizon:g} s): a wall-clock stamp on a sim-time graph?")
             self.references.add(reference, at)
+            if at is not None and (self._newest_reference is None or at > self._newest_reference):
+                self._previous_reference, self._newest_reference = self._newest_reference, at
+                if self.active and self._reference_waiting is not None and self.sampler.latest_ns is not None:
+                    self._answer(self.sampler.latest_ns)  # the sample that waited for it
         except ContractError as exc:
             self.counts["rejected_references"] += 1
             self.get_logger().warn(f"reference rejected: {exc}", throttle_duration_sec=2.0)
@@ -202,6 +218,8 @@ class MFOLControllerNode(LifecycleNode):
             if self.applied is None and waited < float(self.get_parameter("applied_wait").value):
                 return  # the applied pitch of this sample, or the simulator's /clock repeats, bring it back
             self._start(self.applied, "the applied blade pitch")
+        if self._awaiting_reference(t_ns):
+            return
         t = t_ns * 1e-9
         try:
             command = self.controller.update(t, self.collector.measurement(t), self.references.at(t))
@@ -214,6 +232,34 @@ class MFOLControllerNode(LifecycleNode):
         self.publisher.publish(command_to_msg(command, t_ns))
         if self.counts["samples"] % max(1, int(self.get_parameter("diagnostics_every").value)) == 0:
             self._diagnose(t_ns)
+
+    def _awaiting_reference(self, t_ns: int) -> bool:
+        """Lockstep: hold sample t_k while the reference stream is live and its reference for t_k is not here."""
+        t = t_ns * 1e-9
+        newest, previous = self._newest_reference, self._previous_reference
+        stream = float(self.get_parameter("reference_stream").value)
+        if (not self.get_parameter("lockstep").value or newest is None or previous is None
+                or newest - previous > stream or newest >= t - 1e-9 or newest < t - stream):
+            self._reference_waiting = None
+            return False
+        wait = float(self.get_parameter("reference_wait").value)
+        if self._reference_waiting is None or self._reference_waiting[0] != t_ns:
+            self._reference_waiting = (t_ns, time.monotonic())
+            self._retry(wait)
+        if time.monotonic() - self._reference_waiting[1] < wait:
+            return True  # the reference's arrival, or the retry timer, brings it back
+        self._reference_waiting = None
+        self.counts["late_references"] += 1
+        return False
+
+    def _retry(self, after: float) -> None:
+        """Answer the waiting sample after ``after`` wall seconds if its reference has not come by then."""
+        def fire():
+            timer.cancel()
+            self.destroy_timer(timer)
+            if self.active and self._reference_waiting is not None and self.sampler.latest_ns is not None:
+                self._answer(self.sampler.latest_ns)
+        timer = self.create_timer(after + 1e-3, fire, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))  # wall time: sim time stands still
 
     def _diagnose(self, t_ns: int) -> None:
         state = self.controller.state

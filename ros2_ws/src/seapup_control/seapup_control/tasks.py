@@ -33,7 +33,8 @@ from seapup_common.contract import NavigationEstimate, Reading
 from seapup_common.frames import wrap_angle
 from seapup_control.position_control import PoseReference
 
-__all__ = ["TaskRejected", "TaskLimits", "TaskStep", "Task", "Hover", "Goto", "FollowSeabed", "TrackingStats"]
+__all__ = ["TaskRejected", "TaskLimits", "TaskStep", "Task", "Hover", "Goto", "FollowSeabed", "TrackingStats",
+           "advance_along"]
 
 
 class TaskRejected(ValueError):
@@ -63,6 +64,7 @@ class TaskLimits:
     altitude_timeout: float = 2.0
     seabed_filter_time: float = 2.0
     max_estimate_std: float = 3.0
+    max_lead: float = 0.5
 
     @classmethod
     def from_mapping(cls, mapping: dict) -> "TaskLimits":
@@ -115,6 +117,18 @@ class TrackingStats:
 
     def rms(self, name: str) -> float:
         return math.sqrt(self.sums[name] / self.count) if self.count else 0.0
+
+
+def advance_along(previous: float, dt: float, speed: float, vehicle_along: float, lead: float, end: float) -> float:
+    """The moving setpoint's distance along its line after ``dt`` s at ``speed``, never more than ``lead`` m
+    ahead of the vehicle's own distance along the line (nor past ``end``), and never moving back.
+
+    A setpoint that runs ahead while the vehicle is held back (surge at its speed limit, a current)
+    piles up an along-track error the velocity loop can never recover, and the vehicle's pitch
+    turns part of it into a false depth error through the body-frame conversion of sec. 4.2: the
+    trajectory waits for the vehicle instead (anti-windup for the trajectory).
+    """
+    return max(previous, min(previous + speed * max(dt, 0.0), vehicle_along + lead, end))
 
 
 @dataclass
@@ -232,13 +246,17 @@ class Goto(Task):
         self.start_yaw = estimate.yaw
         self.stats = TrackingStats("cross_track")
         self._inside_since: float | None = None
+        self._travelled, self._t_last = 0.0, None
 
     def step(self, t, estimate, altitude=None) -> TaskStep:
         elapsed = self.elapsed(t)
-        travelled = min(self.length, self.speed * elapsed)
-        setpoint = PoseReference(self.start + travelled * self.direction, self.yaw, t)
         offset = estimate.position - self.start
         along = float(offset @ self.direction)
+        dt = 0.0 if self._t_last is None else t - self._t_last
+        self._t_last = t
+        self._travelled = travelled = advance_along(self._travelled, dt, self.speed, along, self.limits.max_lead,
+                                                    self.length)
+        setpoint = PoseReference(self.start + travelled * self.direction, self.yaw, t)
         cross = float(np.linalg.norm(offset - along * self.direction))
         distance = float(np.linalg.norm(self.target - estimate.position))
         yaw_error = float(wrap_angle(estimate.yaw - self.yaw))
@@ -283,6 +301,7 @@ class FollowSeabed(Task):
         self.last_altitude_t: float | None = None
         self.stats = TrackingStats("altitude")
         self._t_last: float | None = None
+        self._along = 0.0  # the setpoint's distance along the heading from the start [m]
 
     @staticmethod
     def _seabed_depth(estimate: NavigationEstimate, altitude: Reading) -> float:
@@ -301,7 +320,9 @@ class FollowSeabed(Task):
             self.seabed += a * (self._seabed_depth(estimate, altitude) - self.seabed)
             self.last_altitude_t = t
         depth = min(max(self.seabed - self.height, self.limits.min_depth), self.limits.max_depth)
-        along = self.start + self.speed * elapsed * self.heading
+        vehicle_along = float((estimate.position - self.start) @ self.heading)
+        self._along = advance_along(self._along, dt, self.speed, vehicle_along, self.limits.max_lead, math.inf)
+        along = self.start + self._along * self.heading
         setpoint = PoseReference([along[0], along[1], depth], self.yaw, t)
         travelled = float(math.hypot(*(estimate.position[:2] - self.start[:2])))
         error = (measured - self.height) if measured is not None else math.nan

@@ -30,12 +30,19 @@ def test_yaw_takes_the_short_way_round():
     assert r > 0 and math.isclose(r, 0.5 * math.radians(20), rel_tol=1e-9)
 
 
-def test_speed_limits_scale_the_vector_and_keep_its_direction():
+def test_speed_limits_scale_the_horizontal_pair_and_keep_its_direction_heave_on_its_own():
     c = PositionController(FAST, T)
     c.set_reference(PoseReference([10.0, 5.0, 30.0], 0.0))
     u, v, w, _ = settled(c, [0, 0, 30], [0, 0, 0])
     assert math.isclose(u, 0.3) and abs(v) <= 0.15 + 1e-12
     assert math.isclose(v / u, 0.5)  # same direction as the 10:5 error
+    # a surge demand at its limit does not slow a climb: w gets its own K_p e_z (0.3 x -0.2 m)
+    c = PositionController(FAST, T)
+    c.set_reference(PoseReference([10.0, 0.0, 29.8], 0.0))
+    u, v, w, _ = settled(c, [0, 0, 30], [0, 0, 0])
+    assert math.isclose(u, 0.3) and math.isclose(w, FAST.gains[2] * -0.2)
+    c.set_reference(PoseReference([10.0, 0.0, 20.0], 0.0))  # and a large depth error: w at its own limit
+    assert math.isclose(settled(c, [0, 0, 30], [0, 0, 0])[2], -0.15)
 
 
 def test_reference_changes_are_slew_limited():

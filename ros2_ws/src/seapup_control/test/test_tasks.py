@@ -39,8 +39,12 @@ def test_goto_setpoint_moves_along_the_line_at_its_speed_and_arrival_needs_settl
     task = Goto(LIMITS, estimate(), (6.0, 8.0, 30.0), 1.0, speed=0.2)
     step = task.step(0.0, estimate())
     np.testing.assert_allclose(step.setpoint.position, [0, 0, 30])
-    step = task.step(10.0, estimate(t=10.0))
+    step = task.step(10.0, estimate((1.08, 1.44, 30.0), t=10.0))   # the vehicle 1.8 m along, following
     np.testing.assert_allclose(step.setpoint.position, [1.2, 1.6, 30])  # 2 m along the 3-4-5 line
+    stuck = Goto(LIMITS, estimate(), (6.0, 8.0, 30.0), 1.0, speed=0.2)
+    stuck.step(0.0, estimate())
+    step = stuck.step(10.0, estimate(t=10.0))                      # the vehicle has not moved
+    np.testing.assert_allclose(step.setpoint.position, [0.3, 0.4, 30])  # waits max_lead (0.5 m) ahead
     there = estimate((6.0, 8.0, 30.0), 1.0)
     assert not task.step(50.0, there).done                 # inside, not yet settled
     done = task.step(50.0 + LIMITS.settle_time, there)
@@ -53,3 +57,14 @@ def test_seabed_depth_is_depth_plus_altitude_along_the_vertical():
     assert math.isclose(task.seabed, 30.0 + 10.0 * math.cos(0.2))
     with pytest.raises(TaskRejected, match="sees no seabed"):
         FollowSeabed(LIMITS, pitched, Reading.invalid(), height=5.0, yaw=0.0, speed=0.2, duration=10)
+
+
+def test_a_moving_setpoint_waits_for_a_vehicle_that_falls_behind():
+    from seapup_control.tasks import advance_along
+    # free running: speed x dt
+    assert advance_along(2.0, 0.2, 0.3, vehicle_along=1.9, lead=0.5, end=10.0) == pytest.approx(2.06)
+    # the vehicle 0.5 m behind already: the setpoint does not run further ahead
+    assert advance_along(2.0, 0.2, 0.3, vehicle_along=1.5, lead=0.5, end=10.0) == pytest.approx(2.0)
+    # never back (a fix pulling the estimate back does not pull the setpoint), never past the end
+    assert advance_along(2.0, 0.2, 0.3, vehicle_along=0.0, lead=0.5, end=10.0) == 2.0
+    assert advance_along(9.99, 0.2, 0.3, vehicle_along=9.9, lead=0.5, end=10.0) == 10.0

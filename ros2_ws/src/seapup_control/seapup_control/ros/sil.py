@@ -186,6 +186,16 @@ class SilGraph:
         return self.log["truth"][-1].header.stamp.sec + 1e-9 * self.log["truth"][-1].header.stamp.nanosec \
             if self.log["truth"] else 0.0
 
+    def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """The latest navigation estimate: time [s], position (x, y, z odom_ned) [m], attitude (phi, theta, psi)."""
+        from seapup_common import frames
+        if not self.log["estimate"]:
+            raise SilError("no navigation estimate heard yet")
+        msg = self.log["estimate"][-1]
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        return (msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec, np.array([p.x, p.y, p.z]),
+                np.asarray(frames.quaternion_to_euler([q.x, q.y, q.z, q.w]), dtype=float))
+
     def run_for(self, seconds: float, timeout: float | None = None) -> None:
         """Let simulated time advance by ``seconds``."""
         end = self.t + seconds
@@ -194,7 +204,8 @@ class SilGraph:
 
     def goal(self, kind: str, *, timeout: float = 300.0, cancel_after: float | None = None,
              during: tuple | None = None, **fields) -> dict:
-        """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", <result fields>}``.
+        """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", "accepted_t", "end_t",
+        <result fields>}`` (``accepted_t``, ``end_t``: simulated times it was accepted and ended).
 
         ``cancel_after`` [s simulated]: cancel the goal that long after it was accepted.
         ``during = (seconds, function)``: call ``function()`` once, that many simulated seconds
@@ -216,6 +227,7 @@ class SilGraph:
                 self.spin_until(lambda: len(self.log["rejections"]) > rejections, 5.0)
                 reason = self.log["rejections"][-1].data if len(self.log["rejections"]) > rejections else ""
                 return {"status": "rejected", "accepted": False, "rejection": reason}
+            accepted_t = self.t
             future = handle.get_result_async()
             during_result = None
             if during is not None:
@@ -234,7 +246,8 @@ class SilGraph:
             status = {4: "succeeded", 5: "canceled", 6: "aborted"}.get(response.status, str(response.status))
             result = response.result
             out = {name: getattr(result, name) for name in result.get_fields_and_field_types()}
-            return {"status": status, "accepted": True, "rejection": "", "during": during_result, **out}
+            return {"status": status, "accepted": True, "rejection": "", "during": during_result,
+                    "accepted_t": accepted_t, "end_t": self.t, **out}
         finally:
             client.destroy()
 

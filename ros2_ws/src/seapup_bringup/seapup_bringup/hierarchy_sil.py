@@ -1,0 +1,127 @@
+"""The supervisory hierarchy (thesis sec. 4.2, fig. 4.3) flown in one process, in lockstep, without ROS.
+
+The same pure cores the nodes wrap -- :class:`~seapup_control.navigation.Navigator`,
+a task of :mod:`seapup_control.tasks`, the
+:class:`~seapup_control.position_control.PositionController` and the
+:class:`~seapup_control.mfol_controller.MFOLController` -- with the same
+parameters (the nodes' YAML files) and the same timing as the lockstep graph
+of ``seapup_bringup/launch/hierarchy.yaml``: the task's setpoint from the
+estimate at t_k is used by the position controller from t_{k+1} on (stamped
+t_k + T), and the velocity reference it makes at t_k by the velocity
+controller at t_{k + reference_delay}. So a task can be studied (and unit
+tested) in seconds, and the ROS graph checked against it.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from seapup_common.contract import Command, Reference
+
+__all__ = ["HierarchyRun", "node_parameters", "fly_hierarchy"]
+
+
+def node_parameters(package: str, file: str, node: str) -> dict:
+    """The ``ros__parameters`` of ``node`` in the installed ``<package>/config/<file>``."""
+    from ament_index_python.packages import get_package_share_directory
+    path = Path(get_package_share_directory(package)) / "config" / file
+    return yaml.safe_load(path.read_text())[node]["ros__parameters"]
+
+
+@dataclass
+class HierarchyRun:
+    """What happened, one row per control sample (SI, odom_ned / base_link_frd)."""
+
+    t: np.ndarray             # (n,) [s]
+    state: np.ndarray         # (n, 12) truth
+    estimate: np.ndarray      # (n, 3) navigation position
+    setpoint: np.ndarray      # (n, 4) x, y, z, yaw of the setpoint in force
+    reference: np.ndarray     # (n, 4) velocity reference used (u, v, w, r)
+    command: np.ndarray       # (n, 4) blade pitch [rad]
+    altitude: np.ndarray      # (n,) altimeter reading (NaN when invalid)
+    steps: list               # the task's TaskStep per sample
+    task: object
+
+
+def fly_hierarchy(make_task, schedule, *, vehicle="baseline", environment=None, seed: int = 0,
+                  state=None, duration: float = 600.0, warmup: float = 5.0) -> HierarchyRun:
+    """Fly one task through navigator -> task -> position controller -> MFOL controller -> simulator.
+
+    Parameters
+    ----------
+    make_task : callable
+        ``make_task(limits, estimate, altitude)`` -> a :class:`~seapup_control.tasks.Task`, called
+        after ``warmup`` s of hovering (the navigation has converged by then).
+    schedule : GainSchedule
+        The velocity controller's gains (a self-test result).
+    environment : mapping, optional
+        Environment overrides of the simulator (sensors, current, seabed).
+    state : array_like (12,), optional
+        Start state (default: at rest, 30 m deep).
+    duration : float
+        Simulated seconds after the task started at most; the run ends when the task is done.
+    """
+    from seapup_control.mfol_controller import MFOLController
+    from seapup_control.navigation import Navigator, NavigatorParams
+    from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
+    from seapup_control.tasks import Hover, TaskLimits
+    from seapup_sim.simulation import Simulation
+
+    task_p = node_parameters("seapup_control", "task_controller.yaml", "task_controller")
+    limits = TaskLimits.from_mapping(task_p["limits"])
+    position_p = node_parameters("seapup_control", "position_controller.yaml", "position_controller")
+    period = float(position_p["sample_period"])
+    delay = int(position_p["reference_delay"])
+    navigator_p = node_parameters("seapup_control", "navigator.yaml", "navigator")
+    navigator = Navigator(NavigatorParams.from_mapping({k: v for k, v in navigator_p.items()
+                                                        if k != "sample_topics"}))
+    position = PositionController(PositionControllerParams.from_mapping(
+        {k: position_p[k] for k in ("gains", "yaw_gain", "speed_limits", "max_yaw_rate", "acceleration_limits",
+                                    "feedforward")}), period)
+    start = np.r_[0.0, 0.0, 30.0, np.zeros(9)] if state is None else np.asarray(state, float)
+    controller = MFOLController(schedule)
+    sim = Simulation.from_config(vehicle, environment or {}, seed=seed, control_period=period, state=start,
+                                 pitch=schedule.offset_at(0.0))
+    controller.reset(Command(schedule.offset_at(0.0)))
+    references = deque([Reference()] * delay)   # velocity references in flight (stamped t + delay T)
+    pending: PoseReference | None = None        # the setpoint stamped t_k + T, used from t_{k+1}
+    task, started, hover = None, None, None
+    rows = {name: [] for name in ("t", "state", "estimate", "setpoint", "reference", "command", "altitude")}
+    steps = []
+    while True:
+        sample = sim.sample()
+        t, measurement = sample.t, sample.measurement
+        estimate = navigator.update(measurement)
+        altitude = measurement.altitude if measurement.altitude.valid else None
+        if pending is not None:
+            position.set_reference(pending)
+        if estimate is not None:
+            if task is None and t >= warmup:
+                task, started = make_task(limits, estimate, altitude), t
+            if task is None and hover is None:
+                hover = Hover(limits, estimate, hold_current=True)  # warm-up: hold where the filter starts
+            step = (task or hover).step(t, estimate, altitude)
+            pending = PoseReference(step.setpoint.position, step.setpoint.yaw, t + period)
+            if task is not None:
+                steps.append(step)
+            references.append(position.update(estimate.position, estimate.attitude)
+                              if position.reference is not None else Reference())
+        else:
+            references.append(Reference())
+        reference = references.popleft()
+        command = controller.update(t, measurement, reference)
+        for name, value in (("t", t), ("state", sample.state), ("estimate", estimate.position if estimate else
+                                                                  np.full(3, np.nan)),
+                            ("setpoint", [*position.reference.position, position.reference.yaw]
+                             if position.reference is not None else np.full(4, np.nan)),
+                            ("reference", reference.velocity), ("command", command.blade_pitch),
+                            ("altitude", float(altitude.value) if altitude is not None else np.nan)):
+            rows[name].append(value)
+        if task is not None and (steps[-1].done or t - started >= duration):
+            break
+        sim.advance(command.blade_pitch)
+    return HierarchyRun(**{k: np.asarray(v, float) for k, v in rows.items()}, steps=steps, task=task)
