@@ -112,18 +112,19 @@ _shell("env", "print the exports; use: eval \"$(./seapup env)\"")
 _shell("lock", "regenerate requirements/lock.txt from seapup.in")
 
 
-@command("demo", "run the main demonstration (today: open-loop manoeuvres through the graph, recorded)",
-         "[--duration S] [--out DIR] [--bag DIR] [--json [F]]")
+@command("demo", "the main demonstration: the self-tested Seapup flies a mission through the supervisory "
+         "hierarchy (self-test, hover + controller swap, goto, inspection, seabed following, station keeping "
+         "in current), recorded, with a table and plots", "[--out DIR] [--json [F]] [--no-plots]")
 def _demo(argv: list[str]) -> int:
-    from seapup_bringup.demo import main as demo
-    return demo(argv)
-
-
-@command("mission", "the mission through the supervisory hierarchy (work in progress, issue 13)",
-         "[--out DIR] [--json [F]] [--no-plots]")
-def _mission(argv: list[str]) -> int:
     from seapup_bringup.mission import main as mission
     return mission(argv)
+
+
+@command("open-loop", "open-loop manoeuvres through the graph, recorded (the plant alone; bags/demo_120s)",
+         "[--duration S] [--out DIR] [--bag DIR] [--json [F]]")
+def _open_loop(argv: list[str]) -> int:
+    from seapup_bringup.demo import main as demo
+    return demo(argv)
 
 
 @command("test", "run every test; ends with pytest's summary line (-m unit: pure cores only)",

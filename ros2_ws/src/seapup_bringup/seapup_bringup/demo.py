@@ -1,4 +1,4 @@
-"""``./seapup demo``: fly the Seapup open-loop through the ROS graph.
+"""``./seapup open-loop``: fly the Seapup open-loop through the ROS graph.
 
 Until the autopilots land, the demo flies the thesis's open-loop manoeuvres
 (Table 3.2 style) with the full plant, as separate processes on a private ROS
@@ -100,7 +100,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     per_sample = [t for t, _, each in RECORDED if each]
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
-        print(f"seapup demo: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
+        print(f"seapup open-loop: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
         recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args",
                                 "-p", f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
                                 "-p", f"topics:={[f'{t}:{m}' for t, m, _ in RECORDED]}"],
@@ -137,7 +137,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
             # the simulator holds t_0 (re-sent on /clock) until a controller answers: start
             # the controller once this process hears t_0 too, so it watches from the start
             if not spin_until(lambda: sim_time[0] >= 0, 60.0):
-                print(f"seapup demo: the nodes did not come up; see the logs in {out}", file=text)
+                print(f"seapup open-loop: the nodes did not come up; see the logs in {out}", file=text)
                 return None
             controller.start()
             wall0 = time.monotonic()
@@ -166,7 +166,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
             ctx.try_shutdown()
         dead = [p.name for p in procs if p.returncode not in (0, -2)]
         if dead:
-            print(f"seapup demo: {', '.join(dead)} exited abnormally; see the logs in {out}", file=text)
+            print(f"seapup open-loop: {', '.join(dead)} exited abnormally; see the logs in {out}", file=text)
             return None
     published = {t: int(final.get("samples_published", -1)) for t in per_sample}
     # every command the simulator received, good or refused (each is in the bag too)
@@ -176,7 +176,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="./seapup open-loop", description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=float(demo_config()["duration"]),
                         help="simulated seconds (default from config/demo.yaml; lockstep runs faster than real time)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/demo_<UTC time>)")
@@ -246,12 +246,12 @@ def summarise(bag_dir: Path, duration: float, plan) -> dict:
 def print_summary(summary: dict, text=sys.stdout) -> None:
     print(f"\nbag {summary['bag']}: " + ", ".join(f"{t} {n}" for t, n in summary["counts"].items()), file=text)
     if summary.get("missed"):
-        print("seapup demo: the bag misses messages that were published: " +
+        print("seapup open-loop: the bag misses messages that were published: " +
               ", ".join(f"{t} {n}" for t, n in summary["missed"].items()), file=text)
     else:
         print("every published sample and command is in the bag", file=text)
     if not summary["segments"]:
-        print("seapup demo: no vehicle data was recorded; see the logs", file=text)
+        print("seapup open-loop: no vehicle data was recorded; see the logs", file=text)
         return
     print(f"\n{'manoeuvre':<8} {'from':>6} {'u max':>7} {'|v| max':>8} {'w end':>7} {'|roll| max':>10} "
           f"{'pitch end':>10} {'depth end':>10}", file=text)

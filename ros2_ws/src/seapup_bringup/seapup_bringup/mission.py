@@ -1,4 +1,4 @@
-"""``./seapup mission``: the mission -- the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3) flying the Seapup.
+"""``./seapup demo``: the mission -- the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3) flying the Seapup.
 
 Starts the whole graph (``seapup_bringup/launch/hierarchy.yaml`` in lockstep,
 faster than real time, every node its own process, plus the recorder) with
@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import time
 from pathlib import Path
 
@@ -57,26 +58,41 @@ def _set_parameter(sil, node: str, name: str, value: str) -> None:
         raise RuntimeError(f"{node}: {name} refused: {response.results[0].reason}")
 
 
-def _leg_numbers(logs: dict, t0: float, t1: float) -> dict:
-    """Truth-based numbers of one leg: hold error from its last setpoint, saturation."""
-    t, truth = logs["truth_t"], logs["truth_position"]
-    window = (t >= t0) & (t <= t1)
+def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
+    """Truth-based numbers of one leg over its goal's window: saturation, hold or altitude error."""
+    t0, t1 = leg["t0"], leg["t1"]
     ct = logs["command_t"]
     commands = logs["command"][(ct >= t0) & (ct <= t1)]
     saturated = float(np.mean(np.any(np.abs(commands) >= BLADE_PITCH_LIMIT - 1e-6, axis=1))) if len(commands) else 0.0
-    st = logs["setpoint_t"]
-    held = logs["setpoint"][(st >= t0) & (st <= t1)]
     out = {"saturation_pct": 100 * saturated, "duration": t1 - t0}
-    if len(held) and window.any():
-        index = np.searchsorted(st, t[window]).clip(0, len(st) - 1)
-        errors = truth[window] - logs["setpoint"][index, :3]
-        horizontal = np.hypot(errors[:, 0], errors[:, 1])
-        out.update(hold_rms=float(np.sqrt(np.mean(horizontal ** 2))), hold_max=float(horizontal.max()),
-                   depth_rms=float(np.sqrt(np.mean(errors[:, 2] ** 2))))
+    t, truth = logs["truth_t"], logs["truth_position"]
+    window = (t >= t0) & (t <= t1)
+    if not window.any():
+        return out
+    if leg["kind"] in ("hover", "current"):
+        st = logs["setpoint_t"]
+        held = (st >= t0) & (st <= t1)
+        steady = window & (t >= t0 + leg.get("hold_from", 0.0))  # after braking from the previous leg's speed
+        if held.any() and steady.any():  # the point held is the leg's last setpoint (the pose at acceptance)
+            errors = truth[steady] - logs["setpoint"][held][-1, :3]
+            horizontal = np.hypot(errors[:, 0], errors[:, 1])
+            out.update(hold_rms=float(np.sqrt(np.mean(horizontal ** 2))), hold_max=float(horizontal.max()),
+                       depth_rms=float(np.sqrt(np.mean(errors[:, 2] ** 2))))
+    elif leg["kind"] == "follow_seabed":
+        x, y, z = truth[window].T
+        error = np.array([seabed(a, b) for a, b in zip(x, y)]) - z - leg["goal"]["altitude"]
+        reached = np.flatnonzero(np.abs(error) <= 0.3)  # the climb or descent to the altitude first
+        if len(reached):
+            held = error[reached[0]:]
+            out.update(altitude_true_rms=float(np.sqrt(np.mean(held ** 2))), altitude_true_max=float(np.abs(held).max()),
+                       reached_after=float(t[window][reached[0]] - t0))
+    elif "target" in leg:
+        out["end_error_true"] = float(np.linalg.norm(truth[window][-1] - leg["target"]))
     return out
 
 
 def _swap_bump(logs: dict, t_switch: float) -> dict:
+    """Largest one-sample command change at the switch, and in the 15 s of flight before it [deg]."""
     t, c = logs["command_t"], logs["command"]
     steps = np.abs(np.diff(c, axis=0)).max(axis=1)
     ts = t[1:]
@@ -89,28 +105,34 @@ def _swap_bump(logs: dict, t_switch: float) -> dict:
 def fly_mission(out: Path, config: dict, text) -> dict:
     """Fly the mission in a SIL graph; the per-leg numbers (and the logs as arrays under ``logs``)."""
     from seapup_control.ros.sil import SilGraph
+    from seapup_sim.seabed import Seabed
 
+    graph = config["graph"]
+    seabed = Seabed(graph.get("seabed_kind", "flat"), float(graph.get("seabed_depth", 100.0)),
+                    float(graph.get("seabed_gradient", 0.0)), float(graph.get("seabed_direction", 0.0)))
     legs, swap = [], {}
     plan = config["mission"]
     total = sum(leg.get("expected", 60.0) for leg in plan)
     done = 0.0
-    with SilGraph(arguments=config["graph"], out_dir=out, record=RECORDED, ready_status="") as sil:
-        print(f"seapup mission: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
+    with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="") as sil:
+        print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
         for leg in plan:
-            kind, t0, wall = leg["kind"], sil.t, time.monotonic()
-            progress(f"{leg['name']:<16}", done / total)
+            start, wall = sil.t, time.monotonic()
+            progress(f"{leg['name']:<18}", done / total)
             numbers = _fly_leg(sil, leg, swap)
-            t1 = sil.t
+            numbers.setdefault("t0", start)
+            numbers.setdefault("t1", sil.t)
             done += leg.get("expected", 60.0)
-            legs.append({"name": leg["name"], "kind": kind, "t0": t0, "t1": t1, "wall_s": time.monotonic() - wall,
-                         **numbers})
-            print(f"seapup mission: {leg['name']}: {numbers.get('status', 'done')} in {t1 - t0:.1f} s simulated "
-                  f"({time.monotonic() - wall:.1f} s wall)", file=text)
+            legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
+                         "hold_from": float(leg.get("hold_from", 0.0)),
+                         "wall_s": time.monotonic() - wall, **numbers})
+            print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
+                  f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)", file=text)
         progress("mission", 1.0)
         logs = sil.logs()
         bag = sil.bag
     for leg in legs:
-        leg.update(_leg_numbers(logs, leg["t0"], leg["t1"]))
+        leg.update(_truth_numbers(logs, leg, seabed))
     if swap:
         legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
     return {"legs": legs, "bag": str(bag), "logs": logs}
@@ -123,10 +145,15 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
         from rclpy.action import ActionClient
         from seapup_common.ros.graph import send_goal
         client = ActionClient(sil._node, SelfTest, "/seapup/self_test")
-        handle = send_goal(sil._executor, client, SelfTest.Goal())
+        t0 = sil.t
+        goal = SelfTest.Goal()
+        for key, value in leg.get("goal", {}).items():
+            setattr(goal, key, [float(v) for v in value] if isinstance(value, list) else value)
+        handle = send_goal(sil._executor, client, goal)
         future = handle.get_result_async()
         sil.spin_until(future.done, 600.0)
         result = future.result().result
+        t1 = sil.t
         if not result.success:
             raise RuntimeError(f"self-test failed: {result.message}")
         for node in leg["configure"]:
@@ -134,22 +161,22 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
         reply = sil.switch(activate=[leg["activate"]])
         if not reply.ok:
             raise RuntimeError(f"activating {leg['activate']}: {reply.message}")
-        return {"status": "succeeded", "controller_file": result.controller_file,
+        return {"status": "succeeded", "t0": t0, "t1": t1, "controller_file": result.controller_file,
                 "self_test_duration": result.duration}
     if kind == "current":
         reply = sil.call("/seapup/simulator/set_current", "seapup_msgs/srv/SetCurrent", leg["current"])
         if not reply.success:
             raise RuntimeError(f"set_current: {reply.message}")
         kind = "hover"
-    here = sil.logs()["estimate_position"][-1]
-    yaw = sil.logs()["estimate_attitude"][-1, 2]
+    _, here, attitude = sil.estimate()
+    yaw = float(attitude[2])
     goal = dict(leg.get("goal", {}))
-    if leg["kind"] == "inspection":
+    target = None
+    if kind == "inspection":
         body = np.asarray(leg["body_velocity"], dtype=float)
         c, s = math.cos(yaw), math.sin(yaw)
-        travel = np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
-        target = here + travel
-        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": float(yaw),
+        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
+        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
                 "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
         kind = "goto"
     elif "offset" in leg:
@@ -163,23 +190,53 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
         during = (leg["switch"]["after"], do_switch)
     result = sil.goal(kind, timeout=600.0, during=during, **{k: float(v) if not isinstance(v, bool) else v
                                                              for k, v in goal.items()})
+    if not result["accepted"]:
+        raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
     if during is not None:
         swap["leg"] = leg["index"]
         result["switch_ok"] = bool(result["during"].ok)
-    return {k: v for k, v in result.items() if k != "during"}
+    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
+    out.update(t0=result["accepted_t"], t1=result["end_t"])
+    if target is not None:
+        out["target"] = [float(v) for v in target]
+    return out
+
+
+def _task_error(leg: dict) -> str:
+    """The task's own measure of how well it went (from the navigation estimate)."""
+    if leg["kind"] in ("goto", "inspection"):
+        return f"end {leg['distance']:.2f} m, xt {leg['cross_track_rms']:.2f} m"
+    if leg["kind"] == "follow_seabed":
+        return f"alt rms {leg['altitude_rms']:.2f} m"
+    if leg["kind"] in ("hover", "current"):
+        return f"rms {leg['horizontal_rms']:.2f} m"
+    return ""
+
+
+def _truth_error(leg: dict) -> str:
+    """The same from the simulator's truth."""
+    if "hold_rms" in leg:
+        return f"rms {leg['hold_rms']:.2f}, max {leg['hold_max']:.2f} m"
+    if "altitude_true_rms" in leg:
+        return f"alt rms {leg['altitude_true_rms']:.2f}, max {leg['altitude_true_max']:.2f} m"
+    if "end_error_true" in leg:
+        return f"end {leg['end_error_true']:.2f} m"
+    return ""
 
 
 def _table(legs: list, text) -> None:
-    head = (f"{'leg':<18}{'status':<11}{'sim s':>7}{'wall s':>7}{'track err':>11}{'hold rms':>10}{'hold max':>10}"
-            f"{'sat %':>7}{'swap step':>11}")
+    head = (f"{'leg':<20}{'status':<11}{'sim s':>7}{'wall s':>7}  {'task (navigation)':<24}{'truth':<26}"
+            f"{'sat %':>6}{'swap step':>16}")
     print(head, file=text)
     print("-" * len(head), file=text)
     for leg in legs:
-        track = leg.get("distance", leg.get("altitude_rms", leg.get("horizontal_rms", math.nan)))
         swap = leg.get("switch_step_deg", math.nan)
-        print(f"{leg['name']:<18}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}"
-              f"{track:>9.3f} m{leg.get('hold_rms', math.nan):>8.3f} m{leg.get('hold_max', math.nan):>8.3f} m"
-              f"{leg['saturation_pct']:>7.1f}" + (f"{swap:>7.3f} deg" if not math.isnan(swap) else ""), file=text)
+        swap = "" if math.isnan(swap) else f"{swap:.2f} ({leg['normal_step_deg']:.2f}) deg"
+        print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
+              f"{_task_error(leg):<24}{_truth_error(leg):<26}{leg['saturation_pct']:>6.1f}{swap:>16}", file=text)
+    print("truth: hold errors from hold_from s into a hover leg (config/mission.yaml: after braking from the "
+          "previous leg); swap step: largest one-sample blade-pitch change at the switch (in the 15 s before it)",
+          file=text)
 
 
 def _plots(result: dict, out: Path) -> list[str]:
@@ -228,13 +285,15 @@ def _plots(result: dict, out: Path) -> list[str]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="./seapup mission", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", help="output directory (default runs/mission_<UTC time>)")
+    parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
+                                      "(default bags/demo_<UTC time> under the checkout)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     text = text_stream(args)
-    out = Path(args.out) if args.out else Path("runs") / time.strftime("mission_%Y%m%d_%H%M%S", time.gmtime())
+    root = Path(os.environ.get("SEAPUP_ROOT", "."))
+    out = Path(args.out) if args.out else root / "bags" / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
     config = mission_config()
     for index, leg in enumerate(config["mission"]):
         leg["index"] = index
@@ -242,20 +301,20 @@ def main(argv=None) -> int:
     try:
         result = fly_mission(out, config, text)
     except Exception as exc:  # a failed leg or graph: say which, point at the logs
-        print(f"seapup mission: failed: {exc}; node logs in {out}", file=text)
+        print(f"seapup demo: failed: {exc}; node logs in {out}", file=text)
         return 1
     _table(result["legs"], text)
     if not args.no_plots:
         result["plots"] = _plots(result, out)
-        print(f"seapup mission: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
+        print(f"seapup demo: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
     result["wall_s"] = time.monotonic() - wall
-    print(f"seapup mission: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
+    print(f"seapup demo: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
     summary = {k: v for k, v in result.items() if k != "logs"}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     emit_json(args, summary)
     failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
     if failed:
-        print(f"seapup mission: legs that did not succeed: {', '.join(failed)}", file=text)
+        print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)
     return 1 if failed else 0
 
 
