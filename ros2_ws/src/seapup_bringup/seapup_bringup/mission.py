@@ -79,13 +79,12 @@ def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
             out.update(hold_rms=float(np.sqrt(np.mean(horizontal ** 2))), hold_max=float(horizontal.max()),
                        depth_rms=float(np.sqrt(np.mean(errors[:, 2] ** 2))))
     elif leg["kind"] == "follow_seabed":
-        x, y, z = truth[window].T
-        error = np.array([seabed(a, b) for a, b in zip(x, y)]) - z - leg["goal"]["altitude"]
-        reached = np.flatnonzero(np.abs(error) <= 0.3)  # the climb or descent to the altitude first
-        if len(reached):
-            held = error[reached[0]:]
-            out.update(altitude_true_rms=float(np.sqrt(np.mean(held ** 2))), altitude_true_max=float(np.abs(held).max()),
-                       reached_after=float(t[window][reached[0]] - t0))
+        steady = window & (t >= t0 + leg.get("hold_from", 0.0))  # after climbing or descending to the altitude
+        if steady.any():
+            x, y, z = truth[steady].T
+            error = np.array([seabed(a, b) for a, b in zip(x, y)]) - z - leg["goal"]["altitude"]
+            out.update(altitude_true_rms=float(np.sqrt(np.mean(error ** 2))),
+                       altitude_true_max=float(np.abs(error).max()))
     elif "target" in leg:
         out["end_error_true"] = float(np.linalg.norm(truth[window][-1] - leg["target"]))
     return out
@@ -179,6 +178,8 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
         goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
                 "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
         kind = "goto"
+    elif "face" in leg:  # hold where it is, turned to this heading (e.g. into the current)
+        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
     elif "offset" in leg:
         target = here + np.asarray(leg["offset"], dtype=float)
         goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
@@ -234,8 +235,8 @@ def _table(legs: list, text) -> None:
         swap = "" if math.isnan(swap) else f"{swap:.2f} ({leg['normal_step_deg']:.2f}) deg"
         print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
               f"{_task_error(leg):<24}{_truth_error(leg):<26}{leg['saturation_pct']:>6.1f}{swap:>16}", file=text)
-    print("truth: hold errors from hold_from s into a hover leg (config/mission.yaml: after braking from the "
-          "previous leg); swap step: largest one-sample blade-pitch change at the switch (in the 15 s before it)",
+    print("truth: hold and altitude errors from hold_from s into the leg (config/mission.yaml: after braking from "
+          "the previous leg, or reaching the altitude); swap step: largest one-sample blade-pitch change at the switch (in the 15 s before it)",
           file=text)
 
 
