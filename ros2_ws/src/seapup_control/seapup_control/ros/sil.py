@@ -154,11 +154,17 @@ class SilGraph:
                 process.stop()
         if "recorder" in self.processes:
             self.processes["recorder"].stop(grace=10.0)
+        # the probe's DDS participant must go with the graph: alive, it keeps announcing itself on a
+        # domain the next lease holder reuses (seen: '/sil_probe' in a later test's node list)
+        if self._executor is not None:
+            self._executor.shutdown(timeout_sec=1.0)
+            self._executor = None
         if self._node is not None:
             self._node.destroy_node()
             self._node = None
         if self._context is not None:
             self._context.try_shutdown()
+            self._context.destroy()
             self._context = None
         if self._lease is not None:
             self._lease.release()
