@@ -146,6 +146,7 @@ def bench(argv: list[str]) -> int:
     out["verify"] = {"seconds": time.perf_counter() - t0}
     from seapup_bringup.graph_bench import mfol_step_us
     out["mfol_law"] = mfol_step_us()
+    out["estimator"] = _estimator_step_us()
     if not args.no_graph:
         from seapup_bringup import graph_bench
         print("graph: simulator + open_loop in lockstep (separate processes)...", file=out_text, flush=True)
@@ -176,5 +177,30 @@ def bench(argv: list[str]) -> int:
     law = out["mfol_law"]
     print(f"MFOL law (scheduled, eq. 5.6): {law['law_us']:.1f} us per sample; with building the measurement and "
           f"reference {law['with_measurement_and_reference_us']:.1f} us", file=out_text)
+    for method, value in out["estimator"].items():
+        print(f"estimator {method} (4 outputs, 4 inputs, orders {value['orders']}, offset; ch. 7): "
+              f"{value['step_us']:.1f} us per step (target <= 100 us for ls)", file=out_text)
     emit_json(args, out)
     return 0
+
+
+def _estimator_step_us(samples: int = 2000) -> dict:
+    """us per recursive-estimator step for the 4-output, 4-input model of ch. 7 (orders 1, 1, and nc 1 for
+    els / rpem), on a PRBS-driven known first-order plant."""
+    from seapup_ident.armax import ArmaxOrders
+    from seapup_ident.prbs import prbs
+    from seapup_ident.recursive import Forgetting, RecursiveArmax
+    rng = np.random.default_rng(0)
+    u = prbs(samples, clock=10, amplitude=0.17, n_inputs=4)
+    phi, delta = np.diag([0.88, 0.93, 0.8, 0.82]), 0.05 * rng.normal(size=(4, 4)) + 0.2 * np.eye(4)
+    y = np.zeros((samples, 4))
+    for t in range(1, samples):
+        y[t] = phi @ y[t - 1] + delta @ u[t - 1] + 0.003 * rng.normal(size=4)
+    out = {}
+    for method, nc in (("ls", 0), ("els", 1), ("rpem", 1)):
+        estimator = RecursiveArmax(ArmaxOrders(4, 4, 1, 1, nc), method, forgetting=Forgetting(0.99), p0=100.0)
+        t0 = time.perf_counter()
+        for t in range(samples):
+            estimator.step(y[t], u[t])
+        out[method] = {"step_us": (time.perf_counter() - t0) / samples * 1e6, "orders": [1, 1, nc]}
+    return out

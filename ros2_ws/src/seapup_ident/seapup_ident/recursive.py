@@ -1,0 +1,298 @@
+"""Recursive identification of the multivariable ARMAX model: LS, ELS and RPEM in one framework (thesis sec. 6.3).
+
+Every method is the update of eq. 6.12,
+
+    Theta(t) = Theta(t-1) + P(t) eta(t) [y(t) - y_hat(t)]^T / (lambda(t) + eta^T P(t-1) eta)
+
+with the forgetting factor lambda(t) (fixed, or eq. 6.15: lambda(t) = alpha lambda(t-1) + 1 - alpha,
+lambda(0) = 0.6-0.7) and P(0) = p I (eq. 6.16). The methods differ in the regressor and the
+search direction eta (Ljung and Soderstrom 1983, the thesis's ref. [55]):
+
+- ``ls``: phi without noise terms (C = I), eta = phi. P in UD form (eq. 6.17) updated with
+  Bierman's / Peterka's square-root algorithm, so it stays positive definite;
+- ``els``: pseudo-linear regression -- the a posteriori residuals stand in for e(t-k) in phi
+  (the noise model C is estimated), eta = phi, P in UD form;
+- ``rpem``: the Gauss-Newton direction eta = psi, the gradient of the prediction: phi filtered by
+  1 / C_ii(z^-1) for output i (the diagonal of C: each output a SISO model, sec. 6.3.1), P per
+  output in covariance form with Levenberg-Marquardt regularisation (a small number added to its
+  diagonal, sec. 6.3), and the projection of sec. 6.3: an update that would take C(z^-1) out of
+  the stability region is halved until it does not (stability from the roots of det C,
+  :func:`seapup_ident.armax.is_stable`).
+
+Estimation can be "jacketed" (sec. 7.3) for adaptive control: no update inside a dead zone of
+the prediction error, and no forgetting while trace P exceeds a limit (no covariance wind-up).
+Bad data (NaN, inf, wrong length) raise :class:`DataError` and change nothing.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from seapup_ident.armax import ArmaxModel, ArmaxOrders, Regressor, is_stable
+
+__all__ = ["DataError", "Forgetting", "Jacket", "ud_update", "RecursiveArmax", "METHODS"]
+
+METHODS = ("ls", "els", "rpem")
+
+
+class DataError(ValueError):
+    """A sample the estimator refuses (non-finite or of the wrong size); nothing was changed."""
+
+
+@dataclass
+class Forgetting:
+    """The forgetting factor lambda(t): fixed, or growing to 1 as eq. 6.15 from ``lambda0`` with ``alpha``.
+
+    Parameters
+    ----------
+    factor : float
+        Fixed lambda (0 < lambda <= 1), used when ``alpha`` is None. Data older than
+        1 / (1 - lambda) samples weigh less than 36 % (eq. 6.14).
+    lambda0, alpha : float
+        eq. 6.15: lambda(t) = alpha lambda(t-1) + (1 - alpha), lambda(0) = lambda0; the thesis
+        takes lambda(0) = 0.6-0.7 and alpha close to 1 (0.9 here by default).
+    """
+
+    factor: float = 1.0
+    lambda0: float | None = None
+    alpha: float | None = None
+    value: float = field(init=False)
+
+    def __post_init__(self):
+        if self.alpha is None:
+            if not 0.0 < self.factor <= 1.0:
+                raise ValueError(f"forgetting factor must be in (0, 1], got {self.factor}")
+        else:
+            if self.lambda0 is None:
+                self.lambda0 = 0.6
+            if not (0.0 < self.lambda0 <= 1.0 and 0.0 <= self.alpha < 1.0):
+                raise ValueError(f"forgetting schedule needs 0 < lambda0 <= 1 and 0 <= alpha < 1, "
+                                 f"got lambda0={self.lambda0}, alpha={self.alpha}")
+        self.reset()
+
+    @classmethod
+    def schedule(cls, lambda0: float = 0.6, alpha: float = 0.9) -> "Forgetting":
+        """The thesis's schedule (eq. 6.15)."""
+        return cls(lambda0=lambda0, alpha=alpha)
+
+    def reset(self) -> None:
+        self.value = self.factor if self.alpha is None else float(self.lambda0)
+
+    def next(self) -> float:
+        """lambda for the coming sample (the schedule's first sample uses alpha lambda(0) + 1 - alpha)."""
+        if self.alpha is not None:
+            self.value = self.alpha * self.value + (1.0 - self.alpha)
+        return self.value
+
+
+@dataclass(frozen=True)
+class Jacket:
+    """Safety "jacketing" of the estimator for adaptive control (sec. 7.3).
+
+    Parameters
+    ----------
+    dead_zone : float or array (ny,)
+        No update while every |prediction error| is below this (near the set point the data say
+        nothing new, and noise would only drift the estimate). 0: always update.
+    max_trace : float
+        While trace P (per output) exceeds this, lambda is taken as 1 (no covariance wind-up when
+        the input does not excite). inf: never.
+    """
+
+    dead_zone: float | np.ndarray = 0.0
+    max_trace: float = math.inf
+
+
+def ud_update(U: np.ndarray, D: np.ndarray, phi: np.ndarray, lam: float) -> np.ndarray:
+    """Bierman's / Peterka's square-root update of P = U D U^T (eq. 6.17) for one regressor; the gain.
+
+    Computes, in place, the UD factors of
+
+        P(t) = [P - P phi phi^T P / (lam + phi^T P phi)] / lam
+
+    and returns L = P(t-1) phi / (lam + phi^T P(t-1) phi) (Ljung and Soderstrom 1983, sec. 6.2;
+    U unit upper triangular, D > 0, so P stays symmetric positive definite to rounding).
+    """
+    n = len(D)
+    f = U.T @ phi
+    g = D * f
+    beta = lam
+    nu = np.zeros(n)
+    for j in range(n):
+        beta_prev = beta
+        beta = beta_prev + f[j] * g[j]
+        D[j] *= beta_prev / (beta * lam)
+        mu = -f[j] / beta_prev
+        column = U[:j, j].copy()
+        U[:j, j] = column + nu[:j] * mu
+        nu[:j] += column * g[j]
+        nu[j] = g[j]
+    return nu / beta
+
+
+class RecursiveArmax:
+    """Recursive multivariable ARMAX identification (eq. 6.12, 6.24, 6.27), MATLAB-like object API.
+
+    Parameters
+    ----------
+    orders : ArmaxOrders
+        ny, nu, na, nb, nc and the offset d. ``ls`` needs nc = 0.
+    method : {"ls", "els", "rpem"}
+    forgetting : Forgetting, optional
+        Default: no forgetting (lambda = 1).
+    p0 : float
+        P(0) = p0 I (eq. 6.16).
+    theta0 : array (n_params, ny), optional
+        Initial estimate (default zero).
+    jacket : Jacket, optional
+    regularisation : float
+        RPEM's Levenberg-Marquardt term added to the diagonal of P each sample.
+    stability_margin : float
+        RPEM keeps every root of det C(z) inside |z| < 1 - margin.
+    keep_history : bool
+        Keep Theta, lambda, trace P and the prediction errors of every sample (``history``).
+
+    Examples
+    --------
+    >>> est = RecursiveArmax(ArmaxOrders(ny=1, nu=1, na=1, nb=1, offset=False), "ls", p0=1e4)
+    >>> rng = np.random.default_rng(0); y = 0.0
+    >>> for u in rng.normal(size=300):
+    ...     theta, y_hat = est.step([y], [u])    # y(t) = 0.8 y(t-1) + 0.5 u(t-1)
+    ...     y = 0.8 * y + 0.5 * u
+    >>> np.round(est.model.A[0, 0, 0], 3), np.round(est.model.B[0, 0, 0], 3)
+    (np.float64(-0.8), np.float64(0.5))
+    """
+
+    def __init__(self, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
+                 p0: float = 1e3, theta0=None, jacket: Jacket | None = None, regularisation: float = 1e-6,
+                 stability_margin: float = 1e-3, keep_history: bool = False):
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+        if method == "ls" and orders.nc:
+            raise ValueError(f"least squares estimates no noise model: nc must be 0, got {orders.nc} (use els or rpem)")
+        if not (math.isfinite(p0) and p0 > 0):
+            raise ValueError(f"p0 must be finite and > 0, got {p0}")
+        self.orders, self.method = orders, method
+        self.forgetting = forgetting or Forgetting(1.0)
+        self.p0 = float(p0)
+        self.theta0 = np.zeros((orders.n_params, orders.ny)) if theta0 is None else \
+            np.array(theta0, dtype=float).reshape(orders.n_params, orders.ny)
+        self.jacket = jacket or Jacket()
+        self.regularisation = float(regularisation)
+        self.stability_margin = float(stability_margin)
+        self.keep_history = keep_history
+        self.reset()
+
+    # -- state -----------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to Theta(0), P(0) = p0 I, lambda(0) and an empty history."""
+        o, n = self.orders, self.orders.n_params
+        self.theta = self.theta0.copy()
+        self.forgetting.reset()
+        self.regressor = Regressor(o)
+        if self.method == "rpem":
+            self._P = np.repeat(self.p0 * np.eye(n)[None], o.ny, axis=0)   # per output (own psi)
+            self._psi = np.zeros((o.ny, max(o.nc, 1), n))                   # psi(t-1) .. psi(t-nc)
+        else:
+            self._U, self._D = np.eye(n), np.full(n, self.p0)               # one P shared by the outputs
+        self.t = 0
+        self.counts = {"samples": 0, "updates": 0, "dead_zone": 0, "trace_limited": 0, "projections": 0,
+                       "rejected": 0}
+        self.history: dict[str, list] = {"theta": [], "lambda": [], "trace": [], "error": []}
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """P (n_params x n_params; for ``rpem`` one per output: ny x n x n)."""
+        if self.method == "rpem":
+            return self._P.copy()
+        return (self._U * self._D) @ self._U.T
+
+    @property
+    def trace(self) -> np.ndarray:
+        """trace P per output."""
+        if self.method == "rpem":
+            return np.trace(self._P, axis1=1, axis2=2)
+        return np.full(self.orders.ny, float(np.sum(self._D * np.sum(self._U ** 2, axis=0))))
+
+    @property
+    def model(self) -> ArmaxModel:
+        """The present estimate as A, B, C, d (eq. 6.27)."""
+        return ArmaxModel.from_theta(self.orders, self.theta)
+
+    # -- one sample ------------------------------------------------------------------------
+    def _check(self, y, u) -> tuple[np.ndarray, np.ndarray]:
+        o = self.orders
+        y, u = np.asarray(y, dtype=float).ravel(), np.asarray(u, dtype=float).ravel()
+        if y.shape != (o.ny,) or u.shape != (o.nu,):
+            self.counts["rejected"] += 1
+            raise DataError(f"sample needs {o.ny} outputs and {o.nu} inputs, got {y.size} and {u.size}")
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
+            self.counts["rejected"] += 1
+            raise DataError(f"non-finite sample y={y.tolist()}, u={u.tolist()}: not used")
+        return y, u
+
+    def step(self, y, u) -> tuple[np.ndarray, np.ndarray]:
+        """Take sample t: output y(t) and the input u(t) applied after it; return (Theta(t), y_hat(t)).
+
+        y_hat(t) = Theta(t-1)^T phi(t) is the one-step prediction made before y(t) was seen.
+        The regressor for t+1 then holds y(t), u(t) and the residual of t.
+        """
+        y, u = self._check(y, u)
+        phi = self.regressor.phi()
+        y_hat = self.theta.T @ phi
+        error = y - y_hat
+        lam = self.forgetting.next()
+        trace = self.trace
+        updated = not np.all(np.abs(error) < np.broadcast_to(self.jacket.dead_zone, error.shape))
+        if not updated:
+            self.counts["dead_zone"] += 1
+        elif self.method == "rpem":
+            self._rpem_update(phi, error, lam, trace)
+        else:
+            if trace[0] > self.jacket.max_trace:
+                lam = 1.0
+                self.counts["trace_limited"] += 1
+            gain = ud_update(self._U, self._D, phi, lam)
+            self.theta += np.outer(gain, error)
+        self.counts["updates"] += int(updated)
+        residual = y - self.theta.T @ phi   # a posteriori: the noise estimate e(t) for ELS/RPEM
+        self.regressor.push(y, u, residual)
+        self.t += 1
+        self.counts["samples"] += 1
+        if self.keep_history:
+            for key, value in (("theta", self.theta.copy()), ("lambda", lam), ("trace", self.trace),
+                               ("error", error)):
+                self.history[key].append(value)
+        return self.theta.copy(), y_hat
+
+    def _rpem_update(self, phi: np.ndarray, error: np.ndarray, lam: float, trace: np.ndarray) -> None:
+        o = self.orders
+        c = self.theta[o.c_slice].T.reshape(o.ny, o.nc, o.ny) if o.nc else np.zeros((o.ny, 0, o.ny))
+        step = np.zeros_like(self.theta)
+        for i in range(o.ny):
+            # psi_i(t) = phi(t) - sum_k c_ii,k psi_i(t-k): the prediction's gradient for output i
+            psi = phi - sum(c[i, k, i] * self._psi[i, k] for k in range(o.nc))
+            P = self._P[i]
+            lam_i = 1.0 if trace[i] > self.jacket.max_trace else lam
+            self.counts["trace_limited"] += int(lam_i == 1.0 and lam < 1.0)
+            Pp = P @ psi
+            gain = Pp / (lam_i + psi @ Pp)
+            P = (P - np.outer(gain, Pp)) / lam_i
+            P = 0.5 * (P + P.T) + self.regularisation * np.eye(len(psi))   # Levenberg-Marquardt
+            self._P[i] = P
+            step[:, i] = gain * error[i]
+            if o.nc:
+                self._psi[i, 1:] = self._psi[i, :-1]
+                self._psi[i, 0] = psi
+        candidate = self.theta + step
+        for _ in range(30):  # the projection of sec. 6.3: shrink the correction until C is stable
+            if not o.nc or is_stable(ArmaxModel.from_theta(o, candidate).C, self.stability_margin):
+                break
+            self.counts["projections"] += 1
+            step *= 0.5
+            candidate = self.theta + step
+        else:
+            candidate = self.theta
+        self.theta = candidate

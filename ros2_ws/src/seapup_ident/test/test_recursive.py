@@ -1,0 +1,169 @@
+"""Recursive LS / ELS / RPEM (seapup_ident.recursive) against independent truths (issue 14 (a)-(c)).
+
+- (a) exponentially weighted batch least squares with the prior P(0)^-1 (scipy.linalg.lstsq):
+  recursive least squares minimises exactly that criterion, with fixed lambda and with the
+  thesis's lambda(t) schedule (eq. 6.15, product weights); the UD form equals the plain form;
+- (b) Ljung's ARMAX example: the LS limit from the process's exact second moments (discrete
+  Lyapunov equation), ELS and RPEM to the true parameters;
+- (c) RPEM's C(z^-1) stays inside the stability region.
+"""
+import numpy as np
+import pytest
+import scipy.linalg
+
+from seapup_ident.armax import ArmaxModel, ArmaxOrders, is_stable, polynomial_roots
+from seapup_ident.order_selection import regressors
+from seapup_ident.recursive import DataError, Forgetting, Jacket, RecursiveArmax, ud_update
+
+pytestmark = pytest.mark.unit
+
+
+def mimo_arx(seed=0, n=400):
+    """A 2-output, 2-input ARX(2, 2) with offset, driven by white inputs, with noise."""
+    rng = np.random.default_rng(seed)
+    o = ArmaxOrders(ny=2, nu=2, na=2, nb=2, nc=0)
+    A = np.array([[[-1.2, 0.1], [0.05, -0.9]], [[0.4, 0.0], [0.0, 0.2]]])
+    B = np.array([[[1.0, 0.2], [0.1, 0.5]], [[0.3, 0.0], [0.2, -0.2]]])
+    model = ArmaxModel(o, A, B, np.zeros((0, 2, 2)), np.array([0.3, -0.1]))
+    u = rng.normal(size=(n, 2))
+    return o, model, u, model.simulate(u, 0.1 * rng.normal(size=(n, 2)))
+
+
+def weighted_batch(o, y, u, weights, prior_weight, p0):
+    """argmin sum_t w_t |y_t - Theta^T phi_t|^2 + prior_weight |Theta|^2 / p0 (theta0 = 0), by lstsq."""
+    phi = regressors(o, y, u)
+    rows = np.vstack([np.sqrt(weights)[:, None] * phi, np.sqrt(prior_weight / p0) * np.eye(o.n_params)])
+    target = np.vstack([np.sqrt(weights)[:, None] * y, np.zeros((o.n_params, o.ny))])
+    return scipy.linalg.lstsq(rows, target)[0]
+
+
+def run(estimator, y, u):
+    for t in range(len(y)):
+        estimator.step(y[t], u[t])
+    return estimator.theta
+
+
+def test_rls_with_forgetting_is_the_exponentially_weighted_batch_solution():
+    o, _, u, y = mimo_arx()
+    lam, p0, n = 0.98, 100.0, len(y)
+    theta = run(RecursiveArmax(o, "ls", forgetting=Forgetting(lam), p0=p0), y, u)
+    batch = weighted_batch(o, y, u, lam ** np.arange(n - 1, -1, -1), lam ** n, p0)
+    np.testing.assert_allclose(theta, batch, rtol=1e-9, atol=1e-9)
+
+
+def test_rls_with_the_thesis_schedule_is_the_product_weighted_batch_solution():
+    o, _, u, y = mimo_arx(seed=1)
+    p0, n = 100.0, len(y)
+    lams, schedule = [], Forgetting.schedule(0.6, 0.9)   # eq. 6.15
+    for _ in range(n):
+        lams.append(schedule.next())
+    lams = np.array(lams)
+    assert lams[0] == pytest.approx(0.9 * 0.6 + 0.1) and lams[-1] == pytest.approx(1.0)
+    # sample t is weighted by the product of the lambdas after it; the prior by all of them
+    weights = np.array([np.prod(lams[t + 1:]) for t in range(n)])
+    theta = run(RecursiveArmax(o, "ls", forgetting=Forgetting.schedule(0.6, 0.9), p0=p0), y, u)
+    np.testing.assert_allclose(theta, weighted_batch(o, y, u, weights, np.prod(lams), p0), rtol=1e-9, atol=1e-9)
+
+
+def test_the_ud_update_equals_the_plain_covariance_update():
+    rng = np.random.default_rng(3)
+    n = 7
+    U, D = np.eye(n), np.full(n, 50.0)
+    P = 50.0 * np.eye(n)
+    for k in range(200):
+        phi, lam = rng.normal(size=n), 0.95 + 0.05 * rng.random()
+        gain = ud_update(U, D, phi, lam)
+        plain_gain = P @ phi / (lam + phi @ P @ phi)
+        P = (P - np.outer(plain_gain, phi @ P)) / lam
+        np.testing.assert_allclose(gain, plain_gain, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose((U * D) @ U.T, P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
+    assert np.all(D > 0) and np.allclose(np.diag(U), 1.0) and np.allclose(np.tril(U, -1), 0.0)
+
+
+LJUNG = ArmaxModel(ArmaxOrders(1, 1, 2, 2, 2, offset=False), np.array([[[-1.5]], [[0.7]]]),
+                   np.array([[[1.0]], [[0.5]]]), np.array([[[-1.0]], [[0.2]]]), np.zeros(1))
+TRUE = np.array([-1.5, 0.7, 1.0, 0.5, -1.0, 0.2])
+
+
+def ljung_data(seed, n=20000):
+    rng = np.random.default_rng(seed)
+    u, e = rng.normal(size=(n, 1)), rng.normal(size=(n, 1))
+    return LJUNG.simulate(u, e), u
+
+
+def ls_limit():
+    """The LS(2, 2) limit E[phi phi^T]^-1 E[phi y] for unit white u and e, from the stationary covariance
+    of the state s(t) = (y(t), y(t-1), u(t), u(t-1), e(t), e(t-1)) (discrete Lyapunov equation)."""
+    F = np.zeros((6, 6))
+    F[0] = [1.5, -0.7, 1.0, 0.5, -1.0, 0.2]   # y(t+1) from s(t), plus e(t+1) and nothing from u(t+1)
+    F[1, 0] = F[3, 2] = F[5, 4] = 1.0
+    G = np.zeros((6, 2))
+    G[0, 1] = G[4, 1] = 1.0                   # e(t+1) enters y(t+1) and the e slot
+    G[2, 0] = 1.0                             # u(t+1)
+    S = scipy.linalg.solve_discrete_lyapunov(F, G @ G.T)
+    # phi(t+1) = (-y(t), -y(t-1), u(t), u(t-1)) = M s(t); y(t+1) = F[0] s(t) + e(t+1)
+    M = np.zeros((4, 6))
+    M[0, 0], M[1, 1], M[2, 2], M[3, 3] = -1, -1, 1, 1
+    return np.linalg.solve(M @ S @ M.T, M @ S @ F[0])
+
+
+def test_ljung_armax_ls_converges_to_its_biased_limit_els_and_rpem_to_the_truth():
+    y, u = ljung_data(seed=7)
+    limit = ls_limit()
+    assert abs(limit[0] - TRUE[0]) > 0.2  # the example's point: LS is badly biased
+    ls = run(RecursiveArmax(ArmaxOrders(1, 1, 2, 2, 0, offset=False), "ls", p0=100.0), y, u).ravel()
+    np.testing.assert_allclose(ls, limit, atol=0.03)
+    for method in ("els", "rpem"):
+        theta = run(RecursiveArmax(LJUNG.orders, method, p0=100.0), y, u).ravel()
+        np.testing.assert_allclose(theta, TRUE, atol=0.04, err_msg=method)
+
+
+def test_rpem_keeps_c_inside_the_stability_region():
+    """A noise model with roots at |z| = 0.95 and a large P(0): unprojected steps leave the region."""
+    model = ArmaxModel(LJUNG.orders, LJUNG.A, LJUNG.B, np.array([[[-1.8]], [[0.9025]]]), np.zeros(1))
+    rng = np.random.default_rng(11)
+    u, e = rng.normal(size=(15000, 1)), rng.normal(size=(15000, 1))
+    y = model.simulate(u, e)
+    estimator = RecursiveArmax(model.orders, "rpem", p0=1e4, keep_history=True)
+    run(estimator, y, u)
+    assert estimator.counts["projections"] > 0
+    for theta in estimator.history["theta"]:
+        assert is_stable(ArmaxModel.from_theta(model.orders, theta).C, estimator.stability_margin)
+    np.testing.assert_allclose(estimator.theta.ravel()[4:], [-1.8, 0.9025], atol=0.08)
+
+
+def test_matrix_polynomial_roots_are_those_of_its_determinant():
+    C = np.array([[[-0.5, 0.2], [0.1, -0.3]], [[0.06, 0.0], [0.01, 0.02]]])
+    # det(I z^2 + C1 z + C2) as a polynomial in z, by sampling and fitting a degree-4 polynomial
+    zs = np.linspace(-2, 2, 9)
+    dets = [np.linalg.det(np.eye(2) * z ** 2 + C[0] * z + C[1]) for z in zs]
+    expected = np.roots(np.polyfit(zs, dets, 4))
+    np.testing.assert_allclose(np.sort_complex(polynomial_roots(C)), np.sort_complex(expected), atol=1e-8)
+
+
+def test_bad_samples_are_refused_and_change_nothing():
+    o, _, u, y = mimo_arx()
+    estimator = RecursiveArmax(o, "els" if o.nc else "ls", p0=10.0)
+    run(estimator, y[:50], u[:50])
+    before, P = estimator.theta.copy(), estimator.covariance
+    for bad_y, bad_u in (([np.nan, 0.0], [0.0, 0.0]), ([0.0, 0.0], [np.inf, 0.0]), ([0.0], [0.0, 0.0])):
+        with pytest.raises(DataError):
+            estimator.step(bad_y, bad_u)
+    np.testing.assert_array_equal(estimator.theta, before)
+    np.testing.assert_array_equal(estimator.covariance, P)
+    assert estimator.counts["rejected"] == 3 and estimator.counts["samples"] == 50
+
+
+def test_jacket_dead_zone_and_trace_limit():
+    o, _, u, y = mimo_arx()
+    # inside a dead zone wider than every prediction error nothing moves
+    frozen = RecursiveArmax(o, "ls", p0=10.0, jacket=Jacket(dead_zone=1e6))
+    run(frozen, y[:100], u[:100])
+    assert np.all(frozen.theta == 0) and frozen.counts["dead_zone"] == 100
+    # with no excitation, forgetting blows P up -- unless the trace limit stops forgetting
+    still = np.zeros_like(u)
+    free = RecursiveArmax(o, "ls", p0=1.0, forgetting=Forgetting(0.9))
+    limited = RecursiveArmax(o, "ls", p0=1.0, forgetting=Forgetting(0.9), jacket=Jacket(max_trace=100.0))
+    run(free, np.zeros_like(y)[:200], still[:200])
+    run(limited, np.zeros_like(y)[:200], still[:200])
+    assert free.trace[0] > 1e6 and limited.trace[0] <= 100.0 / 0.9 + 1e-9
