@@ -39,10 +39,16 @@ __all__ = ["MISSION", "main", "fly_mission"]
 #: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
 MISSION = "mission.yaml"
 
-RECORDED = ["/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/truth/odometry",
-            "/seapup/sensors/velocity", "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/position",
-            "/seapup/sensors/altitude", "/seapup/navigation/odometry", "/seapup/velocity_controller/reference",
-            "/seapup/position_controller/reference", "/seapup/self_test/samples", "/diagnostics"]
+RECORDED = ["/clock:rosgraph_msgs/msg/Clock", "/seapup/thrusters/command:seapup_msgs/msg/BladePitch",
+            "/seapup/thrusters/applied:seapup_msgs/msg/BladePitch", "/seapup/truth/odometry:nav_msgs/msg/Odometry",
+            "/seapup/sensors/velocity:geometry_msgs/msg/TwistWithCovarianceStamped",
+            "/seapup/sensors/imu:sensor_msgs/msg/Imu", "/seapup/sensors/depth:seapup_msgs/msg/Depth",
+            "/seapup/sensors/position:geometry_msgs/msg/PoseWithCovarianceStamped",
+            "/seapup/sensors/altitude:sensor_msgs/msg/Range", "/seapup/navigation/odometry:nav_msgs/msg/Odometry",
+            "/seapup/velocity_controller/reference:geometry_msgs/msg/TwistStamped",
+            "/seapup/position_controller/reference:geometry_msgs/msg/PoseStamped",
+            "/seapup/self_test/samples:seapup_msgs/msg/SelfTestSample",
+            "/diagnostics:diagnostic_msgs/msg/DiagnosticArray"]
 
 
 def mission_config() -> dict:

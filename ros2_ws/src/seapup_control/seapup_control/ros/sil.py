@@ -69,7 +69,9 @@ class SilGraph:
     out_dir : Path
         Where node logs (and the bag) go.
     record : list of str, optional
-        Topics the ``recorder`` writes to ``out_dir/bag`` (``/t`` or ``/t:pkg/msg/Type``).
+        Topics the ``recorder`` writes to ``out_dir/bag`` (``/t`` or ``/t:pkg/msg/Type``). Typed ones
+        are subscribed before the graph starts, so nothing of them is lost; untyped ones only once
+        a publisher has told the recorder their type.
     ready_timeout : float
         Wall seconds for the first navigation estimate.
     ready_status : str, optional
@@ -132,6 +134,7 @@ class SilGraph:
                 [str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
                  "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
                 self.env, self.out_dir / "recorder.log", "recorder").start()
+            self._wait_for_recorder()
         for spec in specs:
             self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
                                                      self.out_dir / f"{spec.label}.log", spec.label).start()
@@ -142,6 +145,20 @@ class SilGraph:
                                and (not self.ready_status or ready()), self.ready_timeout):
             raise SilError(f"no navigation estimate or no OK {self.ready_status!r} within "
                            f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
+
+    def _wait_for_recorder(self, timeout: float = 30.0) -> None:
+        """Before the graph starts: the recorder subscribes to every typed topic (``/t:pkg/msg/Type``) at
+        once, so wait for those subscriptions -- a lockstep simulator can fly a minute in a second
+        and would otherwise run ahead of the recorder's discovery."""
+        own = {topic for topic, _ in TOPICS.values()}
+        typed = [entry.split(":")[0] for entry in self.record if ":" in entry]
+
+        def subscribed():
+            return all(self._node.count_subscribers(topic) >= 1 + (topic in own) for topic in typed)
+        if typed and not self.spin_until(subscribed, timeout):
+            missing = [t for t in typed if self._node.count_subscribers(t) < 1 + (t in own)]
+            raise SilError(f"the recorder did not subscribe to {', '.join(missing)} within {timeout:g} s; "
+                           f"its log is {self.out_dir / 'recorder.log'}" + self._dead())
 
     def _dead(self) -> str:
         dead = [f"{name} (exit {p.returncode})" for name, p in self.processes.items() if not p.running]
