@@ -127,6 +127,15 @@ def _open_loop(argv: list[str]) -> int:
     return demo(argv)
 
 
+@command("ident", "system identification (ch. 6): experiment in SIL, fit / orders / compare from a bag or CSV",
+         "experiment [--duration S] [--clock N] [--amplitude DEG] [--current] | fit SOURCE [--method ls|els|rpem] "
+         "[--orders na,nb,nc] [--lambda0 L --alpha A | --forgetting F] [--passes N] | orders SOURCE | "
+         "compare SOURCE  [--json [F]]")
+def _ident(argv: list[str]) -> int:
+    from seapup_bringup.ident_commands import main as ident
+    return ident(argv)
+
+
 @command("test", "run every test; ends with pytest's summary line (-m unit: pure cores only)",
          "[pytest args...]")
 def _test(argv: list[str]) -> int:

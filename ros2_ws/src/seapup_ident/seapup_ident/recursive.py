@@ -202,6 +202,15 @@ class RecursiveArmax:
                        "rejected": 0}
         self.history: dict[str, list] = {"theta": [], "lambda": [], "trace": [], "error": []}
 
+    def restart(self) -> None:
+        """Forget the data history (after a gap or a bad sample), keep Theta, P and lambda.
+
+        The next samples fill the regressor again; until they do its lagged entries are zero.
+        """
+        self.regressor.reset()
+        if self.method == "rpem":
+            self._psi[:] = 0.0
+
     @property
     def covariance(self) -> np.ndarray:
         """P (n_params x n_params; for ``rpem`` one per output: ny x n x n)."""
@@ -233,16 +242,20 @@ class RecursiveArmax:
             raise DataError(f"non-finite sample y={y.tolist()}, u={u.tolist()}: not used")
         return y, u
 
-    def step(self, y, u) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, y, u, update: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Take sample t: output y(t) and the input u(t) applied after it; return (Theta(t), y_hat(t)).
 
         y_hat(t) = Theta(t-1)^T phi(t) is the one-step prediction made before y(t) was seen.
-        The regressor for t+1 then holds y(t), u(t) and the residual of t.
+        The regressor for t+1 then holds y(t), u(t) and the residual of t. ``update=False`` only
+        fills the regressor (after :meth:`restart`, while its lags still reach before the data).
         """
         y, u = self._check(y, u)
         phi = self.regressor.phi()
         y_hat = self.theta.T @ phi
         error = y - y_hat
+        if not update:
+            self.regressor.push(y, u, error)
+            return self.theta.copy(), y_hat
         lam = self.forgetting.next()
         trace = self.trace
         updated = not np.all(np.abs(error) < np.broadcast_to(self.jacket.dead_zone, error.shape))

@@ -1,0 +1,253 @@
+"""Identification runs: data checks, recursive fits over the data N times, order tables and method comparisons.
+
+What ``./seapup ident fit|orders|compare`` compute (thesis sec. 6.3, 6.5): a recursive estimator
+(:class:`seapup_ident.recursive.RecursiveArmax`) run over the record ``passes`` times ("the 300
+sample data series is rewound and passed through repeatedly", sec. 6.5.1), its loss V_N and AIC
+per output from the last pass's one-step prediction errors (eq. 6.11, 6.21), and the tables of
+sec. 6.5: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6), AIC per method (Tables
+6.3-6.5, 6.7).
+
+Bad data never reach an estimator: non-finite samples and gaps in the sample times split the
+record into segments (the regressor restarts at each, Theta and P carry on), and inputs that do
+not excite (constant over the record) are reported; :class:`DataReport` says what was found.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from seapup_ident.armax import ArmaxModel, ArmaxOrders
+from seapup_ident.order_selection import aic, f_test
+from seapup_ident.recursive import Forgetting, RecursiveArmax
+
+__all__ = ["IdentificationData", "DataReport", "FitResult", "fit", "order_table", "compare_methods",
+           "model_document", "read_csv", "NotExcitingError"]
+
+
+class NotExcitingError(ValueError):
+    """The inputs cannot identify a model (constant, or too few usable samples)."""
+
+
+@dataclass
+class DataReport:
+    """What the checks found in a record."""
+
+    samples: int
+    usable: int
+    non_finite: int
+    gaps: int
+    segments: int
+    constant_inputs: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class IdentificationData:
+    """A record of outputs y (N x ny) and inputs u (N x nu) at sample times t (N, seconds).
+
+    u[k] is the input applied from t[k] on (so it acts on y[k+1]): the blade pitch the vehicle
+    applied with sample k.
+    """
+
+    y: np.ndarray
+    u: np.ndarray
+    t: np.ndarray | None = None
+    outputs: tuple = ()
+    inputs: tuple = ()
+
+    def __post_init__(self):
+        self.y = np.asarray(self.y, dtype=float)
+        self.u = np.asarray(self.u, dtype=float)
+        if self.y.ndim == 1:
+            self.y = self.y[:, None]
+        if self.u.ndim == 1:
+            self.u = self.u[:, None]
+        if len(self.y) != len(self.u):
+            raise ValueError(f"{len(self.y)} output samples but {len(self.u)} input samples")
+        n = len(self.y)
+        self.t = np.arange(n, dtype=float) if self.t is None else np.asarray(self.t, dtype=float)
+        if self.t.shape != (n,):
+            raise ValueError(f"{n} samples but {self.t.size} times")
+        self.outputs = tuple(self.outputs) or tuple(f"y{i}" for i in range(self.y.shape[1]))
+        self.inputs = tuple(self.inputs) or tuple(f"u{i}" for i in range(self.u.shape[1]))
+
+    @property
+    def sample_period(self) -> float:
+        finite = self.t[np.isfinite(self.t)]
+        return float(np.median(np.diff(finite))) if len(finite) > 1 else 1.0
+
+    def segments(self) -> tuple[list[np.ndarray], DataReport]:
+        """Index arrays of the contiguous, finite stretches, and the report."""
+        good = np.all(np.isfinite(self.y), axis=1) & np.all(np.isfinite(self.u), axis=1) & np.isfinite(self.t)
+        period = self.sample_period
+        breaks = np.zeros(len(self.t), dtype=bool)
+        breaks[1:] = np.diff(self.t) > 1.5 * period       # dropped samples
+        pieces, current = [], []
+        for k in range(len(self.t)):
+            if not good[k] or (breaks[k] and current):
+                if current:
+                    pieces.append(np.array(current))
+                current = []
+            if good[k]:
+                current.append(k)
+        if current:
+            pieces.append(np.array(current))
+        usable = np.concatenate(pieces) if pieces else np.zeros(0, dtype=int)
+        spread = np.ptp(self.u[usable], axis=0) if len(usable) else np.zeros(self.u.shape[1])
+        constant = [self.inputs[j] for j in range(self.u.shape[1]) if spread[j] <= 1e-12]
+        report = DataReport(len(self.t), len(usable), int(np.sum(~good)), int(np.sum(breaks[1:])), len(pieces),
+                            constant)
+        return pieces, report
+
+
+@dataclass
+class FitResult:
+    """A fitted model and how well it predicts (last pass)."""
+
+    method: str
+    orders: ArmaxOrders
+    model: ArmaxModel
+    loss: np.ndarray          # V_N per output (eq. 6.11)
+    aic: np.ndarray           # per output (eq. 6.21)
+    predictions: np.ndarray   # one-step predictions of the last pass (N x ny, NaN where unusable)
+    report: DataReport
+    passes: int
+    estimator: RecursiveArmax
+
+
+def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
+        p0: float = 100.0, passes: int = 1, keep_history: bool = False, min_samples: int | None = None) -> FitResult:
+    """Run the recursive estimator over ``data`` ``passes`` times (sec. 6.5.1's rewinding).
+
+    Defaults as the thesis's runs: P(0) = 100 I, Theta(0) = 0 (sec. 6.5.1). The forgetting factor
+    carries on over the passes (the schedule of eq. 6.15 is not restarted).
+
+    Raises
+    ------
+    NotExcitingError
+        When an input is constant over the record, or fewer usable samples than parameters remain.
+    """
+    if passes < 1:
+        raise ValueError(f"passes must be >= 1, got {passes}")
+    pieces, report = data.segments()
+    if report.constant_inputs:
+        raise NotExcitingError(f"input(s) {', '.join(report.constant_inputs)} constant over the record: they excite "
+                               f"nothing and their parameters cannot be identified (sec. 6.3: persistently exciting)")
+    needed = min_samples or 2 * orders.n_params
+    if report.usable < needed:
+        raise NotExcitingError(f"{report.usable} usable samples (of {report.samples}; {report.non_finite} non-finite, "
+                               f"{report.gaps} gaps) for {orders.n_params} parameters per output")
+    estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, keep_history=keep_history)
+    predictions = np.full_like(data.y, np.nan)
+    for _ in range(passes):
+        for piece in pieces:
+            estimator.restart()  # a segment's first lag samples only fill the regressor
+            for i, k in enumerate(piece):
+                _, predictions[k] = estimator.step(data.y[k], data.u[k], update=i >= orders.lag)
+    # score the last pass from the first sample whose regressor is full in each segment
+    scored = np.concatenate([piece[orders.lag:] for piece in pieces])
+    errors = data.y[scored] - predictions[scored]
+    loss = np.mean(errors ** 2, axis=0)
+    return FitResult(method, orders, estimator.model, loss, aic(errors, orders.n_params), predictions, report,
+                     passes, estimator)
+
+
+def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls", *, alpha: float = 0.05,
+                forgetting_factory=None, p0: float = 100.0, passes: int = 1) -> dict:
+    """Loss, AIC and F per output for orders (n, n[, n]) n = 1 .. max_order (Tables 6.1, 6.2, 6.6).
+
+    F compares order n - 1 with n (eq. 6.18) at risk ``alpha``. Per output, the AIC pick is the
+    order of least AIC and the F pick the last order before the increase stops being significant;
+    the system order is the largest over the outputs (sec. 6.3.1).
+    """
+    rows = []
+    for n in range(1, max_order + 1):
+        orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], n, n, n if method != "ls" else 0)
+        forgetting = forgetting_factory() if forgetting_factory else None
+        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes)
+        row = {"order": n, "n_params": orders.n_params, "loss": result.loss.tolist(), "aic": result.aic.tolist()}
+        if rows:
+            previous = rows[-1]
+            samples = int(result.report.usable - orders.lag)
+            test = f_test(previous["loss"], result.loss, previous["n_params"], orders.n_params, samples, alpha)
+            row.update(f=test.statistic.tolist(), f_threshold=test.threshold,
+                       significant=test.larger_is_better.tolist())
+        rows.append(row)
+    ny = data.y.shape[1]
+    by_aic = [int(min(rows, key=lambda r: r["aic"][i])["order"]) for i in range(ny)]
+    by_f = []
+    for i in range(ny):
+        order = 1
+        for row in rows[1:]:
+            if not row["significant"][i]:
+                break
+            order = row["order"]
+        by_f.append(order)
+    return {"method": method, "outputs": list(data.outputs), "rows": rows, "aic_order": by_aic, "f_order": by_f,
+            "system_order": max(max(by_aic), max(by_f)), "alpha": alpha}
+
+
+def compare_methods(data: IdentificationData, order: int = 2, methods=("ls", "els", "rpem"), *,
+                    forgetting_factory=None, p0: float = 100.0, passes: int = 1) -> dict:
+    """AIC per output of each method at order (n, n) / (n, n, n) (Tables 6.3-6.5, 6.7)."""
+    out = {"outputs": list(data.outputs), "order": order, "passes": passes, "methods": {}}
+    for method in methods:
+        orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], order, order, 0 if method == "ls" else order)
+        forgetting = forgetting_factory() if forgetting_factory else None
+        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes)
+        out["methods"][method] = {"aic": result.aic.tolist(), "loss": result.loss.tolist(),
+                                  "n_params": orders.n_params, "projections": result.estimator.counts["projections"]}
+    return out
+
+
+def model_document(result: FitResult, data: IdentificationData | None = None, **extra) -> dict:
+    """The JSON document of ``./seapup ident fit``: the thesis's sign convention (eq. 6.7), B from z^-1."""
+    m, o = result.model, result.orders
+    doc = {"method": result.method, "orders": [o.na, o.nb, o.nc], "A": m.A.tolist(), "B": m.B.tolist(),
+           "C": m.C.tolist(), "d": m.d.tolist(), "loss": result.loss.tolist(), "aic": result.aic.tolist(),
+           "passes": result.passes, "data": result.report.as_dict()}
+    if data is not None:
+        doc.update(outputs=list(data.outputs), inputs=list(data.inputs), sample_period=data.sample_period)
+    doc.update(extra)
+    return doc
+
+
+def read_csv(path, outputs=None, inputs=None, time_column: str | None = "t") -> IdentificationData:
+    """A record from a CSV file whose header names the columns.
+
+    Outputs are the columns named in ``outputs`` (default: those starting with ``y``), inputs
+    those in ``inputs`` (default: starting with ``u``); a ``t`` column, if present, gives the
+    sample times [s]. Empty cells and non-numbers become NaN (reported, never used).
+    """
+    path = Path(path)
+    with path.open(newline="") as f:
+        reader = csv.reader(f)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise ValueError(f"{path}: empty file") from None
+        rows = list(reader)
+    outputs = list(outputs) if outputs else [h for h in header if h.startswith("y")]
+    inputs = list(inputs) if inputs else [h for h in header if h.startswith("u")]
+    missing = [c for c in outputs + inputs if c not in header]
+    if missing or not outputs or not inputs:
+        raise ValueError(f"{path}: columns {missing or 'y.../u...'} not found in header {header}")
+
+    def number(text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            return math.nan
+    values = np.array([[number(cell) for cell in row] + [math.nan] * (len(header) - len(row)) for row in rows])
+    if values.size == 0:
+        raise ValueError(f"{path}: no data rows")
+    column = {name: values[:, header.index(name)] for name in header}
+    t = column[time_column] if time_column and time_column in column else None
+    return IdentificationData(np.stack([column[c] for c in outputs], axis=1),
+                              np.stack([column[c] for c in inputs], axis=1), t, tuple(outputs), tuple(inputs))

@@ -1,0 +1,70 @@
+"""Identification runs (seapup_ident.identify): CSV in, model out; bad data detected and harmless (issue 14 (g)).
+
+Truths: the generating MIMO ARX system's own coefficients; the fit of the clean record.
+"""
+import numpy as np
+import pytest
+
+from seapup_ident.armax import ArmaxModel, ArmaxOrders
+from seapup_ident.identify import IdentificationData, NotExcitingError, fit, model_document, order_table, read_csv
+from seapup_ident.prbs import prbs
+
+pytestmark = pytest.mark.unit
+
+TRUE = ArmaxModel(ArmaxOrders(2, 2, 2, 1, 0),
+                  np.array([[[-1.3, 0.1], [0.0, -0.7]], [[0.45, 0.0], [0.05, 0.1]]]),
+                  np.array([[[0.5, 0.1], [0.0, 0.3]]]), np.zeros((0, 2, 2)), np.array([0.05, -0.02]))
+
+
+def record(n=1500, seed=0, noise=0.01):
+    rng = np.random.default_rng(seed)
+    u = prbs(n, clock=5, amplitude=1.0, n_inputs=2, nbits=9)
+    y = TRUE.simulate(u, noise * rng.normal(size=(n, 2)))
+    return IdentificationData(y, u, 0.2 * np.arange(n), ("u_vel", "r_vel"), ("main", "vectored"))
+
+
+def test_fit_from_csv_recovers_the_generating_system(tmp_path):
+    data = record()
+    path = tmp_path / "run.csv"
+    header = "t,y_u,y_r,u_main,u_vectored\n"
+    path.write_text(header + "\n".join(",".join(f"{v:.12g}" for v in row)
+                                       for row in np.column_stack([data.t, data.y, data.u])))
+    loaded = read_csv(path)
+    assert loaded.outputs == ("y_u", "y_r") and loaded.inputs == ("u_main", "u_vectored")
+    result = fit(loaded, ArmaxOrders(2, 2, 2, 1, 0), "ls", passes=2)
+    np.testing.assert_allclose(result.model.A, TRUE.A, atol=0.02)
+    np.testing.assert_allclose(result.model.B, TRUE.B, atol=0.02)
+    np.testing.assert_allclose(result.model.d, TRUE.d, atol=0.01)
+    np.testing.assert_allclose(result.loss, 0.01 ** 2, rtol=0.2)   # the noise variance: one-step errors
+    doc = model_document(result, loaded)
+    assert doc["orders"] == [2, 1, 0] and np.shape(doc["A"]) == (2, 2, 2) and np.shape(doc["B"]) == (1, 2, 2)
+    assert doc["C"] == [] and doc["sample_period"] == pytest.approx(0.2)
+
+
+def test_non_finite_samples_and_gaps_are_reported_and_do_not_corrupt_the_estimate():
+    clean = record(seed=1)
+    dirty = record(seed=1)
+    dirty.y[300] = np.nan                    # a NaN sample
+    dirty.u[700, 1] = np.inf                 # an inf input
+    keep = np.ones(len(dirty.t), dtype=bool)
+    keep[1000:1005] = False                  # five dropped messages (a gap in the times)
+    dirty = IdentificationData(dirty.y[keep], dirty.u[keep], dirty.t[keep], dirty.outputs, dirty.inputs)
+    result = fit(dirty, ArmaxOrders(2, 2, 2, 1, 0), "ls")
+    assert (result.report.non_finite, result.report.gaps, result.report.segments) == (2, 1, 4)
+    assert np.all(np.isfinite(result.model.theta()))
+    reference = fit(clean, ArmaxOrders(2, 2, 2, 1, 0), "ls").model
+    np.testing.assert_allclose(result.model.A, reference.A, atol=0.01)
+    np.testing.assert_allclose(result.model.B, reference.B, atol=0.01)
+
+
+def test_a_constant_input_is_refused_with_the_reason():
+    data = record()
+    data.u[:, 1] = 0.1
+    with pytest.raises(NotExcitingError, match="vectored"):
+        fit(data, ArmaxOrders(2, 2, 2, 1, 0), "ls")
+
+
+def test_order_table_finds_the_second_order_system():
+    table = order_table(record(n=2000, seed=3), max_order=3, method="ls")
+    assert table["system_order"] == 2 and table["aic_order"] == [2, 2]
+    assert table["rows"][1]["significant"] == [True, True]      # 1 -> 2 significant for both outputs
