@@ -44,6 +44,21 @@ def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     assert doc["orders"] == [2, 2, 0] and np.shape(doc["A"]) == (2, 6, 6) and np.shape(doc["B"]) == (2, 6, 4)
     assert doc["outputs"] == ["u", "v", "w", "r", "roll", "pitch"] and doc["data"]["non_finite"] == 0
     assert np.all(np.asarray(doc["loss"]) < 0.2 * np.var(data.y, axis=0))    # explains the motion
+    # (f) the identifier estimated online during the run; fitting the readings it recorded, with the
+    # same settings, gives the model it published last
+    from rclpy.serialization import deserialize_message
+    from seapup_common.bag import read_bag
+    from seapup_msgs.msg import IdentifiedModel
+    identifier_bag = json.loads((tmp_path / "exp.json").read_text())["identifier_bag"]
+    models = [deserialize_message(m.cdr, IdentifiedModel) for m in read_bag(identifier_bag, ["/seapup/identifier/model"])]
+    assert len(models) >= 140 and models[-1].samples == len(models)
+    offline = ident(ros_env, "fit", identifier_bag, "--orders", "2,2,0", "--json", tmp_path / "offline.json")
+    assert offline.returncode == 0, offline.stdout + offline.stderr
+    again = json.loads((tmp_path / "offline.json").read_text())
+    last = models[-1]
+    np.testing.assert_allclose(np.ravel(again["A"]), last.a, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(np.ravel(again["B"]), last.b, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(again["d"], last.d, rtol=1e-9, atol=1e-12)
 
 
 def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_env):

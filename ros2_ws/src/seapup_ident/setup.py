@@ -22,6 +22,7 @@ setup(
     entry_points={
         "console_scripts": [
             "recorder = seapup_ident.recorder_node:main",
+            "identifier = seapup_ident.identifier_node:main",
         ],
     },
 )

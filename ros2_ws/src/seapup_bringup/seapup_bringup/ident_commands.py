@@ -2,8 +2,9 @@
 
 - ``experiment``: the open-loop PRBS experiment of sec. 6.5.1-6.5.4 in SIL (graph
   ``seapup_bringup/launch/identification.yaml``: simulator in lockstep, ``open_loop`` holding a
-  PRBS of +-amplitude about the hover setting on every thruster, clock 10 samples at 5 Hz),
-  recorded to a bag under ``bags/``;
+  PRBS of +-amplitude about the hover setting on every thruster, clock 10 samples at 5 Hz, and
+  the ``identifier`` node estimating online), recorded to a bag under ``bags/`` next to the
+  identifier's own run bag;
 - ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics) or a CSV file,
   as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
 - ``orders SOURCE``: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6);
@@ -194,14 +195,15 @@ def _experiment(args, text) -> dict:
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
     arguments = {"times": str(times), "pitches": str(pitches), "vehicle": args.vehicle, "seed": args.seed,
-                 "current": args.current, "sensors": args.sensors}
+                 "current": args.current, "sensors": args.sensors, "method": args.method,
+                 "orders": str([int(v) for v in args.orders.split(",")]), "identifier_bag": out / "identifier"}
     record = ["/clock:rosgraph_msgs/msg/Clock", "/seapup/thrusters/command:seapup_msgs/msg/BladePitch",
               "/seapup/thrusters/applied:seapup_msgs/msg/BladePitch",
               "/seapup/sensors/velocity:geometry_msgs/msg/TwistWithCovarianceStamped",
               "/seapup/sensors/imu:sensor_msgs/msg/Imu", "/seapup/sensors/depth:seapup_msgs/msg/Depth",
               "/seapup/truth/odometry:nav_msgs/msg/Odometry"]
     with SilGraph("seapup_bringup identification.yaml", arguments, out_dir=out, record=record,
-                  ready_status="") as sil:
+                  ready_status=None) as sil:
         print(f"ident experiment: PRBS +-{args.amplitude:g} deg about hover, clock {args.clock} samples, "
               f"{args.duration:g} s; ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
         start = sil.t
@@ -209,13 +211,17 @@ def _experiment(args, text) -> dict:
             sil.run_for(min(5.0, start + args.duration - sil.t))
             progress("experiment", (sil.t - start) / args.duration)
         bag = sil.bag
-    print(f"ident experiment: bag {bag}", file=text)
-    return {"bag": str(bag), "duration": args.duration, "clock": args.clock, "amplitude_deg": args.amplitude,
+    print(f"ident experiment: bag {bag}; the identifier's run (readings used, model after each sample) in "
+          f"{out / 'identifier'}", file=text)
+    return {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method,
+            "orders": [int(v) for v in args.orders.split(",")], "duration": args.duration, "clock": args.clock, "amplitude_deg": args.amplitude,
             "current": args.current, "sensors": args.sensors, "switches": len(times)}
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="./seapup ident", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="./seapup ident", description=__doc__.splitlines()[0],
+                                     epilog="Every subcommand takes --json [FILE]: its result as JSON to FILE "
+                                            "(stdout without FILE; text then goes to stderr).")
     sub = parser.add_subparsers(dest="command", required=True)
     fit_p = sub.add_parser("fit", help="a model from a bag or CSV file")
     _common(fit_p)
@@ -239,6 +245,8 @@ def main(argv=None) -> int:
     exp_p.add_argument("--vehicle", default="baseline")
     exp_p.add_argument("--seed", type=int, default=0)
     exp_p.add_argument("--out", help="output directory (default bags/ident_<UTC time>)")
+    exp_p.add_argument("--method", choices=("ls", "els", "rpem"), default="ls", help="the online identifier's method")
+    exp_p.add_argument("--orders", default="2,2,0", help="the online identifier's na,nb,nc (default 2,2,0)")
     add_json_argument(exp_p)
     args = parser.parse_args(argv)
     text = text_stream(args)

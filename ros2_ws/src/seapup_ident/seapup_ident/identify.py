@@ -3,7 +3,8 @@
 What ``./seapup ident fit|orders|compare`` compute (thesis sec. 6.3, 6.5): a recursive estimator
 (:class:`seapup_ident.recursive.RecursiveArmax`) run over the record ``passes`` times ("the 300
 sample data series is rewound and passed through repeatedly", sec. 6.5.1), its loss V_N and AIC
-per output from the last pass's one-step prediction errors (eq. 6.11, 6.21), and the tables of
+per output from the last pass's equation errors -- the a posteriori residuals e(k) = y(k) -
+Theta(k)^T phi(k) of eq. 6.20 (eq. 6.11, 6.21) -- and the tables of
 sec. 6.5: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6), AIC per method (Tables
 6.3-6.5, 6.7).
 
@@ -113,7 +114,7 @@ class FitResult:
     method: str
     orders: ArmaxOrders
     model: ArmaxModel
-    loss: np.ndarray          # V_N per output (eq. 6.11)
+    loss: np.ndarray          # V_N per output (eq. 6.11, 6.20: mean squared a posteriori residual)
     aic: np.ndarray           # per output (eq. 6.21)
     predictions: np.ndarray   # one-step predictions of the last pass (N x ny, NaN where unusable)
     report: DataReport
@@ -145,14 +146,17 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
                                f"{report.gaps} gaps) for {orders.n_params} parameters per output")
     estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, keep_history=keep_history)
     predictions = np.full_like(data.y, np.nan)
+    residuals = np.full_like(data.y, np.nan)
     for _ in range(passes):
         for piece in pieces:
             estimator.restart()  # a segment's first lag samples only fill the regressor
             for i, k in enumerate(piece):
                 _, predictions[k] = estimator.step(data.y[k], data.u[k], update=i >= orders.lag)
-    # score the last pass from the first sample whose regressor is full in each segment
+                residuals[k] = estimator.residual
+    # score the last pass from the first sample whose regressor is full in each segment: the
+    # equation errors e(k) of eq. 6.20 (a posteriori residuals y - Theta(k)^T phi(k))
     scored = np.concatenate([piece[orders.lag:] for piece in pieces])
-    errors = data.y[scored] - predictions[scored]
+    errors = residuals[scored]
     loss = np.mean(errors ** 2, axis=0)
     return FitResult(method, orders, estimator.model, loss, aic(errors, orders.n_params), predictions, report,
                      passes, estimator)

@@ -198,6 +198,7 @@ class RecursiveArmax:
         else:
             self._U, self._D = np.eye(n), np.full(n, self.p0)               # one P shared by the outputs
         self.t = 0
+        self.residual = np.zeros(o.ny)   # the last sample's a posteriori residual y - Theta(t)^T phi(t)
         self.counts = {"samples": 0, "updates": 0, "dead_zone": 0, "trace_limited": 0, "projections": 0,
                        "rejected": 0}
         self.history: dict[str, list] = {"theta": [], "lambda": [], "trace": [], "error": []}
@@ -254,6 +255,7 @@ class RecursiveArmax:
         y_hat = self.theta.T @ phi
         error = y - y_hat
         if not update:
+            self.residual = error
             self.regressor.push(y, u, error)
             return self.theta.copy(), y_hat
         lam = self.forgetting.next()
@@ -271,6 +273,7 @@ class RecursiveArmax:
             self.theta += np.outer(gain, error)
         self.counts["updates"] += int(updated)
         residual = y - self.theta.T @ phi   # a posteriori: the noise estimate e(t) for ELS/RPEM
+        self.residual = residual
         self.regressor.push(y, u, residual)
         self.t += 1
         self.counts["samples"] += 1

@@ -64,7 +64,12 @@ def test_a_constant_input_is_refused_with_the_reason():
         fit(data, ArmaxOrders(2, 2, 2, 1, 0), "ls")
 
 
-def test_order_table_finds_the_second_order_system():
-    table = order_table(record(n=2000, seed=3), max_order=3, method="ls")
-    assert table["system_order"] == 2 and table["aic_order"] == [2, 2]
-    assert table["rows"][1]["significant"] == [True, True]      # 1 -> 2 significant for both outputs
+def test_order_table_rejects_first_order_and_mostly_picks_the_second():
+    picks = []
+    for seed in range(6):
+        table = order_table(record(n=1500, seed=seed), max_order=3, method="ls")
+        assert table["rows"][1]["significant"] == [True, True]   # 1 -> 2 significant for both outputs
+        assert min(table["aic_order"]) >= 2 and min(table["f_order"]) >= 2
+        picks += table["aic_order"]
+    # a posteriori residuals of a recursive fit flatter larger models a little: over-fit sometimes
+    assert picks.count(2) >= 0.6 * len(picks)

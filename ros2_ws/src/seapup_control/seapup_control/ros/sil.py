@@ -79,7 +79,8 @@ class SilGraph:
         ``seapup/task_controller``: it hears the navigator, so goals can be accepted). The
         simulator starts once *its* subscribers are there; the rest of the graph discovers
         itself meanwhile, and a goal sent before the task controller hears the navigator would be
-        refused for want of navigation. "" waits only for the first estimate.
+        refused for want of navigation. "" waits only for the first estimate, None only for the
+        first truth sample (a graph without a navigator).
     """
 
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
@@ -141,7 +142,8 @@ class SilGraph:
         def ready():
             return any(status.name == self.ready_status and status.level in (0, b"\x00")
                        for array in self.log["diagnostics"][-20:] for status in array.status)
-        if not self.spin_until(lambda: self.log["estimate"] and self.log["truth"]
+        navigation = self.ready_status is not None
+        if not self.spin_until(lambda: self.log["truth"] and (not navigation or self.log["estimate"])
                                and (not self.ready_status or ready()), self.ready_timeout):
             raise SilError(f"no navigation estimate or no OK {self.ready_status!r} within "
                            f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())

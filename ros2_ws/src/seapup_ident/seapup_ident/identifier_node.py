@@ -1,0 +1,133 @@
+"""The ``identifier`` node: online multivariable recursive identification (thesis ch. 6, 7).
+
+A thin shell over :class:`seapup_ident.online.OnlineIdentifier`: it subscribes to
+``/seapup/sensors/velocity`` (u, v, w, r), ``/seapup/sensors/imu`` (roll, pitch) and
+``/seapup/thrusters/applied`` (the blade pitches the vehicle applied from each sample on),
+runs the estimator chosen by its parameters (``config/identifier.yaml``) on every complete
+sample, publishes the model on ``/seapup/identifier/model`` (``seapup_msgs/IdentifiedModel``) and
+records the run -- the readings it used and each published model -- into an MCAP bag, so
+``./seapup ident fit BAG`` with the same settings gives the same model. Non-finite readings are
+refused, counted and logged; the estimate never sees them.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from geometry_msgs.msg import TwistWithCovarianceStamped
+from rclpy.node import Node
+from rclpy.serialization import serialize_message
+from seapup_msgs.msg import BladePitch, IdentifiedModel
+from sensor_msgs.msg import Imu
+
+from seapup_common.bag import BagWriter, make_typestore
+from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_ident.armax import ArmaxOrders
+from seapup_ident.online import OnlineIdentifier
+from seapup_ident.recorder_node import project_msg_files
+from seapup_ident.recursive import DataError, Forgetting
+
+__all__ = ["IdentifierNode", "main"]
+
+INPUTS = ("main_port", "main_starboard", "vectored_starboard", "vectored_port")
+_TOPICS = {"velocity": ("/seapup/sensors/velocity", TwistWithCovarianceStamped, "geometry_msgs/msg/TwistWithCovarianceStamped"),
+           "attitude": ("/seapup/sensors/imu", Imu, "sensor_msgs/msg/Imu"),
+           "applied": ("/seapup/thrusters/applied", BladePitch, "seapup_msgs/msg/BladePitch")}
+MODEL_TOPIC = "/seapup/identifier/model"
+
+
+class IdentifierNode(Node):
+    """rclpy shell around :class:`OnlineIdentifier` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("identifier", namespace="/seapup", **kwargs)
+        p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier")
+        outputs = list(p["outputs"])
+        na, nb, nc = (int(v) for v in p["orders"])
+        forgetting = Forgetting(float(p["forgetting"])) if p["forgetting"] > 0 else \
+            Forgetting.schedule(float(p["lambda0"]), float(p["alpha"]))
+        self.core = OnlineIdentifier(ArmaxOrders(len(outputs), 4, na, nb, nc), p["method"], outputs,
+                                     forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]))
+        self.publisher = self.create_publisher(IdentifiedModel, MODEL_TOPIC, RELIABLE_QOS)
+        self.bag = self._open_bag(p["bag_path"])
+        self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
+        self.drain_on_shutdown = True      # run_node takes the readings already received before closing
+        for kind, (topic, msg_type, _) in _TOPICS.items():
+            if kind in self.core.kinds:
+                self.create_subscription(msg_type, topic, lambda msg, kind=kind: self._on_reading(kind, msg),
+                                         COMMAND_QOS)
+        self.get_logger().info(f"identifying {outputs} with {p['method']} orders ({na}, {nb}, {nc})"
+                               + (f"; recording into {self.bag.path}" if self.bag else ""))
+
+    def _open_bag(self, bag_path: str):
+        if bag_path == "none":
+            return None
+        root = Path(os.environ.get("SEAPUP_ROOT", "."))
+        path = bag_path or str(root / "bags" / time.strftime("identifier_%Y%m%d_%H%M%S", time.gmtime()))
+        bag = BagWriter(path, make_typestore(project_msg_files())).open()
+        for kind, (topic, _, type_name) in _TOPICS.items():
+            if kind in self.core.kinds:
+                bag.add_topic(topic, type_name)
+        bag.add_topic(MODEL_TOPIC, "seapup_msgs/msg/IdentifiedModel")
+        return bag
+
+    def _on_reading(self, kind: str, msg) -> None:
+        stamp = stamp_to_ns(msg.header.stamp)
+        try:
+            if kind == "velocity":
+                velocity, rates = velocity_from_msg(msg)
+                if not (velocity.valid and rates.valid):
+                    raise DataError("invalid velocity or rate reading")
+                values = [*velocity.value, rates.value[2]]
+            elif kind == "attitude":
+                attitude = attitude_from_imu(msg)
+                if not attitude.valid:
+                    raise DataError("invalid attitude reading")
+                values = attitude.value[:2]
+            else:
+                values = list(msg.pitch)
+            if self.bag is not None:
+                self._held.setdefault(stamp, {})[kind] = serialize_message(msg)
+            used = self.core.add(kind, stamp, values)
+        except (DataError, ValueError) as exc:
+            self.get_logger().warn(f"{kind} reading refused: {exc}", throttle_duration_sec=2.0)
+            return
+        if used is not None:
+            self._publish(used)
+
+    def _publish(self, used) -> None:
+        o, est = self.core.orders, self.core.estimator
+        model = est.model
+        msg = IdentifiedModel(method=est.method, ny=o.ny, nu=o.nu, na=o.na, nb=o.nb, nc=o.nc,
+                              outputs=list(self.core.outputs), inputs=list(INPUTS))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(used.stamp_ns, 10**9)
+        msg.a, msg.b, msg.c = (np.ravel(m).tolist() for m in (model.A, model.B, model.C))
+        msg.d = model.d.tolist()
+        msg.covariance_trace = est.trace.tolist()
+        msg.prediction_error = used.prediction_error.tolist()
+        msg.forgetting = float(est.forgetting.value)
+        msg.samples, msg.rejected = self.core.counts["used"], self.core.counts["rejected"]
+        self.publisher.publish(msg)
+        if self.bag is not None:
+            for stamp in [s for s in self._held if s < used.stamp_ns]:
+                del self._held[stamp]   # readings of samples never completed: not used, not recorded
+            for kind, cdr in self._held.pop(used.stamp_ns, {}).items():
+                self.bag.write(_TOPICS[kind][0], cdr, used.stamp_ns)
+            self.bag.write(MODEL_TOPIC, serialize_message(msg), used.stamp_ns)
+
+    def destroy_node(self):
+        if self.bag is not None:
+            self.bag.close()
+            self.bag = None
+        return super().destroy_node()
+
+
+def main(args=None) -> int:
+    return run_node(IdentifierNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
