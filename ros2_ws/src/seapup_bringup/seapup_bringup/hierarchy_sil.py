@@ -18,9 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from seapup_common.contract import Command, Reference
+from seapup_common.parameters import load_node_parameters
 
 __all__ = ["HierarchyRun", "node_parameters", "fly_hierarchy"]
 
@@ -28,8 +28,7 @@ __all__ = ["HierarchyRun", "node_parameters", "fly_hierarchy"]
 def node_parameters(package: str, file: str, node: str) -> dict:
     """The ``ros__parameters`` of ``node`` in the installed ``<package>/config/<file>``."""
     from ament_index_python.packages import get_package_share_directory
-    path = Path(get_package_share_directory(package)) / "config" / file
-    return yaml.safe_load(path.read_text())[node]["ros__parameters"]
+    return load_node_parameters(Path(get_package_share_directory(package)) / "config" / file, node)
 
 
 @dataclass

@@ -23,12 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_common.blade_pitch import THRUSTER_NAMES
 
 __all__ = ["main", "bag_data", "load_source", "OUTPUT_SETS"]
 
 #: Output sets: ch. 6 (surge, sway, heave, yaw velocities, roll, pitch) and ch. 7 (u, v, w, r).
 OUTPUT_SETS = {"ch6": ("u", "v", "w", "r", "roll", "pitch"), "ch7": ("u", "v", "w", "r")}
-INPUTS = ("main_port", "main_starboard", "vectored_starboard", "vectored_port")
 
 
 def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
@@ -74,7 +74,7 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
         y[k] = [row.get(name, math.nan) for name in outputs]
         if stamp in found["/seapup/thrusters/applied"]:
             u[k] = found["/seapup/thrusters/applied"][stamp].pitch
-    return IdentificationData(y, u, np.array(stamps) * 1e-9, tuple(outputs), INPUTS)
+    return IdentificationData(y, u, np.array(stamps) * 1e-9, tuple(outputs), THRUSTER_NAMES)
 
 
 def load_source(source: str, outputs: str | None, inputs: str | None, output_set: str):
@@ -179,6 +179,7 @@ def _compare(args, text) -> dict:
 
 
 def _experiment(args, text) -> dict:
+    from seapup_common.topics import typed
     from seapup_control.ros.sil import SilGraph
     from seapup_ident.prbs import prbs
     from seapup_sim.analysis import hover_blade_pitch
@@ -197,11 +198,8 @@ def _experiment(args, text) -> dict:
     arguments = {"times": str(times), "pitches": str(pitches), "vehicle": args.vehicle, "seed": args.seed,
                  "current": args.current, "sensors": args.sensors, "method": args.method,
                  "orders": str([int(v) for v in args.orders.split(",")]), "identifier_bag": out / "identifier"}
-    record = ["/clock:rosgraph_msgs/msg/Clock", "/seapup/thrusters/command:seapup_msgs/msg/BladePitch",
-              "/seapup/thrusters/applied:seapup_msgs/msg/BladePitch",
-              "/seapup/sensors/velocity:geometry_msgs/msg/TwistWithCovarianceStamped",
-              "/seapup/sensors/imu:sensor_msgs/msg/Imu", "/seapup/sensors/depth:seapup_msgs/msg/Depth",
-              "/seapup/truth/odometry:nav_msgs/msg/Odometry"]
+    record = typed("/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
+                   "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/truth/odometry")
     with SilGraph("seapup_bringup identification.yaml", arguments, out_dir=out, record=record,
                   ready_status=None) as sil:
         print(f"ident experiment: PRBS +-{args.amplitude:g} deg about hover, clock {args.clock} samples, "

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-__all__ = ["ArmaxOrders", "ArmaxModel", "Regressor", "polynomial_roots", "is_stable"]
+__all__ = ["OrderError", "ArmaxOrders", "ArmaxModel", "Regressor", "polynomial_roots", "is_stable"]
 
 
 class OrderError(ValueError):

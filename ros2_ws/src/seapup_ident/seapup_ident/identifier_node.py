@@ -23,8 +23,10 @@ from seapup_msgs.msg import BladePitch, IdentifiedModel
 from sensor_msgs.msg import Imu
 
 from seapup_common.bag import BagWriter, make_typestore
+from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import TOPIC_TYPES
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.online import OnlineIdentifier
 from seapup_ident.recorder_node import project_msg_files
@@ -32,10 +34,8 @@ from seapup_ident.recursive import DataError, Forgetting
 
 __all__ = ["IdentifierNode", "main"]
 
-INPUTS = ("main_port", "main_starboard", "vectored_starboard", "vectored_port")
-_TOPICS = {"velocity": ("/seapup/sensors/velocity", TwistWithCovarianceStamped, "geometry_msgs/msg/TwistWithCovarianceStamped"),
-           "attitude": ("/seapup/sensors/imu", Imu, "sensor_msgs/msg/Imu"),
-           "applied": ("/seapup/thrusters/applied", BladePitch, "seapup_msgs/msg/BladePitch")}
+_TOPICS = {"velocity": ("/seapup/sensors/velocity", TwistWithCovarianceStamped),
+           "attitude": ("/seapup/sensors/imu", Imu), "applied": ("/seapup/thrusters/applied", BladePitch)}
 MODEL_TOPIC = "/seapup/identifier/model"
 
 
@@ -55,7 +55,7 @@ class IdentifierNode(Node):
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
         self.drain_on_shutdown = True      # run_node takes the readings already received before closing
-        for kind, (topic, msg_type, _) in _TOPICS.items():
+        for kind, (topic, msg_type) in _TOPICS.items():
             if kind in self.core.kinds:
                 self.create_subscription(msg_type, topic, lambda msg, kind=kind: self._on_reading(kind, msg),
                                          COMMAND_QOS)
@@ -68,10 +68,10 @@ class IdentifierNode(Node):
         root = Path(os.environ.get("SEAPUP_ROOT", "."))
         path = bag_path or str(root / "bags" / time.strftime("identifier_%Y%m%d_%H%M%S", time.gmtime()))
         bag = BagWriter(path, make_typestore(project_msg_files())).open()
-        for kind, (topic, _, type_name) in _TOPICS.items():
+        for kind, (topic, _) in _TOPICS.items():
             if kind in self.core.kinds:
-                bag.add_topic(topic, type_name)
-        bag.add_topic(MODEL_TOPIC, "seapup_msgs/msg/IdentifiedModel")
+                bag.add_topic(topic, TOPIC_TYPES[topic])
+        bag.add_topic(MODEL_TOPIC, TOPIC_TYPES[MODEL_TOPIC])
         return bag
 
     def _on_reading(self, kind: str, msg) -> None:
@@ -102,7 +102,7 @@ class IdentifierNode(Node):
         o, est = self.core.orders, self.core.estimator
         model = est.model
         msg = IdentifiedModel(method=est.method, ny=o.ny, nu=o.nu, na=o.na, nb=o.nb, nc=o.nc,
-                              outputs=list(self.core.outputs), inputs=list(INPUTS))
+                              outputs=list(self.core.outputs), inputs=list(THRUSTER_NAMES))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(used.stamp_ns, 10**9)
         msg.a, msg.b, msg.c = (np.ravel(m).tolist() for m in (model.A, model.B, model.C))
         msg.d = model.d.tolist()
