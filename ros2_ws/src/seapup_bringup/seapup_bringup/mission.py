@@ -33,22 +33,23 @@ import yaml
 
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.topics import typed
 
 __all__ = ["MISSION", "main", "fly_mission"]
 
 #: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
 MISSION = "mission.yaml"
 
-RECORDED = ["/clock:rosgraph_msgs/msg/Clock", "/seapup/thrusters/command:seapup_msgs/msg/BladePitch",
-            "/seapup/thrusters/applied:seapup_msgs/msg/BladePitch", "/seapup/truth/odometry:nav_msgs/msg/Odometry",
-            "/seapup/sensors/velocity:geometry_msgs/msg/TwistWithCovarianceStamped",
-            "/seapup/sensors/imu:sensor_msgs/msg/Imu", "/seapup/sensors/depth:seapup_msgs/msg/Depth",
-            "/seapup/sensors/position:geometry_msgs/msg/PoseWithCovarianceStamped",
-            "/seapup/sensors/altitude:sensor_msgs/msg/Range", "/seapup/navigation/odometry:nav_msgs/msg/Odometry",
-            "/seapup/velocity_controller/reference:geometry_msgs/msg/TwistStamped",
-            "/seapup/position_controller/reference:geometry_msgs/msg/PoseStamped",
-            "/seapup/self_test/samples:seapup_msgs/msg/SelfTestSample",
-            "/diagnostics:diagnostic_msgs/msg/DiagnosticArray"]
+#: The simulator's handshake topics (hierarchy.yaml's wait_for_subscribers) are recorded untyped: the
+#: recorder then subscribes once it has seen their publisher, so the simulator still waits for the
+#: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
+#: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
+#: recorded from the first message.
+HANDSHAKE = ["/seapup/sensors/velocity", "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/position",
+             "/seapup/thrusters/applied"]
+RECORDED = HANDSHAKE + typed("/clock", "/seapup/thrusters/command", "/seapup/truth/odometry", "/seapup/sensors/altitude",
+                             "/seapup/navigation/odometry", "/seapup/velocity_controller/reference",
+                             "/seapup/position_controller/reference", "/seapup/self_test/samples", "/diagnostics")
 
 
 def mission_config() -> dict:
@@ -146,18 +147,9 @@ def fly_mission(out: Path, config: dict, text) -> dict:
 def _fly_leg(sil, leg: dict, swap: dict) -> dict:
     kind = leg["kind"]
     if kind == "self_test":
-        from seapup_msgs.action import SelfTest
-        from rclpy.action import ActionClient
-        from seapup_common.ros.graph import send_goal
-        client = ActionClient(sil._node, SelfTest, "/seapup/self_test")
         t0 = sil.t
-        goal = SelfTest.Goal()
-        for key, value in leg.get("goal", {}).items():
-            setattr(goal, key, [float(v) for v in value] if isinstance(value, list) else value)
-        handle = send_goal(sil._executor, client, goal)
-        future = handle.get_result_async()
-        sil.spin_until(future.done, 600.0)
-        result = future.result().result
+        fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}
+        result = sil.action("/seapup/self_test", "seapup_msgs/action/SelfTest", fields)
         t1 = sil.t
         if not result.success:
             raise RuntimeError(f"self-test failed: {result.message}")

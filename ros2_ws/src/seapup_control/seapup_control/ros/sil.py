@@ -276,6 +276,26 @@ class SilGraph:
         finally:
             client.destroy()
 
+    def action(self, name: str, action_type: str, fields: dict | None = None, timeout: float = 600.0):
+        """Send a goal (``action_type`` like ``seapup_msgs/action/SelfTest``, its fields) to action server
+        ``name`` and wait for the end; the result message."""
+        from rclpy.action import ActionClient
+
+        from seapup_common.ros.graph import send_goal
+        package, _, kind_name = action_type.split("/")
+        kind = _import(f"{package}.action.{kind_name}")
+        client = ActionClient(self._node, kind, name)
+        try:
+            handle = send_goal(self._executor, client, kind.Goal(**(fields or {})))
+            if not handle.accepted:
+                raise SilError(f"{name} refused the goal")
+            future = handle.get_result_async()
+            if not self.spin_until(future.done, timeout):
+                raise SilError(f"{name} did not finish within {timeout:g} s{self._dead()}")
+            return future.result().result
+        finally:
+            client.destroy()
+
     def call(self, service: str, srv_type: str, fields: dict | None = None, timeout: float = 10.0):
         """Call a service (``srv_type`` like ``seapup_msgs/srv/SwitchController``); the response."""
         package, _, name = srv_type.split("/")
