@@ -23,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "open_loop = seapup_control.open_loop_node:main",
+            "reference_schedule = seapup_control.reference_schedule_node:main",
             "self_test = seapup_control.self_test_node:main",
             "mfol_velocity_controller = seapup_control.mfol_controller_node:main",
             "navigator = seapup_control.navigator_node:main",

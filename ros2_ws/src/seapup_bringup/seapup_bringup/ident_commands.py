@@ -1,10 +1,12 @@
 """``./seapup ident``: identification experiments and fits from bags or CSV files (thesis ch. 6).
 
-- ``experiment``: the open-loop PRBS experiment of sec. 6.5.1-6.5.4 in SIL (graph
-  ``seapup_bringup/launch/identification.yaml``: simulator in lockstep, ``open_loop`` holding a
-  PRBS of +-amplitude about the hover setting on every thruster, clock 10 samples at 5 Hz, and
-  the ``identifier`` node estimating online), recorded to a bag under ``bags/`` next to the
-  identifier's own run bag;
+- ``experiment``: the identification experiments of sec. 6.5 in SIL, recorded to a bag under
+  ``bags/`` next to the identifier's own run bag: open loop (sec. 6.5.1-6.5.4, graph
+  ``seapup_bringup/launch/identification.yaml``: simulator in lockstep, nonlinear or linearised,
+  ``open_loop`` holding a PRBS of +-amplitude about the hover setting on every thruster, clock 10
+  samples at 5 Hz, optionally the current) or closed loop (sec. 6.5.5,
+  ``identification_closed_loop.yaml``: the fixed-gain self-tested controller following a
+  square-wave reference from ``reference_schedule``), the ``identifier`` node estimating online;
 - ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics) or a CSV file,
   as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
 - ``orders SOURCE``: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6);
@@ -33,8 +35,11 @@ OUTPUT_SETS = {"ch6": ("u", "v", "w", "r", "roll", "pitch"), "ch7": ("u", "v", "
 
 def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
     """IdentificationData from a bag: outputs from ``/seapup/sensors/velocity`` (u, v, w, r) and
-    ``/seapup/sensors/imu`` (roll, pitch), inputs the applied blade pitches, joined on the sample
-    stamps. A sample missing from any topic becomes a NaN row (reported as a gap, never used)."""
+    ``/seapup/sensors/imu`` (roll, pitch) joined on the sample stamps; the input u(t_k) is the
+    applied blade pitch read at the next sample, the pitch held over [t_k, t_k+1]
+    (:func:`seapup_ident.online.held_inputs`, as the identifier node joins them). A sample missing
+    from any topic becomes a NaN row (reported, never used); the last samples, whose interval the
+    record does not cover, are left out."""
     from geometry_msgs.msg import TwistWithCovarianceStamped
     from rclpy.serialization import deserialize_message
     from seapup_msgs.msg import BladePitch
@@ -43,6 +48,7 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
     from seapup_common.bag import read_bag
     from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
     from seapup_ident.identify import IdentificationData
+    from seapup_ident.online import held_inputs
 
     unknown = set(outputs) - set(OUTPUT_SETS["ch6"])
     if unknown:
@@ -57,9 +63,16 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
              (topic != "/seapup/sensors/imu" or {"roll", "pitch"} & set(outputs))]
     if empty:
         raise ValueError(f"{path}: no messages on {', '.join(empty)} (record them: ./seapup ident experiment)")
-    stamps = sorted(set(found["/seapup/sensors/velocity"]) | set(found["/seapup/thrusters/applied"]))
+    applied = {stamp: np.asarray(msg.pitch, float) for stamp, msg in found["/seapup/thrusters/applied"].items()}
+    output_topics = ["/seapup/sensors/velocity"] + (["/seapup/sensors/imu"] if {"roll", "pitch"} & set(outputs) else [])
+    stamps = sorted(set().union(*(found[topic] for topic in output_topics)))
+    period = float(np.median(np.diff(sorted(applied)))) * 1e-9 if len(applied) > 1 else 0.0
+    u = held_inputs(stamps, applied, period)
+    covered = np.flatnonzero(np.all(np.isfinite(u), axis=1))
+    if not len(covered):
+        raise ValueError(f"{path}: no sample has an applied blade pitch read after it (one sample period later)")
+    stamps, u = stamps[:covered[-1] + 1], u[:covered[-1] + 1]
     y = np.full((len(stamps), len(outputs)), np.nan)
-    u = np.full((len(stamps), 4), np.nan)
     for k, stamp in enumerate(stamps):
         row = {}
         if stamp in found["/seapup/sensors/velocity"]:
@@ -72,8 +85,6 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
             if attitude.valid:
                 row.update(roll=attitude.value[0], pitch=attitude.value[1])
         y[k] = [row.get(name, math.nan) for name in outputs]
-        if stamp in found["/seapup/thrusters/applied"]:
-            u[k] = found["/seapup/thrusters/applied"][stamp].pitch
     return IdentificationData(y, u, np.array(stamps) * 1e-9, tuple(outputs), THRUSTER_NAMES)
 
 
@@ -96,6 +107,21 @@ def _forgetting(args):
     return lambda: Forgetting.schedule(args.lambda0, args.alpha)
 
 
+def _points(args) -> int | None:
+    if args.points is not None and args.passes != 1:
+        raise ValueError("give --passes or --points, not both")
+    return args.points
+
+
+def _rpem_filter(args) -> tuple[float, float] | None:
+    if args.rpem_k0 is None:
+        return None
+    if not (0.0 < args.rpem_k0 <= 1.0 and 0.0 <= args.rpem_gamma < 1.0):
+        raise ValueError(f"--rpem-k0 must be in (0, 1] and --rpem-gamma in [0, 1), got {args.rpem_k0}, "
+                         f"{args.rpem_gamma}")
+    return args.rpem_k0, args.rpem_gamma
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("source", help="a bag directory or a CSV file (header: y... outputs, u... inputs, t)")
     parser.add_argument("--outputs", help="comma-separated output names (bag: u,v,w,r,roll,pitch; CSV: columns)")
@@ -106,7 +132,13 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--alpha", type=float, default=0.9, help="eq. 6.15's alpha (default 0.9)")
     parser.add_argument("--forgetting", type=float, help="a fixed forgetting factor instead of eq. 6.15")
     parser.add_argument("--p0", type=float, default=100.0, help="P(0) = p0 I (default 100, sec. 6.5.1)")
-    parser.add_argument("--passes", type=int, default=1, help="times the record is replayed (sec. 6.5.1)")
+    parser.add_argument("--rpem-k0", type=float, help="RPEM: weaken the gradient filter at first, K(0) "
+                                                      "(Tables 6.3-6.7: 0.1); default none")
+    parser.add_argument("--rpem-gamma", type=float, default=0.98, help="RPEM: the weakening's gamma (default 0.98)")
+    parser.add_argument("--passes", type=int, default=1,
+                        help="times the record is replayed, scoring the last pass (sec. 6.5.1)")
+    parser.add_argument("--points", type=int, help="replay until this many samples were examined, scoring them "
+                                                   "all (the thesis's 2000-point runs); instead of --passes")
     add_json_argument(parser)
 
 
@@ -118,11 +150,12 @@ def _fit(args, text) -> dict:
     if args.method == "ls" and nc:
         raise ValueError("least squares has no noise model: use --orders na,nb,0 or --method els|rpem")
     result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
-                 forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes)
+                 forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
+                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None)
     doc = model_document(result, data, source=str(args.source))
     print(f"ident fit: {args.method} orders ({na}, {nb}, {nc}) on {result.report.usable} of "
           f"{result.report.samples} samples ({result.report.non_finite} non-finite, {result.report.gaps} gaps), "
-          f"{args.passes} pass(es)", file=text)
+          f"{result.examined} examined in {result.passes} pass(es), {result.scored} scored", file=text)
     print(f"{'output':<10}{'loss V_N':>14}{'AIC':>12}", file=text)
     for name, v, a in zip(data.outputs, result.loss, result.aic):
         print(f"{name:<10}{v:>14.4e}{a:>12.1f}", file=text)
@@ -153,7 +186,7 @@ def _orders(args, text) -> dict:
     from seapup_ident.identify import order_table
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     table = order_table(data, args.max_order, args.method, alpha=args.risk, forgetting_factory=_forgetting(args),
-                        p0=args.p0, passes=args.passes)
+                        p0=args.p0, passes=args.passes, points=_points(args))
     names = data.outputs
     print(f"ident orders: {args.method}, orders (n, n{', n' if args.method != 'ls' else ''}), risk {args.risk:g}",
           file=text)
@@ -170,8 +203,12 @@ def _orders(args, text) -> dict:
 def _compare(args, text) -> dict:
     from seapup_ident.identify import compare_methods
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
-    table = compare_methods(data, args.order, forgetting_factory=_forgetting(args), p0=args.p0, passes=args.passes)
-    print(f"ident compare: AIC at order {args.order}, {args.passes} pass(es) ({len(data.t)} samples)", file=text)
+    table = compare_methods(data, args.order, tuple(args.methods.split(",")), forgetting_factory=_forgetting(args),
+                            p0=args.p0, passes=args.passes, points=_points(args), rpem_filter=_rpem_filter(args))
+    scope = f"{args.points} points examined" if args.points else f"{args.passes} pass(es), the last scored"
+    print(f"ident compare: AIC at order {args.order}, {scope} ({len(data.t)} samples)"
+          + (f", RPEM filter K(0) = {args.rpem_k0:g}, gamma = {args.rpem_gamma:g}" if _rpem_filter(args) else ""),
+          file=text)
     print(f"{'method':<8}" + "".join(f"{n:>12}" for n in data.outputs), file=text)
     for method, values in table["methods"].items():
         print(f"{method:<8}" + "".join(f"{v:>12.1f}" for v in values["aic"]), file=text)
@@ -181,6 +218,38 @@ def _compare(args, text) -> dict:
 def _experiment(args, text) -> dict:
     from seapup_common.topics import typed
     from seapup_control.ros.sil import SilGraph
+
+    root = Path(os.environ.get("SEAPUP_ROOT", "."))
+    out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
+    orders = [int(v) for v in args.orders.split(",")]
+    arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
+                 "sensors": args.sensors, "method": args.method, "orders": str(orders),
+                 "identifier_bag": out / "identifier"}
+    if args.closed_loop:
+        graph, excitation = "seapup_bringup identification_closed_loop.yaml", _closed_loop_excitation(args, out, text)
+    else:
+        graph, excitation = "seapup_bringup identification.yaml", _prbs_excitation(args)
+    arguments.update(excitation.pop("arguments"))
+    record = typed("/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
+                   "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/truth/odometry",
+                   *(["/seapup/velocity_controller/reference"] if args.closed_loop else []))
+    with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
+        print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
+              f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
+        start = sil.t
+        while sil.t < start + args.duration:
+            sil.run_for(min(5.0, start + args.duration - sil.t))
+            progress("experiment", (sil.t - start) / args.duration)
+        bag = sil.bag
+    print(f"ident experiment: bag {bag}; the identifier's run (readings used, model after each sample) in "
+          f"{out / 'identifier'}", file=text)
+    return {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method, "orders": orders,
+            "duration": args.duration, "dynamics": args.dynamics, "current": args.current, "sensors": args.sensors,
+            **excitation}
+
+
+def _prbs_excitation(args) -> dict:
+    """Open loop (sec. 6.5.1-6.5.4): a PRBS of +-amplitude about the hover setting on each thruster."""
     from seapup_ident.prbs import prbs
     from seapup_sim.analysis import hover_blade_pitch
     from seapup_sim.vehicle import VehicleModel
@@ -193,27 +262,41 @@ def _experiment(args, text) -> dict:
     switches = np.flatnonzero(np.r_[True, np.any(np.diff(signal, axis=0) != 0, axis=1)])
     times = [round(float(k) * period, 6) for k in switches]
     pitches = [float(v) for k in switches for v in signal[k]]
-    root = Path(os.environ.get("SEAPUP_ROOT", "."))
-    out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
-    arguments = {"times": str(times), "pitches": str(pitches), "vehicle": args.vehicle, "seed": args.seed,
-                 "current": args.current, "sensors": args.sensors, "method": args.method,
-                 "orders": str([int(v) for v in args.orders.split(",")]), "identifier_bag": out / "identifier"}
-    record = typed("/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
-                   "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/truth/odometry")
-    with SilGraph("seapup_bringup identification.yaml", arguments, out_dir=out, record=record,
-                  ready_status=None) as sil:
-        print(f"ident experiment: PRBS +-{args.amplitude:g} deg about hover, clock {args.clock} samples, "
-              f"{args.duration:g} s; ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
-        start = sil.t
-        while sil.t < start + args.duration:
-            sil.run_for(min(5.0, start + args.duration - sil.t))
-            progress("experiment", (sil.t - start) / args.duration)
-        bag = sil.bag
-    print(f"ident experiment: bag {bag}; the identifier's run (readings used, model after each sample) in "
-          f"{out / 'identifier'}", file=text)
-    return {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method,
-            "orders": [int(v) for v in args.orders.split(",")], "duration": args.duration, "clock": args.clock, "amplitude_deg": args.amplitude,
-            "current": args.current, "sensors": args.sensors, "switches": len(times)}
+    return {"excitation": "prbs", "clock": args.clock, "amplitude_deg": args.amplitude, "switches": len(times),
+            "description": f"open loop, PRBS +-{args.amplitude:g} deg about hover, clock {args.clock} samples",
+            "arguments": {"times": str(times), "pitches": str(pitches)}}
+
+
+def _closed_loop_excitation(args, out: Path, text) -> dict:
+    """Closed loop (sec. 6.5.5): the fixed-gain self-tested controller following a square wave."""
+    import yaml
+
+    rows = [[float(v) for v in row.split(",")] for row in args.references.split(";")]
+    if len(rows) != 2 or any(len(row) != 4 or not all(map(math.isfinite, row)) for row in rows):
+        raise ValueError(f"--references needs two rows of four finite values 'u,v,w,r;u,v,w,r' "
+                         f"(m/s and deg/s), got {args.references!r}")
+    if not (math.isfinite(args.half_period) and args.half_period > 0):
+        raise ValueError(f"--half-period must be > 0 s, got {args.half_period}")
+    controller = Path(args.controller) if args.controller else None
+    if controller is None:
+        from seapup_bringup.self_test_sil import fly_self_test
+        from seapup_control.self_test import result_document
+        print("ident experiment: self-testing the fixed-gain controller at 0 m/s (in process, sec. 5.3)", file=text)
+        run = fly_self_test(args.vehicle, {"operating_points": [0.0]}, progress=lambda f: progress("self-test", f))
+        if run.test.phase.value != "done":
+            raise ValueError(f"the self-test {run.test.phase.value}: {run.test.reason}")
+        out.mkdir(parents=True, exist_ok=True)
+        controller = out / "controller.yaml"
+        controller.write_text(yaml.safe_dump(result_document(run.test)))
+    elif not controller.is_file():
+        raise ValueError(f"--controller {controller}: no such file")
+    references = [v for row in rows for v in (*row[:3], math.radians(row[3]))]
+    return {"excitation": "closed_loop", "controller_file": str(controller), "half_period": args.half_period,
+            "references": [row[:3] + [math.radians(row[3])] for row in rows],
+            "description": f"closed loop under the fixed-gain controller, square wave of half-period "
+                           f"{args.half_period:g} s between {rows[0]} and {rows[1]} (u, v, w m/s, r deg/s)",
+            "arguments": {"controller_file": controller, "times": str([0.0, args.half_period]),
+                          "references": str(references), "period": 2 * args.half_period}}
 
 
 def main(argv=None) -> int:
@@ -234,10 +317,23 @@ def main(argv=None) -> int:
     compare_p = sub.add_parser("compare", help="AIC of LS, ELS and RPEM (Tables 6.3-6.5, 6.7)")
     _common(compare_p)
     compare_p.add_argument("--order", type=int, default=2)
-    exp_p = sub.add_parser("experiment", help="the open-loop PRBS experiment in SIL, recorded (sec. 6.5.1-6.5.4)")
+    compare_p.add_argument("--methods", default="ls,els,rpem", help="comma-separated (default ls,els,rpem)")
+    exp_p = sub.add_parser("experiment", help="an identification experiment in SIL, recorded: open-loop PRBS "
+                                              "(sec. 6.5.1-6.5.4) or closed loop (sec. 6.5.5)")
     exp_p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60, sec. 6.5.1)")
     exp_p.add_argument("--clock", type=int, default=10, help="PRBS clock period in samples (default 10)")
     exp_p.add_argument("--amplitude", type=float, default=10.0, help="PRBS amplitude [deg] (default 10)")
+    exp_p.add_argument("--closed-loop", action="store_true",
+                       help="fly the fixed-gain self-tested controller on a square-wave reference (sec. 6.5.5) "
+                            "instead of the open-loop PRBS")
+    exp_p.add_argument("--controller", help="closed loop: a self-test result YAML (default: self-test at 0 m/s "
+                                            "in process first, written to OUT/controller.yaml)")
+    exp_p.add_argument("--references", default="0.2,0,0,15;0,0.1,-0.1,0",
+                       help="closed loop: the square wave's two levels 'u,v,w,r;u,v,w,r' [m/s, deg/s] "
+                            "(default sec. 6.5.5's)")
+    exp_p.add_argument("--half-period", type=float, default=10.0, help="closed loop: half-period [s] (default 10)")
+    exp_p.add_argument("--dynamics", choices=("nonlinear", "linearised"), default="nonlinear",
+                       help="the plant: the nonlinear model (default) or eq. 3.2 linearised about hover (sec. 6.5.1)")
     exp_p.add_argument("--current", action="store_true", help="the Gauss-Markov current of sec. 6.5.4")
     exp_p.add_argument("--sensors", default="baseline", help="sensor profile (default baseline: Kallstrom's)")
     exp_p.add_argument("--vehicle", default="baseline")

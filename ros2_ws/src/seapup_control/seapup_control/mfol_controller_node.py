@@ -29,7 +29,9 @@ a controller manager can swap it at run time:
   goes on with the one in force, counted as ``late_references``): the simulator then waits for the whole
   hierarchy, not only this loop, and the outer loops keep their designed
   delay however fast the simulation runs (without it they fell up to 5 s
-  behind in the demo mission);
+  behind in the demo mission). With ``first_reference_wait`` > 0 the first
+  sample also waits (that long at most) for the first reference, so a
+  reference schedule started after the simulator still sets the first sample's;
 - **deactivate** stops commanding.
 
 Non-finite or malformed references and sensor messages are rejected,
@@ -78,6 +80,8 @@ class MFOLControllerNode(LifecycleNode):
         self._newest_reference: float | None = None   # latest reference stamp heard [s]
         self._previous_reference: float | None = None  # the one before it (a stream has both, close)
         self._reference_waiting: tuple[int, float] | None = None  # (sample, wall time) waiting for its reference
+        self._heard_reference = False  # any reference accepted (first_reference_wait)
+        self._first_wait_since: float | None = None  # when a sample first waited for the first reference
         self.references = ReferenceSchedule()
         self.applied: np.ndarray | None = None
         self._start_pending = False  # lockstep: active, waiting for the applied pitch to start from
@@ -168,6 +172,9 @@ class MFOLControllerNode(LifecycleNode):
                 raise ContractError(f"stamped {at - latest * 1e-9:.3g} s after the latest sample (more than "
                                     f"reference_horizon {horizon:g} s): a wall-clock stamp on a sim-time graph?")
             self.references.add(reference, at)
+            first, self._heard_reference = not self._heard_reference, True
+            if first and self.active and self._first_wait_since is not None and self.sampler.latest_ns is not None:
+                self._answer(self.sampler.latest_ns)  # the sample that waited for the first reference
             if at is not None and (self._newest_reference is None or at > self._newest_reference):
                 self._previous_reference, self._newest_reference = self._newest_reference, at
                 if self.active and self._reference_waiting is not None and self.sampler.latest_ns is not None:
@@ -236,6 +243,16 @@ class MFOLControllerNode(LifecycleNode):
     def _awaiting_reference(self, t_ns: int) -> bool:
         """Lockstep: hold sample t_k while the reference stream is live and its reference for t_k is not here."""
         t = t_ns * 1e-9
+        first_wait = float(self.get_parameter("first_reference_wait").value)
+        if self.get_parameter("lockstep").value and not self._heard_reference and first_wait > 0:
+            if self._first_wait_since is None:
+                self._first_wait_since = time.monotonic()
+                self._retry_first(first_wait)
+            if time.monotonic() - self._first_wait_since < first_wait:
+                return True  # the first reference, or the retry timer, brings it back
+            self.counts["late_references"] += 1
+            self._heard_reference = True  # waited once: go on with the reference in force
+            return False
         newest, previous = self._newest_reference, self._previous_reference
         stream = float(self.get_parameter("reference_stream").value)
         if (not self.get_parameter("lockstep").value or newest is None or previous is None
@@ -260,6 +277,15 @@ class MFOLControllerNode(LifecycleNode):
             if self.active and self._reference_waiting is not None and self.sampler.latest_ns is not None:
                 self._answer(self.sampler.latest_ns)
         timer = self.create_timer(after + 1e-3, fire, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))  # wall time: sim time stands still
+
+    def _retry_first(self, after: float) -> None:
+        """Answer the sample waiting for the first reference after ``after`` wall seconds."""
+        def fire():
+            timer.cancel()
+            self.destroy_timer(timer)
+            if self.active and self.sampler.latest_ns is not None:
+                self._answer(self.sampler.latest_ns)
+        timer = self.create_timer(after + 1e-3, fire, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
 
     def _diagnose(self, t_ns: int) -> None:
         state = self.controller.state

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Measurement, Reference
-from seapup_common.ros.messages import command_to_msg, stamp_to_ns
-from seapup_common.ros.graph import SubscriberGate
+from seapup_common.ros.messages import command_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_control.ros.sample_publisher import SamplePublisher
 from seapup_control.schedule import OpenLoop, PitchSchedule
 
 __all__ = ["OpenLoopNode", "main"]
@@ -42,35 +41,15 @@ class OpenLoopNode(Node):
         self.controller = OpenLoop(self.schedule, p["sample_period"])
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start
-        self.gate = SubscriberGate([(self.publisher, p["wait_for_subscribers"])])
-        self.start = self.get_clock().now()
-        self.sent = 0
-        self._last_clock = None
-        if p["lockstep"]:
-            self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
-        else:
-            self.create_timer(p["sample_period"], self._tick)
+        self.sampler = SamplePublisher(self, self.publisher, self._command, lockstep=p["lockstep"],
+                                       sample_period=p["sample_period"],
+                                       wait_for_subscribers=p["wait_for_subscribers"])
         self.get_logger().info(
             f"open-loop schedule: {len(self.schedule.times)} segment(s), last switch at "
             f"{self.schedule.duration:.1f} s, period {p['sample_period']:.3f} s")
 
-    def _publish(self, t_ns: int, elapsed: float) -> None:
-        if not self.gate.ready():
-            return
-        command = self.controller.update(elapsed, Measurement(elapsed), Reference())
-        self.publisher.publish(command_to_msg(command, t_ns))
-        self.sent += 1
-
-    def _on_clock(self, msg: Clock) -> None:
-        t_ns = stamp_to_ns(msg.clock)
-        if t_ns == self._last_clock or not self.gate.ready():
-            return  # the simulator repeats t_k until someone answers: answer once, when heard
-        self._last_clock = t_ns
-        self._publish(t_ns, t_ns * 1e-9)
-
-    def _tick(self) -> None:
-        now = self.get_clock().now()
-        self._publish(now.nanoseconds, max((now - self.start).nanoseconds * 1e-9, 0.0))
+    def _command(self, t_ns: int, elapsed: float):
+        return command_to_msg(self.controller.update(elapsed, Measurement(elapsed), Reference()), t_ns)
 
 
 def main(args=None) -> int:

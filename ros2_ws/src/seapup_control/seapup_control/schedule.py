@@ -1,10 +1,13 @@
-"""Piecewise-constant blade-pitch schedules: the open-loop tests' inputs.
+"""Piecewise-constant schedules: the open-loop tests' blade pitches and the velocity references of
+closed-loop runs.
 
 The open-loop verification tests of the thesis (sec. 3.3, Table 3.2) drive the
 vehicle with blade pitches held constant between switching instants, e.g. both
 main thrusters at +35 deg from t = 0 for the surge test. A
 :class:`PitchSchedule` is such an input: switching times and the four pitches
-held from each time on.
+held from each time on. A :class:`ReferenceSchedule` holds body-velocity references (u, v, w, r)
+the same way and may repeat with a period: the square wave of half-period 10 s under which thesis
+sec. 6.5.5 identifies the closed loop is two rows and a 20 s period.
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import numpy as np
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
 
-__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop"]
+__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceSchedule"]
 
 
 class ScheduleError(ValueError):
@@ -42,19 +45,7 @@ class PitchSchedule:
     """
 
     def __init__(self, times, pitches, limit: float = BLADE_PITCH_LIMIT):
-        t = np.asarray(times, dtype=float)
-        p = np.asarray(pitches, dtype=float)
-        if t.ndim != 1 or t.size == 0:
-            raise ScheduleError(f"times must be a non-empty list, got shape {t.shape}")
-        if p.ndim == 1:
-            if p.size != 4 * t.size:
-                raise ScheduleError(
-                    f"{t.size} switching times need {4 * t.size} pitches (4 each), got {p.size}")
-            p = p.reshape(t.size, 4)
-        if p.shape != (t.size, 4):
-            raise ScheduleError(f"pitches must have shape ({t.size}, 4), got {p.shape}")
-        if not np.all(np.isfinite(t)) or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
-            raise ScheduleError(f"times must be finite, start at 0 and increase strictly: {t.tolist()}")
+        t, p = _rows(times, pitches, "pitches")
         for i, row in enumerate(p):
             _, clipped = check_blade_pitch(row, limit)  # raises on non-finite rows
             if clipped:
@@ -74,6 +65,65 @@ class PitchSchedule:
     def duration(self) -> float:
         """Time of the last switch [s]; the last row is held after it."""
         return float(self.times[-1])
+
+
+def _rows(times, values, what: str) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(times, dtype=float)
+    v = np.asarray(values, dtype=float)
+    if t.ndim != 1 or t.size == 0:
+        raise ScheduleError(f"times must be a non-empty list, got shape {t.shape}")
+    if v.ndim == 1:
+        if v.size != 4 * t.size:
+            raise ScheduleError(f"{t.size} switching times need {4 * t.size} {what} (4 each), got {v.size}")
+        v = v.reshape(t.size, 4)
+    if v.shape != (t.size, 4):
+        raise ScheduleError(f"{what} must have shape ({t.size}, 4), got {v.shape}")
+    if not np.all(np.isfinite(t)) or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
+        raise ScheduleError(f"times must be finite, start at 0 and increase strictly: {t.tolist()}")
+    return t, v
+
+
+class ReferenceSchedule:
+    """Body-velocity references (u, v, w [m/s], r [rad/s]) held between switching times.
+
+    Parameters
+    ----------
+    times : array_like, shape (n,)
+        Switching times [s], strictly increasing, starting at 0.
+    references : array_like, shape (n, 4) or (4 * n,)
+        (u, v, w, r) held from ``times[i]`` on, finite.
+    period : float, optional
+        Repeat the schedule every ``period`` seconds (> the last switching time); 0 or None holds the
+        last row for ever.
+
+    Examples
+    --------
+    The reference of thesis sec. 6.5.5, a square wave of half-period 10 s:
+
+    >>> import math
+    >>> s = ReferenceSchedule([0.0, 10.0], [[0.2, 0, 0, math.radians(15)], [0, 0.1, -0.1, 0]], period=20.0)
+    >>> s.at(25.0).velocity.tolist()
+    [0.2, 0.0, 0.0, 0.2617993877991494]
+    """
+
+    def __init__(self, times, references, period: float | None = None):
+        self.times, self.references = _rows(times, references, "references")
+        if not np.all(np.isfinite(self.references)):
+            raise ScheduleError(f"references must be finite: {self.references.tolist()}")
+        period = 0.0 if period is None else float(period)
+        if not np.isfinite(period) or (period != 0.0 and period <= self.times[-1]):
+            raise ScheduleError(f"period must be 0 (no repeat) or longer than the last switch "
+                                f"{self.times[-1]:g} s, got {period!r}")
+        self.period = period
+
+    def at(self, t: float) -> Reference:
+        """The reference at time ``t`` >= 0."""
+        if not (np.isfinite(t) and t >= 0.0):
+            raise ScheduleError(f"schedule time must be finite and >= 0, got {t!r}")
+        if self.period:
+            t = t % self.period
+        i = int(np.searchsorted(self.times, t, side="right")) - 1
+        return Reference(self.references[i].copy())
 
 
 class OpenLoop:

@@ -2,7 +2,8 @@
 
 A thin shell over :class:`seapup_ident.online.OnlineIdentifier`: it subscribes to
 ``/seapup/sensors/velocity`` (u, v, w, r), ``/seapup/sensors/imu`` (roll, pitch) and
-``/seapup/thrusters/applied`` (the blade pitches the vehicle applied from each sample on),
+``/seapup/thrusters/applied`` (the blade pitches at each sample; the next sample's reading is
+the input u(t_k) held over the interval, see :mod:`seapup_ident.online`),
 runs the estimator chosen by its parameters (``config/identifier.yaml``) on every complete
 sample, publishes the model on ``/seapup/identifier/model`` (``seapup_msgs/IdentifiedModel``) and
 records the run -- the readings it used and each published model -- into an MCAP bag, so
@@ -95,8 +96,8 @@ class IdentifierNode(Node):
         except (DataError, ValueError) as exc:
             self.get_logger().warn(f"{kind} reading refused: {exc}", throttle_duration_sec=2.0)
             return
-        if used is not None:
-            self._publish(used)
+        for sample in used:
+            self._publish(sample)
 
     def _publish(self, used) -> None:
         o, est = self.core.orders, self.core.estimator
@@ -115,7 +116,9 @@ class IdentifierNode(Node):
             for stamp in [s for s in self._held if s < used.stamp_ns]:
                 del self._held[stamp]   # readings of samples never completed: not used, not recorded
             for kind, cdr in self._held.pop(used.stamp_ns, {}).items():
-                self.bag.write(_TOPICS[kind][0], cdr, used.stamp_ns)
+                if kind != "applied":   # the pitch at t_k measured the interval before it
+                    self.bag.write(_TOPICS[kind][0], cdr, used.stamp_ns)
+            self.bag.write(_TOPICS["applied"][0], self._held[used.input_stamp_ns]["applied"], used.input_stamp_ns)
             self.bag.write(MODEL_TOPIC, serialize_message(msg), used.stamp_ns)
 
     def destroy_node(self):

@@ -1,10 +1,11 @@
 """Identification runs: data checks, recursive fits over the data N times, order tables and method comparisons.
 
 What ``./seapup ident fit|orders|compare`` compute (thesis sec. 6.3, 6.5): a recursive estimator
-(:class:`seapup_ident.recursive.RecursiveArmax`) run over the record ``passes`` times ("the 300
-sample data series is rewound and passed through repeatedly", sec. 6.5.1), its loss V_N and AIC
-per output from the last pass's equation errors -- the a posteriori residuals e(k) = y(k) -
-Theta(k)^T phi(k) of eq. 6.20 (eq. 6.11, 6.21) -- and the tables of
+(:class:`seapup_ident.recursive.RecursiveArmax`) run over the record ``passes`` times, or until it
+has examined ``points`` samples ("the 300 sample data series is rewound and passed through
+repeatedly until the algorithm has examined 2000 points", sec. 6.5.1), its loss V_N and AIC per
+output from the equation errors of the last pass (or of every examined point) -- the a posteriori
+residuals e(k) = y(k) - Theta(k)^T phi(k) of eq. 6.20 (eq. 6.11, 6.21) -- and the tables of
 sec. 6.5: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6), AIC per method (Tables
 6.3-6.5, 6.7).
 
@@ -109,7 +110,7 @@ class IdentificationData:
 
 @dataclass
 class FitResult:
-    """A fitted model and how well it predicts (last pass)."""
+    """A fitted model and how well it predicts (the last pass, or every examined point)."""
 
     method: str
     orders: ArmaxOrders
@@ -118,16 +119,24 @@ class FitResult:
     aic: np.ndarray           # per output (eq. 6.21)
     predictions: np.ndarray   # one-step predictions of the last pass (N x ny, NaN where unusable)
     report: DataReport
-    passes: int
+    passes: int               # passes run (the last one partly, with ``points``)
     estimator: RecursiveArmax
+    examined: int = 0         # samples the estimator took over all passes
+    scored: int = 0           # samples in V_N and AIC (N of eq. 6.18-6.21)
 
 
 def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
-        p0: float = 100.0, passes: int = 1, keep_history: bool = False, min_samples: int | None = None) -> FitResult:
-    """Run the recursive estimator over ``data`` ``passes`` times (sec. 6.5.1's rewinding).
+        p0: float = 100.0, passes: int = 1, points: int | None = None, keep_history: bool = False,
+        min_samples: int | None = None, filter_weakening: tuple[float, float] | None = None) -> FitResult:
+    """Run the recursive estimator over ``data`` ``passes`` times, or until it has examined ``points``
+    samples (sec. 6.5.1: "the 300 sample data series is rewound and passed through repeatedly until
+    the algorithm has examined 2000 points").
 
-    Defaults as the thesis's runs: P(0) = 100 I, Theta(0) = 0 (sec. 6.5.1). The forgetting factor
-    carries on over the passes (the schedule of eq. 6.15 is not restarted).
+    V_N and AIC score the a posteriori equation errors (eq. 6.20) of the last pass (``passes``) or of
+    every examined sample (``points``, as the thesis's 2000-point rows of Tables 6.3-6.5, 6.7), each
+    segment from the first sample whose regressor is full. Defaults as the thesis's runs:
+    P(0) = 100 I, Theta(0) = 0 (sec. 6.5.1). The forgetting factor carries on over the passes (the
+    schedule of eq. 6.15 is not restarted).
 
     Raises
     ------
@@ -136,6 +145,8 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
     """
     if passes < 1:
         raise ValueError(f"passes must be >= 1, got {passes}")
+    if points is not None and points < 1:
+        raise ValueError(f"points must be >= 1, got {points}")
     pieces, report = data.segments()
     if report.constant_inputs:
         raise NotExcitingError(f"input(s) {', '.join(report.constant_inputs)} constant over the record: they excite "
@@ -144,26 +155,32 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
     if report.usable < needed:
         raise NotExcitingError(f"{report.usable} usable samples (of {report.samples}; {report.non_finite} non-finite, "
                                f"{report.gaps} gaps) for {orders.n_params} parameters per output")
-    estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, keep_history=keep_history)
+    estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, keep_history=keep_history,
+                               filter_weakening=filter_weakening if method == "rpem" else None)
     predictions = np.full_like(data.y, np.nan)
-    residuals = np.full_like(data.y, np.nan)
-    for _ in range(passes):
+    errors: list[np.ndarray] = []
+    examined, passes_run = 0, 0
+    while (examined < points) if points is not None else (passes_run < passes):
+        passes_run += 1
+        if points is None:
+            errors = []   # passes: score the last one
         for piece in pieces:
             estimator.restart()  # a segment's first lag samples only fill the regressor
             for i, k in enumerate(piece):
+                if points is not None and examined == points:
+                    break
                 _, predictions[k] = estimator.step(data.y[k], data.u[k], update=i >= orders.lag)
-                residuals[k] = estimator.residual
-    # score the last pass from the first sample whose regressor is full in each segment: the
-    # equation errors e(k) of eq. 6.20 (a posteriori residuals y - Theta(k)^T phi(k))
-    scored = np.concatenate([piece[orders.lag:] for piece in pieces])
-    errors = residuals[scored]
+                examined += 1
+                if i >= orders.lag:
+                    errors.append(estimator.residual.copy())
+    errors = np.array(errors)
     loss = np.mean(errors ** 2, axis=0)
     return FitResult(method, orders, estimator.model, loss, aic(errors, orders.n_params), predictions, report,
-                     passes, estimator)
+                     passes_run, estimator, examined, len(errors))
 
 
 def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls", *, alpha: float = 0.05,
-                forgetting_factory=None, p0: float = 100.0, passes: int = 1) -> dict:
+                forgetting_factory=None, p0: float = 100.0, passes: int = 1, points: int | None = None) -> dict:
     """Loss, AIC and F per output for orders (n, n[, n]) n = 1 .. max_order (Tables 6.1, 6.2, 6.6).
 
     F compares order n - 1 with n (eq. 6.18) at risk ``alpha``. Per output, the AIC pick is the
@@ -174,11 +191,11 @@ def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls"
     for n in range(1, max_order + 1):
         orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], n, n, n if method != "ls" else 0)
         forgetting = forgetting_factory() if forgetting_factory else None
-        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes)
+        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes, points=points)
         row = {"order": n, "n_params": orders.n_params, "loss": result.loss.tolist(), "aic": result.aic.tolist()}
         if rows:
             previous = rows[-1]
-            samples = int(result.report.usable - orders.lag)
+            samples = result.scored
             test = f_test(previous["loss"], result.loss, previous["n_params"], orders.n_params, samples, alpha)
             row.update(f=test.statistic.tolist(), f_threshold=test.threshold,
                        significant=test.larger_is_better.tolist())
@@ -198,14 +215,18 @@ def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls"
 
 
 def compare_methods(data: IdentificationData, order: int = 2, methods=("ls", "els", "rpem"), *,
-                    forgetting_factory=None, p0: float = 100.0, passes: int = 1) -> dict:
-    """AIC per output of each method at order (n, n) / (n, n, n) (Tables 6.3-6.5, 6.7)."""
-    out = {"outputs": list(data.outputs), "order": order, "passes": passes, "methods": {}}
+                    forgetting_factory=None, p0: float = 100.0, passes: int = 1, points: int | None = None,
+                    rpem_filter: tuple[float, float] | None = None) -> dict:
+    """AIC per output of each method at order (n, n) / (n, n, n) (Tables 6.3-6.5, 6.7); ``rpem_filter``
+    (K(0), gamma) weakens RPEM's gradient filter at first (the tables' K(0) = 0.1, gamma = 0.98)."""
+    out = {"outputs": list(data.outputs), "order": order, "passes": passes, "points": points,
+           "rpem_filter": list(rpem_filter) if rpem_filter else None, "methods": {}}
     for method in methods:
         orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], order, order, 0 if method == "ls" else order)
         forgetting = forgetting_factory() if forgetting_factory else None
-        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes)
-        out["methods"][method] = {"aic": result.aic.tolist(), "loss": result.loss.tolist(),
+        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes, points=points,
+                     filter_weakening=rpem_filter)
+        out["methods"][method] = {"aic": result.aic.tolist(), "loss": result.loss.tolist(), "scored": result.scored,
                                   "n_params": orders.n_params, "projections": result.estimator.counts["projections"]}
     return out
 

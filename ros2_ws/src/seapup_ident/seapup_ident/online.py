@@ -1,16 +1,21 @@
 """Online identification: readings of each sample joined by stamp, fed to the recursive estimator (thesis ch. 6, 7).
 
 The ``identifier`` node's core. Each control sample t_k brings a velocity reading (u, v, w and
-the yaw rate r), optionally the attitude (roll, pitch) and the blade pitch the vehicle applied
-from t_k on; once all of a sample's readings are in, the sample is used:
+the yaw rate r), optionally the attitude (roll, pitch), and the blade pitch the thrusters have
+at t_k. The input that drives the vehicle from t_k to t_k+1 -- the u(t_k) of the regression
+y(t_k+1) = ... + B_1 u(t_k) (eq. 6.24, B from z^-1) -- is the pitch held over that interval, which
+the *next* sample's applied reading measures: the actuator lag (0.05 s) has settled by then, and
+the applied pitch at t_k itself is still the previous interval's (using it as u(t_k) delays every
+input by one sample; the ch. 6 losses came out 5-20 times the thesis's that way). So
 
-    y(t_k) = (outputs named in ``outputs``),  u(t_k) = applied blade pitch,
-    RecursiveArmax.step(y(t_k), u(t_k))
+    y(t_k) = (outputs named in ``outputs``),  u(t_k) = applied pitch read at t_k+1,
+    RecursiveArmax.step(y(t_k), u(t_k))                      (taken when t_k+1's pitch arrives)
 
-exactly as :func:`seapup_ident.identify.fit` treats a recorded record, so a fit of the samples the
-node used gives the model it published (a missing sample is a gap: the regressor refills and the
-first ``lag`` samples after it only fill it). Readings older than a used sample, or incomplete
-when a later sample completes, count as dropped.
+exactly as :func:`seapup_ident.identify.fit` treats a recorded record read by
+:func:`held_inputs`, so a fit of the samples the node used gives the model it published (a
+missing sample is a gap: the regressor refills and the first ``lag`` samples after it only fill
+it). Readings older than a used sample, or incomplete when a later sample completes, count as
+dropped.
 """
 from __future__ import annotations
 
@@ -21,11 +26,34 @@ import numpy as np
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.recursive import DataError, Forgetting, RecursiveArmax
 
-__all__ = ["OUTPUTS", "UsedSample", "OnlineIdentifier"]
+__all__ = ["OUTPUTS", "UsedSample", "OnlineIdentifier", "input_stamp", "held_inputs"]
 
 #: Output names and the reading each comes from.
 OUTPUTS = {"u": ("velocity", 0), "v": ("velocity", 1), "w": ("velocity", 2), "r": ("velocity", 3),
            "roll": ("attitude", 0), "pitch": ("attitude", 1)}
+
+
+def input_stamp(stamp_ns: int, applied_stamps, sample_period: float) -> int | None:
+    """The stamp of the applied reading that measures u(t_k) for the sample at ``stamp_ns``: the first
+    after it, no later than 1.5 T (None: the pitch over this interval was not read)."""
+    later = [s for s in applied_stamps if s > stamp_ns]
+    if not later:
+        return None
+    first = min(later)
+    return first if (first - stamp_ns) * 1e-9 <= 1.5 * sample_period else None
+
+
+def held_inputs(stamps_ns, applied: dict, sample_period: float) -> np.ndarray:
+    """u(t_k) for each sample stamp: the applied pitch (4,) read at :func:`input_stamp`, NaN where none.
+
+    ``applied`` maps stamp [ns] -> the four applied blade pitches [rad]."""
+    ordered = np.array(sorted(applied), dtype=np.int64)
+    u = np.full((len(stamps_ns), 4), np.nan)
+    for k, stamp in enumerate(stamps_ns):
+        i = int(np.searchsorted(ordered, stamp, side="right"))
+        if i < len(ordered) and (ordered[i] - stamp) * 1e-9 <= 1.5 * sample_period:
+            u[k] = applied[int(ordered[i])]
+    return u
 
 
 @dataclass(frozen=True)
@@ -33,6 +61,7 @@ class UsedSample:
     """One sample the estimator took."""
 
     stamp_ns: int
+    input_stamp_ns: int           # the applied reading used as u(t_k)
     y: np.ndarray
     u: np.ndarray
     theta: np.ndarray
@@ -62,7 +91,8 @@ class OnlineIdentifier:
             raise ValueError(f"outputs {list(outputs)} must be {orders.ny} of {', '.join(OUTPUTS)} and nu 4 "
                              f"(blade pitches), got unknown {unknown}, nu {orders.nu}")
         self.orders, self.outputs = orders, tuple(outputs)
-        self.kinds = {"velocity", "applied"} | {OUTPUTS[o][0] for o in outputs}
+        self.output_kinds = {"velocity"} | {OUTPUTS[o][0] for o in outputs}
+        self.kinds = self.output_kinds | {"applied"}
         self.estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0)
         self.sample_period = float(sample_period)
         self._pending: dict[int, dict] = {}
@@ -70,9 +100,9 @@ class OnlineIdentifier:
         self._filled = 0          # samples in the regressor since the last restart
         self.counts = {"used": 0, "dropped": 0, "rejected": 0, "segments": 0}
 
-    def add(self, kind: str, stamp_ns: int, values) -> UsedSample | None:
-        """A reading of ``kind`` (velocity: u, v, w, r; attitude: roll, pitch; applied: 4 pitches) for sample
-        ``stamp_ns``; the sample it completes, used, or None."""
+    def add(self, kind: str, stamp_ns: int, values) -> list[UsedSample]:
+        """A reading of ``kind`` (velocity: u, v, w, r; attitude: roll, pitch; applied: 4 pitches) at
+        ``stamp_ns``; the samples it completes, used, in stamp order (usually none or one)."""
         if kind not in ("velocity", "attitude", "applied"):
             raise ValueError(f"unknown reading kind {kind!r}")
         values = np.asarray(values, dtype=float).ravel()
@@ -82,22 +112,37 @@ class OnlineIdentifier:
             raise DataError(f"{kind} reading at {stamp_ns * 1e-9:.3f} s must be {size} finite values, "
                             f"got {values.tolist()}")
         if kind not in self.kinds:
-            return None
+            return []
         if self._last_used is not None and stamp_ns <= self._last_used:
-            self.counts["dropped"] += 1  # late: its sample was used (or skipped) already
-            return None
+            self.counts["dropped"] += 1  # late: its sample (or the one it is the input of) was used already
+            return []
         self._pending.setdefault(stamp_ns, {})[kind] = values
-        if set(self._pending[stamp_ns]) != self.kinds:
-            return None
-        return self._use(stamp_ns)
+        used = []
+        while (sample := self._complete()) is not None:
+            used.append(self._use(*sample))
+        return used
 
-    def _use(self, stamp_ns: int) -> UsedSample:
+    def _complete(self) -> tuple[int, int] | None:
+        """The earliest pending sample with its outputs and its input in: (stamp, input stamp)."""
+        applied = [s for s, r in self._pending.items() if "applied" in r]
+        for stamp in sorted(self._pending):
+            if self._last_used is not None and stamp <= self._last_used:
+                continue
+            if self.output_kinds <= set(self._pending[stamp]):
+                after = input_stamp(stamp, applied, self.sample_period)
+                if after is not None:
+                    return stamp, after
+        return None
+
+    def _use(self, stamp_ns: int, input_ns: int) -> UsedSample:
         for older in [s for s in self._pending if s < stamp_ns]:
+            if self.output_kinds & set(self._pending[older]):
+                self.counts["dropped"] += 1
             del self._pending[older]
-            self.counts["dropped"] += 1
-        readings = self._pending.pop(stamp_ns)
+        readings = self._pending[stamp_ns]
         y = np.array([readings[OUTPUTS[o][0]][OUTPUTS[o][1]] for o in self.outputs])
-        u = readings["applied"]
+        u = self._pending[input_ns]["applied"]
+        del self._pending[stamp_ns]   # its own applied reading measured the interval before it
         gap = self._last_used is None or (stamp_ns - self._last_used) * 1e-9 > 1.5 * self.sample_period
         if gap:
             self.estimator.restart()
@@ -108,4 +153,4 @@ class OnlineIdentifier:
         self._filled += 1
         self._last_used = stamp_ns
         self.counts["used"] += 1
-        return UsedSample(stamp_ns, y, u, theta, y - y_hat, update)
+        return UsedSample(stamp_ns, input_ns, y, u, theta, y - y_hat, update)

@@ -151,6 +151,13 @@ class RecursiveArmax:
         RPEM's Levenberg-Marquardt term added to the diagonal of P each sample.
     stability_margin : float
         RPEM keeps every root of det C(z) inside |z| < 1 - margin.
+    filter_weakening : (float, float), optional
+        RPEM: (K(0), gamma) of the factor that weakens the gradient filter in the initial phase
+        (thesis Table 6.3: K(0) = 0.1, gamma = 0.98; sec. 6.5.3). The thesis names the factor and
+        its values but not its law; here it grows to 1 as eq. 6.15 does, K(t) = gamma K(t-1) +
+        1 - gamma, and the filter 1/C(z^-1) is contracted to 1/C(K(t) z^-1) (coefficient c_k times
+        K(t)^k, Ljung and Soderstrom's way to keep a young filter stable): at first nearly ELS's
+        unfiltered regressor, the full RPEM gradient once K -> 1. None: no weakening.
     keep_history : bool
         Keep Theta, lambda, trace P and the prediction errors of every sample (``history``).
 
@@ -167,7 +174,8 @@ class RecursiveArmax:
 
     def __init__(self, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
                  p0: float = 1e3, theta0=None, jacket: Jacket | None = None, regularisation: float = 1e-6,
-                 stability_margin: float = 1e-3, keep_history: bool = False):
+                 stability_margin: float = 1e-3, filter_weakening: tuple[float, float] | None = None,
+                 keep_history: bool = False):
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
         if method == "ls" and orders.nc:
@@ -182,6 +190,9 @@ class RecursiveArmax:
         self.jacket = jacket or Jacket()
         self.regularisation = float(regularisation)
         self.stability_margin = float(stability_margin)
+        if filter_weakening is not None and method != "rpem":
+            raise ValueError(f"filter_weakening is an RPEM option, not {method}'s")
+        self.filter_weakening = None if filter_weakening is None else Forgetting.schedule(*filter_weakening)
         self.keep_history = keep_history
         self.reset()
 
@@ -191,6 +202,8 @@ class RecursiveArmax:
         o, n = self.orders, self.orders.n_params
         self.theta = self.theta0.copy()
         self.forgetting.reset()
+        if self.filter_weakening is not None:
+            self.filter_weakening.reset()
         self.regressor = Regressor(o)
         if self.method == "rpem":
             self._P = np.repeat(self.p0 * np.eye(n)[None], o.ny, axis=0)   # per output (own psi)
@@ -287,9 +300,10 @@ class RecursiveArmax:
         o = self.orders
         c = self.theta[o.c_slice].T.reshape(o.ny, o.nc, o.ny) if o.nc else np.zeros((o.ny, 0, o.ny))
         step = np.zeros_like(self.theta)
+        mu = self.filter_weakening.next() if self.filter_weakening is not None else 1.0
         for i in range(o.ny):
-            # psi_i(t) = phi(t) - sum_k c_ii,k psi_i(t-k): the prediction's gradient for output i
-            psi = phi - sum(c[i, k, i] * self._psi[i, k] for k in range(o.nc))
+            # psi_i(t) = phi(t) - sum_k mu^k c_ii,k psi_i(t-k): the prediction's gradient for output i
+            psi = phi - sum(mu ** (k + 1) * c[i, k, i] * self._psi[i, k] for k in range(o.nc))
             P = self._P[i]
             lam_i = 1.0 if trace[i] > self.jacket.max_trace else lam
             self.counts["trace_limited"] += int(lam_i == 1.0 and lam < 1.0)

@@ -41,6 +41,7 @@ from seapup_sim.environment_config import EnvironmentConfig, load_environment
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.sensors import SensorProfile, SensorSuite
 from seapup_sim.umbilical import Umbilical
+from seapup_sim.linearised import vehicle_model
 from seapup_sim.vehicle import VehicleModel, specific_force
 from seapup_sim.vehicle_config import load_vehicle_config
 
@@ -168,11 +169,14 @@ class Simulation:
 
     @classmethod
     def from_config(cls, vehicle: str | dict, environment=None, *, seed: int = 0,
-                    dt: float = 0.1, control_period: float = 0.2, events=(), state=None, pitch=None):
+                    dt: float = 0.1, control_period: float = 0.2, events=(), state=None, pitch=None,
+                    dynamics: str = "nonlinear"):
         """Build vehicle and environment from a configuration name (or dict) and an
         environment (overrides, file or :class:`EnvironmentConfig`; see
-        :func:`~seapup_sim.environment_config.load_environment`)."""
-        model = VehicleModel(load_vehicle_config(vehicle) if isinstance(vehicle, str) else vehicle)
+        :func:`~seapup_sim.environment_config.load_environment`). ``dynamics`` chooses the
+        plant: ``nonlinear`` (ch. 2) or ``linearised`` (eq. 3.2 about hover,
+        :mod:`seapup_sim.linearised`)."""
+        model = vehicle_model(load_vehicle_config(vehicle) if isinstance(vehicle, str) else vehicle, dynamics)
         env: EnvironmentConfig = load_environment(environment, rho=model.rho)
         streams = RandomStreams(seed)
         current = (GaussMarkovCurrent(env.current.params, dt, streams.generator("current"))

@@ -27,6 +27,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, CommandGate
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import load_environment, load_limits
+from seapup_sim.linearised import DYNAMICS
 from seapup_sim.sensors import load_sensor_profile
 from seapup_sim.simulation import Event, Simulation
 from seapup_sim.vehicle import VehicleModel
@@ -53,6 +54,7 @@ class SimulatorConfig:
     watchdog_action: str = "hover"         # hover | neutral
     stamp_tolerance: float = 1e-6          # [s] for matching a command to t_k
     environment: dict = field(default_factory=dict)
+    dynamics: str = "nonlinear"            # nonlinear (ch. 2) | linearised (eq. 3.2 about hover)
 
     def validate(self) -> None:
         steps = self.control_period / self.physics_step
@@ -68,6 +70,8 @@ class SimulatorConfig:
                              f"(+/-{math.degrees(BLADE_PITCH_LIMIT):g} deg), got {self.blade_pitch_limit}")
         if not self.watchdog_timeout > 0:
             raise ValueError("watchdog_timeout must be > 0 s")
+        if self.dynamics not in DYNAMICS:
+            raise ValueError(f"dynamics must be one of {', '.join(DYNAMICS)}, got {self.dynamics!r}")
 
 
 class Simulator:
@@ -97,7 +101,7 @@ class Simulator:
             state = self.limits.check_state(state)
         simulation = Simulation.from_config(c.vehicle, c.environment, seed=int(seed), dt=c.physics_step,
                                             control_period=c.control_period, state=state,
-                                            pitch=self._hover_of(c.vehicle))
+                                            pitch=self._hover_of(c.vehicle), dynamics=c.dynamics)
         c.seed = int(seed)
         self.simulation = simulation
         self.gate = CommandGate(limit=c.blade_pitch_limit)

@@ -106,6 +106,8 @@ class SimulatorNode(Node):
             "physics_step": _float_range(0.001, 1.0, "integration step [s]", **ro),
             "vehicle": ParameterDescriptor(description="vehicle configuration (~/set_configuration "
                                                        "changes it)", **ro),
+            "dynamics": ParameterDescriptor(description="nonlinear (ch. 2) | linearised (eq. 3.2 about hover)",
+                                            **ro),
             "seed": ParameterDescriptor(description="random seed (~/reset changes it)", read_only=True,
                                         integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1)]),
             "blade_pitch_limit": _float_range(0.01, BLADE_PITCH_LIMIT, "blade-pitch limit [rad]", **ro),
@@ -132,7 +134,7 @@ class SimulatorNode(Node):
         load_environment(environment)  # refuse a bad environment before anything starts
         self.config = SimulatorConfig(p["vehicle"], p["seed"], p["physics_step"], p["control_period"],
                                       p["blade_pitch_limit"], p["watchdog_timeout"], p["watchdog_action"],
-                                      environment=environment)
+                                      environment=environment, dynamics=p["dynamics"])
         self.start_state = np.zeros(12)
         self.start_state[2] = p["start_depth"]
         self.simulator = Simulator(self.config, self.start_state)
@@ -160,7 +162,7 @@ class SimulatorNode(Node):
             self._realtime_timer = self.create_timer(self._realtime_period(), self._realtime_tick)
         self.create_timer(p["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(
-            f"simulator ready: {self.mode}, vehicle {self.config.vehicle}, sensors "
+            f"simulator ready: {self.mode}, vehicle {self.config.vehicle} ({self.config.dynamics}), sensors "
             f"{self.simulator.sensor_profile.name}, T = {self.config.control_period} s, dt = "
             f"{self.config.physics_step} s, seed {self.config.seed}")
 

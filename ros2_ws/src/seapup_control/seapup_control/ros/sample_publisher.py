@@ -1,0 +1,53 @@
+"""One message per control sample: what the ``open_loop`` and ``reference_schedule`` nodes share.
+
+With ``lockstep`` the publisher answers each ``/clock`` sample t_k of a lockstep simulator once,
+stamped t_k, with the schedule's value at t_k (the simulator repeats t_k until it is answered);
+otherwise it publishes on a timer every ``sample_period`` for the time since it started (node
+clock, so ``use_sim_time`` works). Nothing is sent before ``wait_for_subscribers`` subscriptions
+are matched (the plant, a recorder), so no sample is lost at start.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+
+from seapup_common.ros.graph import SubscriberGate
+from seapup_common.ros.messages import stamp_to_ns
+from seapup_common.ros.node import RELIABLE_QOS
+
+__all__ = ["SamplePublisher"]
+
+
+class SamplePublisher:
+    """Publish ``message_at(t_ns, elapsed)`` on ``publisher`` once per sample (see module docstring)."""
+
+    def __init__(self, node: Node, publisher, message_at: Callable[[int, float], object], *, lockstep: bool,
+                 sample_period: float, wait_for_subscribers: int):
+        self.node, self.publisher, self.message_at = node, publisher, message_at
+        self.gate = SubscriberGate([(publisher, wait_for_subscribers)])
+        self.start = node.get_clock().now()
+        self.sent = 0
+        self._last_clock = None
+        if lockstep:
+            node.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
+        else:
+            node.create_timer(sample_period, self._tick)
+
+    def _publish(self, t_ns: int, elapsed: float) -> None:
+        if not self.gate.ready():
+            return
+        self.publisher.publish(self.message_at(t_ns, elapsed))
+        self.sent += 1
+
+    def _on_clock(self, msg: Clock) -> None:
+        t_ns = stamp_to_ns(msg.clock)
+        if t_ns == self._last_clock or not self.gate.ready():
+            return  # the simulator repeats t_k until someone answers: answer once, when heard
+        self._last_clock = t_ns
+        self._publish(t_ns, t_ns * 1e-9)
+
+    def _tick(self) -> None:
+        now = self.node.get_clock().now()
+        self._publish(now.nanoseconds, max((now - self.start).nanoseconds * 1e-9, 0.0))

@@ -1,0 +1,86 @@
+"""Online identification (seapup_ident.online): readings joined by stamp as the simulator publishes them.
+
+Truth: a known first-order system driven by the *command* held over each sample interval, published
+the way the simulator does -- at t_k the outputs y(t_k) and the pitch the thrusters have at t_k,
+which is the previous interval's command. Joined correctly the estimator recovers the system
+exactly; the same record read by ``held_inputs`` and fitted offline gives the same model.
+"""
+import numpy as np
+import pytest
+
+from seapup_ident.armax import ArmaxOrders
+from seapup_ident.identify import IdentificationData, fit
+from seapup_ident.online import OnlineIdentifier, held_inputs, input_stamp
+from seapup_ident.prbs import prbs
+from seapup_ident.recursive import Forgetting
+
+pytestmark = pytest.mark.unit
+
+T_NS = 200_000_000
+PHI = np.diag([0.9, 0.8, 0.85, 0.7])
+DELTA = np.array([[0.2, 0.2, 0.0, 0.0], [0.0, 0.0, 0.1, -0.1], [0.0, 0.0, -0.3, -0.3], [0.4, -0.4, 0.0, 0.05]])
+
+
+def published(n=400):
+    """(stamps, y, applied, command): y(k+1) = PHI y(k) + DELTA command(k); applied(k) = command(k-1)."""
+    command = prbs(n, clock=3, amplitude=0.2, n_inputs=4, nbits=8)
+    y = np.zeros((n, 4))
+    for k in range(n - 1):
+        y[k + 1] = PHI @ y[k] + DELTA @ command[k]
+    applied = np.vstack([np.zeros((1, 4)), command[:-1]])
+    return np.arange(n, dtype=np.int64) * T_NS, y, applied, command
+
+
+def online(stamps, y, applied, order="applied first", skip=()):
+    ident = OnlineIdentifier(ArmaxOrders(4, 4, 1, 1, 0), "ls", ("u", "v", "w", "r"), forgetting=Forgetting(1.0),
+                             p0=1e6)
+    used = []
+    for k, stamp in enumerate(stamps):
+        readings = [("applied", applied[k]), ("velocity", y[k])]
+        if order == "velocity first":
+            readings.reverse()
+        for kind, values in readings:
+            if (kind, k) not in skip:
+                used += ident.add(kind, int(stamp), values)
+    return ident, used
+
+
+@pytest.mark.parametrize("order", ["applied first", "velocity first"])
+def test_the_next_samples_pitch_is_the_input_and_recovers_the_system(order):
+    stamps, y, applied, command = published()
+    ident, used = online(stamps, y, applied, order)
+    assert len(used) == len(stamps) - 1                        # the last interval is never read
+    assert [s.input_stamp_ns - s.stamp_ns for s in used] == [T_NS] * len(used)
+    np.testing.assert_array_equal(np.array([s.u for s in used]), command[:-1])
+    model = ident.estimator.model
+    np.testing.assert_allclose(-model.A[0], PHI, atol=1e-6)
+    np.testing.assert_allclose(model.B[0], DELTA, atol=1e-6)
+    # offline: the same join, the same estimator, the same model
+    u = held_inputs(stamps, dict(zip(stamps.tolist(), applied)), 0.2)
+    assert np.all(np.isnan(u[-1])) and np.array_equal(u[:-1], command[:-1])
+    offline = fit(IdentificationData(y[:-1], u[:-1], stamps[:-1] * 1e-9), ArmaxOrders(4, 4, 1, 1, 0), "ls",
+                  forgetting=Forgetting(1.0), p0=1e6)
+    np.testing.assert_allclose(offline.model.theta(), ident.estimator.theta, rtol=1e-9, atol=1e-12)
+
+
+def test_the_pitch_at_the_same_stamp_is_one_sample_late():
+    """What the join avoids: the pitch read at t_k as u(t_k) delays every input by a sample, and a
+    first-order model cannot explain the data any more."""
+    stamps, y, applied, _ = published()
+    late = fit(IdentificationData(y, applied, stamps * 1e-9), ArmaxOrders(4, 4, 1, 1, 0), "ls",
+               forgetting=Forgetting(1.0), p0=1e6, passes=2)
+    assert np.max(np.abs(-late.model.A[0] - PHI)) > 0.05 or np.max(late.loss / np.var(y, axis=0)) > 1e-3
+
+
+def test_a_missing_pitch_drops_the_sample_it_measured_and_restarts_the_regressor():
+    stamps, y, applied, command = published()
+    ident, used = online(stamps, y, applied, skip={("applied", 200)})
+    assert 199 not in [s.stamp_ns // T_NS for s in used]       # its interval was not read
+    assert len(used) == len(stamps) - 2 and ident.counts["dropped"] == 1 and ident.counts["segments"] == 2
+    np.testing.assert_allclose(ident.estimator.model.B[0], DELTA, atol=1e-6)
+
+
+def test_input_stamp_needs_the_next_sample_within_one_and_a_half_periods():
+    assert input_stamp(0, [0, T_NS, 2 * T_NS], 0.2) == T_NS
+    assert input_stamp(0, [0, 2 * T_NS], 0.2) is None           # a sample missing between
+    assert input_stamp(5 * T_NS, [0, T_NS], 0.2) is None        # nothing after it yet
