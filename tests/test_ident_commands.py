@@ -40,6 +40,15 @@ def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     offset = np.abs(data.u - hover)
     assert offset.max() <= np.radians(10) + 1e-9
     assert np.all(np.isclose(offset, np.radians(10), atol=np.radians(0.4)))
+    # (e) ch. 6's findings on this record: second order needed (F-test, 5 % risk) on most outputs, and
+    # ELS slightly better than LS (lower AIC, within 10 %) on most outputs (Tables 6.2, 6.3)
+    from seapup_ident.identify import compare_methods, order_table
+    from seapup_ident.recursive import Forgetting
+    schedule = lambda: Forgetting.schedule(0.6, 0.9)  # noqa: E731
+    assert sum(order_table(data, 2, forgetting_factory=schedule)["rows"][1]["significant"]) >= 4
+    methods = compare_methods(data, 2, ("ls", "els"), forgetting_factory=schedule)["methods"]
+    ls, els = np.array(methods["ls"]["aic"]), np.array(methods["els"]["aic"])
+    assert np.sum(els < ls) >= 4 and np.all(np.abs(els - ls) < 0.1 * np.abs(ls))
     fit = ident(ros_env, "fit", bag, "--orders", "2,2,0", "--passes", 3, "--json", tmp_path / "fit.json")
     assert fit.returncode == 0, fit.stdout + fit.stderr
     doc = json.loads((tmp_path / "fit.json").read_text())
@@ -83,6 +92,27 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
         assert bad.returncode == 1 and reason in bad.stdout + bad.stderr
     bad = ident(ros_env, "fit", tmp_path / "missing.txt")
     assert bad.returncode == 1 and "neither a bag directory nor a .csv file" in bad.stdout + bad.stderr
+    # the comparison's and the residual test's plots and JSON; the right model's residuals are white
+    # and a too-low order's are not (its missing B_2 term leaves the input in them)
+    run = ident(ros_env, "compare", path, "--order", 1, "--points", 2000, "--rpem-k0", 0.1, "--plots",
+                tmp_path / "plots", "--json", tmp_path / "cmp.json")
+    assert run.returncode == 0, run.stdout + run.stderr
+    table = json.loads((tmp_path / "cmp.json").read_text())
+    assert set(table["methods"]) == {"ls", "els", "rpem"} and table["rpem_filter"] == [0.1, 0.98]
+    assert all(m["scored"] == 2000 - 2 for m in table["methods"].values())   # 2 passes of 1000, each fills 1 lag
+    assert [p.endswith(".png") for p in table["plots"]] == [True] * 3
+    assert all((tmp_path / "plots" / name).stat().st_size > 10_000 for name in
+               ("ident_ls_1_1_0.png", "ident_els_1_1_1.png", "ident_rpem_1_1_1.png"))
+    run = ident(ros_env, "residuals", path, "--orders", "1,1,0", "--passes", 2, "--plots", tmp_path / "plots",
+                "--json", tmp_path / "res.json")
+    assert run.returncode == 0, run.stdout + run.stderr
+    res = json.loads((tmp_path / "res.json").read_text())
+    assert res["white"] == [True] and np.shape(res["autocorrelation"]) == (1, 21)
+    assert (tmp_path / "plots" / "ident_residuals_ls.png").is_file()
+    low = ident(ros_env, "residuals", path, "--orders", "1,1,0", "--inputs", "ua", "--json", tmp_path / "low.json")
+    assert low.returncode == 0 and json.loads((tmp_path / "low.json").read_text())["white"] == [False]
+    both = ident(ros_env, "compare", path, "--passes", 2, "--points", 100)
+    assert both.returncode == 1 and "--passes or --points" in both.stdout + both.stderr
 
 
 @pytest.mark.graph

@@ -10,7 +10,9 @@
 - ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics) or a CSV file,
   as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
 - ``orders SOURCE``: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6);
-- ``compare SOURCE``: AIC of LS, ELS and RPEM (Tables 6.3-6.5, 6.7).
+- ``compare SOURCE``: AIC of LS, ELS and RPEM (Tables 6.3-6.5, 6.7), with plots of each model
+  against the data (figs 6.3, 6.5-6.11, 6.13-6.14);
+- ``residuals SOURCE``: the whiteness test of a fitted model's residuals (sec. 6.3, fig. 6.2).
 
 The computations are :mod:`seapup_ident.identify`; this module reads the data and prints.
 """
@@ -132,6 +134,9 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--alpha", type=float, default=0.9, help="eq. 6.15's alpha (default 0.9)")
     parser.add_argument("--forgetting", type=float, help="a fixed forgetting factor instead of eq. 6.15")
     parser.add_argument("--p0", type=float, default=100.0, help="P(0) = p0 I (default 100, sec. 6.5.1)")
+    parser.add_argument("--score", choices=("posterior", "prior"), default="posterior",
+                        help="V_N and AIC from the a posteriori equation errors (eq. 6.20, default) or the "
+                             "one-step prediction errors (eq. 6.11)")
     parser.add_argument("--rpem-k0", type=float, help="RPEM: weaken the gradient filter at first, K(0) "
                                                       "(Tables 6.3-6.7: 0.1); default none")
     parser.add_argument("--rpem-gamma", type=float, default=0.98, help="RPEM: the weakening's gamma (default 0.98)")
@@ -151,7 +156,7 @@ def _fit(args, text) -> dict:
         raise ValueError("least squares has no noise model: use --orders na,nb,0 or --method els|rpem")
     result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
                  forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
-                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None)
+                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
     doc = model_document(result, data, source=str(args.source))
     print(f"ident fit: {args.method} orders ({na}, {nb}, {nc}) on {result.report.usable} of "
           f"{result.report.samples} samples ({result.report.non_finite} non-finite, {result.report.gaps} gaps), "
@@ -160,24 +165,63 @@ def _fit(args, text) -> dict:
     for name, v, a in zip(data.outputs, result.loss, result.aic):
         print(f"{name:<10}{v:>14.4e}{a:>12.1f}", file=text)
     if args.plots:
-        doc["plots"] = [_plot_fit(data, result, Path(args.plots))]
+        doc["plots"] = [_plot_model(data, result, Path(args.plots), f"{args.source}: {args.method} ({na}, {nb}, {nc})")]
     return doc
 
 
-def _plot_fit(data, result, out: Path) -> str:
+def _plot_model(data, result, out: Path, title: str) -> str:
+    """Figs 6.3, 6.5-6.11, 6.13-6.14: per output the data against the adapting model's one-step
+    predictions during the first pass (the transient) and against the final model's."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from seapup_ident.identify import predict
+
+    final = predict(result.model, data)
     out.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(len(data.outputs), 1, figsize=(10, 2 * len(data.outputs)), sharex=True, squeeze=False)
-    for ax, i in zip(axes[:, 0], range(len(data.outputs))):
-        ax.plot(data.t, data.y[:, i], lw=0.8, label="data")
-        ax.plot(data.t, result.predictions[:, i], lw=0.8, label="model (one step ahead, last pass)")
-        ax.set_ylabel(data.outputs[i])
-    axes[0, 0].legend(), axes[-1, 0].set_xlabel("t [s]")
+    ny = len(data.outputs)
+    fig, axes = plt.subplots(ny, 2, figsize=(13, 1.9 * ny), sharex=True, squeeze=False)
+    for i, name in enumerate(data.outputs):
+        for ax, prediction, label in ((axes[i, 0], result.transient, "adapting model (first pass)"),
+                                      (axes[i, 1], final, "final model")):
+            error = data.y[:, i] - prediction[:, i]
+            rms = float(np.sqrt(np.nanmean(error ** 2)))
+            ax.plot(data.t, data.y[:, i], lw=0.9, color="k", label="data")
+            ax.plot(data.t, prediction[:, i], lw=0.8, color="tab:red", label=label)
+            ax.plot(data.t, error, lw=0.6, color="tab:blue", label="error")
+            ax.set_title(f"{name}: rms error {rms:.3g}", fontsize=8, loc="left")
+            ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=7), axes[0, 1].legend(fontsize=7)
+    axes[-1, 0].set_xlabel("t [s]"), axes[-1, 1].set_xlabel("t [s]")
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    path = out / f"ident_fit_{result.method}.png"
-    fig.savefig(path, dpi=100)
+    path = out / f"ident_{result.method}_{'_'.join(map(str, (result.orders.na, result.orders.nb, result.orders.nc)))}.png"
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return str(path)
+
+
+def _plot_residuals(table: dict, out: Path, title: str, name: str) -> str:
+    """Fig. 6.2: the residuals' normalised autocorrelation per output with the 95 % band."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    ny = len(table["outputs"])
+    fig, axes = plt.subplots((ny + 1) // 2, 2, figsize=(11, 2.2 * ((ny + 1) // 2)), squeeze=False)
+    for ax, output, r, white in zip(axes.ravel(), table["outputs"], table["autocorrelation"], table["white"]):
+        ax.vlines(table["lags"], 0, r, color="k")
+        ax.axhline(table["band"], ls="--", color="tab:red"), ax.axhline(-table["band"], ls="--", color="tab:red")
+        ax.set_title(f"{output}: {'white' if white else 'correlated'}", fontsize=8, loc="left")
+        ax.set_ylim(-max(0.3, 2 * table["band"]), 1.05)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[ny:]:
+        ax.set_visible(False)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    path = out / name
+    fig.savefig(path, dpi=90)
     plt.close(fig)
     return str(path)
 
@@ -186,7 +230,7 @@ def _orders(args, text) -> dict:
     from seapup_ident.identify import order_table
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     table = order_table(data, args.max_order, args.method, alpha=args.risk, forgetting_factory=_forgetting(args),
-                        p0=args.p0, passes=args.passes, points=_points(args))
+                        p0=args.p0, passes=args.passes, points=_points(args), score=args.score)
     names = data.outputs
     print(f"ident orders: {args.method}, orders (n, n{', n' if args.method != 'ls' else ''}), risk {args.risk:g}",
           file=text)
@@ -204,7 +248,8 @@ def _compare(args, text) -> dict:
     from seapup_ident.identify import compare_methods
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     table = compare_methods(data, args.order, tuple(args.methods.split(",")), forgetting_factory=_forgetting(args),
-                            p0=args.p0, passes=args.passes, points=_points(args), rpem_filter=_rpem_filter(args))
+                            p0=args.p0, passes=args.passes, points=_points(args), rpem_filter=_rpem_filter(args),
+                            score=args.score)
     scope = f"{args.points} points examined" if args.points else f"{args.passes} pass(es), the last scored"
     print(f"ident compare: AIC at order {args.order}, {scope} ({len(data.t)} samples)"
           + (f", RPEM filter K(0) = {args.rpem_k0:g}, gamma = {args.rpem_gamma:g}" if _rpem_filter(args) else ""),
@@ -212,6 +257,37 @@ def _compare(args, text) -> dict:
     print(f"{'method':<8}" + "".join(f"{n:>12}" for n in data.outputs), file=text)
     for method, values in table["methods"].items():
         print(f"{method:<8}" + "".join(f"{v:>12.1f}" for v in values["aic"]), file=text)
+    if args.plots:
+        table["plots"] = [_plot_model(data, result, Path(args.plots), f"{args.source}: {method}, {scope}")
+                          for method, result in table.pop("results").items()]
+        for path in table["plots"]:
+            print(f"plot {path}", file=text)
+    else:
+        table.pop("results")
+    return table
+
+
+def _residuals(args, text) -> dict:
+    from seapup_ident.armax import ArmaxOrders
+    from seapup_ident.identify import fit, residual_whiteness
+    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
+    na, nb, nc = (int(v) for v in args.orders.split(","))
+    result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
+                 forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
+                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
+    table = residual_whiteness(result.model, data, args.lags, args.risk)
+    print(f"ident residuals: {args.method} ({na}, {nb}, {nc}), the final model's one-step errors over "
+          f"{table['samples']} samples; band +-{table['band']:.3f} (95 %), Ljung-Box at risk {args.risk:g}",
+          file=text)
+    print(f"{'output':<10}{'inside band':>12}{'max |R(k)|':>12}{'Q':>10}{'p':>10}  verdict", file=text)
+    for i, name in enumerate(table["outputs"]):
+        print(f"{name:<10}{table['inside'][i]:>12.0%}{table['max_abs'][i]:>12.3f}{table['ljung_box_q'][i]:>10.1f}"
+              f"{table['p_value'][i]:>10.3g}  {'white' if table['white'][i] else 'correlated'}", file=text)
+    table.update(method=args.method, orders=[na, nb, nc])
+    if args.plots:
+        table["plots"] = [_plot_residuals(table, Path(args.plots), f"{args.source}: residuals of {args.method} "
+                                          f"({na}, {nb}, {nc})", f"ident_residuals_{args.method}.png")]
+        print(f"plot {table['plots'][0]}", file=text)
     return table
 
 
@@ -318,6 +394,15 @@ def main(argv=None) -> int:
     _common(compare_p)
     compare_p.add_argument("--order", type=int, default=2)
     compare_p.add_argument("--methods", default="ls,els,rpem", help="comma-separated (default ls,els,rpem)")
+    compare_p.add_argument("--plots", help="directory for a PNG per method: data against the adapting and the "
+                                           "final model (figs 6.3, 6.5-6.11, 6.13-6.14)")
+    resid_p = sub.add_parser("residuals", help="whiteness of a fitted model's residuals (sec. 6.3, fig. 6.2)")
+    _common(resid_p)
+    resid_p.add_argument("--method", choices=("ls", "els", "rpem"), default="ls")
+    resid_p.add_argument("--orders", default="2,2,0", help="na,nb,nc (default 2,2,0)")
+    resid_p.add_argument("--lags", type=int, default=20, help="autocorrelation lags (default 20)")
+    resid_p.add_argument("--risk", type=float, default=0.05, help="the Ljung-Box test's risk (default 0.05)")
+    resid_p.add_argument("--plots", help="directory for the autocorrelation plot")
     exp_p = sub.add_parser("experiment", help="an identification experiment in SIL, recorded: open-loop PRBS "
                                               "(sec. 6.5.1-6.5.4) or closed loop (sec. 6.5.5)")
     exp_p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60, sec. 6.5.1)")
@@ -344,7 +429,8 @@ def main(argv=None) -> int:
     add_json_argument(exp_p)
     args = parser.parse_args(argv)
     text = text_stream(args)
-    handlers = {"fit": _fit, "orders": _orders, "compare": _compare, "experiment": _experiment}
+    handlers = {"fit": _fit, "orders": _orders, "compare": _compare, "residuals": _residuals,
+                "experiment": _experiment}
     try:
         result = handlers[args.command](args, text)
     except (ValueError, OSError) as exc:

@@ -21,12 +21,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.stats
 
 from seapup_ident.armax import ArmaxModel, ArmaxOrders
-from seapup_ident.order_selection import aic, f_test
+from seapup_ident.order_selection import aic, f_test, residual_autocorrelation
 from seapup_ident.recursive import Forgetting, RecursiveArmax
 
-__all__ = ["IdentificationData", "DataReport", "FitResult", "fit", "order_table", "compare_methods",
+__all__ = ["IdentificationData", "DataReport", "FitResult", "fit", "predict", "residual_whiteness", "order_table", "compare_methods",
            "model_document", "read_csv", "NotExcitingError"]
 
 
@@ -123,18 +124,23 @@ class FitResult:
     estimator: RecursiveArmax
     examined: int = 0         # samples the estimator took over all passes
     scored: int = 0           # samples in V_N and AIC (N of eq. 6.18-6.21)
+    transient: np.ndarray | None = None   # one-step predictions of the first pass: the adapting model (fig. 6.5)
 
 
 def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
         p0: float = 100.0, passes: int = 1, points: int | None = None, keep_history: bool = False,
-        min_samples: int | None = None, filter_weakening: tuple[float, float] | None = None) -> FitResult:
+        min_samples: int | None = None, filter_weakening: tuple[float, float] | None = None,
+        score: str = "posterior") -> FitResult:
     """Run the recursive estimator over ``data`` ``passes`` times, or until it has examined ``points``
     samples (sec. 6.5.1: "the 300 sample data series is rewound and passed through repeatedly until
     the algorithm has examined 2000 points").
 
-    V_N and AIC score the a posteriori equation errors (eq. 6.20) of the last pass (``passes``) or of
-    every examined sample (``points``, as the thesis's 2000-point rows of Tables 6.3-6.5, 6.7), each
-    segment from the first sample whose regressor is full. Defaults as the thesis's runs:
+    V_N and AIC score the errors of the last pass (``passes``) or of every examined sample
+    (``points``, as the thesis's 2000-point rows of Tables 6.3-6.5, 6.7), each segment from the first
+    sample whose regressor is full: with ``score="posterior"`` the a posteriori equation errors
+    y(k) - Theta(k)^T phi(k) (eq. 6.20's e(k), whose size matches the thesis's tables), with
+    ``score="prior"`` the one-step prediction errors y(k) - Theta(k-1)^T phi(k) (eq. 6.11), which
+    also charge each model its transient. Defaults as the thesis's runs:
     P(0) = 100 I, Theta(0) = 0 (sec. 6.5.1). The forgetting factor carries on over the passes (the
     schedule of eq. 6.15 is not restarted).
 
@@ -147,6 +153,8 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
         raise ValueError(f"passes must be >= 1, got {passes}")
     if points is not None and points < 1:
         raise ValueError(f"points must be >= 1, got {points}")
+    if score not in ("posterior", "prior"):
+        raise ValueError(f"score must be posterior or prior, got {score!r}")
     pieces, report = data.segments()
     if report.constant_inputs:
         raise NotExcitingError(f"input(s) {', '.join(report.constant_inputs)} constant over the record: they excite "
@@ -158,6 +166,7 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
     estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, keep_history=keep_history,
                                filter_weakening=filter_weakening if method == "rpem" else None)
     predictions = np.full_like(data.y, np.nan)
+    transient = np.full_like(data.y, np.nan)
     errors: list[np.ndarray] = []
     examined, passes_run = 0, 0
     while (examined < points) if points is not None else (passes_run < passes):
@@ -170,17 +179,62 @@ def fit(data: IdentificationData, orders: ArmaxOrders, method: str = "ls", *, fo
                 if points is not None and examined == points:
                     break
                 _, predictions[k] = estimator.step(data.y[k], data.u[k], update=i >= orders.lag)
+                if passes_run == 1:
+                    transient[k] = predictions[k]
                 examined += 1
                 if i >= orders.lag:
-                    errors.append(estimator.residual.copy())
+                    errors.append(estimator.residual.copy() if score == "posterior" else data.y[k] - predictions[k])
     errors = np.array(errors)
     loss = np.mean(errors ** 2, axis=0)
     return FitResult(method, orders, estimator.model, loss, aic(errors, orders.n_params), predictions, report,
-                     passes_run, estimator, examined, len(errors))
+                     passes_run, estimator, examined, len(errors), transient)
+
+
+def predict(model: ArmaxModel, data: IdentificationData) -> np.ndarray:
+    """One-step predictions of a fixed model over a record (N x ny; NaN where unusable and over each
+    segment's first ``lag`` samples): the ARMAX predictor, its C terms on its own past prediction
+    errors. ``data.y - predict(...)`` are the model's residuals (figs 6.2-6.14)."""
+    o = model.orders
+    pieces, _ = data.segments()
+    predictor = RecursiveArmax(o, "els" if o.nc else "ls", theta0=model.theta())
+    out = np.full_like(data.y, np.nan)
+    for piece in pieces:
+        predictor.restart()
+        for i, k in enumerate(piece):
+            _, y_hat = predictor.step(data.y[k], data.u[k], update=False)
+            if i >= o.lag:
+                out[k] = y_hat
+    return out
+
+
+def residual_whiteness(model: ArmaxModel, data: IdentificationData, max_lag: int = 20, alpha: float = 0.05) -> dict:
+    """The residual test of sec. 6.3 (fig. 6.2) on the model's one-step prediction errors, per output.
+
+    The thesis's form: the normalised autocorrelation for lags 0 .. ``max_lag``, its 95 % band
+    +-1.96/sqrt(N), and the fraction of lags > 0 inside it ("ninety-five percent ... should fall within
+    2 sigma limits if the residuals are white"). With 20 lags one value outside is that fraction, so the
+    verdict ``white`` is the portmanteau form of the same test, Ljung-Box Q = N(N+2) sum R(k)^2/(N-k)
+    against chi-square(max_lag) at risk ``alpha`` (scipy.stats.chi2).
+    """
+    residuals = data.y - predict(model, data)
+    residuals = residuals[np.all(np.isfinite(residuals), axis=1)]
+    n = len(residuals)
+    if n <= max_lag + 1:
+        raise NotExcitingError(f"{n} residuals for {max_lag} lags")
+    r, band = residual_autocorrelation(residuals, max_lag)
+    inside = np.mean(np.abs(r[1:]) <= band, axis=0)
+    lags = np.arange(1, max_lag + 1)[:, None]
+    q = n * (n + 2) * np.sum(r[1:] ** 2 / (n - lags), axis=0)
+    p_value = scipy.stats.chi2.sf(q, max_lag)
+    return {"outputs": list(data.outputs), "lags": list(range(max_lag + 1)), "autocorrelation": r.T.tolist(),
+            "band": band, "inside": inside.tolist(), "max_abs": np.max(np.abs(r[1:]), axis=0).tolist(),
+            "ljung_box_q": q.tolist(), "p_value": p_value.tolist(), "white": (p_value >= alpha).tolist(),
+            "alpha": alpha, "samples": n}
 
 
 def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls", *, alpha: float = 0.05,
-                forgetting_factory=None, p0: float = 100.0, passes: int = 1, points: int | None = None) -> dict:
+                forgetting_factory=None, p0: float = 100.0, passes: int = 1, points: int | None = None,
+                score: str = "posterior") -> dict:
     """Loss, AIC and F per output for orders (n, n[, n]) n = 1 .. max_order (Tables 6.1, 6.2, 6.6).
 
     F compares order n - 1 with n (eq. 6.18) at risk ``alpha``. Per output, the AIC pick is the
@@ -191,7 +245,7 @@ def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls"
     for n in range(1, max_order + 1):
         orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], n, n, n if method != "ls" else 0)
         forgetting = forgetting_factory() if forgetting_factory else None
-        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes, points=points)
+        result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes, points=points, score=score)
         row = {"order": n, "n_params": orders.n_params, "loss": result.loss.tolist(), "aic": result.aic.tolist()}
         if rows:
             previous = rows[-1]
@@ -211,21 +265,23 @@ def order_table(data: IdentificationData, max_order: int = 3, method: str = "ls"
             order = row["order"]
         by_f.append(order)
     return {"method": method, "outputs": list(data.outputs), "rows": rows, "aic_order": by_aic, "f_order": by_f,
-            "system_order": max(max(by_aic), max(by_f)), "alpha": alpha}
+            "system_order": max(max(by_aic), max(by_f)), "alpha": alpha, "score": score}
 
 
 def compare_methods(data: IdentificationData, order: int = 2, methods=("ls", "els", "rpem"), *,
                     forgetting_factory=None, p0: float = 100.0, passes: int = 1, points: int | None = None,
-                    rpem_filter: tuple[float, float] | None = None) -> dict:
+                    rpem_filter: tuple[float, float] | None = None, score: str = "posterior") -> dict:
     """AIC per output of each method at order (n, n) / (n, n, n) (Tables 6.3-6.5, 6.7); ``rpem_filter``
-    (K(0), gamma) weakens RPEM's gradient filter at first (the tables' K(0) = 0.1, gamma = 0.98)."""
+    (K(0), gamma) weakens RPEM's gradient filter at first (the tables' K(0) = 0.1, gamma = 0.98).
+    ``results`` holds each method's :class:`FitResult` (not JSON)."""
     out = {"outputs": list(data.outputs), "order": order, "passes": passes, "points": points,
-           "rpem_filter": list(rpem_filter) if rpem_filter else None, "methods": {}}
+           "rpem_filter": list(rpem_filter) if rpem_filter else None, "score": score, "methods": {}, "results": {}}
     for method in methods:
         orders = ArmaxOrders(data.y.shape[1], data.u.shape[1], order, order, 0 if method == "ls" else order)
         forgetting = forgetting_factory() if forgetting_factory else None
         result = fit(data, orders, method, forgetting=forgetting, p0=p0, passes=passes, points=points,
-                     filter_weakening=rpem_filter)
+                     filter_weakening=rpem_filter, score=score)
+        out["results"][method] = result
         out["methods"][method] = {"aic": result.aic.tolist(), "loss": result.loss.tolist(), "scored": result.scored,
                                   "n_params": orders.n_params, "projections": result.estimator.counts["projections"]}
     return out

@@ -73,3 +73,42 @@ def test_order_table_rejects_first_order_and_mostly_picks_the_second():
         picks += table["aic_order"]
     # a posteriori residuals of a recursive fit flatter larger models a little: over-fit sometimes
     assert picks.count(2) >= 0.6 * len(picks)
+
+
+def test_predict_and_residual_whiteness_tell_the_true_model_from_a_wrong_one():
+    """Sec. 6.3, fig. 6.2: the true model's one-step errors are the white noise that drove it, and the
+    whiteness test passes at its 5 % risk in most seeds; a first-order model of the second-order system
+    leaves correlated residuals in every seed."""
+    from seapup_ident.identify import predict, residual_whiteness
+    passed, wrong_passed = 0, 0
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        u = prbs(2000, clock=5, amplitude=1.0, n_inputs=2, nbits=10)
+        e = 0.05 * rng.normal(size=(2000, 2))
+        data = IdentificationData(TRUE.simulate(u, e), u)
+        if seed == 0:
+            errors = data.y - predict(TRUE, data)
+            np.testing.assert_allclose(errors[TRUE.orders.lag:], e[TRUE.orders.lag:], atol=1e-12)  # the noise
+        white = residual_whiteness(TRUE, data)
+        assert white["band"] == pytest.approx(1.96 / np.sqrt(2000 - 2))
+        passed += sum(white["white"])
+        wrong = fit(data, ArmaxOrders(2, 2, 1, 1, 0), "ls", passes=2).model
+        wrong_passed += sum(residual_whiteness(wrong, data)["white"])
+    assert passed >= 0.85 * 40 and wrong_passed == 0
+
+
+def test_prior_and_posterior_scores_bracket_the_noise_variance():
+    """eq. 6.11 vs eq. 6.20: one-step prediction errors exceed the a posteriori equation errors (those
+    were fitted to), both tend to the noise variance on a long record, and the prior score charges
+    the start-up transient (first pass larger than after rewinding)."""
+    data = record(n=3000, seed=4, noise=0.02)
+    o = ArmaxOrders(2, 2, 2, 1, 0)
+    post = fit(data, o, "ls", passes=2)
+    prior = fit(data, o, "ls", passes=2, score="prior")
+    assert np.all(prior.loss > post.loss)
+    np.testing.assert_allclose(prior.loss, 0.02 ** 2, rtol=0.1)
+    np.testing.assert_allclose(post.loss, 0.02 ** 2, rtol=0.1)
+    first = fit(data, o, "ls", passes=1, score="prior")
+    assert np.all(first.loss > prior.loss)
+    with pytest.raises(ValueError, match="score"):
+        fit(data, o, "ls", score="median")

@@ -116,6 +116,25 @@ def test_ljung_armax_ls_converges_to_its_biased_limit_els_and_rpem_to_the_truth(
     for method in ("els", "rpem"):
         theta = run(RecursiveArmax(LJUNG.orders, method, p0=100.0), y, u).ravel()
         np.testing.assert_allclose(theta, TRUE, atol=0.04, err_msg=method)
+    # the thesis's weakened filter (Table 6.3: K(0) = 0.1, gamma = 0.98) only changes the start
+    theta = run(RecursiveArmax(LJUNG.orders, "rpem", p0=100.0, filter_weakening=(0.1, 0.98)), y, u).ravel()
+    np.testing.assert_allclose(theta, TRUE, atol=0.04, err_msg="rpem, weakened filter")
+
+
+def test_rpem_filter_weakening_contracts_the_gradient_filter_at_first():
+    """K(t) -> 1 as eq. 6.15: K(0) = 1 is plain RPEM bit for bit; a small K(0) starts nearer ELS's
+    unfiltered gradient (its first steps differ from plain RPEM's, the same limit)."""
+    y, u = ljung_data(seed=3, n=400)
+    plain = RecursiveArmax(LJUNG.orders, "rpem", p0=100.0, keep_history=True)
+    same = RecursiveArmax(LJUNG.orders, "rpem", p0=100.0, filter_weakening=(1.0, 0.98), keep_history=True)
+    weak = RecursiveArmax(LJUNG.orders, "rpem", p0=100.0, filter_weakening=(0.1, 0.98), keep_history=True)
+    for est in (plain, same, weak):
+        run(est, y, u)
+    np.testing.assert_array_equal(np.array(same.history["theta"]), np.array(plain.history["theta"]))
+    assert not np.allclose(weak.history["theta"][50], plain.history["theta"][50])
+    assert weak.filter_weakening.value == pytest.approx(1 - 0.9 * 0.98 ** 400)
+    with pytest.raises(ValueError, match="RPEM option"):
+        RecursiveArmax(LJUNG.orders, "els", filter_weakening=(0.1, 0.98))
 
 
 def test_rpem_keeps_c_inside_the_stability_region():
