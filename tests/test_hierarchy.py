@@ -72,7 +72,8 @@ def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  
         result = sil.goal("goto", x=start[0] + 10.0, y=start[1], z=start[2], yaw=0.5, during=(25.0, switch))
         listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
         logs = sil.logs()
-    assert result["status"] == "succeeded", result
+    assert result["status"] == "succeeded", (f"{result['status']}: {result.get('message')!r}, accepted at "
+                                             f"{result.get('accepted_t')}, ended at {result.get('end_t')}")
     assert result["during"].ok, result["during"].message
     assert listing.active == "mfol_scheduled"
     t_switch = swap[0]
