@@ -111,8 +111,14 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
     assert (tmp_path / "plots" / "ident_residuals_ls.png").is_file()
     low = ident(ros_env, "residuals", path, "--orders", "1,1,0", "--inputs", "ua", "--json", tmp_path / "low.json")
     assert low.returncode == 0 and json.loads((tmp_path / "low.json").read_text())["white"] == [False]
-    both = ident(ros_env, "compare", path, "--passes", 2, "--points", 100)
-    assert both.returncode == 1 and "--passes or --points" in both.stdout + both.stderr
+    for args, reason in ((["compare", path, "--passes", 2, "--points", 100], "--passes or --points"),
+                         (["orders", path, "--risk", 0], "risk alpha must be in (0, 1)"),
+                         (["residuals", path, "--orders", "1,1,0", "--lags", 0], "max_lag >= 1"),
+                         (["fit", path, "--orders", "2,x"], "three integers"),
+                         (["experiment", "--duration", -5], "--duration must be > 0"),
+                         (["experiment", "--closed-loop", "--references", "a,b"], "two rows of four")):
+        bad = ident(ros_env, *args)
+        assert bad.returncode == 1 and reason in bad.stdout + bad.stderr, (args, bad.stdout + bad.stderr)
 
 
 @pytest.mark.graph

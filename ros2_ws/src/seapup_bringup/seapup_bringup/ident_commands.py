@@ -109,6 +109,14 @@ def _forgetting(args):
     return lambda: Forgetting.schedule(args.lambda0, args.alpha)
 
 
+def _parse_orders(text: str) -> tuple[int, int, int]:
+    try:
+        na, nb, nc = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--orders needs three integers na,nb,nc, got {text!r}") from None
+    return na, nb, nc
+
+
 def _points(args) -> int | None:
     if args.points is not None and args.passes != 1:
         raise ValueError("give --passes or --points, not both")
@@ -151,7 +159,7 @@ def _fit(args, text) -> dict:
     from seapup_ident.armax import ArmaxOrders
     from seapup_ident.identify import fit, model_document
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
-    na, nb, nc = (int(v) for v in args.orders.split(","))
+    na, nb, nc = _parse_orders(args.orders)
     if args.method == "ls" and nc:
         raise ValueError("least squares has no noise model: use --orders na,nb,0 or --method els|rpem")
     result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
@@ -271,7 +279,7 @@ def _residuals(args, text) -> dict:
     from seapup_ident.armax import ArmaxOrders
     from seapup_ident.identify import fit, residual_whiteness
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
-    na, nb, nc = (int(v) for v in args.orders.split(","))
+    na, nb, nc = _parse_orders(args.orders)
     result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
                  forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
                  filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
@@ -297,7 +305,9 @@ def _experiment(args, text) -> dict:
 
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
-    orders = [int(v) for v in args.orders.split(",")]
+    orders = list(_parse_orders(args.orders))
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ValueError(f"--duration must be > 0 s, got {args.duration}")
     arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
                  "identifier_bag": out / "identifier"}
@@ -347,7 +357,10 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
     """Closed loop (sec. 6.5.5): the fixed-gain self-tested controller following a square wave."""
     import yaml
 
-    rows = [[float(v) for v in row.split(",")] for row in args.references.split(";")]
+    try:
+        rows = [[float(v) for v in row.split(",")] for row in args.references.split(";")]
+    except ValueError:
+        rows = []
     if len(rows) != 2 or any(len(row) != 4 or not all(map(math.isfinite, row)) for row in rows):
         raise ValueError(f"--references needs two rows of four finite values 'u,v,w,r;u,v,w,r' "
                          f"(m/s and deg/s), got {args.references!r}")

@@ -216,6 +216,10 @@ def residual_whiteness(model: ArmaxModel, data: IdentificationData, max_lag: int
     verdict ``white`` is the portmanteau form of the same test, Ljung-Box Q = N(N+2) sum R(k)^2/(N-k)
     against chi-square(max_lag) at risk ``alpha`` (scipy.stats.chi2).
     """
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"the whiteness test's risk must be in (0, 1), got {alpha}")
+    if int(max_lag) < 1:
+        raise ValueError(f"the whiteness test needs max_lag >= 1, got {max_lag}")
     residuals = data.y - predict(model, data)
     residuals = residuals[np.all(np.isfinite(residuals), axis=1)]
     n = len(residuals)

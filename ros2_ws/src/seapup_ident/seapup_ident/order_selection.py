@@ -80,6 +80,8 @@ def f_test(loss_small, loss_large, n_small: int, n_large: int, n_samples: int, a
     """Is the loss drop from n_small to n_large parameters significant at risk alpha (eq. 6.18)?"""
     if not n_large > n_small or n_samples <= n_large:
         raise ValueError(f"F-test needs n_small < n_large < N, got {n_small}, {n_large}, {n_samples}")
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"the F-test's risk alpha must be in (0, 1), got {alpha}")
     v_n, v_m = np.asarray(loss_small, float), np.asarray(loss_large, float)
     statistic = (v_n - v_m) / v_m * (n_samples - n_large) / (n_large - n_small)
     threshold = float(stats.f.ppf(1.0 - alpha, n_large - n_small, n_samples - n_large))
@@ -88,6 +90,8 @@ def f_test(loss_small, loss_large, n_small: int, n_large: int, n_samples: int, a
 
 def residual_autocorrelation(residuals, max_lag: int = 20) -> tuple[np.ndarray, float]:
     """Normalised autocorrelation R(k) / R(0), k = 0 .. max_lag, per output (columns), and the 95 % band."""
+    if int(max_lag) < 1:
+        raise ValueError(f"the autocorrelation needs max_lag >= 1, got {max_lag}")
     e = np.asarray(residuals, float)
     e = e.reshape(len(e), -1) - e.reshape(len(e), -1).mean(axis=0)
     n = len(e)
