@@ -50,8 +50,11 @@ class IdentifierNode(Node):
         na, nb, nc = (int(v) for v in p["orders"])
         forgetting = Forgetting(float(p["forgetting"])) if p["forgetting"] > 0 else \
             Forgetting.schedule(float(p["lambda0"]), float(p["alpha"]))
+        weakening = (float(p["rpem_filter_k0"]), float(p["rpem_filter_gamma"])) \
+            if p["method"] == "rpem" and p["rpem_filter_k0"] > 0 else None
         self.core = OnlineIdentifier(ArmaxOrders(len(outputs), 4, na, nb, nc), p["method"], outputs,
-                                     forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]))
+                                     forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]),
+                                     filter_weakening=weakening)
         self.publisher = self.create_publisher(IdentifiedModel, MODEL_TOPIC, RELIABLE_QOS)
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag

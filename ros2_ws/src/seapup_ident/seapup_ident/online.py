@@ -82,10 +82,13 @@ class OnlineIdentifier:
         From ``u, v, w, r, roll, pitch`` (ch. 6) or ``u, v, w, r`` (ch. 7).
     sample_period : float
         T [s]; a sample more than 1.5 T after the previous one used starts a new segment.
+    filter_weakening : (K(0), gamma), optional
+        RPEM only: see :class:`~seapup_ident.recursive.RecursiveArmax`.
     """
 
     def __init__(self, orders: ArmaxOrders, method: str = "ls", outputs=("u", "v", "w", "r", "roll", "pitch"), *,
-                 forgetting: Forgetting | None = None, p0: float = 100.0, sample_period: float = 0.2):
+                 forgetting: Forgetting | None = None, p0: float = 100.0, sample_period: float = 0.2,
+                 filter_weakening: tuple[float, float] | None = None):
         unknown = [o for o in outputs if o not in OUTPUTS]
         if unknown or len(outputs) != orders.ny or orders.nu != 4:
             raise ValueError(f"outputs {list(outputs)} must be {orders.ny} of {', '.join(OUTPUTS)} and nu 4 "
@@ -93,7 +96,7 @@ class OnlineIdentifier:
         self.orders, self.outputs = orders, tuple(outputs)
         self.output_kinds = {"velocity"} | {OUTPUTS[o][0] for o in outputs}
         self.kinds = self.output_kinds | {"applied"}
-        self.estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0)
+        self.estimator = RecursiveArmax(orders, method, forgetting=forgetting, p0=p0, filter_weakening=filter_weakening)
         self.sample_period = float(sample_period)
         self._pending: dict[int, dict] = {}
         self._last_used: int | None = None

@@ -84,3 +84,20 @@ def test_input_stamp_needs_the_next_sample_within_one_and_a_half_periods():
     assert input_stamp(0, [0, T_NS, 2 * T_NS], 0.2) == T_NS
     assert input_stamp(0, [0, 2 * T_NS], 0.2) is None           # a sample missing between
     assert input_stamp(5 * T_NS, [0, T_NS], 0.2) is None        # nothing after it yet
+
+
+def test_online_rpem_with_a_weakened_filter_equals_the_offline_fit():
+    stamps, y, applied, _ = published(300)
+    rng = np.random.default_rng(0)
+    y = y + 0.01 * rng.normal(size=y.shape)
+    orders = ArmaxOrders(4, 4, 1, 1, 1)
+    ident = OnlineIdentifier(orders, "rpem", ("u", "v", "w", "r"), forgetting=Forgetting.schedule(0.6, 0.9),
+                             filter_weakening=(0.1, 0.98))
+    for k, stamp in enumerate(stamps):
+        ident.add("velocity", int(stamp), y[k])
+        ident.add("applied", int(stamp), applied[k])
+    u = held_inputs(stamps, dict(zip(stamps.tolist(), applied)), 0.2)
+    offline = fit(IdentificationData(y[:-1], u[:-1], stamps[:-1] * 1e-9), orders, "rpem",
+                  forgetting=Forgetting.schedule(0.6, 0.9), filter_weakening=(0.1, 0.98))
+    assert ident.estimator.filter_weakening is not None
+    np.testing.assert_allclose(offline.model.theta(), ident.estimator.theta, rtol=1e-9, atol=1e-12)
