@@ -128,3 +128,30 @@ def test_configure_fails_cleanly_on_a_bad_controller_file(ros_context, node_proc
     assert not probe.transition(Transition.TRANSITION_CONFIGURE)
     assert "configure failed" in node.log_text() and "not a seapup MFOL controller" in node.log_text()
     assert node.running
+
+
+def test_a_sample_whose_applied_pitch_was_missed_is_answered_after_applied_wait(ros_context, node_process, spin,
+                                                                               tmp_path):
+    """Configured at a sample boundary (the demo re-configures the controller after the self-test), the
+    node may subscribe after the simulator published that sample's applied pitch; in lockstep nothing
+    else comes until the sample is answered. It must start from u0 after ``applied_wait``, not hang
+    until the simulator's lockstep timeout."""
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+    from seapup_common.contract import Reading
+    from seapup_common.ros.messages import velocity_to_msg
+    path = controller_file(tmp_path)
+    node_process(package="seapup_control", executable="mfol_velocity_controller",
+                 args=["--ros-args", "-p", f"controller_file:={path}", "-p", "applied_wait:=0.5"])
+    probe = Probe(ros_context, spin)
+    velocity = probe.node.create_publisher(TwistWithCovarianceStamped, "/seapup/sensors/velocity", 10)
+    assert probe.transition(Transition.TRANSITION_CONFIGURE)
+    assert probe.transition(Transition.TRANSITION_ACTIVATE)
+    assert probe.spin(lambda: velocity.get_subscription_count() > 0, 20.0)
+    probe.spin(lambda: False, 0.3)
+    t_ns = 12 * 10**9
+    velocity.publish(velocity_to_msg(Reading(np.zeros(3), t_ns * 1e-9), Reading(np.zeros(3), t_ns * 1e-9), t_ns))
+    assert probe.spin(lambda: probe.commands, 5.0), "the sample was never answered"
+    command = probe.commands[0]
+    assert command.header.stamp.sec == 12 and command.header.stamp.nanosec == 0
+    u0 = GainSchedule.from_document(yaml.safe_load(path.read_text())).offset_at(0.0)
+    np.testing.assert_allclose(command.pitch, u0, atol=np.radians(2.0))   # from u0, one PI step on zero error

@@ -221,6 +221,9 @@ class MFOLControllerNode(LifecycleNode):
         if self._start_pending:
             if self._sample_waiting_since is None:
                 self._sample_waiting_since = time.monotonic()
+                # the applied pitch of this sample may have been published before this node (re)subscribed
+                # (configured at a sample boundary): do not wait for the next one, which never comes
+                self._wake_after(float(self.get_parameter("applied_wait").value))
             waited = time.monotonic() - self._sample_waiting_since
             if self.applied is None and waited < float(self.get_parameter("applied_wait").value):
                 return  # the applied pitch of this sample, or the simulator's /clock repeats, bring it back
@@ -247,7 +250,7 @@ class MFOLControllerNode(LifecycleNode):
         if self.get_parameter("lockstep").value and not self._heard_reference and first_wait > 0:
             if self._first_wait_since is None:
                 self._first_wait_since = time.monotonic()
-                self._retry_first(first_wait)
+                self._wake_after(first_wait)
             if time.monotonic() - self._first_wait_since < first_wait:
                 return True  # the first reference, or the retry timer, brings it back
             self.counts["late_references"] += 1
@@ -262,24 +265,17 @@ class MFOLControllerNode(LifecycleNode):
         wait = float(self.get_parameter("reference_wait").value)
         if self._reference_waiting is None or self._reference_waiting[0] != t_ns:
             self._reference_waiting = (t_ns, time.monotonic())
-            self._retry(wait)
+            self._wake_after(wait)
         if time.monotonic() - self._reference_waiting[1] < wait:
             return True  # the reference's arrival, or the retry timer, brings it back
         self._reference_waiting = None
         self.counts["late_references"] += 1
         return False
 
-    def _retry(self, after: float) -> None:
-        """Answer the waiting sample after ``after`` wall seconds if its reference has not come by then."""
-        def fire():
-            timer.cancel()
-            self.destroy_timer(timer)
-            if self.active and self._reference_waiting is not None and self.sampler.latest_ns is not None:
-                self._answer(self.sampler.latest_ns)
-        timer = self.create_timer(after + 1e-3, fire, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))  # wall time: sim time stands still
-
-    def _retry_first(self, after: float) -> None:
-        """Answer the sample waiting for the first reference after ``after`` wall seconds."""
+    def _wake_after(self, after: float) -> None:
+        """Answer the latest sample again after ``after`` wall seconds (sim time stands still while a
+        lockstep sample waits): a sample waiting for its reference, the first reference or the applied
+        pitch then goes on even if what it waits for never comes."""
         def fire():
             timer.cancel()
             self.destroy_timer(timer)

@@ -10,6 +10,12 @@ publishes ``velocity_controller/reference`` (geometry_msgs/TwistStamped in
 sample it is meant for. Without a setpoint it publishes nothing (the
 velocity controller holds its last reference). Non-finite or wrong-frame
 setpoints are rejected, counted and logged. Inactive, it publishes nothing.
+
+``/diagnostics`` (``seapup/position_controller``): while tracking, the setpoint,
+the reference and the limits once a wall second; otherwise once a wall second
+whether it could track -- OK "idle" when active, hearing the navigator and
+matched to a setpoint publisher (a goal's setpoints would be flown at once),
+else WARN with the reason -- so a graph is known ready before a goal is sent.
 """
 from __future__ import annotations
 
@@ -64,6 +70,8 @@ class PositionControllerNode(LifecycleNode):
             self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),
             self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]
         self._last_diag = 0.0
+        self._estimate_wall: float | None = None
+        self._idle_timer = self.create_timer(1.0, self._diagnose_idle)
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state) -> TransitionCallbackReturn:
@@ -79,6 +87,7 @@ class PositionControllerNode(LifecycleNode):
         for sub in self._interfaces:
             self.destroy_subscription(sub)
         self._interfaces = []
+        self.destroy_timer(self._idle_timer)
         self.destroy_lifecycle_publisher(self.publisher)
         self.destroy_publisher(self.diagnostics)
         self.controller = None
@@ -102,6 +111,7 @@ class PositionControllerNode(LifecycleNode):
             self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
             return
         self.counts["estimates"] += 1
+        self._estimate_wall = time.monotonic()
         for setpoint in self.setpoints.due(estimate.t):
             self.controller.set_reference(setpoint)
         if self.controller.reference is None:
@@ -123,6 +133,21 @@ class PositionControllerNode(LifecycleNode):
         level = DiagnosticStatus.WARN if self.counts["rejected_setpoints"] else DiagnosticStatus.OK
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
                                                   "tracking", values, t_ns))
+
+
+    def _diagnose_idle(self) -> None:
+        """Once a wall second while not tracking: can a setpoint be flown now?"""
+        if time.monotonic() - self._last_diag <= 1.0:
+            return
+        heard = self._estimate_wall is not None and time.monotonic() - self._estimate_wall <= 2.0
+        setpoint_source = self._interfaces[0].get_publisher_count() > 0
+        ready = self.active and heard and setpoint_source
+        level = DiagnosticStatus.OK if ready else DiagnosticStatus.WARN
+        message = "idle" if ready else "inactive" if not self.active else \
+            "no navigation estimate" if not heard else "no setpoint publisher (task controller) matched"
+        values = {**self.counts, f"subscribers:{self.publisher.topic_name}": self.publisher.get_subscription_count()}
+        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level, message, values,
+                                                  self.get_clock().now().nanoseconds))
 
 
 def main(args=None) -> int:

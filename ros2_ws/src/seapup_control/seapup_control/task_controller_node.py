@@ -106,6 +106,9 @@ class TaskControllerNode(Node):
         return GoalResponse.REJECT
 
     def _accept(self, kind: str, goal) -> GoalResponse:
+        if self.setpoints.get_subscription_count() == 0:
+            return self._reject(kind, "no position controller listens to the setpoints "
+                                      "(position_controller/reference): nothing would fly it")
         if self.running is not None and not goal.preempt:
             return self._reject(kind, f"a {self.running.task.kind} task is running (set preempt to replace it)")
         try:
@@ -185,12 +188,19 @@ class TaskControllerNode(Node):
 
 
     def _diagnose(self) -> None:
-        """``seapup/task_controller``: OK while the navigation is fresh (goals can be accepted), else WARN."""
+        """``seapup/task_controller``: OK while the navigation is fresh and a position controller listens
+        to the setpoints (goals can be accepted and flown), else WARN with the reason."""
         fresh = self.estimate is not None and time.monotonic() - self._estimate_wall <= self.navigation_timeout
+        listening = self.setpoints.get_subscription_count() > 0
         running = self.running.task.kind if self.running is not None else ""
-        values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none"}
-        self.diagnostics.publish(diagnostic_array("seapup/task_controller", DiagnosticStatus.OK if fresh else DiagnosticStatus.WARN,
-                                                  (running or "idle") if fresh else "no navigation estimate", values, self.get_clock().now().nanoseconds))
+        values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none",
+                  "position_controller": "listening" if listening else "none",
+                  f"subscribers:{self.setpoints.topic_name}": self.setpoints.get_subscription_count()}
+        message = (running or "idle") if fresh and listening else \
+            "no navigation estimate" if not fresh else "no position controller listening"
+        self.diagnostics.publish(diagnostic_array(
+            "seapup/task_controller", DiagnosticStatus.OK if fresh and listening else DiagnosticStatus.WARN,
+            message, values, self.get_clock().now().nanoseconds))
 
 
 def main(args=None) -> int:

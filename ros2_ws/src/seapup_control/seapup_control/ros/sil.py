@@ -74,18 +74,22 @@ class SilGraph:
         a publisher has told the recorder their type.
     ready_timeout : float
         Wall seconds for the first navigation estimate.
-    ready_status : str, optional
-        The graph is ready once a ``/diagnostics`` status of this name says OK (default
-        ``seapup/task_controller``: it hears the navigator, so goals can be accepted). The
-        simulator starts once *its* subscribers are there; the rest of the graph discovers
-        itself meanwhile, and a goal sent before the task controller hears the navigator would be
-        refused for want of navigation. "" waits only for the first estimate, None only for the
-        first truth sample (a graph without a navigator).
+    ready_status : str or tuple of str, optional
+        The graph is ready once the latest ``/diagnostics`` statuses of these names say OK
+        (default ``seapup/task_controller``: it hears the navigator and a position controller
+        listens to its setpoints, and ``seapup/position_controller``: active, hearing the
+        navigator and matched to the setpoint publisher, so a goal is accepted and flown at once)
+        and each publisher they report (``subscribers:<topic>``) has matched every subscription
+        of its topic this probe sees. The simulator starts once *its* subscribers are
+        there; the rest of the graph discovers itself meanwhile (in lockstep tens of simulated
+        seconds can pass). "" waits only for the first estimate, None only for the first truth
+        sample (a graph without a navigator).
     """
 
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
                  out_dir, record: list[str] | None = None, ready_timeout: float = 60.0,
-                 ready_status: str = "seapup/task_controller"):
+                 ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
+                                                                "seapup/position_controller")):
         self.graph = str(graph)
         self.arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in (arguments or {}).items()}
         self.out_dir = Path(out_dir)
@@ -139,9 +143,21 @@ class SilGraph:
         for spec in specs:
             self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
                                                      self.out_dir / f"{spec.label}.log", spec.label).start()
+        names = (self.ready_status,) if isinstance(self.ready_status, str) else tuple(self.ready_status or ())
+
+        def matched_all(status) -> bool:
+            # a status may report its publishers' matched readers ("subscribers:<topic>": n, the writer's
+            # side, which decides delivery): ready once each has matched every reader this probe sees
+            return all(int(kv.value) >= self._node.count_subscribers(kv.key.split(":", 1)[1])
+                       for kv in status.values if kv.key.startswith("subscribers:"))
+
         def ready():
-            return any(status.name == self.ready_status and status.level in (0, b"\x00")
-                       for array in self.log["diagnostics"][-20:] for status in array.status)
+            latest = {}
+            for array in self.log["diagnostics"][-40:]:
+                for status in array.status:
+                    latest[status.name] = status
+            return all(name in latest and latest[name].level in (0, b"\x00") and matched_all(latest[name])
+                       for name in names)
         navigation = self.ready_status is not None
         if not self.spin_until(lambda: self.log["truth"] and (not navigation or self.log["estimate"])
                                and (not self.ready_status or ready()), self.ready_timeout):
