@@ -112,5 +112,12 @@ def test_lockstep_sampler_answers_each_sample_once_and_only_with_its_measurement
     assert sampler.on_velocity(velocity(200_000_000, u=float("nan"))) is None  # refused, not a sample
     assert sampler.collector.rejected == 1 and sampler.latest_ns == 0
     assert sampler.on_velocity(velocity(200_000_000)) == 200_000_000
+    # another node answered t = 0.2 s (a controller activated just then): the simulator announces 0.4 s
+    # before this node hears its sample; 0.2 s is past, answering it would only be refused as stale
+    assert sampler.on_clock(Clock(clock=ns_to_stamp(400_000_000))) is None
+    assert sampler.pending(200_000_000) is None and sampler.pending(400_000_000) == 400_000_000
+    assert sampler.on_velocity(velocity(400_000_000)) == 400_000_000
+    sampler.on_clock(Clock(clock=ns_to_stamp(0)))                      # a reset: time goes back
+    assert sampler.pending(200_000_000) == 200_000_000                 # and 0.2 s is ahead again
     timed = LockstepSampler(MeasurementCollector(), lockstep=False)
     assert timed.on_velocity(velocity(0)) is None and timed.pending(5) == 5  # a timer decides when

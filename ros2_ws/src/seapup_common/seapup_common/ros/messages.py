@@ -387,7 +387,10 @@ class LockstepSampler:
     velocity messages and ``/clock`` samples; :meth:`on_velocity` and
     :meth:`on_clock` return the sample time to answer (or None), and
     :meth:`answered` marks it done, so each sample is answered exactly once
-    and a sample's measurement is always in the collector before it is.
+    and a sample's measurement is always in the collector before it is. A
+    sample older than the newest ``/clock`` is past: the simulator has moved on
+    (another node answered it), so it is not pending -- its answer would be
+    refused as stale, and computing it would only disturb the controller.
     """
 
     def __init__(self, collector: MeasurementCollector, lockstep: bool = True):
@@ -395,6 +398,7 @@ class LockstepSampler:
         self.lockstep = lockstep
         self.latest_ns: int | None = None
         self.answered_ns: int | None = None
+        self.clock_ns: int | None = None   # newest /clock heard (lockstep)
 
     def on_velocity(self, msg) -> int | None:
         """Take a velocity message; the sample to answer (lockstep), or None (rejected: see the collector)."""
@@ -406,10 +410,12 @@ class LockstepSampler:
     def on_clock(self, msg) -> int | None:
         """A repeated ``/clock`` t_k whose sample has arrived and is not answered yet: answer it now."""
         t_ns = stamp_to_ns(msg.clock)
+        self.clock_ns = t_ns   # the newest heard (one reliable topic arrives in order; a reset goes back)
         return self.pending(t_ns) if t_ns == self.latest_ns else None
 
     def pending(self, t_ns: int) -> int | None:
-        return None if t_ns == self.answered_ns else t_ns
+        past = self.lockstep and self.clock_ns is not None and t_ns < self.clock_ns
+        return None if t_ns == self.answered_ns or past else t_ns
 
     def answered(self, t_ns: int) -> None:
         self.answered_ns = t_ns
