@@ -155,16 +155,22 @@ def _common(parser: argparse.ArgumentParser) -> None:
     add_json_argument(parser)
 
 
-def _fit(args, text) -> dict:
+def _fit_model(args, data, orders: tuple[int, int, int]):
+    """The fit ``ident fit`` and ``ident residuals`` share, from the common options."""
     from seapup_ident.armax import ArmaxOrders
-    from seapup_ident.identify import fit, model_document
+    from seapup_ident.identify import fit
+    return fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], *orders), args.method,
+               forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
+               filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
+
+
+def _fit(args, text) -> dict:
+    from seapup_ident.identify import model_document
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     na, nb, nc = _parse_orders(args.orders)
     if args.method == "ls" and nc:
         raise ValueError("least squares has no noise model: use --orders na,nb,0 or --method els|rpem")
-    result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
-                 forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
-                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
+    result = _fit_model(args, data, (na, nb, nc))
     doc = model_document(result, data, source=str(args.source))
     print(f"ident fit: {args.method} orders ({na}, {nb}, {nc}) on {result.report.usable} of "
           f"{result.report.samples} samples ({result.report.non_finite} non-finite, {result.report.gaps} gaps), "
@@ -276,13 +282,10 @@ def _compare(args, text) -> dict:
 
 
 def _residuals(args, text) -> dict:
-    from seapup_ident.armax import ArmaxOrders
-    from seapup_ident.identify import fit, residual_whiteness
+    from seapup_ident.identify import residual_whiteness
     data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     na, nb, nc = _parse_orders(args.orders)
-    result = fit(data, ArmaxOrders(data.y.shape[1], data.u.shape[1], na, nb, nc), args.method,
-                 forgetting=_forgetting(args)(), p0=args.p0, passes=args.passes, points=_points(args),
-                 filter_weakening=_rpem_filter(args) if args.method == "rpem" else None, score=args.score)
+    result = _fit_model(args, data, (na, nb, nc))
     table = residual_whiteness(result.model, data, args.lags, args.risk)
     print(f"ident residuals: {args.method} ({na}, {nb}, {nc}), the final model's one-step errors over "
           f"{table['samples']} samples; band +-{table['band']:.3f} (95 %), Ljung-Box at risk {args.risk:g}",

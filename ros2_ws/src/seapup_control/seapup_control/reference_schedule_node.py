@@ -1,6 +1,6 @@
 """The ``reference_schedule`` node: a velocity-reference schedule for the velocity controller.
 
-A thin shell over :class:`seapup_control.schedule.ReferenceSchedule`, publishing body-velocity
+A thin shell over :class:`seapup_control.schedule.ReferenceProfile`, publishing body-velocity
 references (u, v, w, r; geometry_msgs/TwistStamped in ``base_link_frd``) on
 ``/seapup/velocity_controller/reference`` -- what the position controller publishes in the
 hierarchy, here from a fixed, optionally repeating schedule: the square-wave reference of thesis
@@ -18,13 +18,13 @@ from rclpy.node import Node
 from seapup_common.ros.messages import reference_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.ros.sample_publisher import SamplePublisher
-from seapup_control.schedule import ReferenceSchedule
+from seapup_control.schedule import ReferenceProfile
 
 __all__ = ["ReferenceScheduleNode", "main"]
 
 
 class ReferenceScheduleNode(Node):
-    """rclpy shell around a :class:`ReferenceSchedule` (see module docstring)."""
+    """rclpy shell around a :class:`ReferenceProfile` (see module docstring)."""
 
     def __init__(self, **kwargs):
         super().__init__("reference_schedule", namespace="/seapup", **kwargs)
@@ -33,7 +33,7 @@ class ReferenceScheduleNode(Node):
                 description="controller sample period [s]", read_only=True,
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)]),
         }, section="reference_schedule")
-        self.schedule = ReferenceSchedule(p["times"], p["references"], p["period"])
+        self.schedule = ReferenceProfile(p["times"], p["references"], p["period"])
         self.publisher = self.create_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
         self.sampler = SamplePublisher(self, self.publisher, self._reference, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],

@@ -5,7 +5,7 @@ The open-loop verification tests of the thesis (sec. 3.3, Table 3.2) drive the
 vehicle with blade pitches held constant between switching instants, e.g. both
 main thrusters at +35 deg from t = 0 for the surge test. A
 :class:`PitchSchedule` is such an input: switching times and the four pitches
-held from each time on. A :class:`ReferenceSchedule` holds body-velocity references (u, v, w, r)
+held from each time on. A :class:`ReferenceProfile` holds body-velocity references (u, v, w, r)
 the same way and may repeat with a period: the square wave of half-period 10 s under which thesis
 sec. 6.5.5 identifies the closed loop is two rows and a 20 s period.
 """
@@ -16,7 +16,7 @@ import numpy as np
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
 
-__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceSchedule"]
+__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceProfile"]
 
 
 class ScheduleError(ValueError):
@@ -83,8 +83,10 @@ def _rows(times, values, what: str) -> tuple[np.ndarray, np.ndarray]:
     return t, v
 
 
-class ReferenceSchedule:
-    """Body-velocity references (u, v, w [m/s], r [rad/s]) held between switching times.
+class ReferenceProfile:
+    """Body-velocity references (u, v, w [m/s], r [rad/s]) held between switching times, optionally
+    repeating: a fixed test profile (unlike :class:`seapup_common.contract.ReferenceSchedule`, the
+    velocity controller's queue of stamped references as they arrive).
 
     Parameters
     ----------
@@ -101,7 +103,7 @@ class ReferenceSchedule:
     The reference of thesis sec. 6.5.5, a square wave of half-period 10 s:
 
     >>> import math
-    >>> s = ReferenceSchedule([0.0, 10.0], [[0.2, 0, 0, math.radians(15)], [0, 0.1, -0.1, 0]], period=20.0)
+    >>> s = ReferenceProfile([0.0, 10.0], [[0.2, 0, 0, math.radians(15)], [0, 0.1, -0.1, 0]], period=20.0)
     >>> s.at(25.0).velocity.tolist()
     [0.2, 0.0, 0.0, 0.2617993877991494]
     """

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from seapup_control.schedule import PitchSchedule, ReferenceSchedule, ScheduleError
+from seapup_control.schedule import PitchSchedule, ReferenceProfile, ScheduleError
 
 LIMIT = math.radians(35.0)
 SURGE = [[LIMIT, LIMIT, 0, 0], [0, 0, 0, 0]]  # Table 3.2 style: mains full ahead, then off
@@ -54,11 +54,11 @@ def test_bad_query_time(t):
 def test_reference_schedule_repeats_the_thesis_square_wave():
     """Sec. 6.5.5: half-period 10 s between (0.2, 0, 0, 15 deg/s) and (0, 0.1, -0.1, 0)."""
     high, low = [0.2, 0.0, 0.0, np.radians(15.0)], [0.0, 0.1, -0.1, 0.0]
-    s = ReferenceSchedule([0.0, 10.0], [high, low], period=20.0)
+    s = ReferenceProfile([0.0, 10.0], [high, low], period=20.0)
     for t, expected in ((0.0, high), (9.99, high), (10.0, low), (19.99, low), (20.0, high), (45.0, high),
                         (55.0, low)):
         np.testing.assert_array_equal(s.at(t).velocity, expected)
-    held = ReferenceSchedule([0.0, 10.0], [high, low])          # no period: the last row for ever
+    held = ReferenceProfile([0.0, 10.0], [high, low])          # no period: the last row for ever
     np.testing.assert_array_equal(held.at(1e6).velocity, low)
 
 
@@ -70,4 +70,4 @@ def test_reference_schedule_repeats_the_thesis_square_wave():
 ])
 def test_reference_schedule_refuses_inconsistent_schedules(times, references, period, reason):
     with pytest.raises(ScheduleError, match=reason):
-        ReferenceSchedule(times, references, period)
+        ReferenceProfile(times, references, period)

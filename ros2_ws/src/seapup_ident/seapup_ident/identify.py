@@ -218,8 +218,6 @@ def residual_whiteness(model: ArmaxModel, data: IdentificationData, max_lag: int
     """
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"the whiteness test's risk must be in (0, 1), got {alpha}")
-    if int(max_lag) < 1:
-        raise ValueError(f"the whiteness test needs max_lag >= 1, got {max_lag}")
     residuals = data.y - predict(model, data)
     residuals = residuals[np.all(np.isfinite(residuals), axis=1)]
     n = len(residuals)

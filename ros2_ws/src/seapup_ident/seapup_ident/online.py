@@ -19,6 +19,7 @@ dropped.
 """
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,24 +36,24 @@ OUTPUTS = {"u": ("velocity", 0), "v": ("velocity", 1), "w": ("velocity", 2), "r"
 
 def input_stamp(stamp_ns: int, applied_stamps, sample_period: float) -> int | None:
     """The stamp of the applied reading that measures u(t_k) for the sample at ``stamp_ns``: the first
-    after it, no later than 1.5 T (None: the pitch over this interval was not read)."""
-    later = [s for s in applied_stamps if s > stamp_ns]
-    if not later:
+    after it, no later than 1.5 T (None: the pitch over this interval was not read). ``applied_stamps``
+    sorted ascending."""
+    i = bisect.bisect_right(applied_stamps, stamp_ns)
+    if i == len(applied_stamps) or (applied_stamps[i] - stamp_ns) * 1e-9 > 1.5 * sample_period:
         return None
-    first = min(later)
-    return first if (first - stamp_ns) * 1e-9 <= 1.5 * sample_period else None
+    return int(applied_stamps[i])
 
 
 def held_inputs(stamps_ns, applied: dict, sample_period: float) -> np.ndarray:
     """u(t_k) for each sample stamp: the applied pitch (4,) read at :func:`input_stamp`, NaN where none.
 
     ``applied`` maps stamp [ns] -> the four applied blade pitches [rad]."""
-    ordered = np.array(sorted(applied), dtype=np.int64)
+    ordered = sorted(applied)
     u = np.full((len(stamps_ns), 4), np.nan)
     for k, stamp in enumerate(stamps_ns):
-        i = int(np.searchsorted(ordered, stamp, side="right"))
-        if i < len(ordered) and (ordered[i] - stamp) * 1e-9 <= 1.5 * sample_period:
-            u[k] = applied[int(ordered[i])]
+        found = input_stamp(int(stamp), ordered, sample_period)
+        if found is not None:
+            u[k] = applied[found]
     return u
 
 
@@ -127,7 +128,7 @@ class OnlineIdentifier:
 
     def _complete(self) -> tuple[int, int] | None:
         """The earliest pending sample with its outputs and its input in: (stamp, input stamp)."""
-        applied = [s for s, r in self._pending.items() if "applied" in r]
+        applied = sorted(s for s, r in self._pending.items() if "applied" in r)
         for stamp in sorted(self._pending):
             if self._last_used is not None and stamp <= self._last_used:
                 continue
