@@ -1,9 +1,13 @@
 """Dependencies point one way, and pure cores never touch ROS.
 
-    seapup_msgs <- seapup_common <- seapup_sim, seapup_control, seapup_ident <- seapup_bringup
+    seapup_msgs <- seapup_common <- seapup_sim, seapup_ident <- seapup_control <- seapup_runs <- seapup_bringup
 
 seapup_control and seapup_ident must install and run on a real vehicle without
-the simulator, so they never import seapup_sim (outside their tests). Pure-core
+the simulator, so they never import seapup_sim (outside their tests); a
+controller may use the recursive estimators of seapup_ident (the self-tuners of
+ch. 7). seapup_runs (run specs, results, the in-process runner) sees the
+simulator and the controllers but no ROS: rclpy drivers and the simulator's
+node are bringup's and the tests' alone. Pure-core
 modules import numpy/scipy/yaml/rosbags but never rclpy or ROS message
 packages, directly or through another seapup module; rclpy shells are the
 ``*_node.py`` modules, each package's ``ros`` subpackage (``seapup_common.ros``,
@@ -16,8 +20,9 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
-LAYER = {"seapup_msgs": 0, "seapup_common": 1, "seapup_sim": 2, "seapup_control": 2, "seapup_ident": 2,
-         "seapup_bringup": 3}
+LAYER = {"seapup_msgs": 0, "seapup_common": 1, "seapup_sim": 2, "seapup_ident": 2, "seapup_control": 3,
+         "seapup_runs": 4, "seapup_bringup": 5}
+# seapup_sim and seapup_ident share a layer: neither imports the other
 ROS = re.compile(r"^(rclpy|rosidl\w*|ament_index_python|\w+_msgs|\w+_interfaces|rcl_\w+|rosgraph_msgs)(\.|$)")
 
 
@@ -67,6 +72,24 @@ def test_imports_point_down_the_layers(module):
             assert LAYER[other] < LAYER[mine], f"{module} imports {name}: {other} is not below {mine}"
 
 
+def _simulator_names(names) -> list[str]:
+    return sorted(n for n in names if n.split(".")[0] == "seapup_sim")
+
+
+def test_control_never_reaches_the_simulator():
+    """Control runs on a real vehicle: not even through another module does it import seapup_sim."""
+    for module in (m for m in MODULES if m.startswith("seapup_control")):
+        sim = _simulator_names(_project_closure(module))
+        assert not sim, f"{module} reaches {sim}"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m.startswith("seapup_runs")))
+def test_the_run_layer_is_pure_and_never_starts_a_node(module):
+    names = _project_closure(module)
+    assert not [n for n in names if ROS.match(n)], f"{module} reaches ROS"
+    assert not [n for n in names if n.endswith("_node") or ".ros." in n or n.endswith(".ros")], module
+
+
 def _project_closure(module: str, seen=None) -> set[str]:
     """Every import of ``module``, following the project's own modules."""
     seen = set() if seen is None else seen
@@ -99,4 +122,4 @@ def test_the_checker_catches_a_violation(tmp_path):
     bad.write_text("from seapup_sim.simulation import Simulation\nimport rclpy.node\n")
     names = imports_of(bad)
     assert "seapup_sim.simulation" in names and any(ROS.match(n) for n in names)
-    assert LAYER["seapup_sim"] >= LAYER["seapup_control"]
+    assert _simulator_names(names) == ["seapup_sim.simulation", "seapup_sim.simulation.Simulation"]

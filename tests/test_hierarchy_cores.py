@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from seapup_bringup.hierarchy_sil import fly_hierarchy
-from seapup_bringup.self_test_sil import fly_self_test
+from seapup_common.controllers import ControllerSpec
+from seapup_control.self_test import result_document
+from seapup_runs.self_test import fly_self_test
 from seapup_control.tasks import FollowSeabed, Goto
 from seapup_sim.seabed import Seabed
 
@@ -22,7 +24,7 @@ START = np.r_[0.0, 0.0, 32.0, np.zeros(9)]
 def schedule():
     """The controller the self-test leaves behind, scheduled over 0 and 0.7 m/s (sec. 4.6)."""
     run = fly_self_test("baseline", {"operating_points": [0.0, 0.7]})
-    return run.test.schedule()
+    return ControllerSpec("mfol", {"schedule": True}, document=result_document(run.test))
 
 
 SEABEDS = {

@@ -122,7 +122,7 @@ def test_sigterm_stops_every_node_cleanly(tmp_path, ros_env):
 
 
 def test_shipped_controller_graph_flies_the_simulator_in_lockstep(tmp_path, ros_env):
-    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_runs.self_test import fly_self_test
     from seapup_control.self_test import result_document
     controller = tmp_path / "controller.yaml"
     controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))

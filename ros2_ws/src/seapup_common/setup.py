@@ -17,4 +17,10 @@ setup(
     maintainer_email="dev@seapup.invalid",
     description="Seapup shared contract (pure) and the only shared rclpy helpers.",
     license="Apache-2.0",
+    entry_points={
+        # control laws by name (seapup_common.controllers)
+        "seapup.velocity_controllers": [
+            "hold = seapup_common.controllers:HOLD_TYPE",
+        ],
+    },
 )

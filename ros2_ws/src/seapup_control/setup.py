@@ -25,11 +25,16 @@ setup(
             "open_loop = seapup_control.open_loop_node:main",
             "reference_schedule = seapup_control.reference_schedule_node:main",
             "self_test = seapup_control.self_test_node:main",
-            "mfol_velocity_controller = seapup_control.mfol_controller_node:main",
+            "velocity_controller = seapup_control.velocity_controller_node:main",
+            "mfol_velocity_controller = seapup_control.velocity_controller_node:main_mfol",
             "navigator = seapup_control.navigator_node:main",
             "position_controller = seapup_control.position_controller_node:main",
             "task_controller = seapup_control.task_controller_node:main",
             "controller_manager = seapup_control.controller_manager_node:main",
+        ],
+        # control laws by name (seapup_common.controllers)
+        "seapup.velocity_controllers": [
+            "mfol = seapup_control.mfol_controller:MFOL_TYPE",
         ],
     },
 )

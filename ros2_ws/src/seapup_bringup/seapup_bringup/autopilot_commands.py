@@ -19,9 +19,8 @@ import numpy as np
 
 from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
-from seapup_bringup.self_test_sil import fly_self_test
+from seapup_runs.self_test import fly_self_test
 from seapup_control.closed_loop import closed_loop
-from seapup_control.mfol_controller import GainSchedule
 from seapup_control.self_test import SelfTestConfig
 from seapup_sim.analysis import TrimError, linearise, output_matrix, trim
 from seapup_sim.vehicle import VehicleModel
@@ -275,8 +274,11 @@ def _mode_of(vector: np.ndarray, s: complex) -> str:
     return max(weight, key=weight.get)
 
 
-def analyse(model: VehicleModel, schedule: GainSchedule, speeds, scheduled: bool) -> list[dict]:
-    """Closed-loop poles about the trim at each surge speed (eq. 5.8-5.15), labelled by mode."""
+def analyse(model: VehicleModel, schedule, speeds, scheduled: bool) -> list[dict]:
+    """Closed-loop poles about the trim at each surge speed (eq. 5.8-5.15), labelled by mode.
+
+    ``schedule``: the two-term law's gains over surge speed (``gains_at(speed)``, ``sample_period``:
+    the ``mfol`` controller's schedule, as the self-test leaves it)."""
     c = output_matrix()
     rows = []
     for speed in speeds:

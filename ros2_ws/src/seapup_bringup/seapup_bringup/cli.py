@@ -203,6 +203,20 @@ def _scenario(argv: list[str]) -> int:
     return scenario_command(argv)
 
 
+@command("fly", "fly a run specification (YAML/JSON: vehicle, controller by name, reference, events) in process "
+         "or through the ROS graph; the run-result JSON", "SPEC [--graph] [--out DIR] [--plots DIR] [--json [F]]")
+def _fly(argv: list[str]) -> int:
+    from seapup_bringup.run_commands import fly
+    return fly(argv)
+
+
+@command("controllers", "the registered velocity controllers (control laws by name) and their parameters",
+         "[--json [F]]")
+def _controllers(argv: list[str]) -> int:
+    from seapup_bringup.run_commands import controllers
+    return controllers(argv)
+
+
 @command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
          "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--flush-interval S]")
 def _record(argv: list[str]) -> int:

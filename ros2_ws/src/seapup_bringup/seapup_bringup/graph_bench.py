@@ -205,7 +205,7 @@ def _controller_file(directory: Path, control_period: float) -> Path:
     """A controller file from a self-test flown in process (noise-free, zero speed)."""
     import yaml
 
-    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_runs.self_test import fly_self_test
     from seapup_control.self_test import result_document
     run = fly_self_test("baseline", {"sample_period": control_period})
     path = directory / f"bench_controller_{int(round(1 / control_period))}hz.yaml"
@@ -215,13 +215,12 @@ def _controller_file(directory: Path, control_period: float) -> Path:
 
 def mfol_step_us(n: int = 20000) -> dict:
     """Cost of one sample of the MFOL law (scheduled over 0 and 0.7 m/s), measurement to command [us]."""
-    from seapup_bringup.self_test_sil import fly_self_test
+    from seapup_runs.self_test import fly_self_test
     from seapup_common.contract import Command, Measurement, Reference
-    from seapup_control.mfol_controller import GainSchedule, MFOLController
+    from seapup_common.controllers import ControllerSpec, create_controller
     from seapup_control.self_test import result_document
     run = fly_self_test("baseline", {"operating_points": [0.0, 0.7]})
-    schedule = GainSchedule.from_document(result_document(run.test))
-    controller = MFOLController(schedule)
+    controller = create_controller(ControllerSpec("mfol", {"schedule": True}, document=result_document(run.test)))
     controller.reset(Command(np.zeros(4)))
     measurement = Measurement.build(0.0, velocity=(0.35, 0.01, 0.0), rates=(0.0, 0.0, 0.01))
     reference = Reference([0.4, 0.0, 0.0, 0.0])

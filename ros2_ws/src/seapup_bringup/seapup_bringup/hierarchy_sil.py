@@ -2,24 +2,26 @@
 
 The same pure cores the nodes wrap -- :class:`~seapup_control.navigation.Navigator`,
 a task of :mod:`seapup_control.tasks`, the
-:class:`~seapup_control.position_control.PositionController` and the
-:class:`~seapup_control.mfol_controller.MFOLController` -- with the same
-parameters (the nodes' YAML files) and the same timing as the lockstep graph
-of ``seapup_bringup/launch/hierarchy.yaml``: the task's setpoint from the
-estimate at t_k is used by the position controller from t_{k+1} on (stamped
-t_k + T), and the velocity reference it makes at t_k by the velocity
-controller at t_{k + reference_delay}. So a task can be studied (and unit
+:class:`~seapup_control.position_control.PositionController` and a velocity
+controller made by name (:func:`seapup_common.controllers.create_controller`)
+-- with the same parameters (the nodes' YAML files) and the same timing as
+the lockstep graph of ``seapup_bringup/launch/hierarchy.yaml``: the task's
+setpoint from the estimate at t_k is used by the position controller from
+t_{k+1} on (stamped t_k + T), and the velocity reference it makes at t_k is
+stamped t_k + reference_delay x T into the velocity controller's
+:class:`~seapup_common.contract.ReferenceSchedule`, the queue the
+``velocity_controller`` node keeps. So a task can be studied (and unit
 tested) in seconds, and the ROS graph checked against it.
 """
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from seapup_common.contract import Command, Reference
+from seapup_common.contract import Command, Reference, ReferenceSchedule
+from seapup_common.controllers import ControllerSpec, create_controller
 from seapup_common.parameters import load_node_parameters
 
 __all__ = ["HierarchyRun", "node_parameters", "fly_hierarchy"]
@@ -46,17 +48,17 @@ class HierarchyRun:
     task: object
 
 
-def fly_hierarchy(make_task, schedule, *, vehicle="baseline", environment=None, seed: int = 0,
+def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", environment=None, seed: int = 0,
                   state=None, duration: float = 600.0, warmup: float = 5.0) -> HierarchyRun:
-    """Fly one task through navigator -> task -> position controller -> MFOL controller -> simulator.
+    """Fly one task through navigator -> task -> position controller -> velocity controller -> simulator.
 
     Parameters
     ----------
     make_task : callable
         ``make_task(limits, estimate, altitude)`` -> a :class:`~seapup_control.tasks.Task`, called
         after ``warmup`` s of hovering (the navigation has converged by then).
-    schedule : GainSchedule
-        The velocity controller's gains (a self-test result).
+    controller : ControllerSpec
+        The velocity controller, by registered type (e.g. ``mfol`` with a self-test's document).
     environment : mapping, optional
         Environment overrides of the simulator (sensors, current, seabed).
     state : array_like (12,), optional
@@ -64,7 +66,6 @@ def fly_hierarchy(make_task, schedule, *, vehicle="baseline", environment=None, 
     duration : float
         Simulated seconds after the task started at most; the run ends when the task is done.
     """
-    from seapup_control.mfol_controller import MFOLController
     from seapup_control.navigation import Navigator, NavigatorParams
     from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
     from seapup_control.tasks import Hover, TaskLimits
@@ -82,11 +83,13 @@ def fly_hierarchy(make_task, schedule, *, vehicle="baseline", environment=None, 
         {k: position_p[k] for k in ("gains", "yaw_gain", "speed_limits", "max_yaw_rate", "acceleration_limits",
                                     "feedforward")}), period)
     start = np.r_[0.0, 0.0, 30.0, np.zeros(9)] if state is None else np.asarray(state, float)
-    controller = MFOLController(schedule)
+    law = create_controller(controller, period)
+    fallback = getattr(law, "fallback_command", None)
+    pitch = np.asarray(fallback(), float) if fallback is not None else np.zeros(4)
     sim = Simulation.from_config(vehicle, environment or {}, seed=seed, control_period=period, state=start,
-                                 pitch=schedule.offset_at(0.0))
-    controller.reset(Command(schedule.offset_at(0.0)))
-    references = deque([Reference()] * delay)   # velocity references in flight (stamped t + delay T)
+                                 pitch=pitch)
+    law.reset(Command(pitch))
+    references = ReferenceSchedule()            # velocity references stamped t + delay T, as the node keeps them
     pending: PoseReference | None = None        # the setpoint stamped t_k + T, used from t_{k+1}
     task, started, hover = None, None, None
     rows = {name: [] for name in ("t", "state", "estimate", "setpoint", "reference", "command", "altitude")}
@@ -107,12 +110,13 @@ def fly_hierarchy(make_task, schedule, *, vehicle="baseline", environment=None, 
             pending = PoseReference(step.setpoint.position, step.setpoint.yaw, t + period)
             if task is not None:
                 steps.append(step)
-            references.append(position.update(estimate.position, estimate.attitude)
-                              if position.reference is not None else Reference())
+            references.add(position.update(estimate.position, estimate.attitude)
+                           if position.reference is not None else Reference(), at=t + delay * period)
         else:
-            references.append(Reference())
-        reference = references.popleft()
-        command = controller.update(t, measurement, reference)
+            references.add(Reference(), at=t + delay * period)
+        reference = references.at(t)
+        law.applied(t, Command(sim.plant.pitch.copy(), t))
+        command = law.update(t, measurement, reference)
         for name, value in (("t", t), ("state", sample.state), ("estimate", estimate.position if estimate else
                                                                   np.full(3, np.nan)),
                             ("setpoint", [*position.reference.position, position.reference.yaw]

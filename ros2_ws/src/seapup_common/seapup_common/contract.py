@@ -277,8 +277,22 @@ class VelocityController(Protocol):
     def reset(self, applied: Command) -> None:
         """Initialise the law's state from the command the vehicle applies now (bumpless start)."""
 
+    def applied(self, t: float, command: Command) -> None:
+        """Be told the blade pitch the vehicle reports applied at ``t`` [s], before :meth:`update` at ``t``.
+
+        This is the input that really acted over the interval that ended at ``t``: the controller's
+        own command after the vehicle's clipping and actuator lag, a watchdog's setting, or another
+        controller's command before a switch -- what a self-tuner must estimate from (the
+        identification's input convention, :func:`seapup_ident.online.held_inputs`). Transports
+        call it whenever they know the applied pitch; a law that does not need it ignores it.
+        """
+
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
         """Advance one sample at time ``t`` [s] and return the command to hold until t + T."""
+
+    def diagnostics(self) -> dict:
+        """The law's state after its last sample as plain values (lists, numbers, strings): what a
+        node publishes on ``/diagnostics`` and a run logs. Empty before the first sample."""
 
 
 class HoldCommand:
@@ -289,8 +303,9 @@ class HoldCommand:
 
     Parameters
     ----------
-    blade_pitch : array_like, shape (4,)
-        The setting [rad].
+    blade_pitch : array_like, shape (4,), or None
+        The setting [rad]; None: the command applied when it is started (:meth:`reset`), so a
+        vehicle drifts at whatever setting it had.
     sample_period : float
         T [s], > 0.
     """
@@ -299,13 +314,24 @@ class HoldCommand:
         if not (math.isfinite(sample_period) and sample_period > 0):
             raise ContractError(f"sample period must be finite and > 0 s, got {sample_period!r}")
         self.sample_period = float(sample_period)
-        self.blade_pitch = Command(blade_pitch).blade_pitch
+        self.from_applied = blade_pitch is None
+        self.blade_pitch = None if blade_pitch is None else Command(blade_pitch).blade_pitch
 
     def reset(self, applied: Command) -> None:
-        """Nothing to initialise: the setting does not depend on the past."""
+        """Take the applied setting when none was given; otherwise nothing depends on the past."""
+        if self.from_applied:
+            self.blade_pitch = Command(applied.blade_pitch).blade_pitch
+
+    def applied(self, t: float, command: Command) -> None:
+        """Nothing to learn: the setting does not depend on what the vehicle did."""
 
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
+        if self.blade_pitch is None:
+            raise ContractError("a hold of the applied setting must be reset with it before its first sample")
         return Command(self.blade_pitch, stamp=t)
+
+    def diagnostics(self) -> dict:
+        return {} if self.blade_pitch is None else {"blade_pitch": self.blade_pitch.tolist()}
 
 
 @dataclass(frozen=True)

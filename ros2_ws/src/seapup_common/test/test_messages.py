@@ -88,36 +88,3 @@ def test_altitude_outside_the_range_is_invalid_and_odometry_frames():
     assert (enu.header.frame_id, enu.child_frame_id) == (frames.FRAME_ENU, frames.FRAME_FLU)
     assert (enu.pose.pose.position.x, enu.pose.pose.position.y, enu.pose.pose.position.z) == (2.0, 1.0, -3.0)
     assert enu.twist.twist.linear.x == 0.5
-
-
-def test_lockstep_sampler_answers_each_sample_once_and_only_with_its_measurement():
-    from geometry_msgs.msg import TwistWithCovarianceStamped
-    from rosgraph_msgs.msg import Clock
-
-    from seapup_common.ros.messages import LockstepSampler, MeasurementCollector, ns_to_stamp
-
-    def velocity(t_ns, u=0.1):
-        msg = TwistWithCovarianceStamped()
-        msg.header.stamp = ns_to_stamp(t_ns)
-        msg.header.frame_id = "base_link_frd"
-        msg.twist.twist.linear.x = u
-        return msg
-
-    sampler = LockstepSampler(MeasurementCollector())
-    assert sampler.on_clock(Clock(clock=ns_to_stamp(0))) is None        # t_0 announced, its sample not here
-    assert sampler.on_velocity(velocity(0)) == 0                        # the sample: answer t_0
-    assert sampler.on_clock(Clock(clock=ns_to_stamp(0))) == 0           # handshake repeat, still unanswered
-    sampler.answered(0)
-    assert sampler.on_clock(Clock(clock=ns_to_stamp(0))) is None        # answered once only
-    assert sampler.on_velocity(velocity(200_000_000, u=float("nan"))) is None  # refused, not a sample
-    assert sampler.collector.rejected == 1 and sampler.latest_ns == 0
-    assert sampler.on_velocity(velocity(200_000_000)) == 200_000_000
-    # another node answered t = 0.2 s (a controller activated just then): the simulator announces 0.4 s
-    # before this node hears its sample; 0.2 s is past, answering it would only be refused as stale
-    assert sampler.on_clock(Clock(clock=ns_to_stamp(400_000_000))) is None
-    assert sampler.pending(200_000_000) is None and sampler.pending(400_000_000) == 400_000_000
-    assert sampler.on_velocity(velocity(400_000_000)) == 400_000_000
-    sampler.on_clock(Clock(clock=ns_to_stamp(0)))                      # a reset: time goes back
-    assert sampler.pending(200_000_000) == 200_000_000                 # and 0.2 s is ahead again
-    timed = LockstepSampler(MeasurementCollector(), lockstep=False)
-    assert timed.on_velocity(velocity(0)) is None and timed.pending(5) == 5  # a timer decides when

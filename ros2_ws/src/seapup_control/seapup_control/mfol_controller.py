@@ -18,6 +18,18 @@ measured body velocities (u, v, w, r), with
 - **bumpless start**: :meth:`reset` sets ``q`` so that the first command
   equals the applied one when the error is zero (the same back-calculation).
 
+The anti-windup uses the controller's own saturated command, as the thesis's
+controller knows it; the blade pitch the vehicle reports applied
+(:meth:`MFOLController.applied`: lagged by the actuators, or another setting
+while a watchdog or another controller held the thrusters) is kept and shown
+in :meth:`~MFOLController.diagnostics`, not integrated.
+
+Registered as the controller type ``mfol`` (:data:`MFOL_TYPE`, entry point
+``seapup.velocity_controllers``): parameters ``schedule`` (gain-schedule over
+every operating point of the controller file, else only the zero-speed
+point) and ``blade_pitch_limit`` [rad]; the design document is the
+self-test's controller file (:func:`seapup_control.self_test.result_document`).
+
 Bad measurements and references (non-finite, wrong length) never reach the
 state: :meth:`update` raises :class:`~seapup_common.contract.ContractError`
 and changes nothing.
@@ -25,15 +37,17 @@ and changes nothing.
 from __future__ import annotations
 
 import math
+import types
 from dataclasses import dataclass
 
 import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
+from seapup_common.controllers import ControllerType
 from seapup_control.mfol import DesignError, TwoTermGains
 
-__all__ = ["GainSchedule", "MFOLController", "ControllerState"]
+__all__ = ["GainSchedule", "MFOLController", "ControllerState", "MFOL_TYPE", "create_mfol"]
 
 SURGE = 0  # index of u among the outputs (u, v, w, r)
 
@@ -161,6 +175,7 @@ class MFOLController:
         self._start_from: np.ndarray | None = None  # set by reset(): the command to start from
         self.state: ControllerState | None = None
         self.saturated_samples = np.zeros(m, dtype=int)
+        self.last_applied: tuple[float, np.ndarray] | None = None  # (t, pitch) the vehicle reported
 
     def reset(self, applied: Command) -> None:
         """Bumpless start: the integrator state that makes the first command the applied one at zero error.
@@ -176,6 +191,29 @@ class MFOLController:
         self._start_from = pitch
         self.state = None
         self.saturated_samples[:] = 0
+        self.last_applied = None
+
+    def fallback_command(self) -> np.ndarray:
+        """What to start from when no applied blade pitch is known: the zero-speed offset u0 [rad]."""
+        return self.schedule.offset_at(0.0)
+
+    def applied(self, t: float, command: Command) -> None:
+        """Keep the blade pitch the vehicle reports applied at ``t`` (diagnostics only; see the module
+        docstring: the anti-windup uses the controller's own saturated command)."""
+        self.last_applied = (float(t), np.array(command.blade_pitch, dtype=float))
+
+    def diagnostics(self) -> dict:
+        """The last sample's error, integrator state, command before saturation, saturated thrusters,
+        saturation counts, and the applied pitch last reported (empty before the first sample)."""
+        if self.state is None:
+            return {}
+        out = {"error": self.state.error.tolist(), "integrator": self.state.integrator.tolist(),
+               "command_unsaturated": self.state.command_unsaturated.tolist(),
+               "saturated": [bool(s) for s in self.state.saturated],
+               "saturated_samples": self.saturated_samples.tolist()}
+        if self.last_applied is not None:
+            out["applied"] = self.last_applied[1].tolist()
+        return out
 
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
         """One sample of eq. 5.6 with back-calculated integrators (see the module docstring).
@@ -204,3 +242,38 @@ class MFOLController:
         self.saturated_samples += saturated
         self.state = ControllerState(float(t), error, self.q.copy(), raw, saturated)
         return Command(command, stamp=t)
+
+
+def create_mfol(parameters: dict, document, sample_period: float | None) -> MFOLController:
+    """The ``mfol`` controller type's factory (:class:`~seapup_common.controllers.ControllerType`).
+
+    Parameters
+    ----------
+    parameters : dict
+        ``schedule`` (bool): every operating point of the document as a gain schedule on surge
+        speed (sec. 4.6), else only the first (zero-speed) point: fixed gains;
+        ``blade_pitch_limit`` [rad], > 0.
+    document : mapping
+        A self-test controller file (``kind: seapup/mfol_controller``).
+    sample_period : float or None
+        Must equal the document's sample period when given.
+
+    Raises
+    ------
+    DesignError
+        On a malformed document or limit.
+    """
+    schedule = GainSchedule.from_document(document)
+    if not parameters["schedule"]:
+        schedule = GainSchedule([(schedule.speeds[0], schedule.gains[0])])
+    if sample_period is not None and abs(schedule.sample_period - sample_period) > 1e-9:
+        raise DesignError(f"the controller file's gains are for T = {schedule.sample_period:g} s, "
+                          f"not {sample_period:g} s")
+    return MFOLController(schedule, limit=float(parameters["blade_pitch_limit"]))
+
+
+#: Owens and Chotai's two-term controller, fixed-gain or gain-scheduled (registered as ``mfol``).
+MFOL_TYPE = ControllerType(
+    "mfol", create_mfol, types.MappingProxyType({"schedule": True, "blade_pitch_limit": BLADE_PITCH_LIMIT}),
+    "Owens-Chotai two-term PI (eq. 4.11, 5.6) from a self-test's controller file; schedule: gain-scheduled on "
+    "surge speed (sec. 4.6)", needs_document=True)

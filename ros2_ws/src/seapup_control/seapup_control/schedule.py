@@ -160,6 +160,12 @@ class OpenLoop:
         if np.isfinite(applied.stamp):
             self.start_time = float(applied.stamp)
 
+    def applied(self, t: float, command: Command) -> None:
+        """Nothing to learn: an open loop does not depend on what the vehicle did."""
+
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
         """The schedule's pitches at ``t`` (measurement and reference are not used)."""
         return Command(self.schedule.at(max(t - self.start_time, 0.0)), stamp=t)
+
+    def diagnostics(self) -> dict:
+        return {"start_time": self.start_time}

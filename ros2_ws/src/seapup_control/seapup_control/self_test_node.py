@@ -39,8 +39,8 @@ from seapup_msgs.msg import BladePitch, SelfTestSample
 
 from seapup_common.config import ConfigError
 from seapup_common.contract import ContractError
-from seapup_common.ros.messages import (LockstepSampler, MeasurementCollector, command_to_msg, ns_to_stamp,
-                                        stamp_to_ns)
+from seapup_common.lockstep import SamplePolicy
+from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_control.mfol import DesignError
@@ -76,7 +76,7 @@ class SelfTestNode(Node):
         self.no_data_timeout = float(p["no_data_timeout"])
         self._last_sample_wall = 0.0
         self.collector = MeasurementCollector()
-        self.sampler = LockstepSampler(self.collector, self.lockstep)
+        self.policy = SamplePolicy(self.lockstep)  # which sample is pending (the self-test never waits)
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
         # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
@@ -164,17 +164,17 @@ class SelfTestNode(Node):
 
     # -- sampling --------------------------------------------------------------------
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        refused = self.collector.rejected
-        t_ns = self.sampler.on_velocity(msg)
-        if self.collector.rejected > refused:  # non-finite or malformed: counted, never used
+        if not self.collector.add(msg):  # non-finite or malformed: counted, never used
             self.rejected += 1
             self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
                                    throttle_duration_sec=5.0)
-        elif t_ns is not None:
+            return
+        t_ns = self.policy.on_sample(stamp_to_ns(msg.header.stamp))
+        if t_ns is not None:
             self._answer(t_ns)
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = self.sampler.on_clock(msg)
+        t_ns = self.policy.on_clock(stamp_to_ns(msg.clock))
         if t_ns is not None:
             self._answer(t_ns)
 
@@ -183,7 +183,7 @@ class SelfTestNode(Node):
 
     def _answer(self, t_ns: int) -> None:
         test = self.test
-        if test is None or self.sampler.pending(t_ns) is None or (test.finished and not self.hover_after):
+        if test is None or self.policy.pending(t_ns) is None or (test.finished and not self.hover_after):
             return
         if not self.gate.ready():
             self.get_logger().info(f"waiting for subscribers: {', '.join(self.gate.missing())}",
@@ -198,7 +198,7 @@ class SelfTestNode(Node):
             self.rejected += 1
             self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=5.0)
             return
-        self.sampler.answered(t_ns)
+        self.policy.answered(t_ns)
         self._last_sample_wall = time.monotonic()
         self.publisher.publish(command_to_msg(command, t_ns))
         if self._goal is not None:

@@ -45,7 +45,11 @@ from seapup_sim.linearised import vehicle_model
 from seapup_sim.vehicle import VehicleModel, specific_force
 from seapup_sim.vehicle_config import load_vehicle_config
 
-__all__ = ["Event", "Sample", "SimulationLog", "Simulation"]
+__all__ = ["Event", "Sample", "SimulationLog", "Simulation", "events_from_data", "EVENT_DATA_KEYS"]
+
+#: Keys of an event as plain data (a run spec's events, the simulator node's ``events`` parameter).
+EVENT_DATA_KEYS = ("time", "kind", "detail")
+_CURRENT_KEYS = ("mean_speed", "speed_std", "mean_direction", "direction_std", "break_time")
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,55 @@ class Event:
             raise ValueError(f"unknown event kind {self.kind!r}")
         if not (math.isfinite(self.time) and self.time >= 0):
             raise ValueError(f"event time must be finite and >= 0, got {self.time!r}")
+
+
+def events_from_data(items, default_break_time: float | None = None) -> list[Event]:
+    """Events from plain data: ``[{"time": s, "kind": k, "detail": d}, ...]``.
+
+    ``configuration``: a configuration name; ``thruster_efficiency``: four factors; ``current``: a
+    mapping of ``mean_speed``, ``speed_std``, ``mean_direction``, ``direction_std`` and optionally
+    ``break_time`` (default ``default_break_time``: the environment file's T_c), or None (no current).
+    One parser for the run layer and the simulator node's ``events`` parameter.
+
+    Raises
+    ------
+    ValueError
+        On unknown keys, kinds or current parameters, a missing field, or a bad value.
+    """
+    if items is None:
+        return []
+    if not isinstance(items, (list, tuple)):
+        raise ValueError(f"events must be a list of {{time, kind, detail}}, got {items!r}")
+    events = []
+    for i, item in enumerate(items):
+        if not isinstance(item, dict) or set(item) - set(EVENT_DATA_KEYS) or not {"time", "kind"} <= set(item):
+            raise ValueError(f"event {i} must be a mapping of {', '.join(EVENT_DATA_KEYS)} (time and kind "
+                             f"required), got {item!r}")
+        detail = item.get("detail")
+        if item["kind"] == "current" and detail is not None:
+            unknown = sorted(set(detail) - set(_CURRENT_KEYS)) if isinstance(detail, dict) else ["(not a mapping)"]
+            if unknown:
+                raise ValueError(f"event {i}: unknown current parameter(s) {unknown}; known: {', '.join(_CURRENT_KEYS)}")
+            values = dict(detail)
+            if not values.get("break_time"):
+                if default_break_time is None:
+                    default_break_time = load_environment().current.params.break_time
+                values["break_time"] = default_break_time
+            try:
+                detail = CurrentParams(*(float(values[k]) for k in _CURRENT_KEYS))
+            except KeyError as exc:
+                raise ValueError(f"event {i}: a current needs {exc.args[0]}") from None
+        elif item["kind"] == "thruster_efficiency":
+            detail = [float(v) for v in detail] if isinstance(detail, (list, tuple)) else detail
+            if not isinstance(detail, list) or len(detail) != 4:
+                raise ValueError(f"event {i}: thruster_efficiency needs four factors, got {item.get('detail')!r}")
+        elif item["kind"] == "configuration" and not isinstance(detail, str):
+            raise ValueError(f"event {i}: a configuration event names a configuration, got {detail!r}")
+        try:
+            events.append(Event(float(item["time"]), str(item["kind"]), detail))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"event {i}: {exc}") from None
+    return events
 
 
 @dataclass(frozen=True)

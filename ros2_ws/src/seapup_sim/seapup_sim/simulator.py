@@ -29,7 +29,7 @@ from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import load_environment, load_limits
 from seapup_sim.linearised import DYNAMICS
 from seapup_sim.sensors import load_sensor_profile
-from seapup_sim.simulation import Event, Simulation
+from seapup_sim.simulation import Event, Simulation, events_from_data
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
@@ -55,6 +55,7 @@ class SimulatorConfig:
     stamp_tolerance: float = 1e-6          # [s] for matching a command to t_k
     environment: dict = field(default_factory=dict)
     dynamics: str = "nonlinear"            # nonlinear (ch. 2) | linearised (eq. 3.2 about hover)
+    events: list = field(default_factory=list)  # scheduled changes as data (events_from_data), replayed on reset
 
     def validate(self) -> None:
         steps = self.control_period / self.physics_step
@@ -72,6 +73,13 @@ class SimulatorConfig:
             raise ValueError("watchdog_timeout must be > 0 s")
         if self.dynamics not in DYNAMICS:
             raise ValueError(f"dynamics must be one of {', '.join(DYNAMICS)}, got {self.dynamics!r}")
+        limits = None
+        for event in events_from_data(self.events):  # raises ValueError on a malformed one
+            if event.kind == "configuration":
+                load_vehicle_config(event.value)   # an unknown configuration is refused now, not at its time
+            elif event.kind == "current" and event.value is not None:
+                limits = limits or load_limits()
+                limits.check_current(event.value)
 
 
 class Simulator:
@@ -101,7 +109,8 @@ class Simulator:
             state = self.limits.check_state(state)
         simulation = Simulation.from_config(c.vehicle, c.environment, seed=int(seed), dt=c.physics_step,
                                             control_period=c.control_period, state=state,
-                                            pitch=self._hover_of(c.vehicle), dynamics=c.dynamics)
+                                            pitch=self._hover_of(c.vehicle), dynamics=c.dynamics,
+                                            events=events_from_data(c.events))
         c.seed = int(seed)
         self.simulation = simulation
         self.gate = CommandGate(limit=c.blade_pitch_limit)

@@ -30,6 +30,7 @@ import math
 import time
 
 import numpy as np
+import yaml
 import rclpy.parameter
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseWithCovarianceStamped, TwistWithCovarianceStamped,
@@ -92,6 +93,15 @@ def _environment_overrides(node) -> dict:
     return declare_mapping(node, "environment", defaults, flat)
 
 
+
+def _events_parameter(text: str) -> list:
+    """The ``events`` parameter (YAML text) as plain data; checked by the simulator's configuration."""
+    try:
+        events = yaml.safe_load(text) if text else []
+    except yaml.YAMLError as exc:
+        raise ValueError(f"events is not YAML: {exc}") from None
+    return [] if events is None else events
+
 class SimulatorNode(Node):
     """rclpy shell around :class:`Simulator` (see module docstring)."""
 
@@ -119,9 +129,11 @@ class SimulatorNode(Node):
             "wait_for_subscribers": ParameterDescriptor(
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
-                            "the first sample is published"),
+                            "the first sample is published; a topic listed k times needs k"),
             "discovery_grace": _float_range(0.0, 10.0, "wall seconds the awaited subscribers must stay matched "
                                                        "before the first sample", **ro),
+            "events": ParameterDescriptor(description="scheduled changes, YAML list of {time, kind, detail} "
+                                                      "(configuration, thruster_efficiency, current)", **ro),
         }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="simulator")
         if p["mode"] not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {p['mode']!r}")
@@ -134,7 +146,8 @@ class SimulatorNode(Node):
         load_environment(environment)  # refuse a bad environment before anything starts
         self.config = SimulatorConfig(p["vehicle"], p["seed"], p["physics_step"], p["control_period"],
                                       p["blade_pitch_limit"], p["watchdog_timeout"], p["watchdog_action"],
-                                      environment=environment, dynamics=p["dynamics"])
+                                      environment=environment, dynamics=p["dynamics"],
+                                      events=_events_parameter(p["events"]))
         self.start_state = np.zeros(12)
         self.start_state[2] = p["start_depth"]
         self.simulator = Simulator(self.config, self.start_state)
@@ -190,8 +203,9 @@ class SimulatorNode(Node):
         srv(SetSensorProfile, "~/set_sensor_profile", self._srv_sensor_profile)
 
     def _subscriber_gate(self, topics) -> SubscriberGate:
+        """A topic listed k times needs k matched subscribers (e.g. two controllers and a probe)."""
         by_topic = {pub.topic_name: pub for pub in self.publishers}
-        requirements = []
+        counts: dict[str, int] = {}
         for topic in topics:
             if not topic:
                 continue
@@ -199,7 +213,8 @@ class SimulatorNode(Node):
             if name not in by_topic:
                 raise ValueError(f"wait_for_subscribers: {topic[:80]!r} is not a topic this node publishes "
                                  f"({', '.join(sorted(by_topic))})")
-            requirements.append((by_topic[name], 1))
+            counts[name] = counts.get(name, 0) + 1
+        requirements = [(by_topic[name], count) for name, count in counts.items()]
         return SubscriberGate(requirements, grace=float(self.get_parameter("discovery_grace").value))
 
     def _start_when_ready(self) -> bool:

@@ -32,9 +32,15 @@ class Recorder:
     def reset(self, applied):
         self.resets.append(applied)
 
+    def applied(self, t, command):
+        pass
+
     def update(self, t, measurement, reference):
         self.calls.append((t, measurement, reference))
         return Command(SURGE if t < 1.0 else HOVER, t)
+
+    def diagnostics(self):
+        return {"calls": len(self.calls)}
 
 
 def test_open_loop_through_the_loop_equals_the_plain_integration():

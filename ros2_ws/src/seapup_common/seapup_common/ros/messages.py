@@ -33,7 +33,7 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
            "position_to_msg", "position_from_msg", "depth_to_msg", "depth_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
-           "vector3_stamped", "wrench_stamped", "MeasurementCollector", "LockstepSampler",
+           "vector3_stamped", "wrench_stamped", "MeasurementCollector",
            "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
            "reference_to_msg", "reference_from_msg", "diagnostic_array",
            "UNKNOWN_VARIANCE"]
@@ -376,46 +376,3 @@ class MeasurementCollector:
             if -1e-9 <= age <= self.max_age[name] + 1e-9:
                 fields[name] = reading
         return Measurement(float(t), **fields)
-
-
-class LockstepSampler:
-    """When a controller node answers: once per sample t_k of a lockstep simulator (or of a timer).
-
-    The simulator publishes ``/clock`` t_k and the sensor samples stamped t_k,
-    then waits for a command stamped t_k; until the first answer it repeats
-    ``/clock`` t_k (its graph-ready handshake). A node feeds this object its
-    velocity messages and ``/clock`` samples; :meth:`on_velocity` and
-    :meth:`on_clock` return the sample time to answer (or None), and
-    :meth:`answered` marks it done, so each sample is answered exactly once
-    and a sample's measurement is always in the collector before it is. A
-    sample older than the newest ``/clock`` is past: the simulator has moved on
-    (another node answered it), so it is not pending -- its answer would be
-    refused as stale, and computing it would only disturb the controller.
-    """
-
-    def __init__(self, collector: MeasurementCollector, lockstep: bool = True):
-        self.collector = collector
-        self.lockstep = lockstep
-        self.latest_ns: int | None = None
-        self.answered_ns: int | None = None
-        self.clock_ns: int | None = None   # newest /clock heard (lockstep)
-
-    def on_velocity(self, msg) -> int | None:
-        """Take a velocity message; the sample to answer (lockstep), or None (rejected: see the collector)."""
-        if not self.collector.add(msg):
-            return None
-        self.latest_ns = stamp_to_ns(msg.header.stamp)
-        return self.pending(self.latest_ns) if self.lockstep else None
-
-    def on_clock(self, msg) -> int | None:
-        """A repeated ``/clock`` t_k whose sample has arrived and is not answered yet: answer it now."""
-        t_ns = stamp_to_ns(msg.clock)
-        self.clock_ns = t_ns   # the newest heard (one reliable topic arrives in order; a reset goes back)
-        return self.pending(t_ns) if t_ns == self.latest_ns else None
-
-    def pending(self, t_ns: int) -> int | None:
-        past = self.lockstep and self.clock_ns is not None and t_ns < self.clock_ns
-        return None if t_ns == self.answered_ns or past else t_ns
-
-    def answered(self, t_ns: int) -> None:
-        self.answered_ns = t_ns

@@ -41,6 +41,10 @@ TOPICS = {
     "command": ("/seapup/thrusters/command", "seapup_msgs.msg.BladePitch"),
     "applied": ("/seapup/thrusters/applied", "seapup_msgs.msg.BladePitch"),
     "altitude": ("/seapup/sensors/altitude", "sensor_msgs.msg.Range"),
+    "velocity": ("/seapup/sensors/velocity", "geometry_msgs.msg.TwistWithCovarianceStamped"),
+    "imu": ("/seapup/sensors/imu", "sensor_msgs.msg.Imu"),
+    "depth": ("/seapup/sensors/depth", "seapup_msgs.msg.Depth"),
+    "position": ("/seapup/sensors/position", "geometry_msgs.msg.PoseWithCovarianceStamped"),
     "rejections": ("/seapup/task/rejections", "std_msgs.msg.String"),
     "diagnostics": ("/diagnostics", "diagnostic_msgs.msg.DiagnosticArray"),
 }
@@ -125,7 +129,8 @@ class SilGraph:
         self._lease = DomainLease()
         domain = self._lease.acquire()
         self.env = ros_environment(domain)
-        specs = load_graph(find_graph(*self.graph.split()), self.arguments)
+        graph_file = find_graph(self.graph) if Path(self.graph).is_file() else find_graph(*self.graph.split())
+        specs = load_graph(graph_file, self.arguments)
         self._context = Context()
         rclpy.init(context=self._context, domain_id=domain)
         self._node = rclpy.create_node("sil_probe", context=self._context)
@@ -340,7 +345,9 @@ class SilGraph:
         ``truth_t``, ``truth_position`` (N, 3), ``truth_attitude`` (N, 3), ``truth_velocity`` (N, 6);
         ``estimate_t``, ``estimate_position``; ``reference_t``, ``reference`` (N, 4: u, v, w, r);
         ``command_t``, ``command`` (N, 4 blade pitches); ``applied_t``, ``applied``;
-        ``setpoint_t``, ``setpoint`` (N, 4: x, y, z, yaw); ``altitude_t``, ``altitude`` (NaN out of range).
+        ``setpoint_t``, ``setpoint`` (N, 4: x, y, z, yaw); ``altitude_t``, ``altitude`` (NaN out of range);
+        the instruments: ``velocity_t``, ``velocity`` (N, 6: u, v, w, p, q, r), ``imu_t``, ``attitude``
+        (N, 3), ``depth_t``, ``depth``, ``position_t``, ``position`` (N, 3: acoustic fixes).
         """
         from seapup_common import frames
 
@@ -369,6 +376,15 @@ class SilGraph:
         out["setpoint_t"] = np.array([stamp(m) for m in self.log["setpoint"]])
         out["setpoint"] = np.array([xyz(m.pose.position) + [quat(m.pose.orientation)[2]]
                                     for m in self.log["setpoint"]]).reshape(-1, 4)
+        out["velocity_t"] = np.array([stamp(m) for m in self.log["velocity"]])
+        out["velocity"] = np.array([xyz(m.twist.twist.linear) + xyz(m.twist.twist.angular)
+                                    for m in self.log["velocity"]]).reshape(-1, 6)
+        out["imu_t"] = np.array([stamp(m) for m in self.log["imu"]])
+        out["attitude"] = np.array([quat(m.orientation) for m in self.log["imu"]]).reshape(-1, 3)
+        out["depth_t"] = np.array([stamp(m) for m in self.log["depth"]])
+        out["depth"] = np.array([m.depth for m in self.log["depth"]])
+        out["position_t"] = np.array([stamp(m) for m in self.log["position"]])
+        out["position"] = np.array([xyz(m.pose.pose.position) for m in self.log["position"]]).reshape(-1, 3)
         out["altitude_t"] = np.array([stamp(m) for m in self.log["altitude"]])
         out["altitude"] = np.array([m.range if m.min_range <= m.range <= m.max_range else math.nan
                                     for m in self.log["altitude"]])

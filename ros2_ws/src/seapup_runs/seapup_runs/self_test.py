@@ -18,6 +18,7 @@ from seapup_common.contract import Command
 from seapup_control.self_test import SelfTest, SelfTestConfig
 from seapup_sim.analysis import TrimError, trim
 from seapup_sim.simulation import Simulation
+from seapup_runs.spec import PHYSICS_STEP
 
 __all__ = ["SelfTestRun", "fly_self_test"]
 
@@ -61,7 +62,7 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
 
     def new_simulation(state, pitch):
         return Simulation.from_config(vehicle, environment, seed=seed, control_period=config.sample_period,
-                                      dt=min(0.1, config.sample_period), state=state, pitch=pitch)
+                                      dt=min(PHYSICS_STEP, config.sample_period), state=state, pitch=pitch)
 
     pitch = config.zero_level if start_pitch is None else np.asarray(start_pitch, float)
     sim = new_simulation(start, pitch)

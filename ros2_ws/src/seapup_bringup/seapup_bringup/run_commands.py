@@ -1,0 +1,105 @@
+"""``./seapup fly SPEC`` and ``./seapup controllers``: runs and control laws as data on the command line.
+
+fly          a run specification (YAML or JSON, :class:`seapup_runs.spec.RunSpec`'s keys) flown in
+             this process or, with ``--graph``, through the ROS graph in lockstep; the result printed
+             as a summary, written with ``--json`` in the run-result shape (``docs/run-result.md``)
+             and plotted with ``--plots``. A new experiment is a new file, not a new verb.
+controllers  the registered control laws (entry points ``seapup.velocity_controllers``) with their
+             parameters and defaults.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+
+__all__ = ["fly", "controllers"]
+
+
+def _load_spec(path: Path):
+    from seapup_runs.spec import RunSpec, RunSpecError
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise RunSpecError(f"{path}: {exc}") from None
+    return RunSpec.from_dict(data or {})
+
+
+def _summary(result, text) -> None:
+    spec, series = result.spec, result.series
+    print(f"run {spec.name}: {spec.vehicle} ({spec.dynamics}), {spec.duration:g} s at {1 / spec.control_period:g} Hz, "
+          f"{result.transport}; controllers: "
+          + ", ".join(f"{c.type} from {t:g} s" for t, c in spec.controller_timeline()), file=text)
+    end = {k: float(series.truth[k][-1]) for k in ("u", "v", "w", "x", "y", "z")}
+    print("at the end (truth): " + ", ".join(f"{k} {v:.3f}" for k, v in end.items())
+          + f", r {np.degrees(series.truth['r'][-1]):.2f} deg/s", file=text)
+    if result.metrics.get("outputs"):
+        for key, o in result.metrics["outputs"].items():
+            cells = ", ".join(f"{name} {value:.3g}" for name, value in o.items() if value is not None)
+            print(f"  {key}: {cells}", file=text)
+
+
+def fly(argv: list[str]) -> int:
+    """``./seapup fly SPEC [--graph] [--out DIR] [--plots DIR] [--json [F]]``."""
+    from seapup_common.controllers import ControllerRegistryError
+    from seapup_runs.runner import DesignFailed, run
+    from seapup_runs.spec import RunSpecError
+    from seapup_sim.vehicle_config import ConfigError
+
+    parser = argparse.ArgumentParser(prog="./seapup fly", description=__doc__.splitlines()[0])
+    parser.add_argument("spec", type=Path, help="a run specification (YAML or JSON; see docs/run-result.md)")
+    parser.add_argument("--graph", action="store_true", help="fly it through the ROS graph in lockstep")
+    parser.add_argument("--out", type=Path, help="the graph run's node logs and graph file (default: a temp dir)")
+    parser.add_argument("--plots", type=Path, help="write a figure of the run into this directory")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    try:
+        spec = _load_spec(args.spec)
+        if args.graph:
+            from seapup_bringup.graph_runner import run_on_graph
+            result = run_on_graph(spec, out_dir=args.out, progress=lambda f: progress(spec.name, f))
+        else:
+            result = run(spec, progress=lambda f: progress(spec.name, f))
+    except (RunSpecError, ControllerRegistryError, ConfigError, DesignFailed, ValueError) as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    _summary(result, text)
+    if args.plots:
+        from seapup_bringup.scenarios import plot_scenario
+        print(f"wrote {plot_scenario(result, args.plots)}", file=text)
+    emit_json(args, result.to_dict())
+    return 0
+
+
+def controllers(argv: list[str]) -> int:
+    """``./seapup controllers [--json [F]]``."""
+    from seapup_common.controllers import ControllerRegistryError, available_controllers, controller_type
+
+    parser = argparse.ArgumentParser(prog="./seapup controllers", description="the registered velocity controllers")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    listed, failed = {}, {}
+    for name in available_controllers():
+        try:
+            kind = controller_type(name)
+        except ControllerRegistryError as exc:  # a broken plugin is reported, not fatal
+            failed[name] = str(exc)
+            continue
+        listed[name] = {"description": kind.description, "parameters": dict(kind.parameters),
+                        "needs_document": kind.needs_document, "needs_applied": kind.needs_applied}
+        print(f"{name:12} {kind.description}", file=text)
+        for parameter, default in kind.parameters.items():
+            print(f"{'':12}   {parameter} (default {default})", file=text)
+        if kind.needs_document:
+            print(f"{'':12}   + a design document (controller_file)", file=text)
+    for name, why in failed.items():
+        print(f"{name:12} NOT LOADED: {why}", file=text)
+    emit_json(args, {"controllers": listed, "not_loaded": failed})
+    return 1 if failed else 0

@@ -1,0 +1,310 @@
+"""The ``velocity_controller`` node: any registered velocity controller as a lifecycle node.
+
+A thin shell over a :class:`~seapup_common.contract.VelocityController` made
+by :func:`seapup_common.controllers.create_controller` from the parameter
+``controller_type`` (a registered type name: ``mfol``, ``hold`` or a
+package's own) with its design document ``controller_file`` and the law's own
+parameters (declared by name once the type is known: ``schedule`` and
+``blade_pitch_limit`` for ``mfol``), managed like a ros2_control controller
+(configure, activate, deactivate), so a controller manager can swap it at run
+time. The executable ``mfol_velocity_controller`` is this node named
+``mfol_velocity_controller`` with ``controller_type: mfol`` (launch files of
+the MFOL-only era keep working).
+
+- **configure** builds the law (an unknown type, unknown parameters or an
+  unusable file fail the transition with the reason in the log);
+- **activate** starts it bumpless from the blade pitch the vehicle applies
+  (``/seapup/thrusters/applied``; when none has been heard yet in lockstep, a
+  sample waits ``applied_wait`` for it, then starts from the law's
+  ``fallback_command()`` where it has one, else zero pitch);
+- every sample it reads ``/seapup/sensors/velocity``, tells the law the
+  applied pitch stamped with the sample (:meth:`VelocityController.applied`),
+  takes the reference in force on ``/seapup/velocity_controller/reference``
+  (``geometry_msgs/TwistStamped``: linear x, y, z = u, v, w [m/s], angular z =
+  r [rad/s], ``base_link_frd``, taking effect at its header stamp, at once when
+  the stamp is zero: :class:`~seapup_common.contract.ReferenceSchedule`) and
+  publishes ``/seapup/thrusters/command`` stamped with the sample time;
+- **deactivate** stops commanding.
+
+With ``start_at``/``stop_at`` (lockstep) the node answers only the samples of
+that window of simulated time and starts at ``start_at`` from the applied pitch
+stamped with that sample: a run's scheduled controller switch falls on one
+sample whatever the wall-clock timing.
+
+When a lockstep sample is answered and how long it waits for its reference,
+the first reference or the applied pitch is
+:class:`seapup_common.lockstep.SamplePolicy` (pure and unit-tested); this
+file only feeds it the events and arms a wall-clock timer for the time it
+says to come back. Non-finite or malformed references and sensor messages are
+rejected, counted and logged, never integrated. ``/diagnostics`` carries the
+law's :meth:`~VelocityController.diagnostics` and the node's counts.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
+from rclpy.clock import Clock as SteadyClock, ClockType
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rosgraph_msgs.msg import Clock
+from seapup_msgs.msg import BladePitch
+
+from seapup_common.contract import Command, ContractError, ReferenceSchedule
+from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
+from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
+from seapup_common.ros.messages import (MeasurementCollector, command_from_msg, command_to_msg, diagnostic_array,
+                                        reference_from_msg, stamp_to_ns)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
+                                    refuse_invalid_transitions, run_node)
+
+__all__ = ["VelocityControllerNode", "main", "main_mfol"]
+
+
+class VelocityControllerNode(LifecycleNode):
+    """rclpy lifecycle shell around a registered velocity controller (see the module docstring).
+
+    Parameters
+    ----------
+    name : str
+        Node name (``velocity_controller``; the MFOL alias passes ``mfol_velocity_controller``).
+    default_type : str
+        ``controller_type`` when none is given.
+    """
+
+    def __init__(self, name: str = "velocity_controller", default_type: str = "mfol", **kwargs):
+        super().__init__(name, namespace="/seapup", **kwargs)
+        self.p = declare_from_package_file(self, "seapup_control", "velocity_controller.yaml",
+                                           section="velocity_controller")
+        if default_type != self.p["controller_type"] and not self._overridden("controller_type"):
+            self.set_parameters([self._parameter("controller_type", default_type)])
+        self.kind = controller_type(self.get_parameter("controller_type").value)  # unknown: the node refuses to start
+        clash = sorted(set(self.kind.parameters) & set(self.p))
+        if clash:
+            raise ControllerRegistryError(f"controller type {self.kind.name!r} parameters {clash} clash with the "
+                                          "node's own")
+        self.law_parameters = declare_mapping(self, "", dict(self.kind.parameters))
+        self.controller = None
+        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0,
+                       "late_references": 0, "late_applied": 0}
+        self.references = ReferenceSchedule()
+        self.applied: np.ndarray | None = None      # the latest applied blade pitch heard
+        self._applied_at: dict[int, np.ndarray] = {}  # applied pitch by sample stamp (the last few)
+        self._interfaces = []
+        self._timer = None
+        refuse_invalid_transitions(self)  # e.g. a second activate: refused, not fatal
+        if self.p["autostart"]:
+            self.trigger_configure()
+            self.trigger_activate()
+
+    def _overridden(self, name: str) -> bool:
+        return name in self._parameter_overrides
+
+    @staticmethod
+    def _parameter(name, value):
+        from rclpy.parameter import Parameter
+        return Parameter(name, value=value)
+
+    def _value(self, name: str):
+        return self.get_parameter(name).value
+
+    # -- life cycle ------------------------------------------------------------------
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        parameters = {}
+        for name, default in self.kind.parameters.items():
+            value = self._value(name)
+            parameters[name] = list(value) if isinstance(default, (list, tuple)) else value
+        period = float(self._value("sample_period")) or None
+        spec = ControllerSpec(self.kind.name, parameters, self._value("controller_file") or None)
+        try:
+            self.controller = create_controller(spec, period)
+        except ControllerRegistryError as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        lockstep = bool(self._value("lockstep"))
+        self.collector = MeasurementCollector()
+        self.policy = SamplePolicy(lockstep, WaitSettings(
+            applied_wait=float(self._value("applied_wait")), reference_wait=float(self._value("reference_wait")),
+            reference_stream=float(self._value("reference_stream")),
+            first_reference_wait=float(self._value("first_reference_wait")), needs_applied=self.kind.needs_applied,
+            reference_every_sample=bool(self._value("reference_every_sample")),
+            start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
+        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self._interfaces = [
+            self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
+            self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
+            self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)]
+        if lockstep:
+            self._interfaces.append(self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS))
+        else:
+            self._interfaces.append(self.create_timer(self.controller.sample_period, self._on_timer))
+        self.get_logger().info(f"configured {self.kind.name} ({spec.file or 'no file'}; "
+                               + ", ".join(f"{k} {v}" for k, v in parameters.items())
+                               + f"), T = {self.controller.sample_period:g} s")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        if self.policy.activate(heard_applied=self.applied is not None):
+            self._start()
+        else:
+            self.get_logger().info("active: waiting for the applied blade pitch to start bumpless")
+        result = super().on_activate(state)
+        if self.policy.lockstep and self.policy.latest_ns is not None:
+            self._answer(self.policy.latest_ns)  # a sample that arrived before activation waits for its answer
+        return result
+
+    def _start(self, t_ns: int | None = None) -> None:
+        applied, source = self._applied_at.get(t_ns, self.applied), "the applied blade pitch"
+        if applied is None:
+            fallback = getattr(self.controller, "fallback_command", None)
+            applied = np.asarray(fallback(), float) if fallback is not None else np.zeros(4)
+            source = "the law's fallback setting (no applied pitch heard)"
+        self.controller.reset(Command(applied))  # bumpless: from what the vehicle holds now
+        self.get_logger().info(f"starting from {source}: " + ", ".join(f"{np.degrees(a):.2f}" for a in applied)
+                               + " deg")
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self.policy.deactivate()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        for item in self._interfaces:
+            (self.destroy_timer if hasattr(item, "timer_period_ns") else self.destroy_subscription)(item)
+        self._interfaces = []
+        self.destroy_lifecycle_publisher(self.publisher)
+        self.destroy_publisher(self.diagnostics)
+        self.controller = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state) -> TransitionCallbackReturn:
+        if self.controller is not None:
+            self.policy.deactivate()
+        return TransitionCallbackReturn.SUCCESS
+
+    # -- inputs ----------------------------------------------------------------------
+    def _on_reference(self, msg: TwistStamped) -> None:
+        try:
+            reference = reference_from_msg(msg)
+            stamp_ns = stamp_to_ns(msg.header.stamp)
+            at = None if stamp_ns == 0 else stamp_ns * 1e-9
+            latest = self.policy.latest_ns
+            horizon = float(self._value("reference_horizon"))
+            if at is not None and latest is not None and at > latest * 1e-9 + horizon:
+                raise ContractError(f"stamped {at - latest * 1e-9:.3g} s after the latest sample (more than "
+                                    f"reference_horizon {horizon:g} s): a wall-clock stamp on a sim-time graph?")
+            self.references.add(reference, at)
+        except ContractError as exc:
+            self.counts["rejected_references"] += 1
+            self.get_logger().warn(f"reference rejected: {exc}", throttle_duration_sec=2.0)
+            return
+        if self.policy.on_reference(at) and self.policy.latest_ns is not None:
+            self._answer(self.policy.latest_ns)  # the sample that waited for it
+
+    def _on_applied(self, msg: BladePitch) -> None:
+        try:
+            command = command_from_msg(msg)
+        except ValueError:
+            return  # the simulator never publishes such; nothing to start from
+        self.applied = command.blade_pitch
+        t_ns = stamp_to_ns(msg.header.stamp)
+        self._applied_at[t_ns] = command.blade_pitch
+        while len(self._applied_at) > 8:
+            self._applied_at.pop(next(iter(self._applied_at)))
+        if self.controller is not None and self.policy.on_applied(t_ns) and self.policy.latest_ns is not None:
+            self._answer(self.policy.latest_ns)  # a sample that waited for it
+
+    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
+        if not self.collector.add(msg):  # non-finite or malformed: counted, never used
+            self.counts["rejected_measurements"] += 1
+            self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
+                                   throttle_duration_sec=2.0)
+            return
+        t_ns = self.policy.on_sample(stamp_to_ns(msg.header.stamp))
+        if t_ns is not None:
+            self._answer(t_ns)
+
+    def _on_clock(self, msg: Clock) -> None:
+        t_ns = self.policy.on_clock(stamp_to_ns(msg.clock))
+        if t_ns is not None:
+            self._answer(t_ns)
+
+    def _on_timer(self) -> None:
+        self._answer(self.get_clock().now().nanoseconds)
+
+    # -- the loop --------------------------------------------------------------------
+    def _answer(self, t_ns: int) -> None:
+        decision = self.policy.decide(t_ns, time.monotonic())
+        if decision.action == SKIP:
+            # not this node's sample (inactive, outside its window, answered): it keeps the reference in
+            # force up to date (the position level streams one per sample: waiting ones would pile up to
+            # the schedule's capacity and the newest be refused), so when it takes over it uses the
+            # present reference
+            self.references.at(t_ns * 1e-9)
+            return
+        if decision.start:
+            self._start(t_ns)
+        for what in decision.late:
+            self.counts["late_references" if what == "reference" else "late_applied"] += 1
+        if decision.action == WAIT:
+            self._wake_at(decision.wake_at)
+            return
+        if decision.action != ANSWER:
+            return
+        t = t_ns * 1e-9
+        if t_ns in self._applied_at:
+            self.controller.applied(t, Command(self._applied_at[t_ns], stamp=t))
+        try:
+            command = self.controller.update(t, self.collector.measurement(t), self.references.at(t))
+        except ContractError as exc:  # no fresh velocity: nothing is integrated, the vehicle holds
+            self.counts["skipped_samples"] += 1
+            self.get_logger().warn(f"sample t = {t:.3f} s skipped: {exc}", throttle_duration_sec=2.0)
+            return
+        self.policy.answered(t_ns)
+        self.counts["samples"] += 1
+        self.publisher.publish(command_to_msg(command, t_ns))
+        if self.counts["samples"] % max(1, int(self._value("diagnostics_every"))) == 0:
+            self._diagnose(t_ns)
+
+    def _wake_at(self, wake_at: float) -> None:
+        """Decide the latest sample again at ``wake_at`` (monotonic wall time): simulated time stands still
+        while a lockstep sample waits, so it must go on even if what it waits for never comes."""
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+
+        def fire():
+            self.destroy_timer(timer)
+            if self._timer is timer:
+                self._timer = None
+            if self.policy.active and self.policy.latest_ns is not None:
+                self._answer(self.policy.latest_ns)
+        timer = self.create_timer(max(wake_at - time.monotonic(), 0.0) + 1e-3, fire,
+                                  clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
+        self._timer = timer
+
+    def _diagnose(self, t_ns: int) -> None:
+        law = self.controller.diagnostics()
+        values = {"controller_type": self.kind.name, **self.counts, **law,
+                  "reference": self.references.current.velocity.tolist(),
+                  "references_waiting": self.references.waiting}
+        rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
+        saturated = any(law.get("saturated", ()))
+        level = DiagnosticStatus.WARN if (rejected or saturated) else DiagnosticStatus.OK
+        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
+                                                  "saturated" if saturated else "tracking", values, t_ns))
+
+
+def main(args=None) -> int:
+    """``velocity_controller``: the law named by ``controller_type``."""
+    return run_node(VelocityControllerNode, args)
+
+
+def main_mfol(args=None) -> int:
+    """``mfol_velocity_controller``: the same node, named so, flying ``mfol`` unless told otherwise."""
+    return run_node(lambda: VelocityControllerNode("mfol_velocity_controller", "mfol"), args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,117 @@
+"""Metrics of a run, by name: what the thesis reports about a closed-loop case, computed from a result.
+
+A :class:`~seapup_runs.spec.RunSpec` names its metrics (``metrics:
+[step_response]``); :func:`compute` runs each registered extractor over the
+:class:`~seapup_runs.result.RunResult`, so the in-process and the graph run of
+a spec are measured by the same code from the same shape of data.
+
+``step_response`` (sec. 5.4.2-5.4.3, figs 5.10-5.24): per output (u, v, w [m/s]
+and r [deg/s], thesis units) the reference, the settled value and steady
+error, the 95 % rise time and overshoot after the last reference step (up to
+a later current step), the largest interaction in outputs asked to stay at
+zero; thruster saturation per thruster; a sway limit cycle in the second
+half; body pitch and roll peaks; station keeping after a controller
+connected late; the current step's surge peak and recovery.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_control.response_metrics import limit_cycle, overshoot_percent, rise_time, saturation_time, settled_value
+from seapup_runs.result import REFERENCE_NAMES, RunResult
+
+__all__ = ["METRICS", "compute", "step_response", "MetricError"]
+
+
+class MetricError(ValueError):
+    """An unknown metric name, or a run the metric cannot measure."""
+
+
+def _late_controller(result: RunResult) -> float:
+    """When the first closed-loop controller took over (0: from the start; a hold before it is drifting)."""
+    timeline = result.spec.controller_timeline()
+    if timeline[0][1].type == "hold" and len(timeline) > 1:
+        return timeline[1][0]
+    return 0.0
+
+
+def _current_step_time(result: RunResult) -> float:
+    times = [e.time for e in result.spec.events if e.kind == "current" and e.time > 0]
+    return times[0] if times else 0.0
+
+
+def step_response(result: RunResult) -> dict:
+    """The step-response figures of merit (see the module docstring)."""
+    spec, series = result.spec, result.series
+    t = series.t
+    if len(t) < 3:
+        raise MetricError("a step response needs at least three samples")
+    states = series.states()
+    y = series.velocity()
+    to_thesis = np.array([1.0, 1.0, 1.0, 180.0 / math.pi])  # r in deg/s
+    steps = spec.reference.steps
+    final_ref = np.array(steps[-1][1])
+    last_change = steps[-1][0]
+    prev_ref = np.array(steps[-2][1]) if len(steps) > 1 else np.zeros(4)
+    window = min(1.0, 0.2 * spec.duration)
+    disturbed = _current_step_time(result)
+    end = disturbed if disturbed > last_change else math.inf  # the step response ends where a disturbance starts
+    outputs = {}
+    for j, key in enumerate(REFERENCE_NAMES):
+        sel = (t >= last_change - 1e-9) & (t < end)
+        settled = settled_value(t, y[:, j], window)
+        entry = {"reference": final_ref[j] * to_thesis[j], "final": settled * to_thesis[j]}
+        if final_ref[j] != prev_ref[j]:
+            entry["rise95_s"] = rise_time(t[sel], y[sel, j], final_ref[j], start=prev_ref[j])
+            entry["overshoot_pct"] = overshoot_percent(y[sel, j], final_ref[j], start=prev_ref[j])
+        entry["steady_error"] = (final_ref[j] - settled) * to_thesis[j]
+        if final_ref[j] == 0.0:
+            entry["max_interaction"] = float(np.max(np.abs(y[:, j]))) * to_thesis[j]
+        outputs[key] = entry
+    half = t >= t[-1] / 2
+    cycle = limit_cycle(t[half], y[half, 1], min_amplitude=0.005)
+    pitch = np.degrees(states[:, 4])
+    out = {"outputs": outputs, "saturation_s": saturation_time(t[:-1], series.command[:-1], BLADE_PITCH_LIMIT),
+           "limit_cycle": {"detected": cycle.detected, "period_s": cycle.period, "amplitude": cycle.amplitude},
+           "pitch_deg": {"peak": float(pitch[np.argmax(np.abs(pitch))]), "final": float(pitch[-1])},
+           "roll_deg": {"peak": float(np.degrees(states[np.argmax(np.abs(states[:, 3])), 3]))}}
+    t_on = _late_controller(result)
+    if t_on > 0:
+        on = int(np.argmin(np.abs(t - t_on)))
+        after = states[on:]
+        out["station_keep"] = {
+            "max_abs_x": float(np.max(np.abs(after[:, 0] - after[0, 0]))),
+            "max_abs_y": float(np.max(np.abs(after[:, 1] - after[0, 1]))),
+            "max_abs_z": float(np.max(np.abs(after[:, 2] - after[0, 2]))),
+            "max_abs_yaw_deg": float(np.degrees(np.max(np.abs(after[:, 5] - after[0, 5]))))}
+    if disturbed > 0 and t_on == 0:
+        after = t >= disturbed
+        u = y[:, 0]
+        out["u_peak_after_current"] = float(np.max(u[after]))
+        outside = np.flatnonzero(after & (np.abs(u - final_ref[0]) > 0.05 * abs(final_ref[0])))
+        out["recovery_5pct_s"] = float(t[outside[-1]] - disturbed) if outside.size else 0.0
+    return out
+
+
+#: Metric extractors by name: ``name(result) -> dict``.
+METRICS: dict[str, Callable[[RunResult], dict]] = {"step_response": step_response}
+
+
+def compute(result: RunResult) -> dict:
+    """Every metric the result's spec names, merged into one mapping.
+
+    Raises
+    ------
+    MetricError
+        On a name not in :data:`METRICS`.
+    """
+    out = {}
+    for name in result.spec.metrics:
+        if name not in METRICS:
+            raise MetricError(f"unknown metric {name!r}; known: {', '.join(METRICS)}")
+        out.update(METRICS[name](result))
+    return out

@@ -1,0 +1,159 @@
+"""The in-process runner: a :class:`~seapup_runs.spec.RunSpec` flown in this process, no ROS.
+
+:func:`run` builds the simulation the spec describes (vehicle, dynamics,
+environment, physics step, start, the simulator's scheduled events), makes
+each controller of the spec's timeline by name
+(:func:`seapup_common.controllers.create_controller`), and flies fig. 5.1's
+loop in lockstep: at every sample t_k the controller is told the blade pitch
+the vehicle has (:meth:`~seapup_common.contract.VelocityController.applied`,
+what the simulator node publishes on ``thrusters/applied``), sees the
+measurement and the reference in force and returns the command held until
+t_k+1. A controller taking over at a ``controller`` event starts bumpless
+from the applied pitch at that sample, as the graph's lifecycle node does.
+
+:func:`design` first fills the design documents the spec leaves to its
+:class:`~seapup_runs.spec.SelfTestDesign` (the self-test flown in this
+process; cached per design and period, since one self-test serves many runs).
+The ROS graph runner (``seapup_bringup.graph_runner.run_on_graph``) flies the
+same designed spec and gives the same :class:`~seapup_runs.result.RunResult`.
+"""
+from __future__ import annotations
+
+import json
+from typing import Callable
+
+import numpy as np
+
+from seapup_common.contract import Command, MEASUREMENT_FIELDS
+from seapup_common.controllers import create_controller
+from seapup_runs.metrics import compute
+from seapup_runs.result import RunResult, Series
+from seapup_runs.spec import RunEvent, RunSpec, RunSpecError
+
+__all__ = ["run", "design", "simulation_events", "start_pitch", "DesignFailed"]
+
+
+class DesignFailed(RuntimeError):
+    """The self-test that was to design a run's controller did not finish (its reason says why)."""
+
+
+_DESIGNS: dict[str, dict] = {}
+
+
+def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunSpec:
+    """The spec with every controller that needs a design document and has none designed by its
+    :class:`~seapup_runs.spec.SelfTestDesign` (a self-test flown in this process at the run's period).
+
+    Raises
+    ------
+    RunSpecError
+        If a controller needs a document and the spec has no design.
+    DesignFailed
+        If the self-test does not finish.
+    """
+    from seapup_common.controllers import controller_type
+
+    missing = [i for i, (_, c) in enumerate(spec.controller_timeline())
+               if c.document is None and not c.file and controller_type(c.type).needs_document]
+    if not missing:
+        return spec
+    if spec.design is None:
+        raise RunSpecError(f"controller {spec.controller_timeline()[missing[0]][1].type!r} needs a design document: "
+                           "give its file/document or the run's 'design' (a self-test)")
+    key = json.dumps([spec.design.to_dict(), spec.control_period], sort_keys=True)
+    if key not in _DESIGNS:
+        from seapup_control.self_test import result_document
+        from seapup_runs.self_test import fly_self_test
+        d = spec.design
+        flown = fly_self_test(d.vehicle, {"sample_period": spec.control_period,
+                                          "operating_points": list(d.operating_points), "mode": d.mode},
+                              start_depth=d.start_depth, progress=progress)
+        if flown.test.phase.value != "done":
+            raise DesignFailed(f"the self-test designing {spec.name!r} {flown.test.phase.value}: {flown.test.reason}")
+        _DESIGNS[key] = result_document(flown.test)
+    return spec.with_controllers({i: _DESIGNS[key] for i in missing})
+
+
+def simulation_events(spec: RunSpec) -> list:
+    """The spec's plant events as :class:`seapup_sim.simulation.Event` objects (the parser the simulator
+    node's ``events`` parameter uses too)."""
+    from seapup_sim.simulation import events_from_data
+    return events_from_data([e.to_dict() for e in spec.plant_events()])
+
+
+def start_pitch(spec: RunSpec) -> np.ndarray:
+    """The blade pitch at t = 0: the spec's, or the hover setting of its vehicle (eq. 5.2 for the baseline)."""
+    if spec.start_pitch is not None:
+        return np.array(spec.start_pitch, float)
+    from seapup_sim.analysis import hover_blade_pitch
+    from seapup_sim.linearised import vehicle_model
+    from seapup_sim.vehicle_config import load_vehicle_config
+    return hover_blade_pitch(vehicle_model(load_vehicle_config(spec.vehicle), "nonlinear"))
+
+
+def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunResult:
+    """Fly ``spec`` in this process (see the module docstring).
+
+    Parameters
+    ----------
+    spec : RunSpec
+    progress : callable, optional
+        Called with the fraction done (the self-test's, then the run's).
+
+    Returns
+    -------
+    RunResult
+        The designed spec, the series (one row per sample, t = 0 ... duration) and the spec's metrics.
+    """
+    from seapup_sim.simulation import Simulation
+
+    spec = design(spec)
+    sim = Simulation.from_config(spec.vehicle, spec.environment, seed=spec.seed, dt=spec.physics_step,
+                                 control_period=spec.control_period, events=simulation_events(spec),
+                                 state=spec.initial_state(), pitch=start_pitch(spec), dynamics=spec.dynamics)
+    timeline = spec.controller_timeline()
+    n = spec.samples
+    t = np.full(n + 1, np.nan)
+    states, reference, command, applied = (np.full((n + 1, k), np.nan) for k in (12, 4, 4, 4))
+    measured = {name: np.full(n + 1, np.nan) for name in ("u", "v", "w", "p", "q", "r", "roll", "pitch", "yaw",
+                                                          "x", "y", "z", "depth", "altitude")}
+    events = [{"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]} for e in spec.plant_events()]
+    controller, next_switch = None, 0
+    for k in range(n + 1):
+        sample = sim.sample()
+        t[k], states[k], applied[k] = sample.t, sample.state, sim.plant.pitch
+        _record_measurement(measured, k, sample.measurement)
+        if k == n:
+            break
+        while next_switch < len(timeline) and timeline[next_switch][0] <= sample.t + 1e-9:
+            controller = create_controller(timeline[next_switch][1], spec.control_period)
+            controller.reset(Command(sim.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
+            if next_switch > 0:
+                events.append({"time": sample.t, "kind": "controller",
+                               "detail": {"type": timeline[next_switch][1].type}})
+            next_switch += 1
+        controller.applied(sample.t, Command(sim.plant.pitch.copy(), sample.t))
+        ref = spec.reference.at(sample.t)
+        out = controller.update(sample.t, sample.measurement, ref)
+        reference[k], command[k] = ref.velocity, out.blade_pitch
+        sim.advance(out.blade_pitch)
+        if progress is not None and (k % 25 == 0 or k == n - 1):
+            progress((k + 1) / n)
+    series = Series.from_states(t, states, measured, reference, command, applied, sorted(events, key=lambda e: e["time"]))
+    result = RunResult(spec, series)
+    result.metrics = compute(result)
+    return result
+
+
+_MEASURED = {"velocity": ("u", "v", "w"), "rates": ("p", "q", "r"), "attitude": ("roll", "pitch", "yaw"),
+             "position": ("x", "y", "z"), "depth": ("depth",), "altitude": ("altitude",)}
+assert set(_MEASURED) == set(MEASUREMENT_FIELDS)
+
+
+def _record_measurement(measured: dict, k: int, measurement) -> None:
+    for field_name, names in _MEASURED.items():
+        reading = getattr(measurement, field_name)
+        if reading.valid:
+            values = np.atleast_1d(reading.value)
+            for name, value in zip(names, values):
+                measured[name][k] = value

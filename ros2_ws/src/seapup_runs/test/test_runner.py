@@ -1,0 +1,108 @@
+"""The in-process runner and the run result (seapup_runs.runner, seapup_runs.result, seapup_runs.metrics).
+
+Independent truth: the established simulation loop (``Simulation.run``, fig. 5.1) flying the same
+controller objects; a JSON round trip that must give back every number.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_common.contract import HoldCommand
+from seapup_common.controllers import ControllerSpec
+from seapup_control.mfol import THESIS_POLES_5HZ, MFOLModel, design
+from seapup_control.mfol_controller import MFOLController
+from seapup_runs.metrics import MetricError, compute
+from seapup_runs.result import RunResult, RunResultError, STATE_INDEX, jsonable
+from seapup_runs.runner import run, start_pitch
+from seapup_runs.spec import ReferenceProfile, RunEvent, RunSpec, RunSpecError
+from seapup_sim.simulation import Simulation
+
+
+def _mfol_document():
+    """A decoupled two-term design (eq. 4.9-4.11) about hover, written as a self-test controller file."""
+    model = MFOLModel(np.diag([0.01, 0.01, 0.01, 0.2]), np.diag([0.1, 0.1, 0.1, 2.0]), 0.2)
+    gains = design(model, THESIS_POLES_5HZ)
+    return {"kind": "seapup/mfol_controller", "sample_period": 0.2,
+            "operating_points": [{"surge": 0.0, "K_int": gains.K_int.tolist(), "K_err": gains.K_err.tolist(),
+                                  "u0": start_pitch(RunSpec()).tolist(), "y0": [0.0] * 4}]}
+
+
+def test_a_held_setting_flies_exactly_as_the_simulation_loop_flies_it():
+    hover = start_pitch(RunSpec())
+    pitch = (hover + np.radians([5.0, 5.0, 0.0, 0.0])).tolist()
+    spec = RunSpec(duration=6.0, controller=ControllerSpec("hold", {"blade_pitch": pitch}),
+                   environment={"sensors": "baseline"}, seed=3)
+    result = run(spec)
+    loop = Simulation.from_config("baseline", {"sensors": "baseline"}, seed=3, control_period=0.2,
+                                  state=spec.initial_state(), pitch=hover).run(HoldCommand(pitch, 0.2), 6.0)
+    np.testing.assert_array_equal(result.series.t, loop.t)
+    np.testing.assert_array_equal(result.series.states(), loop.state)
+    np.testing.assert_array_equal(result.series.applied, loop.blade_pitch)
+    np.testing.assert_array_equal(result.series.command[:-1], loop.command[:-1])
+    np.testing.assert_array_equal(result.series.measured["u"], loop.measured["velocity"][:, 0])
+    np.testing.assert_array_equal(result.series.measured["depth"], loop.measured["depth"])
+    assert math.isnan(result.series.command[-1, 0]) and result.series.truth["u"][-1] > 0.05  # pushed ahead
+
+
+def test_an_mfol_run_equals_the_simulation_loop_with_the_same_controller():
+    document = _mfol_document()
+    reference = ReferenceProfile.from_list([[0.0, 0.1, 0.0, 0.0, 0.0], [4.0, 0.1, 0.05, 0.0, 0.1]])
+    spec = RunSpec(duration=8.0, controller=ControllerSpec("mfol", {"schedule": False}, document=document),
+                   environment={"sensors": "ideal"}, reference=reference, metrics=("step_response",))
+    result = run(spec)
+    from seapup_control.mfol_controller import GainSchedule
+    controller = MFOLController(GainSchedule.from_document(document))
+    loop = Simulation.from_config("baseline", {"sensors": "ideal"}, control_period=0.2, state=spec.initial_state(),
+                                  pitch=start_pitch(spec)).run(controller, 8.0, reference=lambda t: reference.at(t))
+    np.testing.assert_array_equal(result.series.states(), loop.state)
+    np.testing.assert_array_equal(result.series.reference_array()[:-1], loop.reference[:-1])
+    assert result.metrics["outputs"]["u"]["reference"] == 0.1 and "rise95_s" in result.metrics["outputs"]["v"]
+
+
+def test_a_controller_event_switches_on_its_sample_bumpless_from_the_applied_pitch():
+    hover = start_pitch(RunSpec()).tolist()
+    other = [0.1, 0.1, -0.2, -0.2]
+    spec = RunSpec(duration=4.0, controller=ControllerSpec("hold", {"blade_pitch": hover}),
+                   events=(RunEvent(2.0, "controller", {"type": "hold", "parameters": {"blade_pitch": other}}),))
+    series = run(spec).series
+    k = int(np.argmin(np.abs(series.t - 2.0)))
+    np.testing.assert_array_equal(series.command[:k], np.tile(hover, (k, 1)))
+    np.testing.assert_array_equal(series.command[k:-1], np.tile(other, (len(series.t) - 1 - k, 1)))
+    assert series.events == [{"time": series.t[k], "kind": "controller", "detail": {"type": "hold"}}]
+
+
+def test_plant_events_land_as_the_simulator_schedules_them():
+    spec = RunSpec(duration=4.0, controller=ControllerSpec("hold", {"blade_pitch": start_pitch(RunSpec()).tolist()}),
+                   events=(RunEvent(1.0, "current", {"mean_speed": 0.3, "speed_std": 0.0, "mean_direction": 0.0,
+                                                     "direction_std": 0.0}),))
+    series = run(spec).series
+    before, after = series.t <= 1.0, series.t >= 3.0
+    assert np.all(np.abs(series.truth["x"][before]) < 1e-12) and np.all(series.truth["x"][after] > 1e-3)  # carried north
+    assert series.events[0]["kind"] == "current" and series.events[0]["time"] == 1.0
+
+
+def test_a_result_round_trips_through_json_with_every_number():
+    spec = RunSpec(duration=2.0, controller=ControllerSpec("hold", {"blade_pitch": [0.0, 0.0, 0.1, 0.1]}),
+                   environment={"sensors": "baseline"}, metrics=("step_response",))
+    result = run(spec)
+    again = RunResult.from_json(result.to_json())
+    assert again.spec == result.spec and again.transport == "in-process"
+    for name in STATE_INDEX:
+        np.testing.assert_array_equal(again.series.truth[name], result.series.truth[name])
+    for name, values in result.series.measured.items():
+        np.testing.assert_array_equal(again.series.measured[name], values)  # NaN (no fix) survives as null
+    np.testing.assert_array_equal(again.series.command, result.series.command)
+    assert np.isnan(again.series.measured["x"]).any()          # no acoustic fix every sample
+    assert again.metrics == jsonable(result.metrics)            # NaN (no limit cycle period) as null
+    with pytest.raises(RunResultError, match="not a seapup run result"):
+        RunResult.from_json('{"format": "other"}')
+
+
+def test_unknown_metrics_and_undesigned_controllers_are_refused():
+    with pytest.raises(RunSpecError, match="needs a design document"):
+        run(RunSpec(duration=1.0, controller=ControllerSpec("mfol")))
+    result = run(RunSpec(duration=1.0, controller=ControllerSpec("hold")))
+    result.spec = RunSpec(duration=1.0, metrics=("no_such_metric",))
+    with pytest.raises(MetricError, match="unknown metric 'no_such_metric'"):
+        compute(result)
