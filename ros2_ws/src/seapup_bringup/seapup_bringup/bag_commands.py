@@ -22,7 +22,7 @@ from pathlib import Path
 
 import yaml
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
 
 __all__ = ["record", "bag", "replay"]

@@ -29,7 +29,7 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from seapup_common.ros.graph import spin_until as graph_spin_until
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common import frames
 from seapup_common.bag import read_bag
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT

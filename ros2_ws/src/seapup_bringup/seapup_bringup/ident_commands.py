@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import THRUSTER_NAMES
 
 __all__ = ["main", "bag_data", "load_source", "OUTPUT_SETS"]

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.topics import typed
 

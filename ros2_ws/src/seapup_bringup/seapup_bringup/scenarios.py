@@ -20,7 +20,7 @@ import numpy as np
 import yaml
 
 from seapup_common.ros.graph import spin_until as graph_spin_until
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_bringup.self_test_sil import fly_self_test
 from seapup_common.contract import Command, Reference
 from seapup_control.mfol_controller import GainSchedule, MFOLController
