@@ -108,7 +108,7 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     schedule: one answer per sample, stamped with it, equal to the commands recorded in the bag."""
     import json
 
-    from seapup_bringup.demo import demo_config, manoeuvres, schedule_args
+    from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_args
     from seapup_msgs.msg import BladePitch
     from tests.test_reference_bags import DEMO
 

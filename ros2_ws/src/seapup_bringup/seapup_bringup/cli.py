@@ -66,8 +66,8 @@ def _demo(argv: list[str]) -> int:
 @command("open-loop", "open-loop manoeuvres through the graph, recorded (the plant alone; bags/demo_120s)",
          "[--duration S] [--out DIR] [--bag DIR] [--json [F]]")
 def _open_loop(argv: list[str]) -> int:
-    from seapup_bringup.demo import main as demo
-    return demo(argv)
+    from seapup_bringup.open_loop import main as open_loop
+    return open_loop(argv)
 
 
 @command("ident", "system identification (ch. 6): experiment in SIL, fit / orders / compare from a bag or CSV",
