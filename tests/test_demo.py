@@ -1,5 +1,5 @@
 """The README's main command: ``./seapup demo`` flies the mission through the supervisory hierarchy
-(seapup_bringup.mission), records it, tabulates and plots it. The open-loop flight
+(seapup_bringup.demo), records it, tabulates and plots it. The open-loop flight
 (``./seapup open-loop``) is tested in test_open_loop.py."""
 import json
 import subprocess
@@ -17,7 +17,7 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     from rosbags.highlevel import AnyReader
 
     out = tmp_path / "demo"
-    run = subprocess.run([sys.executable, "-m", "seapup_bringup.mission", "--out", str(out), "--json",
+    run = subprocess.run([sys.executable, "-m", "seapup_bringup.demo", "--out", str(out), "--json",
                           str(tmp_path / "summary.json")], env=ros_env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, (run.stdout + run.stderr)[-3000:]
     summary = json.loads((tmp_path / "summary.json").read_text())

@@ -59,8 +59,8 @@ _shell("lock", "regenerate requirements/lock.txt from seapup.in")
          "hierarchy (self-test, hover + controller swap, goto, inspection, seabed following, station keeping "
          "in current), recorded, with a table and plots", "[--out DIR] [--json [F]] [--no-plots]")
 def _demo(argv: list[str]) -> int:
-    from seapup_bringup.mission import main as mission
-    return mission(argv)
+    from seapup_bringup.demo import main as demo
+    return demo(argv)
 
 
 @command("open-loop", "open-loop manoeuvres through the graph, recorded (the plant alone; bags/demo_120s)",
