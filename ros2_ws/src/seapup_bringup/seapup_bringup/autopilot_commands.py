@@ -101,7 +101,7 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
         env = ros_environment(lease.domain_id)
         print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
               f"(domain {lease.domain_id}); output in {out}", file=text, flush=True)
-        recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p",
+        recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p",
                                 f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
                                 "-p", f"topics:={[f'{t}:{m}' for t, m in SELF_TEST_TOPICS]}"],
                                env, out / "recorder.log", "recorder")

@@ -1,7 +1,7 @@
 """``./seapup record``, ``./seapup bag info|recover`` and ``./seapup replay``: the
 embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
 
-- record: runs the ``recorder`` node (seapup_ident), passes it Ctrl-C/SIGTERM, then
+- record: runs the ``recorder`` node (seapup_common), passes it Ctrl-C/SIGTERM, then
   prints (or ``--json``) what the closed bag holds;
 - bag info / recover: read a bag's metadata, rebuild a killed recorder's bag;
 - replay: publishes the recorded bytes with the recorded QoS (reliability,
@@ -48,11 +48,11 @@ def record(argv: list[str]) -> int:
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
     from seapup_common.processes import find_executable
-    from seapup_ident.recorder_node import default_bag_path
+    from seapup_common.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
     if output.exists():
         parser.error(f"{output} exists: a bag is never overwritten")
-    exe = find_executable("seapup_ident", "recorder")
+    exe = find_executable("seapup_common", "recorder")
     ros = ["--ros-args", "-p", f"topics:={list(args.topics) or ['']}", "-p", f"all:={str(args.all).lower()}",
            *(["-p", f"exclude:={args.exclude}"] if args.exclude else []),
            "-p", f"max_duration:={float(args.max_duration)}",
@@ -172,7 +172,7 @@ def replay(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
 
-    from seapup_ident.recorder_node import message_class
+    from seapup_common.recorder_node import message_class
 
     rclpy.init()
     node = rclpy.create_node("replay")

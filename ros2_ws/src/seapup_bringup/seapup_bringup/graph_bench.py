@@ -169,7 +169,7 @@ def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp",
     samples = []
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
-        rec = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
+        rec = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
                            "-p", "all:=true", "-p", "use_sim_time:=true"], env, f"{log_dir}/bench_rec.log").start()
         sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", "-p", "mode:=realtime",
                            "-p", "real_time_factor:=0.0", "-p", "watchdog_timeout:=1000.0",

@@ -5,7 +5,7 @@ Until the autopilots land, the demo flies the thesis's open-loop manoeuvres
 domain: the ``simulator`` (seapup_sim) in lockstep with a Gauss-Markov current
 and the baseline sensors, ``open_loop`` (seapup_control) answering every
 sample with a blade-pitch schedule -- hover (eq. 5.2), surge (both mains
-+35 deg), sway (vectored push-pull), hover -- and ``recorder`` (seapup_ident)
++35 deg), sway (vectored push-pull), hover -- and ``recorder`` (seapup_common)
 writing commands, truth, sensors and diagnostics into a rosbag2/MCAP bag,
 which the demo reads back and summarises per manoeuvre.
 """
@@ -101,7 +101,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
         print(f"seapup open-loop: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
-        recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args",
+        recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args",
                                 "-p", f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
                                 "-p", f"topics:={[f'{t}:{m}' for t, m, _ in RECORDED]}"],
                                env, out / "recorder.log", "recorder")

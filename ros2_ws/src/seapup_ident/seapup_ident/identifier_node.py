@@ -30,7 +30,7 @@ from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_packa
 from seapup_common.topics import TOPIC_TYPES
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.online import OnlineIdentifier
-from seapup_ident.recorder_node import project_msg_files
+from seapup_common.recorder_node import project_msg_files
 from seapup_ident.recursive import DataError, Forgetting
 
 __all__ = ["IdentifierNode", "main"]

@@ -136,7 +136,7 @@ class SilGraph:
         if self.record:
             self.bag = self.out_dir / "bag"
             self.processes["recorder"] = NodeProcess(
-                [str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
+                [str(find_executable("seapup_common", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
                  "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
                 self.env, self.out_dir / "recorder.log", "recorder").start()
             self._wait_for_recorder()

@@ -79,7 +79,7 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("recorder", **kwargs)
-        p = declare_from_package_file(self, "seapup_ident", "recorder.yaml", {
+        p = declare_from_package_file(self, "seapup_common", "recorder.yaml", {
             "topics": ParameterDescriptor(type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True),
         }, section="recorder")
         entries = [t for t in p["topics"] if t]
