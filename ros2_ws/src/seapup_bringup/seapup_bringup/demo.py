@@ -2,7 +2,7 @@
 
 Starts the whole graph (``seapup_bringup/launch/hierarchy.yaml`` in lockstep,
 faster than real time, every node its own process, plus the recorder) with
-:class:`seapup_control.ros.sil.SilGraph`, then flies, through ROS only:
+:class:`seapup_bringup.sil.SilGraph`, then flies, through ROS only:
 
 1. the self-test (sec. 4.5.2) through its action; both velocity controllers
    are configured from its result and the fixed-gain one is activated;
@@ -110,7 +110,7 @@ def _swap_bump(logs: dict, t_switch: float) -> dict:
 
 def fly_mission(out: Path, config: dict, text) -> dict:
     """Fly the mission in a SIL graph; the per-leg numbers (and the logs as arrays under ``logs``)."""
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
     from seapup_sim.seabed import Seabed
 
     graph = config["graph"]

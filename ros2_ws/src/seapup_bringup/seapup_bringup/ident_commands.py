@@ -304,7 +304,7 @@ def _residuals(args, text) -> dict:
 
 def _experiment(args, text) -> dict:
     from seapup_common.topics import typed
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
 
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())

@@ -5,7 +5,7 @@ A test (or a script) describes the graph with a graph file (the format of
 supervisory hierarchy in lockstep), then drives it with goals and service
 calls; every node runs in its own process, exactly as on a vehicle::
 
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
 
     with SilGraph(arguments={"controller_file": "ctrl.yaml"}, out_dir=tmp_path) as sil:
         result = sil.goal("goto", x=5.0, y=3.0, z=31.0, yaw=1.0)
