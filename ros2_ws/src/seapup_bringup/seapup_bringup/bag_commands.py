@@ -24,6 +24,7 @@ import yaml
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
+from seapup_common.topics import CLOCK
 
 __all__ = ["record", "bag", "replay"]
 
@@ -180,7 +181,7 @@ def replay(argv: list[str]) -> int:
     executor.add_node(node)
     pubs = {cid: node.create_publisher(message_class(type_name), topic, qos)
             for cid, (topic, type_name, qos) in channels.items()}
-    clock_pub = node.create_publisher(Clock, "/clock", _qos({})) if clock else None
+    clock_pub = node.create_publisher(Clock, CLOCK, _qos({})) if clock else None
     report = {"sent": 0, "topics": sorted(topic for topic, _, _ in channels.values())}
     answers = _answer_subscription(node, args.lockstep, message_class(answer_type)) if args.lockstep else None
     try:
@@ -231,7 +232,7 @@ def _load_replay(path: Path, topics, lockstep_topic, clock: bool):
             for c in summary.channels.values():
                 all_types[c.topic] = summary.schemas[c.schema_id].name
                 if ((topics is None or c.topic in topics) and c.topic != lockstep_topic
-                        and not (clock and c.topic == "/clock")):
+                        and not (clock and c.topic == CLOCK)):
                     channels.setdefault(c.topic, (c.topic, all_types[c.topic], _qos(c.metadata)))
             records += [(m.log_time, c.topic, bytes(m.data)) for _, c, m in
                         reader.iter_messages(topics=list(channels), log_time_order=True)]

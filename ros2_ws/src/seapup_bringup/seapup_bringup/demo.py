@@ -33,7 +33,7 @@ import yaml
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.topics import typed
+from seapup_common import topics
 
 __all__ = ["MISSION", "main", "fly_mission"]
 
@@ -45,11 +45,10 @@ MISSION = "mission.yaml"
 #: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
 #: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
 #: recorded from the first message.
-HANDSHAKE = ["/seapup/sensors/velocity", "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/position",
-             "/seapup/thrusters/applied"]
-RECORDED = HANDSHAKE + typed("/clock", "/seapup/thrusters/command", "/seapup/truth/odometry", "/seapup/sensors/altitude",
-                             "/seapup/navigation/odometry", "/seapup/velocity_controller/reference",
-                             "/seapup/position_controller/reference", "/seapup/self_test/samples", "/diagnostics")
+HANDSHAKE = [topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION, topics.APPLIED]
+RECORDED = HANDSHAKE + topics.typed(topics.CLOCK, topics.COMMAND, topics.TRUTH_ODOMETRY, topics.ALTITUDE,
+                                    topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE, topics.POSITION_REFERENCE,
+                                    topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 
 
 def mission_config() -> dict:
@@ -60,7 +59,7 @@ def mission_config() -> dict:
 def _set_parameter(sil, node: str, name: str, value: str) -> None:
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     parameter = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value))
-    response = sil.call(f"/seapup/{node}/set_parameters", "rcl_interfaces/srv/SetParameters", {"parameters": [parameter]})
+    response = sil.call(f"{topics.NAMESPACE}/{node}/set_parameters", "rcl_interfaces/srv/SetParameters", {"parameters": [parameter]})
     if not response.results[0].successful:
         raise RuntimeError(f"{node}: {name} refused: {response.results[0].reason}")
 
@@ -149,7 +148,7 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
     if kind == "self_test":
         t0 = sil.t
         fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}
-        result = sil.action("/seapup/self_test", "seapup_msgs/action/SelfTest", fields)
+        result = sil.action(topics.SELF_TEST_ACTION, "seapup_msgs/action/SelfTest", fields)
         t1 = sil.t
         if not result.success:
             raise RuntimeError(f"self-test failed: {result.message}")
@@ -161,7 +160,7 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
         return {"status": "succeeded", "t0": t0, "t1": t1, "controller_file": result.controller_file,
                 "self_test_duration": result.duration}
     if kind == "current":
-        reply = sil.call("/seapup/simulator/set_current", "seapup_msgs/srv/SetCurrent", leg["current"])
+        reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", leg["current"])
         if not reply.success:
             raise RuntimeError(f"set_current: {reply.message}")
         kind = "hover"

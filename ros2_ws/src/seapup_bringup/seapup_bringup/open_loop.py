@@ -35,6 +35,7 @@ from seapup_common.bag import read_bag
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 from seapup_common.ros.messages import stamp_to_ns
+from seapup_common.topics import APPLIED, CLOCK, COMMAND, DEPTH, DIAGNOSTICS, IMU, TRUTH_ODOMETRY, VELOCITY, typed
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
@@ -55,16 +56,10 @@ def manoeuvres() -> list[tuple[str, np.ndarray]]:
             ("sway", np.array([0.0, 0.0, lim, -lim])), ("hover", hover)]
 
 
-#: What the demo records: (topic, type, published by the simulator once per sample).
-RECORDED = [("/clock", "rosgraph_msgs/msg/Clock", False),
-            ("/seapup/thrusters/command", "seapup_msgs/msg/BladePitch", False),
-            ("/seapup/thrusters/applied", "seapup_msgs/msg/BladePitch", True),
-            ("/seapup/truth/odometry", "nav_msgs/msg/Odometry", True),
-            ("/seapup/sensors/velocity", "geometry_msgs/msg/TwistWithCovarianceStamped", True),
-            ("/seapup/sensors/imu", "sensor_msgs/msg/Imu", True),
-            ("/seapup/sensors/depth", "seapup_msgs/msg/Depth", True),
-            ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", False)]
-TOPICS = [t for t, _, _ in RECORDED]
+#: What the demo records: (topic, published by the simulator once per sample); types from TOPIC_TYPES.
+RECORDED = [(CLOCK, False), (COMMAND, False), (APPLIED, True), (TRUTH_ODOMETRY, True), (VELOCITY, True), (IMU, True),
+            (DEPTH, True), (DIAGNOSTICS, False)]
+TOPICS = [t for t, _ in RECORDED]
 
 
 def schedule_times(duration: float, plan) -> list[float]:
@@ -97,13 +92,13 @@ def _simulator_status(diags: list) -> dict:
 def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     """Start the graph, fly ``args.duration`` simulated seconds, stop it so that the
     recorder has everything; the run's numbers, or None if the graph failed."""
-    per_sample = [t for t, _, each in RECORDED if each]
+    per_sample = [t for t, each in RECORDED if each]
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
         print(f"seapup open-loop: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
         recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args",
                                 "-p", f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
-                                "-p", f"topics:={[f'{t}:{m}' for t, m, _ in RECORDED]}"],
+                                "-p", f"topics:={typed(*TOPICS)}"],
                                env, out / "recorder.log", "recorder")
         # graph-ready handshake: the simulator publishes its first sample only once the
         # recorder listens to every recorded topic, the controller answers only once
@@ -111,7 +106,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
         parameters = [a for k, v in demo_config()["simulator"].items()
                       for a in ("-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}")]
         simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", *parameters,
-                                 "-p", f"wait_for_subscribers:={per_sample + ['/clock', '/diagnostics']}"],
+                                 "-p", f"wait_for_subscribers:={per_sample + [CLOCK, DIAGNOSTICS]}"],
                                 env, out / "simulator.log", "simulator")
         controller = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args",
                                   "-p", "wait_for_subscribers:=2", *schedule_args(args.duration, plan)],
@@ -123,9 +118,9 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
         executor.add_node(node)
         sim_time, diags = [-1.0], []
         reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        node.create_subscription(Clock, "/clock", lambda m: sim_time.__setitem__(0, stamp_to_ns(m.clock) * 1e-9),
+        node.create_subscription(Clock, CLOCK, lambda m: sim_time.__setitem__(0, stamp_to_ns(m.clock) * 1e-9),
                                  reliable)
-        node.create_subscription(DiagnosticArray, "/diagnostics", diags.append, reliable)
+        node.create_subscription(DiagnosticArray, DIAGNOSTICS, diags.append, reliable)
         procs = [controller, simulator, recorder]  # stop order: source first, recorder last
 
         def spin_until(predicate, timeout):
@@ -170,7 +165,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
             return None
     published = {t: int(final.get("samples_published", -1)) for t in per_sample}
     # every command the simulator received, good or refused (each is in the bag too)
-    published["/seapup/thrusters/command"] = sum(int(final.get(k, -1)) for k in (
+    published[COMMAND] = sum(int(final.get(k, -1)) for k in (
         "accepted", "rejected_invalid", "rejected_stale", "rejected_future", "rejected_malformed"))
     return {"sim_seconds": sim_time[0], "wall_seconds": wall, "published": published}
 
@@ -210,14 +205,14 @@ def _truth_rows(bag_dir: Path) -> tuple[np.ndarray, dict, list]:
     truth, diags, counts = [], [], {t: 0 for t in TOPICS}
     for m in read_bag(bag_dir):
         counts[m.topic] += 1
-        if m.topic == "/seapup/truth/odometry":
+        if m.topic == TRUTH_ODOMETRY:
             o = deserialize_message(m.cdr, Odometry)
             q = o.pose.pose.orientation
             roll, pitch, _ = frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
             tw = o.twist.twist
             truth.append((stamp_to_ns(o.header.stamp) * 1e-9, tw.linear.x, tw.linear.y, tw.linear.z,
                           math.degrees(roll), math.degrees(pitch), o.pose.pose.position.z))
-        elif m.topic == "/diagnostics":
+        elif m.topic == DIAGNOSTICS:
             diags.append(deserialize_message(m.cdr, DiagnosticArray))
     return np.array(sorted(set(truth))).reshape(-1, 7), counts, diags
 

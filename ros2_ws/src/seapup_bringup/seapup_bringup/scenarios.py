@@ -23,6 +23,8 @@ from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_bringup.self_test_sil import fly_self_test
 from seapup_common.contract import Command, Reference
+from seapup_common.topics import (APPLIED, COMMAND, NAMESPACE, SET_CURRENT_SERVICE, TRUTH_ODOMETRY, VELOCITY,
+                                  VELOCITY_REFERENCE)
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.response_metrics import limit_cycle, overshoot_percent, rise_time, saturation_time, settled_value
 from seapup_sim.analysis import hover_blade_pitch
@@ -166,8 +168,7 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
     parameters = ["-p", f"vehicle:={vehicle}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
                   "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
                   "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=2.0",
-                  "-p", "wait_for_subscribers:=['/seapup/sensors/velocity', '/seapup/truth/odometry', "
-                  "'/seapup/thrusters/applied']"]
+                  "-p", f"wait_for_subscribers:={[VELOCITY, TRUTH_ODOMETRY, APPLIED]}"]
     if current and current_at == 0.0:
         params = _current(current)
         parameters += ["-p", "environment.current.enabled:=true",
@@ -191,10 +192,10 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
         node = rclpy.create_node("scenario_driver", context=ctx)
         executor = SingleThreadedExecutor(context=ctx)
         executor.add_node(node)
-        ref_pub = node.create_publisher(TwistStamped, "/seapup/velocity_controller/reference", 10)
-        hold_pub = node.create_publisher(BladePitch, "/seapup/thrusters/command", 10)
-        change = node.create_client(ChangeState, "/seapup/mfol_velocity_controller/change_state")
-        set_current = node.create_client(SetCurrent, "/seapup/simulator/set_current")
+        ref_pub = node.create_publisher(TwistStamped, VELOCITY_REFERENCE, 10)
+        hold_pub = node.create_publisher(BladePitch, COMMAND, 10)
+        change = node.create_client(ChangeState, f"{NAMESPACE}/mfol_velocity_controller/change_state")
+        set_current = node.create_client(SetCurrent, SET_CURRENT_SERVICE)
         state = {"active": False}
 
         def send_reference(value, at: float):
@@ -221,12 +222,12 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
                     change.call_async(ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVATE)))
                     state["active"] = True
 
-        node.create_subscription(Odometry, "/seapup/truth/odometry", on_truth, 1000)
+        node.create_subscription(Odometry, TRUTH_ODOMETRY, on_truth, 1000)
 
         def record_applied():
             # subscribed only once the controller runs: the simulator's first sample waits for an
             # applied-pitch subscriber, and that must be the controller's (its bumpless start reads it)
-            node.create_subscription(BladePitch, "/seapup/thrusters/applied",
+            node.create_subscription(BladePitch, APPLIED,
                                      lambda m: applied.__setitem__(stamp_to_ns(m.header.stamp), np.array(m.pitch)),
                                      1000)
 
@@ -255,7 +256,7 @@ def fly_scenario_graph(name: str, vehicle: str = "baseline", rate: float = 5.0, 
                 if not (spin_until(answer.done, 30.0) and answer.result().success):
                     raise RuntimeError(f"the current could not be scheduled: {answer.result()}")
             spin_until(lambda: False, 0.3)
-            node.create_subscription(TwistWithCovarianceStamped, "/seapup/sensors/velocity", on_velocity, 1000)
+            node.create_subscription(TwistWithCovarianceStamped, VELOCITY, on_velocity, 1000)
             if t_on == 0.0:  # connected from the start, before the first sample is answered
                 state["active"] = True  # (before spinning: on_velocity must not activate it a second time)
                 activate = change.call_async(ChangeState.Request(
