@@ -11,7 +11,7 @@ node are bringup's and the tests' alone. Pure-core
 modules import numpy/scipy/yaml/rosbags but never rclpy or ROS message
 packages, directly or through another seapup module; rclpy shells are the
 ``*_node.py`` modules, each package's ``ros`` subpackage (``seapup_common.ros``,
-``seapup_control.ros``: the SIL harness) and the bringup package (graphs).
+``seapup_control.ros``) and the bringup package (graphs, the SIL harness).
 """
 import ast
 import re

@@ -12,7 +12,7 @@ pytestmark = pytest.mark.graph
 
 
 def sil_graph(controller_file, tmp_path, **arguments):
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
     return SilGraph(arguments={"controller_file": controller_file, **arguments}, out_dir=tmp_path)
 
 

@@ -7,7 +7,7 @@ from seapup_common.bag import read_bag
 
 def test_recorder_bags_the_open_loop_commands(node_process, tmp_path):
     bag_dir = tmp_path / "bag"
-    rec = node_process(package="seapup_ident", executable="recorder",
+    rec = node_process(package="seapup_common", executable="recorder",
                        args=["--ros-args", "-p", f"bag_path:={bag_dir}",
                              "-p", "topics:=['/seapup/thrusters/command']"])
     src = node_process(package="seapup_control", executable="open_loop",
@@ -38,7 +38,7 @@ def _typed_recording(ros_context, node_process, spin, tmp_path, qos):
     from std_msgs.msg import String
 
     bag_dir = tmp_path / "bag"
-    rec = node_process(package="seapup_ident", executable="recorder",
+    rec = node_process(package="seapup_common", executable="recorder",
                        args=["--ros-args", "-p", f"bag_path:={bag_dir}",
                              "-p", "topics:=['/typed:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
     deadline = time.monotonic() + 20.0

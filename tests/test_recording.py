@@ -20,7 +20,7 @@ def stamp(m):
 
 
 def start_recorder(node_process, bag_dir, *extra):
-    rec = node_process(package="seapup_ident", executable="recorder", name="recorder",
+    rec = node_process(package="seapup_common", executable="recorder", name="recorder",
                        args=["--ros-args", "-p", f"bag_path:={bag_dir}", "-p", f"topics:=['{ODOM}']",
                              *[a for e in extra for a in ("-p", e)]])
     deadline = time.monotonic() + 20
@@ -108,7 +108,7 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     schedule: one answer per sample, stamped with it, equal to the commands recorded in the bag."""
     import json
 
-    from seapup_bringup.demo import demo_config, manoeuvres, schedule_args
+    from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_args
     from seapup_msgs.msg import BladePitch
     from tests.test_reference_bags import DEMO
 
@@ -186,7 +186,7 @@ def test_a_malformed_parameter_rule_is_a_clear_error_not_a_traceback(ros_env):
     import subprocess
 
     from seapup_common.processes import find_executable
-    run = subprocess.run([str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", "exclude:="],
+    run = subprocess.run([str(find_executable("seapup_common", "recorder")), "--ros-args", "-p", "exclude:="],
                          env=ros_env, capture_output=True, text=True, timeout=60)
     assert run.returncode == 1
     assert "fatal" in run.stderr and "exclude:=" in run.stderr and "Traceback" not in run.stderr

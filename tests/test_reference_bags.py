@@ -70,7 +70,7 @@ def test_demo_bag_reads_back_with_both_readers_and_one_message_per_sample():
 
 def _refly():
     """The demo flown by the pure core (no ROS) with the demo's configuration and schedule."""
-    from seapup_bringup.demo import demo_config, manoeuvres, schedule_times
+    from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_times
     from seapup_control.schedule import OpenLoop, PitchSchedule
     from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
     from seapup_sim.simulation import Simulation

@@ -1,3 +1,5 @@
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = "seapup_common"
@@ -10,14 +12,18 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="seapup developers",
     maintainer_email="dev@seapup.invalid",
-    description="Seapup shared contract (pure) and the only shared rclpy helpers.",
+    description="Seapup shared contract (pure), the only shared rclpy helpers and the bag recorder node.",
     license="Apache-2.0",
     entry_points={
+        "console_scripts": [
+            "recorder = seapup_common.recorder_node:main",
+        ],
         # control laws by name (seapup_common.controllers)
         "seapup.velocity_controllers": [
             "hold = seapup_common.controllers:HOLD_TYPE",

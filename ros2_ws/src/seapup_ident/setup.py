@@ -17,11 +17,10 @@ setup(
     zip_safe=True,
     maintainer="seapup developers",
     maintainer_email="dev@seapup.invalid",
-    description="Seapup system identification and bag recording and replay.",
+    description="Seapup system identification.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "recorder = seapup_ident.recorder_node:main",
             "identifier = seapup_ident.identifier_node:main",
         ],
     },

@@ -18,7 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.ros.graph import spin_until as graph_spin_until
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, SELF_TEST_ACTION, SELF_TEST_SAMPLES, SENSORS,
+                                  TRUTH_ODOMETRY, VELOCITY, typed)
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_runs.self_test import fly_self_test
 from seapup_control.closed_loop import closed_loop
 from seapup_control.self_test import SelfTestConfig
@@ -76,12 +78,7 @@ def _fly(args, text):
 
 
 #: What a self-test run records (typed: subscribed before the publishers exist).
-SELF_TEST_TOPICS = [("/clock", "rosgraph_msgs/msg/Clock"), ("/seapup/thrusters/command", "seapup_msgs/msg/BladePitch"),
-                    ("/seapup/thrusters/applied", "seapup_msgs/msg/BladePitch"),
-                    ("/seapup/sensors/velocity", "geometry_msgs/msg/TwistWithCovarianceStamped"),
-                    ("/seapup/sensors/imu", "sensor_msgs/msg/Imu"), ("/seapup/sensors/depth", "seapup_msgs/msg/Depth"),
-                    ("/seapup/truth/odometry", "nav_msgs/msg/Odometry"),
-                    ("/seapup/self_test/samples", "seapup_msgs/msg/SelfTestSample")]
+SELF_TEST_TOPICS = (CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY, SELF_TEST_SAMPLES)
 
 
 def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
@@ -100,18 +97,18 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
         env = ros_environment(lease.domain_id)
         print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
               f"(domain {lease.domain_id}); output in {out}", file=text, flush=True)
-        recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p",
+        recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p",
                                 f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
-                                "-p", f"topics:={[f'{t}:{m}' for t, m in SELF_TEST_TOPICS]}"],
+                                "-p", f"topics:={typed(*SELF_TEST_TOPICS)}"],
                                env, out / "recorder.log", "recorder")
         period = 1.0 / args.rate
         simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
                                  "-p", f"vehicle:={args.config}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
                                  "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
                                  "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=60.0",
-                                 "-p", "wait_for_subscribers:=" + str([t for t, _ in SELF_TEST_TOPICS
-                                                                        if t.startswith("/seapup/sensors")
-                                                                        or t.startswith("/seapup/truth")] + ["/clock"])],
+                                 "-p", "wait_for_subscribers:=" + str([t for t in SELF_TEST_TOPICS
+                                                                        if t in SENSORS or t == TRUTH_ODOMETRY]
+                                                                       + [CLOCK])],
                                 env, out / "simulator.log", "simulator")
         node = NodeProcess([find_executable("seapup_control", "self_test"), "--ros-args",
                             "-p", f"result_dir:={out.resolve()}", "-p", "wait_for_command_subscribers:=2",
@@ -121,7 +118,7 @@ def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
         client_node = rclpy.create_node("selftest_client", context=ctx)
         executor = SingleThreadedExecutor(context=ctx)
         executor.add_node(client_node)
-        client = ActionClient(client_node, SelfTestAction, "/seapup/self_test")
+        client = ActionClient(client_node, SelfTestAction, SELF_TEST_ACTION)
         procs = [node, simulator, recorder]
 
         def spin_until(predicate, timeout):
@@ -172,8 +169,8 @@ def _from_bag(bag_dir: Path) -> dict:
     from seapup_common.bag import read_bag
     from seapup_control.self_test import refit, tests_from_samples
     records, positions, stamps = [], [], []
-    for m in read_bag(bag_dir, ["/seapup/self_test/samples", "/seapup/truth/odometry"]):
-        if m.topic == "/seapup/truth/odometry":
+    for m in read_bag(bag_dir, [SELF_TEST_SAMPLES, TRUTH_ODOMETRY]):
+        if m.topic == TRUTH_ODOMETRY:
             odometry = deserialize_message(m.cdr, Odometry)
             p, stamp = odometry.pose.pose.position, odometry.header.stamp
             positions.append((stamp.sec + stamp.nanosec * 1e-9, p.x, p.y, p.z))
@@ -186,7 +183,7 @@ def _from_bag(bag_dir: Path) -> dict:
                         "equilibrium": list(s.equilibrium), "velocity": list(s.velocity),
                         "sample_period": s.sample_period})
     if not records:
-        raise SystemExit(f"seapup: {bag_dir} has no /seapup/self_test/samples: not a self-test bag")
+        raise SystemExit(f"seapup: {bag_dir} has no {SELF_TEST_SAMPLES}: not a self-test bag")
     config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
     points = refit(tests_from_samples(records), config.sample_period, config.poles, config.max_condition)
     # the box of water of the run itself: truth from its first to its last sample

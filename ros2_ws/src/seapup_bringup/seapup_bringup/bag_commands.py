@@ -1,7 +1,7 @@
 """``./seapup record``, ``./seapup bag info|recover`` and ``./seapup replay``: the
 embedded ``ros2 bag`` (rosbag2 Jazzy layout, see :mod:`seapup_common.bag`).
 
-- record: runs the ``recorder`` node (seapup_ident), passes it Ctrl-C/SIGTERM, then
+- record: runs the ``recorder`` node (seapup_common), passes it Ctrl-C/SIGTERM, then
   prints (or ``--json``) what the closed bag holds;
 - bag info / recover: read a bag's metadata, rebuild a killed recorder's bag;
 - replay: publishes the recorded bytes with the recorded QoS (reliability,
@@ -22,8 +22,9 @@ from pathlib import Path
 
 import yaml
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
+from seapup_common.topics import CLOCK
 
 __all__ = ["record", "bag", "replay"]
 
@@ -48,11 +49,11 @@ def record(argv: list[str]) -> int:
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
     from seapup_common.processes import find_executable
-    from seapup_ident.recorder_node import default_bag_path
+    from seapup_common.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
     if output.exists():
         parser.error(f"{output} exists: a bag is never overwritten")
-    exe = find_executable("seapup_ident", "recorder")
+    exe = find_executable("seapup_common", "recorder")
     ros = ["--ros-args", "-p", f"topics:={list(args.topics) or ['']}", "-p", f"all:={str(args.all).lower()}",
            *(["-p", f"exclude:={args.exclude}"] if args.exclude else []),
            "-p", f"max_duration:={float(args.max_duration)}",
@@ -172,7 +173,7 @@ def replay(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
 
-    from seapup_ident.recorder_node import message_class
+    from seapup_common.recorder_node import message_class
 
     rclpy.init()
     node = rclpy.create_node("replay")
@@ -180,7 +181,7 @@ def replay(argv: list[str]) -> int:
     executor.add_node(node)
     pubs = {cid: node.create_publisher(message_class(type_name), topic, qos)
             for cid, (topic, type_name, qos) in channels.items()}
-    clock_pub = node.create_publisher(Clock, "/clock", _qos({})) if clock else None
+    clock_pub = node.create_publisher(Clock, CLOCK, _qos({})) if clock else None
     report = {"sent": 0, "topics": sorted(topic for topic, _, _ in channels.values())}
     answers = _answer_subscription(node, args.lockstep, message_class(answer_type)) if args.lockstep else None
     try:
@@ -231,7 +232,7 @@ def _load_replay(path: Path, topics, lockstep_topic, clock: bool):
             for c in summary.channels.values():
                 all_types[c.topic] = summary.schemas[c.schema_id].name
                 if ((topics is None or c.topic in topics) and c.topic != lockstep_topic
-                        and not (clock and c.topic == "/clock")):
+                        and not (clock and c.topic == CLOCK)):
                     channels.setdefault(c.topic, (c.topic, all_types[c.topic], _qos(c.metadata)))
             records += [(m.log_time, c.topic, bytes(m.data)) for _, c, m in
                         reader.iter_messages(topics=list(channels), log_time_order=True)]

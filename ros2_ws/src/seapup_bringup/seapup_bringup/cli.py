@@ -11,19 +11,18 @@ Conventions for every command: ``--help`` explains it; ``--json [FILE]``
 writes its result as JSON to FILE (to standard output with no FILE, and the
 human text then goes to standard error); long work shows a progress bar on a
 terminal (a line per 10 % otherwise); exit 0 on success, 1 on failure, 2 on
-bad usage.
+bad usage. The helpers for these conventions live in
+:mod:`seapup_bringup.output`; command modules import them from there and never
+import this registry back.
 """
 from __future__ import annotations
 
-import argparse
-import json
-import math
 import os
 import sys
 from dataclasses import dataclass
 from typing import Callable
 
-__all__ = ["command", "COMMANDS", "main", "add_json_argument", "emit_json", "progress", "jsonable"]
+__all__ = ["command", "COMMANDS", "main"]
 
 
 @dataclass(frozen=True)
@@ -50,62 +49,6 @@ def _shell(name: str, summary: str, usage: str = "") -> None:
     COMMANDS[name] = Entry(name, summary, usage, None, name != "lock")
 
 
-# -- helpers for commands -------------------------------------------------------
-def add_json_argument(parser: argparse.ArgumentParser) -> None:
-    """The ``--json [FILE]`` convention."""
-    parser.add_argument("--json", nargs="?", const="-", metavar="FILE",
-                        help="write the result as JSON to FILE (stdout without FILE; text then goes to stderr)")
-
-
-def jsonable(obj):
-    """numpy scalars/arrays to Python; non-finite floats to None (JSON has no NaN)."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if hasattr(obj, "tolist"):
-        return jsonable(obj.tolist())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
-def emit_json(args, result: dict) -> None:
-    """Write ``result`` where ``--json`` asked (nothing without it)."""
-    target = getattr(args, "json", None)
-    if not target:
-        return
-    text = json.dumps(jsonable(result), indent=1)
-    if target == "-":
-        sys.__stdout__.write(text + "\n")
-    else:
-        with open(target, "w") as f:
-            f.write(text + "\n")
-        print(f"wrote {target}")
-
-
-def text_stream(args):
-    """Where human text goes: stderr when JSON goes to stdout."""
-    return sys.stderr if getattr(args, "json", None) == "-" else sys.stdout
-
-
-def progress(label: str, fraction: float, width: int = 30, stream=None) -> None:
-    """A progress bar on a terminal; a line per 10 % otherwise (logs, CI)."""
-    stream = stream or sys.stderr
-    fraction = min(max(fraction, 0.0), 1.0)
-    done = int(width * fraction)
-    bar = f"  {label:<12} [{'#' * done}{'.' * (width - done)}] {100 * fraction:5.1f}%"
-    if stream.isatty():
-        stream.write("\r" + bar + ("\n" if fraction >= 1.0 else ""))
-    elif int(10 * fraction) != progress.last.get(label, -1):
-        progress.last[label] = int(10 * fraction)
-        stream.write(bar + "\n")
-    stream.flush()
-
-
-progress.last = {}
-
-
 # -- the commands ----------------------------------------------------------------------
 _shell("setup", "only bootstrap: .venv, wheel fix, colcon build")
 _shell("env", "print the exports; use: eval \"$(./seapup env)\"")
@@ -116,15 +59,15 @@ _shell("lock", "regenerate requirements/lock.txt from seapup.in")
          "hierarchy (self-test, hover + controller swap, goto, inspection, seabed following, station keeping "
          "in current), recorded, with a table and plots", "[--out DIR] [--json [F]] [--no-plots]")
 def _demo(argv: list[str]) -> int:
-    from seapup_bringup.mission import main as mission
-    return mission(argv)
+    from seapup_bringup.demo import main as demo
+    return demo(argv)
 
 
 @command("open-loop", "open-loop manoeuvres through the graph, recorded (the plant alone; bags/demo_120s)",
          "[--duration S] [--out DIR] [--bag DIR] [--json [F]]")
 def _open_loop(argv: list[str]) -> int:
-    from seapup_bringup.demo import main as demo
-    return demo(argv)
+    from seapup_bringup.open_loop import main as open_loop
+    return open_loop(argv)
 
 
 @command("ident", "system identification (ch. 6): experiment in SIL, fit / orders / compare from a bag or CSV",

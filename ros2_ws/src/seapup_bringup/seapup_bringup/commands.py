@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_sim.environment_config import load_environment
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.model_check import check_model as run_model_check

@@ -1,274 +1,319 @@
-"""``./seapup open-loop``: fly the Seapup open-loop through the ROS graph.
+"""``./seapup demo``: the mission -- the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3) flying the Seapup.
 
-Until the autopilots land, the demo flies the thesis's open-loop manoeuvres
-(Table 3.2 style) with the full plant, as separate processes on a private ROS
-domain: the ``simulator`` (seapup_sim) in lockstep with a Gauss-Markov current
-and the baseline sensors, ``open_loop`` (seapup_control) answering every
-sample with a blade-pitch schedule -- hover (eq. 5.2), surge (both mains
-+35 deg), sway (vectored push-pull), hover -- and ``recorder`` (seapup_ident)
-writing commands, truth, sensors and diagnostics into a rosbag2/MCAP bag,
-which the demo reads back and summarises per manoeuvre.
+Starts the whole graph (``seapup_bringup/launch/hierarchy.yaml`` in lockstep,
+faster than real time, every node its own process, plus the recorder) with
+:class:`seapup_bringup.sil.SilGraph`, then flies, through ROS only:
+
+1. the self-test (sec. 4.5.2) through its action; both velocity controllers
+   are configured from its result and the fixed-gain one is activated;
+2. hover, swapping the velocity controller (fixed gain -> gain scheduled)
+   half way through;
+3. a goto of ~10 m with a 90 deg heading change;
+4. the inspection manoeuvre (sec. 5.4.2: body velocities 0.2, 0.1, 0.1 m/s,
+   "a diagonal creeping motion"), as a goto along that diagonal at its speed;
+5. seabed following at a set height up the slope;
+6. station keeping in the thesis's 0.26 m/s Gauss-Markov current (sec. 3.9).
+
+Everything is recorded to an MCAP bag (``<out>/bag``); the demo prints a table
+per leg (duration, tracking errors, position-hold RMS and max from the truth,
+thruster saturation, the swap's command step), writes PNG plots next to the
+bag and the numbers as JSON (``--json``).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
-import sys
+import os
 import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray
-from nav_msgs.msg import Odometry
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
-from rosgraph_msgs.msg import Clock
 
-from seapup_common.ros.graph import spin_until as graph_spin_until
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
-from seapup_common import frames
-from seapup_common.bag import read_bag
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-from seapup_common.ros.messages import stamp_to_ns
-from seapup_sim.analysis import hover_blade_pitch
-from seapup_sim.vehicle import VehicleModel
-from seapup_sim.vehicle_config import load_vehicle_config
+from seapup_common import topics
+
+__all__ = ["MISSION", "main", "fly_mission"]
+
+#: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
+MISSION = "mission.yaml"
+
+#: The simulator's handshake topics (hierarchy.yaml's wait_for_subscribers) are recorded untyped: the
+#: recorder then subscribes once it has seen their publisher, so the simulator still waits for the
+#: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
+#: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
+#: recorded from the first message.
+HANDSHAKE = [topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION, topics.APPLIED]
+RECORDED = HANDSHAKE + topics.typed(topics.CLOCK, topics.COMMAND, topics.TRUTH_ODOMETRY, topics.ALTITUDE,
+                                    topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE, topics.POSITION_REFERENCE,
+                                    topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 
 
-
-def demo_config() -> dict:
-    """The demo's graph parameters (``seapup_bringup/config/demo.yaml``)."""
+def mission_config() -> dict:
     from ament_index_python.packages import get_package_share_directory
-    return yaml.safe_load((Path(get_package_share_directory("seapup_bringup")) / "config" / "demo.yaml").read_text())
+    return yaml.safe_load((Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION).read_text())
 
 
-def manoeuvres() -> list[tuple[str, np.ndarray]]:
-    """Hover (the trim of eq. 5.2), surge (Table 3.2 no. 3), sway (no. 4a), hover [rad]."""
-    hover = hover_blade_pitch(VehicleModel(load_vehicle_config(demo_config()["simulator"]["vehicle"])))
-    lim = BLADE_PITCH_LIMIT
-    return [("hover", hover), ("surge", np.array([lim, lim, 0.0, 0.0])),
-            ("sway", np.array([0.0, 0.0, lim, -lim])), ("hover", hover)]
+def _set_parameter(sil, node: str, name: str, value: str) -> None:
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    parameter = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value))
+    response = sil.call(f"{topics.NAMESPACE}/{node}/set_parameters", "rcl_interfaces/srv/SetParameters", {"parameters": [parameter]})
+    if not response.results[0].successful:
+        raise RuntimeError(f"{node}: {name} refused: {response.results[0].reason}")
 
 
-#: What the demo records: (topic, type, published by the simulator once per sample).
-RECORDED = [("/clock", "rosgraph_msgs/msg/Clock", False),
-            ("/seapup/thrusters/command", "seapup_msgs/msg/BladePitch", False),
-            ("/seapup/thrusters/applied", "seapup_msgs/msg/BladePitch", True),
-            ("/seapup/truth/odometry", "nav_msgs/msg/Odometry", True),
-            ("/seapup/sensors/velocity", "geometry_msgs/msg/TwistWithCovarianceStamped", True),
-            ("/seapup/sensors/imu", "sensor_msgs/msg/Imu", True),
-            ("/seapup/sensors/depth", "seapup_msgs/msg/Depth", True),
-            ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", False)]
-TOPICS = [t for t, _, _ in RECORDED]
+def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
+    """Truth-based numbers of one leg over its goal's window: saturation, hold or altitude error."""
+    t0, t1 = leg["t0"], leg["t1"]
+    ct = logs["command_t"]
+    commands = logs["command"][(ct >= t0) & (ct <= t1)]
+    saturated = float(np.mean(np.any(np.abs(commands) >= BLADE_PITCH_LIMIT - 1e-6, axis=1))) if len(commands) else 0.0
+    out = {"saturation_pct": 100 * saturated, "duration": t1 - t0}
+    t, truth = logs["truth_t"], logs["truth_position"]
+    window = (t >= t0) & (t <= t1)
+    if not window.any():
+        return out
+    if leg["kind"] in ("hover", "current"):
+        st = logs["setpoint_t"]
+        held = (st >= t0) & (st <= t1)
+        steady = window & (t >= t0 + leg.get("hold_from", 0.0))  # after braking from the previous leg's speed
+        if held.any() and steady.any():  # the point held is the leg's last setpoint (the pose at acceptance)
+            errors = truth[steady] - logs["setpoint"][held][-1, :3]
+            horizontal = np.hypot(errors[:, 0], errors[:, 1])
+            out.update(hold_rms=float(np.sqrt(np.mean(horizontal ** 2))), hold_max=float(horizontal.max()),
+                       depth_rms=float(np.sqrt(np.mean(errors[:, 2] ** 2))))
+    elif leg["kind"] == "follow_seabed":
+        steady = window & (t >= t0 + leg.get("hold_from", 0.0))  # after climbing or descending to the altitude
+        if steady.any():
+            x, y, z = truth[steady].T
+            error = np.array([seabed(a, b) for a, b in zip(x, y)]) - z - leg["goal"]["altitude"]
+            out.update(altitude_true_rms=float(np.sqrt(np.mean(error ** 2))),
+                       altitude_true_max=float(np.abs(error).max()))
+    elif "target" in leg:
+        out["end_error_true"] = float(np.linalg.norm(truth[window][-1] - leg["target"]))
+    return out
 
 
-def schedule_times(duration: float, plan) -> list[float]:
-    """Switching times [s]: the manoeuvres share the flight equally."""
-    return [round(k * duration / len(plan), 6) for k in range(len(plan))]
+def _swap_bump(logs: dict, t_switch: float) -> dict:
+    """Largest one-sample command change at the switch, and in the 15 s of flight before it [deg]."""
+    t, c = logs["command_t"], logs["command"]
+    steps = np.abs(np.diff(c, axis=0)).max(axis=1)
+    ts = t[1:]
+    at = steps[(ts > t_switch - 0.3) & (ts < t_switch + 1.0)]
+    before = steps[(ts > t_switch - 15.0) & (ts <= t_switch - 0.3)]
+    return {"switch_step_deg": math.degrees(float(at.max())) if len(at) else math.nan,
+            "normal_step_deg": math.degrees(float(before.max())) if len(before) else math.nan}
 
 
-def schedule_args(duration: float, plan) -> list[str]:
-    pitches = [float(x) for _, row in plan for x in row]
-    return ["-p", "lockstep:=true", "-p", f"times:={schedule_times(duration, plan)}", "-p", f"pitches:={pitches}"]
+def fly_mission(out: Path, config: dict, text) -> dict:
+    """Fly the mission in a SIL graph; the per-leg numbers (and the logs as arrays under ``logs``)."""
+    from seapup_bringup.sil import SilGraph
+    from seapup_sim.seabed import Seabed
+
+    graph = config["graph"]
+    seabed = Seabed(graph.get("seabed_kind", "flat"), float(graph.get("seabed_depth", 100.0)),
+                    float(graph.get("seabed_gradient", 0.0)), float(graph.get("seabed_direction", 0.0)))
+    legs, swap = [], {}
+    plan = config["mission"]
+    total = sum(leg.get("expected", 60.0) for leg in plan)
+    done = 0.0
+    with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="") as sil:
+        print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
+        for leg in plan:
+            start, wall = sil.t, time.monotonic()
+            progress(f"{leg['name']:<18}", done / total)
+            numbers = _fly_leg(sil, leg, swap)
+            numbers.setdefault("t0", start)
+            numbers.setdefault("t1", sil.t)
+            done += leg.get("expected", 60.0)
+            legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
+                         "hold_from": float(leg.get("hold_from", 0.0)),
+                         "wall_s": time.monotonic() - wall, **numbers})
+            print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
+                  f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)", file=text)
+        progress("mission", 1.0)
+        logs = sil.logs()
+        bag = sil.bag
+    for leg in legs:
+        leg.update(_truth_numbers(logs, leg, seabed))
+    if swap:
+        legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
+    return {"legs": legs, "bag": str(bag), "logs": logs}
 
 
-def wait_for(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
+def _fly_leg(sil, leg: dict, swap: dict) -> dict:
+    kind = leg["kind"]
+    if kind == "self_test":
+        t0 = sil.t
+        fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}
+        result = sil.action(topics.SELF_TEST_ACTION, "seapup_msgs/action/SelfTest", fields)
+        t1 = sil.t
+        if not result.success:
+            raise RuntimeError(f"self-test failed: {result.message}")
+        for node in leg["configure"]:
+            _set_parameter(sil, node, "controller_file", result.controller_file)
+        reply = sil.switch(activate=[leg["activate"]])
+        if not reply.ok:
+            raise RuntimeError(f"activating {leg['activate']}: {reply.message}")
+        return {"status": "succeeded", "t0": t0, "t1": t1, "controller_file": result.controller_file,
+                "self_test_duration": result.duration}
+    if kind == "current":
+        reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", leg["current"])
+        if not reply.success:
+            raise RuntimeError(f"set_current: {reply.message}")
+        kind = "hover"
+    _, here, attitude = sil.estimate()
+    yaw = float(attitude[2])
+    goal = dict(leg.get("goal", {}))
+    target = None
+    if kind == "inspection":
+        body = np.asarray(leg["body_velocity"], dtype=float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
+        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
+                "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
+        kind = "goto"
+    elif "face" in leg:  # hold where it is, turned to this heading (e.g. into the current)
+        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
+    elif "offset" in leg:
+        target = here + np.asarray(leg["offset"], dtype=float)
+        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    during = None
+    if "switch" in leg:
+        def do_switch():
+            swap["t"] = sil.t
+            return sil.switch(**leg["switch"]["request"])
+        during = (leg["switch"]["after"], do_switch)
+    result = sil.goal(kind, timeout=600.0, during=during, **{k: float(v) if not isinstance(v, bool) else v
+                                                             for k, v in goal.items()})
+    if not result["accepted"]:
+        raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
+    if during is not None:
+        swap["leg"] = leg["index"]
+        result["switch_ok"] = bool(result["during"].ok)
+    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
+    out.update(t0=result["accepted_t"], t1=result["end_t"])
+    if target is not None:
+        out["target"] = [float(v) for v in target]
+    return out
 
 
-def _simulator_status(diags: list) -> dict:
-    for d in reversed(diags):
-        for st in d.status:
-            if st.name == "seapup/simulator":
-                return {"message": st.message, **{kv.key: kv.value for kv in st.values}}
-    return {}
+def _task_error(leg: dict) -> str:
+    """The task's own measure of how well it went (from the navigation estimate)."""
+    if leg["kind"] in ("goto", "inspection"):
+        return f"end {leg['distance']:.2f} m, xt {leg['cross_track_rms']:.2f} m"
+    if leg["kind"] == "follow_seabed":
+        return f"alt rms {leg['altitude_rms']:.2f} m"
+    if leg["kind"] in ("hover", "current"):
+        return f"rms {leg['horizontal_rms']:.2f} m"
+    return ""
 
 
-def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
-    """Start the graph, fly ``args.duration`` simulated seconds, stop it so that the
-    recorder has everything; the run's numbers, or None if the graph failed."""
-    per_sample = [t for t, _, each in RECORDED if each]
-    with DomainLease() as lease:
-        env = ros_environment(lease.domain_id)
-        print(f"seapup open-loop: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
-        recorder = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args",
-                                "-p", f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
-                                "-p", f"topics:={[f'{t}:{m}' for t, m, _ in RECORDED]}"],
-                               env, out / "recorder.log", "recorder")
-        # graph-ready handshake: the simulator publishes its first sample only once the
-        # recorder listens to every recorded topic, the controller answers only once
-        # both the simulator and the recorder listen to its commands
-        parameters = [a for k, v in demo_config()["simulator"].items()
-                      for a in ("-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}")]
-        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", *parameters,
-                                 "-p", f"wait_for_subscribers:={per_sample + ['/clock', '/diagnostics']}"],
-                                env, out / "simulator.log", "simulator")
-        controller = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args",
-                                  "-p", "wait_for_subscribers:=2", *schedule_args(args.duration, plan)],
-                                 env, out / "open_loop.log", "open_loop")
-        ctx = Context()
-        rclpy.init(context=ctx, domain_id=lease.domain_id)
-        node = rclpy.create_node("demo_progress", context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        sim_time, diags = [-1.0], []
-        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        node.create_subscription(Clock, "/clock", lambda m: sim_time.__setitem__(0, stamp_to_ns(m.clock) * 1e-9),
-                                 reliable)
-        node.create_subscription(DiagnosticArray, "/diagnostics", diags.append, reliable)
-        procs = [controller, simulator, recorder]  # stop order: source first, recorder last
+def _truth_error(leg: dict) -> str:
+    """The same from the simulator's truth."""
+    if "hold_rms" in leg:
+        return f"rms {leg['hold_rms']:.2f}, max {leg['hold_max']:.2f} m"
+    if "altitude_true_rms" in leg:
+        return f"alt rms {leg['altitude_true_rms']:.2f}, max {leg['altitude_true_max']:.2f} m"
+    if "end_error_true" in leg:
+        return f"end {leg['end_error_true']:.2f} m"
+    return ""
 
-        def spin_until(predicate, timeout):
-            return graph_spin_until(executor, predicate, timeout)
 
-        try:
-            recorder.start()
-            simulator.start()
-            # the simulator holds t_0 (re-sent on /clock) until a controller answers: start
-            # the controller once this process hears t_0 too, so it watches from the start
-            if not spin_until(lambda: sim_time[0] >= 0, 60.0):
-                print(f"seapup open-loop: the nodes did not come up; see the logs in {out}", file=text)
-                return None
-            controller.start()
-            wall0 = time.monotonic()
-            while sim_time[0] < args.duration and time.monotonic() - wall0 < 600.0:
-                executor.spin_once(timeout_sec=0.1)
-                progress("flying", sim_time[0] / args.duration)
-            wall = time.monotonic() - wall0
-            controller.stop()  # the lockstep simulator now waits: no more samples
+def _table(legs: list, text) -> None:
+    head = (f"{'leg':<20}{'status':<11}{'sim s':>7}{'wall s':>7}  {'task (navigation)':<24}{'truth':<26}"
+            f"{'sat %':>6}{'swap step':>16}")
+    print(head, file=text)
+    print("-" * len(head), file=text)
+    for leg in legs:
+        swap = leg.get("switch_step_deg", math.nan)
+        swap = "" if math.isnan(swap) else f"{swap:.2f} ({leg['normal_step_deg']:.2f}) deg"
+        print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
+              f"{_task_error(leg):<24}{_truth_error(leg):<26}{leg['saturation_pct']:>6.1f}{swap:>16}", file=text)
+    print("truth: hold and altitude errors from hold_from s into the leg (config/mission.yaml: after braking from "
+          "the previous leg, or reaching the altitude); swap step: largest one-sample blade-pitch change at the switch (in the 15 s before it)",
+          file=text)
 
-            def settled():  # two successive reports with the same counters: nothing left in flight
-                statuses = [st for d in diags[-2:] for st in d.status if st.name == "seapup/simulator"]
-                return len(diags) >= seen + 3 and len(statuses) == 2 and \
-                    {kv.key: kv.value for kv in statuses[0].values if kv.key != "real_time_factor_measured"
-                     and kv.key != "control_steps_per_wall_second"} == \
-                    {kv.key: kv.value for kv in statuses[1].values if kv.key != "real_time_factor_measured"
-                     and kv.key != "control_steps_per_wall_second"}
-            seen = len(diags)
-            spin_until(settled, 10.0)
-            final = _simulator_status(diags)
-            time.sleep(0.5)  # let the recorder take what is still in flight
-        finally:
-            for p in procs:
-                p.stop()
-            executor.shutdown()
-            node.destroy_node()
-            ctx.try_shutdown()
-        dead = [p.name for p in procs if p.returncode not in (0, -2)]
-        if dead:
-            print(f"seapup open-loop: {', '.join(dead)} exited abnormally; see the logs in {out}", file=text)
-            return None
-    published = {t: int(final.get("samples_published", -1)) for t in per_sample}
-    # every command the simulator received, good or refused (each is in the bag too)
-    published["/seapup/thrusters/command"] = sum(int(final.get(k, -1)) for k in (
-        "accepted", "rejected_invalid", "rejected_stale", "rejected_future", "rejected_malformed"))
-    return {"sim_seconds": sim_time[0], "wall_seconds": wall, "published": published}
+
+def _plots(result: dict, out: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    logs = result["logs"]
+    paths = []
+    fig, (top, side) = plt.subplots(1, 2, figsize=(12, 5))
+    top.plot(logs["truth_position"][:, 1], logs["truth_position"][:, 0], label="truth")
+    top.plot(logs["estimate_position"][:, 1], logs["estimate_position"][:, 0], lw=0.6, label="navigation")
+    top.plot(logs["setpoint"][:, 1], logs["setpoint"][:, 0], "--", lw=0.8, label="setpoint")
+    top.set_xlabel("east y [m]"), top.set_ylabel("north x [m]"), top.set_aspect("equal"), top.legend()
+    top.set_title("top view (odom_ned)")
+    side.plot(logs["truth_t"], logs["truth_position"][:, 2], label="depth (truth)")
+    side.plot(logs["setpoint_t"], logs["setpoint"][:, 2], "--", lw=0.8, label="depth setpoint")
+    side.invert_yaxis(), side.set_xlabel("t [s]"), side.set_ylabel("depth [m]"), side.legend()
+    for leg in result["legs"]:
+        side.axvline(leg["t0"], color="grey", lw=0.5)
+        side.text(leg["t0"], side.get_ylim()[1], leg["name"], rotation=90, fontsize=7, va="top")
+    fig.tight_layout()
+    paths.append(out / "mission_path.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, axes = plt.subplots(4, 1, figsize=(12, 9), sharex=True)
+    names = ["u [m/s]", "v [m/s]", "w [m/s]", "r [rad/s]"]
+    columns = [0, 1, 2, 5]
+    for ax, name, col, ref in zip(axes, names, columns, range(4)):
+        ax.plot(logs["truth_t"], logs["truth_velocity"][:, col], lw=0.8, label="truth")
+        ax.plot(logs["reference_t"], logs["reference"][:, ref], lw=0.8, label="reference")
+        ax.set_ylabel(name)
+    axes[0].legend(), axes[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    paths.append(out / "mission_velocities.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(12, 4))
+    for i, name in enumerate(["main port", "main starboard", "vectored starboard", "vectored port"]):
+        ax.plot(logs["command_t"], np.degrees(logs["command"][:, i]), lw=0.7, label=name)
+    ax.set_xlabel("t [s]"), ax.set_ylabel("blade pitch [deg]"), ax.legend(ncol=4)
+    fig.tight_layout()
+    paths.append(out / "mission_blade_pitch.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return [str(p) for p in paths]
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="./seapup open-loop", description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=float(demo_config()["duration"]),
-                        help="simulated seconds (default from config/demo.yaml; lockstep runs faster than real time)")
-    parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/demo_<UTC time>)")
-    parser.add_argument("--bag", type=Path, default=None, help="bag directory to create (default OUT/bag)")
+    parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
+                                      "(default bags/demo_<UTC time> under the checkout)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_json_argument(parser)
     args = parser.parse_args(argv)
-    if not (math.isfinite(args.duration) and 4.0 <= args.duration <= 3600.0):
-        parser.error(f"--duration must be between 4 and 3600 s, got {args.duration}")
     text = text_stream(args)
-    out = args.out or Path("runs") / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
-    out.mkdir(parents=True, exist_ok=True)
-    bag_dir = args.bag or out / "bag"
-    if bag_dir.exists():
-        parser.error(f"{bag_dir} exists: a bag is never overwritten")
-    plan = manoeuvres()
-    flown = _fly(args, out, bag_dir, plan, text)
-    if flown is None:
+    root = Path(os.environ.get("SEAPUP_ROOT", "."))
+    out = Path(args.out) if args.out else root / "bags" / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
+    config = mission_config()
+    for index, leg in enumerate(config["mission"]):
+        leg["index"] = index
+    wall = time.monotonic()
+    try:
+        result = fly_mission(out, config, text)
+    except Exception as exc:  # a failed leg or graph: say which, point at the logs
+        print(f"seapup demo: failed: {exc}; node logs in {out}", file=text)
         return 1
-    print(f"flew {flown['sim_seconds']:.1f} s of simulated time in {flown['wall_seconds']:.1f} s "
-          f"({flown['sim_seconds'] / max(flown['wall_seconds'], 1e-9):.0f}x real time)", file=text)
-    summary = summarise(bag_dir, args.duration, plan)
-    summary.update({"bag": str(bag_dir), **flown})
-    summary["missed"] = {t: n - summary["counts"].get(t, 0) for t, n in flown["published"].items()
-                         if n != summary["counts"].get(t, 0)}
-    print_summary(summary, text)
+    _table(result["legs"], text)
+    if not args.no_plots:
+        result["plots"] = _plots(result, out)
+        print(f"seapup demo: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
+    result["wall_s"] = time.monotonic() - wall
+    print(f"seapup demo: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
+    summary = {k: v for k, v in result.items() if k != "logs"}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     emit_json(args, summary)
-    return 0 if summary["segments"] and not summary["missed"] else 1
-
-
-def _truth_rows(bag_dir: Path) -> tuple[np.ndarray, dict, list]:
-    truth, diags, counts = [], [], {t: 0 for t in TOPICS}
-    for m in read_bag(bag_dir):
-        counts[m.topic] += 1
-        if m.topic == "/seapup/truth/odometry":
-            o = deserialize_message(m.cdr, Odometry)
-            q = o.pose.pose.orientation
-            roll, pitch, _ = frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
-            tw = o.twist.twist
-            truth.append((stamp_to_ns(o.header.stamp) * 1e-9, tw.linear.x, tw.linear.y, tw.linear.z,
-                          math.degrees(roll), math.degrees(pitch), o.pose.pose.position.z))
-        elif m.topic == "/diagnostics":
-            diags.append(deserialize_message(m.cdr, DiagnosticArray))
-    return np.array(sorted(set(truth))).reshape(-1, 7), counts, diags
-
-
-def summarise(bag_dir: Path, duration: float, plan) -> dict:
-    """Per manoeuvre: what the vehicle did (from the recorded truth), and the simulator's counters."""
-    x, counts, diags = _truth_rows(bag_dir)
-    seg = duration / len(plan)
-    segments = []
-    for k, (name, _) in enumerate(plan):
-        rows = x[(x[:, 0] >= k * seg) & (x[:, 0] < (k + 1) * seg)]
-        if len(rows):
-            segments.append({"manoeuvre": name, "from_s": k * seg, "u_max": rows[:, 1].max(),
-                             "v_abs_max": np.abs(rows[:, 2]).max(), "w_end": rows[-1, 3],
-                             "roll_abs_max_deg": np.abs(rows[:, 4]).max(), "pitch_end_deg": rows[-1, 5],
-                             "depth_end": rows[-1, 6]})
-    simulator = {}
-    for d in reversed(diags):
-        st = next((s for s in d.status if s.name == "seapup/simulator"), None)
-        if st is not None:
-            simulator = {"message": st.message, **{kv.key: kv.value for kv in st.values}}
-            break
-    return {"counts": counts, "segments": segments, "simulator": simulator}
-
-
-def print_summary(summary: dict, text=sys.stdout) -> None:
-    print(f"\nbag {summary['bag']}: " + ", ".join(f"{t} {n}" for t, n in summary["counts"].items()), file=text)
-    if summary.get("missed"):
-        print("seapup open-loop: the bag misses messages that were published: " +
-              ", ".join(f"{t} {n}" for t, n in summary["missed"].items()), file=text)
-    else:
-        print("every published sample and command is in the bag", file=text)
-    if not summary["segments"]:
-        print("seapup open-loop: no vehicle data was recorded; see the logs", file=text)
-        return
-    print(f"\n{'manoeuvre':<8} {'from':>6} {'u max':>7} {'|v| max':>8} {'w end':>7} {'|roll| max':>10} "
-          f"{'pitch end':>10} {'depth end':>10}", file=text)
-    print(f"{'':<8} {'[s]':>6} {'[m/s]':>7} {'[m/s]':>8} {'[m/s]':>7} {'[deg]':>10} {'[deg]':>10} {'[m]':>10}",
-          file=text)
-    for r in summary["segments"]:
-        print(f"{r['manoeuvre']:<8} {r['from_s']:6.1f} {r['u_max']:7.3f} {r['v_abs_max']:8.3f} "
-              f"{r['w_end']:7.3f} {r['roll_abs_max_deg']:10.1f} {r['pitch_end_deg']:10.1f} "
-              f"{r['depth_end']:10.1f}", file=text)
-    sim = summary["simulator"]
-    if sim:
-        rejected = sum(int(v) for k, v in sim.items() if k.startswith("rejected"))
-        print(f"\nsimulator: {sim['message']}; steps {sim.get('steps')}, commands accepted "
-              f"{sim.get('accepted')}, rejected {rejected}, lockstep timeouts {sim.get('lockstep_timeouts')}",
-              file=text)
-    print("Thesis, no current: surge top speed 0.98 m/s with 27.4 deg bow-up; sway 0.34 m/s, "
-          "max roll 24.8 deg (sec. 3.5).", file=text)
+    failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
+    if failed:
+        print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+from seapup_common.topics import CLOCK
 
 __all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate"]
 
@@ -69,7 +70,7 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         stamps = []
-        node.create_subscription(Clock, "/clock", lambda m: stamps.append((time.perf_counter(),
+        node.create_subscription(Clock, CLOCK, lambda m: stamps.append((time.perf_counter(),
                                  m.clock.sec + m.clock.nanosec * 1e-9)),
                                  QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
         ctl = None
@@ -169,7 +170,7 @@ def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp",
     samples = []
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
-        rec = NodeProcess([find_executable("seapup_ident", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
+        rec = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
                            "-p", "all:=true", "-p", "use_sim_time:=true"], env, f"{log_dir}/bench_rec.log").start()
         sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", "-p", "mode:=realtime",
                            "-p", "real_time_factor:=0.0", "-p", "watchdog_timeout:=1000.0",

@@ -26,8 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.blade_pitch import THRUSTER_NAMES
+from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, TRUTH_ODOMETRY, VELOCITY, VELOCITY_REFERENCE,
+                                  typed)
 
 __all__ = ["main", "bag_data", "load_source", "OUTPUT_SETS"]
 
@@ -55,18 +57,17 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
     unknown = set(outputs) - set(OUTPUT_SETS["ch6"])
     if unknown:
         raise ValueError(f"unknown output(s) {sorted(unknown)}; choose from {', '.join(OUTPUT_SETS['ch6'])}")
-    kinds = {"/seapup/sensors/velocity": TwistWithCovarianceStamped, "/seapup/sensors/imu": Imu,
-             "/seapup/thrusters/applied": BladePitch}
+    kinds = {VELOCITY: TwistWithCovarianceStamped, IMU: Imu, APPLIED: BladePitch}
     found = {topic: {} for topic in kinds}
     for message in read_bag(path, list(kinds)):
         msg = deserialize_message(message.cdr, kinds[message.topic])
         found[message.topic][stamp_to_ns(msg.header.stamp)] = msg
     empty = [topic for topic, values in found.items() if not values and
-             (topic != "/seapup/sensors/imu" or {"roll", "pitch"} & set(outputs))]
+             (topic != IMU or {"roll", "pitch"} & set(outputs))]
     if empty:
         raise ValueError(f"{path}: no messages on {', '.join(empty)} (record them: ./seapup ident experiment)")
-    applied = {stamp: np.asarray(msg.pitch, float) for stamp, msg in found["/seapup/thrusters/applied"].items()}
-    output_topics = ["/seapup/sensors/velocity"] + (["/seapup/sensors/imu"] if {"roll", "pitch"} & set(outputs) else [])
+    applied = {stamp: np.asarray(msg.pitch, float) for stamp, msg in found[APPLIED].items()}
+    output_topics = [VELOCITY] + ([IMU] if {"roll", "pitch"} & set(outputs) else [])
     stamps = sorted(set().union(*(found[topic] for topic in output_topics)))
     period = float(np.median(np.diff(sorted(applied)))) * 1e-9 if len(applied) > 1 else 0.0
     u = held_inputs(stamps, applied, period)
@@ -77,13 +78,13 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
     y = np.full((len(stamps), len(outputs)), np.nan)
     for k, stamp in enumerate(stamps):
         row = {}
-        if stamp in found["/seapup/sensors/velocity"]:
-            velocity, rates = velocity_from_msg(found["/seapup/sensors/velocity"][stamp])
+        if stamp in found[VELOCITY]:
+            velocity, rates = velocity_from_msg(found[VELOCITY][stamp])
             if velocity.valid and rates.valid:
                 row.update(zip(("u", "v", "w"), velocity.value))
                 row["r"] = rates.value[2]
-        if stamp in found["/seapup/sensors/imu"]:
-            attitude = attitude_from_imu(found["/seapup/sensors/imu"][stamp])
+        if stamp in found[IMU]:
+            attitude = attitude_from_imu(found[IMU][stamp])
             if attitude.valid:
                 row.update(roll=attitude.value[0], pitch=attitude.value[1])
         y[k] = [row.get(name, math.nan) for name in outputs]
@@ -303,8 +304,7 @@ def _residuals(args, text) -> dict:
 
 
 def _experiment(args, text) -> dict:
-    from seapup_common.topics import typed
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
 
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
@@ -319,9 +319,8 @@ def _experiment(args, text) -> dict:
     else:
         graph, excitation = "seapup_bringup identification.yaml", _prbs_excitation(args)
     arguments.update(excitation.pop("arguments"))
-    record = typed("/clock", "/seapup/thrusters/command", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
-                   "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/truth/odometry",
-                   *(["/seapup/velocity_controller/reference"] if args.closed_loop else []))
+    record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
+                   *([VELOCITY_REFERENCE] if args.closed_loop else []))
     with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
         print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
               f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)

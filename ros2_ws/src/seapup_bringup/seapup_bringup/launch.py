@@ -38,6 +38,7 @@ import sys
 import threading
 import time
 
+from seapup_bringup.output import add_json_argument, emit_json
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch"]
@@ -172,7 +173,6 @@ def launch(argv: list[str]) -> int:
     parser.add_argument("graph", nargs="+", help="GRAPH.yaml, or PACKAGE FILE, then name:=value arguments")
     parser.add_argument("--show-args", action="store_true", help="print the graph's arguments and exit")
     parser.add_argument("--stop-grace", type=float, default=5.0, help="seconds between SIGINT, SIGTERM, SIGKILL")
-    from seapup_bringup.cli import add_json_argument, emit_json
     add_json_argument(parser)
     args = parser.parse_args(argv)
     words = [w for w in args.graph if ":=" not in w]

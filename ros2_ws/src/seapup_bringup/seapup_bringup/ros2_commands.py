@@ -18,6 +18,8 @@ import time
 
 import yaml
 
+from seapup_bringup.output import add_json_argument, emit_json, text_stream
+
 __all__ = ["topic", "node", "param", "service", "action", "interface"]
 
 
@@ -128,7 +130,6 @@ def _listed(entries, show_types: bool, key: str) -> dict:
 
 def _json_options(parser: argparse.ArgumentParser) -> None:
     """``--json [FILE]`` on every verb (the ./seapup convention)."""
-    from seapup_bringup.cli import add_json_argument
     for sub in parser._subparsers._group_actions[0].choices.values():
         add_json_argument(sub)
     parser.epilog = ("Every verb takes --json [FILE] (its result as JSON; to stdout without FILE, the text then "
@@ -138,11 +139,10 @@ def _json_options(parser: argparse.ArgumentParser) -> None:
 def _run(fn, args) -> int:
     """Run a verb on a probe node; its ``args.result`` goes out as JSON with ``--json``."""
     import contextlib
-    from seapup_bringup.cli import emit_json
     from seapup_common.ros.introspection import InterfaceError
     probe = None
     args.result = {}
-    human = sys.stderr if getattr(args, "json", None) == "-" else sys.stdout
+    human = text_stream(args)
     try:
         with contextlib.redirect_stdout(human):
             probe = Probe()
@@ -610,7 +610,6 @@ def interface(argv: list[str]) -> int:
     p.add_argument("type")
     _json_options(parser)
     args = parser.parse_args(argv)
-    from seapup_bringup.cli import emit_json, text_stream
     from seapup_common.ros.introspection import InterfaceError, definition, interface_class
     try:
         text = definition(interface_class(args.type))

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 
 __all__ = ["fly", "controllers"]
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_bringup.cli import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.controllers import ControllerRegistryError
 from seapup_runs.result import RunResult
 from seapup_runs.runner import DesignFailed, run

@@ -7,7 +7,8 @@ Pure core (numpy/scipy/yaml/rosbags, never rclpy): :mod:`~seapup_common.blade_pi
 :mod:`~seapup_common.config` (typed YAML loading), :mod:`~seapup_common.random_streams`,
 :mod:`~seapup_common.bag` (rosbag2/MCAP I/O), :mod:`~seapup_common.parameters` (ROS
 params files read without ROS), :mod:`~seapup_common.processes` (domain leases, child
-node processes). rclpy shells: :mod:`seapup_common.ros`.
+node processes). rclpy shells: :mod:`seapup_common.ros`, and the ``recorder`` node
+(:mod:`seapup_common.recorder_node`: topics into a rosbag2/MCAP bag, as ``ros2 bag record``).
 
 Dependencies point one way: seapup_msgs <- seapup_common <- seapup_sim, seapup_control,
 seapup_ident <- seapup_bringup.

@@ -1,30 +1,98 @@
-"""The Seapup graph's topics and their message types: the one list every recorder request is made from.
+"""The Seapup graph's names: its topics and their message types, and the services and actions called across packages.
+
+One table, so a topic is spelled once. Node shells publish and subscribe with
+remappable names relative to their namespace (``sensors/velocity`` in
+:data:`NAMESPACE`); code outside a node (bringup's drivers, the recorder, the
+identifier's bag, tests' probes) uses the absolute names here.
 
 A recorder told ``/topic:pkg/msg/Type`` subscribes before any publisher exists (nothing of a
-fast lockstep run is lost); :func:`typed` builds those entries from this table.
+fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC_TYPES`.
 """
 from __future__ import annotations
 
-__all__ = ["TOPIC_TYPES", "typed"]
+__all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "APPLIED", "TRUTH_ODOMETRY", "VELOCITY", "IMU", "DEPTH",
+           "POSITION", "ALTITUDE", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
+           "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
+           "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SWITCH_CONTROLLER_SERVICE", "task_action", "typed"]
+
+#: The vehicle's namespace: every seapup node runs in it.
+NAMESPACE = "/seapup"
+
+# -- topics ----------------------------------------------------------------------------------------
+#: Simulated time (published by a lockstep or sim-time simulator).
+CLOCK = "/clock"
+#: Every node's diagnostics.
+DIAGNOSTICS = "/diagnostics"
+#: Blade pitches commanded by the active controller [rad].
+COMMAND = "/seapup/thrusters/command"
+#: Blade pitches the thrusters really applied (limited, held) [rad].
+APPLIED = "/seapup/thrusters/applied"
+#: The simulator's true state (NED/FRD).
+TRUTH_ODOMETRY = "/seapup/truth/odometry"
+#: Body velocity and rates from the velocity sensor.
+VELOCITY = "/seapup/sensors/velocity"
+#: Attitude and rates.
+IMU = "/seapup/sensors/imu"
+#: Depth sensor.
+DEPTH = "/seapup/sensors/depth"
+#: Position fixes.
+POSITION = "/seapup/sensors/position"
+#: Altitude above the seabed.
+ALTITUDE = "/seapup/sensors/altitude"
+#: The navigator's estimate.
+NAVIGATION_ODOMETRY = "/seapup/navigation/odometry"
+#: Body-velocity reference of the velocity controllers.
+VELOCITY_REFERENCE = "/seapup/velocity_controller/reference"
+#: Pose set point of the position controller.
+POSITION_REFERENCE = "/seapup/position_controller/reference"
+#: The self-test's samples.
+SELF_TEST_SAMPLES = "/seapup/self_test/samples"
+#: Models published by the online identifier.
+IDENTIFIED_MODEL = "/seapup/identifier/model"
+#: Goals the task controller refused, with the reason.
+TASK_REJECTIONS = "/seapup/task/rejections"
+
+#: The simulator's sensor topics.
+SENSORS = (VELOCITY, IMU, DEPTH, POSITION, ALTITUDE)
 
 #: Topic -> message type (rosbag2 spelling ``pkg/msg/Type``).
 TOPIC_TYPES = {
-    "/clock": "rosgraph_msgs/msg/Clock",
-    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
-    "/seapup/thrusters/command": "seapup_msgs/msg/BladePitch",
-    "/seapup/thrusters/applied": "seapup_msgs/msg/BladePitch",
-    "/seapup/truth/odometry": "nav_msgs/msg/Odometry",
-    "/seapup/sensors/velocity": "geometry_msgs/msg/TwistWithCovarianceStamped",
-    "/seapup/sensors/imu": "sensor_msgs/msg/Imu",
-    "/seapup/sensors/depth": "seapup_msgs/msg/Depth",
-    "/seapup/sensors/position": "geometry_msgs/msg/PoseWithCovarianceStamped",
-    "/seapup/sensors/altitude": "sensor_msgs/msg/Range",
-    "/seapup/navigation/odometry": "nav_msgs/msg/Odometry",
-    "/seapup/velocity_controller/reference": "geometry_msgs/msg/TwistStamped",
-    "/seapup/position_controller/reference": "geometry_msgs/msg/PoseStamped",
-    "/seapup/self_test/samples": "seapup_msgs/msg/SelfTestSample",
-    "/seapup/identifier/model": "seapup_msgs/msg/IdentifiedModel",
+    CLOCK: "rosgraph_msgs/msg/Clock",
+    DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    COMMAND: "seapup_msgs/msg/BladePitch",
+    APPLIED: "seapup_msgs/msg/BladePitch",
+    TRUTH_ODOMETRY: "nav_msgs/msg/Odometry",
+    VELOCITY: "geometry_msgs/msg/TwistWithCovarianceStamped",
+    IMU: "sensor_msgs/msg/Imu",
+    DEPTH: "seapup_msgs/msg/Depth",
+    POSITION: "geometry_msgs/msg/PoseWithCovarianceStamped",
+    ALTITUDE: "sensor_msgs/msg/Range",
+    NAVIGATION_ODOMETRY: "nav_msgs/msg/Odometry",
+    VELOCITY_REFERENCE: "geometry_msgs/msg/TwistStamped",
+    POSITION_REFERENCE: "geometry_msgs/msg/PoseStamped",
+    SELF_TEST_SAMPLES: "seapup_msgs/msg/SelfTestSample",
+    IDENTIFIED_MODEL: "seapup_msgs/msg/IdentifiedModel",
+    TASK_REJECTIONS: "std_msgs/msg/String",
 }
+
+# -- services and actions --------------------------------------------------------------------------
+#: The self-test action (``seapup_msgs/action/SelfTest``).
+SELF_TEST_ACTION = "/seapup/self_test"
+#: The simulator's current switch (``seapup_msgs/srv/SetCurrent``).
+SET_CURRENT_SERVICE = "/seapup/simulator/set_current"
+#: The controller manager's switch (``seapup_msgs/srv/SwitchController``).
+SWITCH_CONTROLLER_SERVICE = "/seapup/controller_manager/switch_controller"
+
+
+def task_action(kind: str) -> str:
+    """The task controller's action for a task kind (``hover``, ``goto``, ``follow_seabed``).
+
+    Examples
+    --------
+    >>> task_action("goto")
+    '/seapup/task/goto'
+    """
+    return f"{NAMESPACE}/task/{kind}"
 
 
 def typed(*topics: str) -> list[str]:
@@ -34,6 +102,11 @@ def typed(*topics: str) -> list[str]:
     ------
     KeyError
         Naming a topic missing from :data:`TOPIC_TYPES`.
+
+    Examples
+    --------
+    >>> typed(CLOCK, COMMAND)
+    ['/clock:rosgraph_msgs/msg/Clock', '/seapup/thrusters/command:seapup_msgs/msg/BladePitch']
     """
     unknown = [t for t in topics if t not in TOPIC_TYPES]
     if unknown:

@@ -1,1 +1,1 @@
-"""Seapup system identification (thesis ch. 6) and bag recording/replay."""
+"""Seapup system identification (thesis ch. 6)."""

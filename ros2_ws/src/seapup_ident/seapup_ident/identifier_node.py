@@ -25,26 +25,24 @@ from sensor_msgs.msg import Imu
 
 from seapup_common.bag import BagWriter, make_typestore
 from seapup_common.blade_pitch import THRUSTER_NAMES
+from seapup_common.recorder_node import project_msg_files
 from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
-from seapup_common.topics import TOPIC_TYPES
+from seapup_common.topics import APPLIED, IDENTIFIED_MODEL, IMU, NAMESPACE, TOPIC_TYPES, VELOCITY
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.online import OnlineIdentifier
-from seapup_ident.recorder_node import project_msg_files
 from seapup_ident.recursive import DataError, Forgetting
 
 __all__ = ["IdentifierNode", "main"]
 
-_TOPICS = {"velocity": ("/seapup/sensors/velocity", TwistWithCovarianceStamped),
-           "attitude": ("/seapup/sensors/imu", Imu), "applied": ("/seapup/thrusters/applied", BladePitch)}
-MODEL_TOPIC = "/seapup/identifier/model"
+_TOPICS = {"velocity": (VELOCITY, TwistWithCovarianceStamped), "attitude": (IMU, Imu), "applied": (APPLIED, BladePitch)}
 
 
 class IdentifierNode(Node):
     """rclpy shell around :class:`OnlineIdentifier` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("identifier", namespace="/seapup", **kwargs)
+        super().__init__("identifier", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier")
         outputs = list(p["outputs"])
         na, nb, nc = (int(v) for v in p["orders"])
@@ -55,7 +53,7 @@ class IdentifierNode(Node):
         self.core = OnlineIdentifier(ArmaxOrders(len(outputs), 4, na, nb, nc), p["method"], outputs,
                                      forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]),
                                      filter_weakening=weakening)
-        self.publisher = self.create_publisher(IdentifiedModel, MODEL_TOPIC, RELIABLE_QOS)
+        self.publisher = self.create_publisher(IdentifiedModel, IDENTIFIED_MODEL, RELIABLE_QOS)
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
         self.drain_on_shutdown = True      # run_node takes the readings already received before closing
@@ -75,7 +73,7 @@ class IdentifierNode(Node):
         for kind, (topic, _) in _TOPICS.items():
             if kind in self.core.kinds:
                 bag.add_topic(topic, TOPIC_TYPES[topic])
-        bag.add_topic(MODEL_TOPIC, TOPIC_TYPES[MODEL_TOPIC])
+        bag.add_topic(IDENTIFIED_MODEL, TOPIC_TYPES[IDENTIFIED_MODEL])
         return bag
 
     def _on_reading(self, kind: str, msg) -> None:
@@ -122,7 +120,7 @@ class IdentifierNode(Node):
                 if kind != "applied":   # the pitch at t_k measured the interval before it
                     self.bag.write(_TOPICS[kind][0], cdr, used.stamp_ns)
             self.bag.write(_TOPICS["applied"][0], self._held[used.input_stamp_ns]["applied"], used.input_stamp_ns)
-            self.bag.write(MODEL_TOPIC, serialize_message(msg), used.stamp_ns)
+            self.bag.write(IDENTIFIED_MODEL, serialize_message(msg), used.stamp_ns)
 
     def destroy_node(self):
         if self.bag is not None:

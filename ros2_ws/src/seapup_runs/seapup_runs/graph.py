@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import yaml
 
+from seapup_common import topics
 from seapup_runs.spec import RunSpec, RunSpecError
 
 __all__ = ["graph_document", "controller_nodes", "SAMPLE_TOPICS", "TRUTH_TOPICS", "REFERENCE_WAIT"]
@@ -30,8 +31,8 @@ __all__ = ["graph_document", "controller_nodes", "SAMPLE_TOPICS", "TRUTH_TOPICS"
 #: What the simulator waits for before its first sample: each controller's and each listener's
 #: subscription to the sample and the applied pitch, the listeners' to the truth (nothing of the run
 #: is lost; a topic listed k times needs k subscribers).
-SAMPLE_TOPICS = ["/seapup/sensors/velocity", "/seapup/thrusters/applied"]
-TRUTH_TOPICS = ["/seapup/truth/odometry"]
+SAMPLE_TOPICS = [topics.VELOCITY, topics.APPLIED]
+TRUTH_TOPICS = [topics.TRUTH_ODOMETRY]
 #: [s wall] how long a sample waits for its reference or applied pitch before going on (counted
 #: late): generous, since a lockstep run must not depend on how busy the machine is.
 REFERENCE_WAIT = 10.0

@@ -24,13 +24,13 @@ graph run's recording.
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from seapup_common.jsondata import jsonable
 from seapup_runs.spec import RunSpec
 
 __all__ = ["RunResultError", "Series", "RunResult", "TRUTH_NAMES", "STATE_INDEX", "MEASURED_NAMES",
@@ -48,19 +48,6 @@ REFERENCE_NAMES = ("u", "v", "w", "r")
 
 class RunResultError(ValueError):
     """A result document that is not a seapup run result, or signals of inconsistent lengths."""
-
-
-def jsonable(obj):
-    """numpy scalars/arrays to Python; non-finite floats to None (JSON has no NaN)."""
-    if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if hasattr(obj, "tolist"):
-        return jsonable(obj.tolist())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def _array(values, width: int | None = None) -> np.ndarray:

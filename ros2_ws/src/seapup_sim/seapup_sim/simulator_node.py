@@ -53,6 +53,7 @@ from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file,
                                     declare_mapping, run_node)
+from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import default_environment_mapping, load_environment
 from seapup_sim.sensors import sensor_profiles
@@ -106,7 +107,7 @@ class SimulatorNode(Node):
     """rclpy shell around :class:`Simulator` (see module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("simulator", namespace="/seapup", **kwargs)
+        super().__init__("simulator", namespace=NAMESPACE, **kwargs)
         ro = dict(read_only=True)
         p = declare_from_package_file(self, "seapup_sim", "simulator.yaml", {
             "mode": ParameterDescriptor(description="lockstep | realtime", **ro),
@@ -191,8 +192,8 @@ class SimulatorNode(Node):
         self.pub_odom = pub(Odometry, "odometry", RELIABLE_QOS)
         self.pub_current = pub(Vector3Stamped, "environment/current", RELIABLE_QOS)
         self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", RELIABLE_QOS)
-        self.pub_clock = pub(Clock, "/clock", RELIABLE_QOS) if publish_clock else None
-        self.pub_diag = pub(DiagnosticArray, "/diagnostics", 10)
+        self.pub_clock = pub(Clock, CLOCK, RELIABLE_QOS) if publish_clock else None
+        self.pub_diag = pub(DiagnosticArray, DIAGNOSTICS, 10)
         self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True)
         def srv(kind, name, callback):
             self.create_service(kind, name, callback, qos_profile=SERVICE_QOS)
@@ -387,8 +388,8 @@ class SimulatorNode(Node):
     def _graph_problems(self) -> list[str]:
         """What is wrong around the simulator on the graph (for WARN diagnostics)."""
         problems = []
-        if self.pub_clock is not None and self.count_publishers("/clock") > 1:
-            problems.append(f"{self.count_publishers('/clock')} publishers on /clock: another clock source "
+        if self.pub_clock is not None and self.count_publishers(CLOCK) > 1:
+            problems.append(f"{self.count_publishers(CLOCK)} publishers on {CLOCK}: another clock source "
                             "(a second simulator?) interleaves its time with ours")
         command_topic = self.resolve_topic_name("thrusters/command")
         types = dict(self.get_topic_names_and_types()).get(command_topic, [])

@@ -6,7 +6,7 @@ A graph file lists nodes and their defaults (the format is documented in
 objects and :func:`command_line` turns a spec into the node's command
 (executable, ``--ros-args`` with name, namespace, parameters, remappings).
 Shared by the launcher (seapup_bringup) and the SIL harness
-(:mod:`seapup_control.ros.sil`), so both read the same files the same way.
+(:mod:`seapup_bringup.sil`), so both read the same files the same way.
 """
 from __future__ import annotations
 

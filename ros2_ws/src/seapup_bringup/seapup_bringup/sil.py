@@ -5,7 +5,7 @@ A test (or a script) describes the graph with a graph file (the format of
 supervisory hierarchy in lockstep), then drives it with goals and service
 calls; every node runs in its own process, exactly as on a vehicle::
 
-    from seapup_control.ros.sil import SilGraph
+    from seapup_bringup.sil import SilGraph
 
     with SilGraph(arguments={"controller_file": "ctrl.yaml"}, out_dir=tmp_path) as sil:
         result = sil.goal("goto", x=5.0, y=3.0, z=31.0, yaw=1.0)
@@ -30,24 +30,27 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_common import topics
+from seapup_common.topics import TOPIC_TYPES
+
 __all__ = ["SilGraph", "SilError", "TOPICS"]
 
-#: What the probe logs: name -> (topic, message type).
-TOPICS = {
-    "truth": ("/seapup/truth/odometry", "nav_msgs.msg.Odometry"),
-    "estimate": ("/seapup/navigation/odometry", "nav_msgs.msg.Odometry"),
-    "reference": ("/seapup/velocity_controller/reference", "geometry_msgs.msg.TwistStamped"),
-    "setpoint": ("/seapup/position_controller/reference", "geometry_msgs.msg.PoseStamped"),
-    "command": ("/seapup/thrusters/command", "seapup_msgs.msg.BladePitch"),
-    "applied": ("/seapup/thrusters/applied", "seapup_msgs.msg.BladePitch"),
-    "altitude": ("/seapup/sensors/altitude", "sensor_msgs.msg.Range"),
-    "velocity": ("/seapup/sensors/velocity", "geometry_msgs.msg.TwistWithCovarianceStamped"),
-    "imu": ("/seapup/sensors/imu", "sensor_msgs.msg.Imu"),
-    "depth": ("/seapup/sensors/depth", "seapup_msgs.msg.Depth"),
-    "position": ("/seapup/sensors/position", "geometry_msgs.msg.PoseWithCovarianceStamped"),
-    "rejections": ("/seapup/task/rejections", "std_msgs.msg.String"),
-    "diagnostics": ("/diagnostics", "diagnostic_msgs.msg.DiagnosticArray"),
-}
+#: What the probe logs: name -> (topic, message type as a Python path).
+TOPICS = {name: (topic, TOPIC_TYPES[topic].replace("/", ".")) for name, topic in {
+    "truth": topics.TRUTH_ODOMETRY,
+    "estimate": topics.NAVIGATION_ODOMETRY,
+    "reference": topics.VELOCITY_REFERENCE,
+    "setpoint": topics.POSITION_REFERENCE,
+    "command": topics.COMMAND,
+    "applied": topics.APPLIED,
+    "altitude": topics.ALTITUDE,
+    "velocity": topics.VELOCITY,
+    "imu": topics.IMU,
+    "depth": topics.DEPTH,
+    "position": topics.POSITION,
+    "rejections": topics.TASK_REJECTIONS,
+    "diagnostics": topics.DIAGNOSTICS,
+}.items()}
 
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
@@ -141,7 +144,7 @@ class SilGraph:
         if self.record:
             self.bag = self.out_dir / "bag"
             self.processes["recorder"] = NodeProcess(
-                [str(find_executable("seapup_ident", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
+                [str(find_executable("seapup_common", "recorder")), "--ros-args", "-p", f"bag_path:={self.bag}",
                  "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
                 self.env, self.out_dir / "recorder.log", "recorder").start()
             self._wait_for_recorder()
@@ -264,7 +267,7 @@ class SilGraph:
         from seapup_common.ros.graph import send_goal
 
         action = _import(f"seapup_msgs.action.{_ACTIONS[kind]}")
-        client = ActionClient(self._node, action, f"/seapup/task/{kind}")
+        client = ActionClient(self._node, action, topics.task_action(kind))
         try:
             goal = action.Goal(**fields)
             rejections = len(self.log["rejections"])
@@ -334,7 +337,7 @@ class SilGraph:
 
     def switch(self, activate=(), deactivate=(), strict: bool = True, timeout: float = 10.0):
         """The controller manager's switch_controller; the response (``ok``, ``message``)."""
-        return self.call("/seapup/controller_manager/switch_controller", "seapup_msgs/srv/SwitchController",
+        return self.call(topics.SWITCH_CONTROLLER_SERVICE, "seapup_msgs/srv/SwitchController",
                          {"activate_controllers": list(activate), "deactivate_controllers": list(deactivate),
                           "strictness": 2 if strict else 1, "timeout": float(timeout)}, timeout=timeout + 5.0)
 

@@ -43,6 +43,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
 from seapup_common.ros.node import declare_from_package_file, run_node
+from seapup_common.topics import CLOCK
 
 __all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "default_bag_path"]
 
@@ -79,7 +80,7 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("recorder", **kwargs)
-        p = declare_from_package_file(self, "seapup_ident", "recorder.yaml", {
+        p = declare_from_package_file(self, "seapup_common", "recorder.yaml", {
             "topics": ParameterDescriptor(type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True),
         }, section="recorder")
         entries = [t for t in p["topics"] if t]
@@ -95,7 +96,7 @@ class RecorderNode(Node):
         self._clock_sim: list[int] = []   # and their values
         if self.sim_time:
             from rosgraph_msgs.msg import Clock
-            self.create_subscription(Clock, "/clock", self._on_clock, EAGER_QOS)
+            self.create_subscription(Clock, CLOCK, self._on_clock, EAGER_QOS)
         path = p["bag_path"] or str(default_bag_path())
         self.typestore = make_typestore(project_msg_files())
         self.bag = BagWriter(path, self.typestore, flush_interval=p["flush_interval"],
