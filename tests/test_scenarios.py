@@ -1,6 +1,7 @@
 """./seapup scenario: the thesis's closed-loop cases flown with the self-tested controller."""
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -24,6 +25,20 @@ def test_surge_step_is_tracked_and_measured(tmp_path):
     assert 10.0 < result["pitch_deg"]["peak"] < 35.0                  # bow up (thesis: 26.2 deg peak)
     history = np.array(result["history"]["velocity"])
     assert history.shape == (51, 4) and list((tmp_path).glob("scenario_surge_*.png"))
+    # final values are means over the last 1 s (6 samples at 5 Hz), with whether they settled: u has
+    # (integral action), the pitch angle still swings there (its ~5.6 s oscillation has not died out)
+    assert u["settled"] and u["window_s"] == 1.0 and u["final"] == pytest.approx(np.mean(history[-6:, 0]))
+    pitch, angle = result["pitch_deg"], np.array(result["history"]["roll_pitch_deg"])[-6:, 1]
+    assert not pitch["settled"] and pitch["window_s"] == 1.0 and pitch["final"] == pytest.approx(np.mean(angle))
+    assert pitch["range"] == pytest.approx([angle.min(), angle.max()]) and pitch["range"][1] - pitch["range"][0] > 2.0
+
+
+def test_the_text_says_when_a_final_value_has_not_settled(capsys):
+    assert scenario_command(["surge"]) == 0
+    text = capsys.readouterr().out
+    assert "final = mean over the last 1 s" in text
+    assert re.search(r"pitch peak .* \(not settled: \d+\.\d to \d+\.\d deg over the last 1 s\)", text), text
+    assert "not settled over the last" not in text  # u, v, w and r have settled
 
 
 def test_current_step_and_station_keeping_reject_the_current():
