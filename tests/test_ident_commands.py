@@ -5,6 +5,7 @@ known generating system for the CSV fit, and the model's one-step predictions ex
 recorded motion far better than its mean.
 """
 import json
+import math
 import subprocess
 import sys
 
@@ -31,8 +32,8 @@ def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
     bag = json.loads((tmp_path / "exp.json").read_text())["bag"]
     data = bag_data(bag)
-    # 30 s at 5 Hz: t = 0 .. 29.8 s at least, each with its interval's pitch (read at the next sample)
-    assert len(data.t) >= 150 and np.all(np.isfinite(data.y)) and np.all(np.isfinite(data.u))
+    # 30 s at 5 Hz: t = 0 .. 29.8 s, each with its interval's pitch (read at the next sample, t <= 30 s)
+    assert len(data.t) == 150 and np.all(np.isfinite(data.y)) and np.all(np.isfinite(data.u))
     np.testing.assert_allclose(np.diff(data.t), 0.2, atol=1e-9)                # no sample missing
     hover = hover_blade_pitch(VehicleModel(load_vehicle_config("baseline")))
     # the input of each interval, read at its end: +-10 deg about hover, the 0.05 s actuator lag
@@ -62,7 +63,7 @@ def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     from seapup_msgs.msg import IdentifiedModel
     identifier_bag = json.loads((tmp_path / "exp.json").read_text())["identifier_bag"]
     models = [deserialize_message(m.cdr, IdentifiedModel) for m in read_bag(identifier_bag, ["/seapup/identifier/model"])]
-    assert len(models) >= 140 and models[-1].samples == len(models)
+    assert 140 <= len(models) <= 151 and models[-1].samples == len(models)
     offline = ident(ros_env, "fit", identifier_bag, "--orders", "2,2,0", "--json", tmp_path / "offline.json")
     assert offline.returncode == 0, offline.stdout + offline.stderr
     again = json.loads((tmp_path / "offline.json").read_text())
@@ -100,6 +101,8 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
     table = json.loads((tmp_path / "cmp.json").read_text())
     assert set(table["methods"]) == {"ls", "els", "rpem"} and table["rpem_filter"] == [0.1, 0.98]
     assert all(m["scored"] == 2000 - 2 for m in table["methods"].values())   # 2 passes of 1000, each fills 1 lag
+    assert table["scope"]["samples"] == 1000 and not table["scope"]["trimmed"]  # no t column: t = sample number
+    assert "data: 1000 samples, t = 0 .. 999 s" in run.stdout
     assert [p.endswith(".png") for p in table["plots"]] == [True] * 3
     assert all((tmp_path / "plots" / name).stat().st_size > 10_000 for name in
                ("ident_ls_1_1_0.png", "ident_els_1_1_1.png", "ident_rpem_1_1_1.png"))
@@ -112,6 +115,8 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
     low = ident(ros_env, "residuals", path, "--orders", "1,1,0", "--inputs", "ua", "--json", tmp_path / "low.json")
     assert low.returncode == 0 and json.loads((tmp_path / "low.json").read_text())["white"] == [False]
     for args, reason in ((["compare", path, "--passes", 2, "--points", 100], "--passes or --points"),
+                         (["fit", path, "--duration", 0.5], "duration must be >= one sample period"),
+                         (["experiment", "--duration", 10.1], "a whole number of 0.2 s sample periods"),
                          (["orders", path, "--risk", 0], "risk alpha must be in (0, 1)"),
                          (["residuals", path, "--orders", "1,1,0", "--lags", 0], "max_lag >= 1"),
                          (["fit", path, "--orders", "2,x"], "three integers"),
@@ -119,6 +124,8 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
                          (["experiment", "--closed-loop", "--references", "a,b"], "two rows of four")):
         bad = ident(ros_env, *args)
         assert bad.returncode == 1 and reason in bad.stdout + bad.stderr, (args, bad.stdout + bad.stderr)
+    bad = ident(ros_env, "fit", path, "--duration", "x")                  # argparse's usage error
+    assert bad.returncode == 2 and "--duration must be seconds > 0 or 'all'" in bad.stderr
 
 
 @pytest.mark.graph
@@ -165,3 +172,88 @@ def test_experiment_on_the_linearised_model(tmp_path, ros_env):
     assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
     assert json.loads((tmp_path / "lin.json").read_text())["dynamics"] == "linearised"
     assert "vehicle baseline (linearised)" in (tmp_path / "lin" / "simulator.log").read_text()
+
+
+def short_record(n, period=0.2):
+    from seapup_ident.identify import IdentificationData
+    u = prbs(n, clock=4, n_inputs=1, nbits=7)
+    return IdentificationData(np.zeros((n, 1)), u, period * np.arange(n), ("y",), ("u",))
+
+
+def test_scope_scores_what_the_experiment_asked_for_and_says_so():
+    from seapup_bringup.ident_commands import scope
+    record = short_record(425)                                 # run on to 84.8 s (issue 22's record)
+    scored, doc, lines = scope(record, asked=60.0)
+    assert doc["samples"] == 300 and doc["t"] == [0.0, pytest.approx(59.8)] and doc["seconds"] == pytest.approx(60)
+    assert doc["record"]["samples"] == 425 and doc["trimmed"] and doc["asked_s"] == 60.0 and doc["duration_s"] == 60
+    np.testing.assert_array_equal(scored.u, record.u[:300])
+    assert lines == ["note: the record holds 425 samples (85 s), longer than the 60 s its experiment asked for; "
+                     "scoring the first 60 s (--duration all scores all of it)",
+                     "data: 300 samples, t = 0 .. 59.8 s (T = 0.2 s, 60 s of inputs), the first 60 s of a "
+                     "425-sample record"]
+    # --duration all: the whole record, still said to be longer than asked
+    scored, doc, lines = scope(record, math.inf, asked=60.0)
+    assert doc["samples"] == 425 and not doc["trimmed"] and doc["duration_s"] is None
+    assert lines[0].endswith("longer than the 60 s its experiment asked for; scoring all of it")
+    assert lines[1] == "data: 425 samples, t = 0 .. 84.8 s (T = 0.2 s, 85 s of inputs)"
+    # --duration shorter than asked; a record of exactly what was asked (300 = 60 s / 0.2 s): no note
+    assert scope(record, 10.0, asked=60.0)[1]["samples"] == 50
+    scored, doc, lines = scope(short_record(300), asked=60.0)
+    assert doc["samples"] == 300 and not doc["trimmed"] and len(lines) == 1 and lines[0].startswith("data: 300")
+    # no experiment record: all of it unless --duration says otherwise
+    assert scope(record)[1]["samples"] == 425 and len(scope(record)[2]) == 1
+    assert scope(record, 20.0)[1]["samples"] == 100
+
+
+def test_experiment_record_is_found_next_to_the_bag_it_names(tmp_path):
+    from seapup_bringup.ident_commands import experiment_record
+    bag, identifier = tmp_path / "bag", tmp_path / "identifier"
+    bag.mkdir(), identifier.mkdir()
+    assert experiment_record(bag) is None
+    (tmp_path / "experiment.json").write_text(json.dumps({"bag": str(bag), "identifier_bag": str(identifier),
+                                                          "duration": 60.0}))
+    assert experiment_record(bag)["duration"] == 60.0 and experiment_record(identifier)["duration"] == 60.0
+    other = tmp_path / "other"
+    other.mkdir()
+    assert experiment_record(other) is None                  # a bag the record does not name
+    assert experiment_record(tmp_path / "run.csv") is None
+    (tmp_path / "experiment.json").write_text("{not json")
+    assert experiment_record(bag) is None
+
+
+def test_an_experiment_flies_a_whole_number_of_samples():
+    from seapup_bringup.ident_commands import experiment_samples
+    assert experiment_samples(60.0, 0.2) == 300 and experiment_samples(10, 0.2) == 50
+    assert experiment_samples(0.2, 0.2) == 1 and experiment_samples(3600.0, 0.2) == 18000
+    for bad in (10.1, 0.1, 0.0, -5.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="whole number of 0.2 s sample periods"):
+            experiment_samples(bad, 0.2)
+
+
+@pytest.mark.graph
+def test_an_experiment_ends_at_its_duration_in_graph_time(tmp_path, ros_env):
+    """Issue 22: a 60 s experiment once recorded 84.8 s. The simulator now stops stepping at the
+    experiment's end (its end_time), so a 10 s experiment records exactly t = 0, 0.2, ..., 10 s --
+    51 samples on every sample topic -- every time, and its record says what it asked for."""
+    from seapup_bringup.ident_commands import bag_data
+    from seapup_common.bag import read_bag
+    sample_topics = ("/seapup/truth/odometry", "/seapup/sensors/velocity", "/seapup/sensors/imu",
+                     "/seapup/sensors/depth", "/seapup/thrusters/applied", "/seapup/thrusters/command")
+    for run_index in range(2):
+        out = tmp_path / f"run{run_index}"
+        run = ident(ros_env, "experiment", "--duration", 10, "--out", out, "--json", tmp_path / f"{run_index}.json")
+        assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
+        doc = json.loads((tmp_path / f"{run_index}.json").read_text())
+        assert doc["samples"] == 51 and doc["duration"] == 10 and doc["sample_period"] == 0.2
+        assert json.loads((out / "experiment.json").read_text()) == doc
+        counts = dict.fromkeys(sample_topics, 0)
+        for message in read_bag(doc["bag"], list(sample_topics)):
+            counts[message.topic] += 1
+        assert counts == dict.fromkeys(sample_topics, 51), counts
+        data = bag_data(doc["bag"])
+        assert len(data.t) == 50 and data.t[0] == 0.0 and data.t[-1] == pytest.approx(9.8)
+        # the fit scores those 50 and says so; the record is not longer than asked: no note
+        fit = ident(ros_env, "fit", doc["bag"], "--set", "ch7", "--json", tmp_path / "fit.json")
+        assert fit.returncode == 0, fit.stdout + fit.stderr
+        assert json.loads((tmp_path / "fit.json").read_text())["scope"]["samples"] == 50
+        assert "data: 50 samples, t = 0 .. 9.8 s" in fit.stdout and "note:" not in fit.stdout

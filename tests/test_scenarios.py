@@ -1,6 +1,7 @@
 """./seapup scenario: the thesis's closed-loop cases as run specs, flown in process and through the graph."""
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -33,8 +34,22 @@ def test_surge_step_is_tracked_and_measured(tmp_path):
     assert result.series.velocity().shape == (51, 4) and list(tmp_path.glob("scenario_surge_*.png"))
     assert result.spec.name == "surge" and result.spec.controller.type == "mfol"
     assert result.spec.controller.document["kind"] == "seapup/mfol_controller"  # the designed gains travel along
+    # final values are means over the last 1 s (6 samples at 5 Hz), with whether they settled: u has
+    # (integral action), the pitch angle still swings there (its ~5.6 s oscillation has not died out)
+    assert u["settled"] and u["window_s"] == 1.0 and u["final"] == pytest.approx(np.mean(result.series.truth["u"][-6:]))
+    pitch, angle = result.metrics["pitch_deg"], np.degrees(result.series.truth["pitch"][-6:])
+    assert not pitch["settled"] and pitch["window_s"] == 1.0 and pitch["final"] == pytest.approx(np.mean(angle))
+    assert pitch["range"] == pytest.approx([angle.min(), angle.max()]) and pitch["range"][1] - pitch["range"][0] > 2.0
     document = json.loads(out.read_text())
     assert set(document["series"]["truth"]) == {"u", "v", "w", "r", "p", "q", "roll", "pitch", "yaw", "x", "y", "z"}
+
+
+def test_the_text_says_when_a_final_value_has_not_settled(capsys):
+    assert scenario_command(["surge"]) == 0
+    text = capsys.readouterr().out
+    assert "final = mean over the last 1 s" in text
+    assert re.search(r"pitch peak .* \(not settled: \d+\.\d to \d+\.\d deg over the last 1 s\)", text), text
+    assert "not settled over the last" not in text  # u, v, w and r have settled
 
 
 def test_unknown_scenarios_and_vehicles_are_one_line_errors(capsys):

@@ -14,11 +14,20 @@
   against the data (figs 6.3, 6.5-6.11, 6.13-6.14);
 - ``residuals SOURCE``: the whiteness test of a fitted model's residuals (sec. 6.3, fig. 6.2).
 
+An experiment of ``--duration`` D s at period T ends at exactly t = D in graph time (the simulator's
+``end_time``): its bag holds the D / T + 1 samples t = 0, T, ..., D, and the identification data
+read from it the D / T samples t = 0 .. D - T, each with the input held over [t_k, t_k + T] (the
+sample at t = D has no interval left). The experiment's request is kept in ``experiment.json``
+next to the bag. Every fit reports the samples and times it scored (``scope`` in JSON) and takes
+``--duration`` (score the first D s; default: what the experiment asked for, when the record says)
+and ``--points``; a record longer than its experiment asked for is said so in one line.
+
 The computations are :mod:`seapup_ident.identify`; this module reads the data and prints.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import time
@@ -31,7 +40,12 @@ from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, TRUTH_ODOMETRY, VELOCITY, VELOCITY_REFERENCE,
                                   typed)
 
-__all__ = ["main", "bag_data", "load_source", "OUTPUT_SETS"]
+__all__ = ["main", "bag_data", "load_source", "experiment_record", "scope", "OUTPUT_SETS", "EXPERIMENT_RECORD"]
+
+#: The experiment's request, written next to its bag (``OUT/bag``) by ``ident experiment``.
+EXPERIMENT_RECORD = "experiment.json"
+#: The experiment's sample period [s]: the simulator's control period (5 Hz, thesis sec. 5.1).
+EXPERIMENT_PERIOD = 0.2
 
 #: Output sets: ch. 6 (surge, sway, heave, yaw velocities, roll, pitch) and ch. 7 (u, v, w, r).
 OUTPUT_SETS = {"ch6": ("u", "v", "w", "r", "roll", "pitch"), "ch7": ("u", "v", "w", "r")}
@@ -103,6 +117,87 @@ def load_source(source: str, outputs: str | None, inputs: str | None, output_set
     raise ValueError(f"{source}: neither a bag directory nor a .csv file")
 
 
+def experiment_record(source) -> dict | None:
+    """The request of the experiment that recorded bag ``source`` (``experiment.json`` in the bag's
+    parent directory naming it as its bag or its identifier's bag), or None."""
+    path = Path(source)
+    record = path.parent / EXPERIMENT_RECORD
+    if not (path.is_dir() and record.is_file()):
+        return None
+    try:
+        doc = json.loads(record.read_text())
+    except (OSError, ValueError):
+        return None
+    named = [Path(doc[key]).resolve() for key in ("bag", "identifier_bag") if isinstance(doc.get(key), str)]
+    return doc if path.resolve() in named and isinstance(doc.get("duration"), (int, float)) else None
+
+
+def _seconds(value: float) -> str:
+    return f"{value:.6g}"
+
+
+def scope(data, duration: float | None = None, asked: float | None = None):
+    """The part of a record to score, what it covers, and the lines that say so.
+
+    Parameters
+    ----------
+    data : IdentificationData
+    duration : float, optional
+        Score the first ``duration`` seconds (``--duration``; ``math.inf``: all of it).
+    asked : float, optional
+        The seconds the experiment that recorded it asked for (``experiment.json``): the default
+        ``duration``, and a record longer than this is said so.
+
+    Returns
+    -------
+    (IdentificationData, dict, list of str)
+        The data scored; ``{"samples", "t", "sample_period", "seconds"}`` of it plus
+        ``"record"`` (the same of the whole record), ``"duration_s"`` (the limit applied, or None),
+        ``"asked_s"`` and ``"trimmed"``; the lines to print.
+    """
+    whole = data.span()
+    period = whole["sample_period"]
+    limit = asked if duration is None else duration
+    limit = None if limit is None or math.isinf(limit) else float(limit)
+    trimmed = limit is not None and whole["seconds"] > limit + 0.5 * period
+    scored = data.first(limit) if trimmed else data
+    span = scored.span()
+    lines = []
+    if asked is not None and whole["seconds"] > asked + 0.5 * period:
+        what = (f"scoring the first {_seconds(limit)} s" if trimmed else "scoring all of it") + (
+            " (--duration all scores all of it)" if trimmed and duration is None else "")
+        lines.append(f"note: the record holds {whole['samples']} samples ({_seconds(whole['seconds'])} s), longer "
+                     f"than the {_seconds(asked)} s its experiment asked for; {what}")
+    t = span["t"]
+    lines.append(f"data: {span['samples']} samples, t = {t[0]:.6g} .. {t[1]:.6g} s (T = {period:.6g} s, "
+                 f"{_seconds(span['seconds'])} s of inputs)"
+                 + (f", the first {_seconds(limit)} s of a {whole['samples']}-sample record" if trimmed else ""))
+    return scored, {**span, "record": whole, "duration_s": limit, "asked_s": asked, "trimmed": trimmed}, lines
+
+
+def _scoped_source(args, text):
+    """``load_source`` for the common options, cut to ``--duration`` (or the experiment's), said in ``text``."""
+    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
+    record = experiment_record(args.source)
+    scored, doc, lines = scope(data, args.duration, float(record["duration"]) if record else None)
+    for line in lines:
+        print(line, file=text)
+    return scored, doc
+
+
+def _duration(text: str) -> float:
+    """``--duration``: seconds > 0, or ``all``."""
+    if text.strip().lower() == "all":
+        return math.inf
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"--duration must be seconds > 0 or 'all', got {text!r}")
+    return value
+
+
 def _forgetting(args):
     from seapup_ident.recursive import Forgetting
     if args.forgetting is not None:
@@ -153,6 +248,9 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         help="times the record is replayed, scoring the last pass (sec. 6.5.1)")
     parser.add_argument("--points", type=int, help="replay until this many samples were examined, scoring them "
                                                    "all (the thesis's 2000-point runs); instead of --passes")
+    parser.add_argument("--duration", type=_duration,
+                        help="score the first DURATION seconds of the record ('all': the whole record; default: "
+                             "the duration its experiment asked for, when experiment.json says, else all)")
     add_json_argument(parser)
 
 
@@ -167,12 +265,12 @@ def _fit_model(args, data, orders: tuple[int, int, int]):
 
 def _fit(args, text) -> dict:
     from seapup_ident.identify import model_document
-    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
     na, nb, nc = _parse_orders(args.orders)
     if args.method == "ls" and nc:
         raise ValueError("least squares has no noise model: use --orders na,nb,0 or --method els|rpem")
+    data, span = _scoped_source(args, text)
     result = _fit_model(args, data, (na, nb, nc))
-    doc = model_document(result, data, source=str(args.source))
+    doc = model_document(result, data, source=str(args.source), scope=span)
     print(f"ident fit: {args.method} orders ({na}, {nb}, {nc}) on {result.report.usable} of "
           f"{result.report.samples} samples ({result.report.non_finite} non-finite, {result.report.gaps} gaps), "
           f"{result.examined} examined in {result.passes} pass(es), {result.scored} scored", file=text)
@@ -243,7 +341,7 @@ def _plot_residuals(table: dict, out: Path, title: str, name: str) -> str:
 
 def _orders(args, text) -> dict:
     from seapup_ident.identify import order_table
-    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
+    data, span = _scoped_source(args, text)
     table = order_table(data, args.max_order, args.method, alpha=args.risk, forgetting_factory=_forgetting(args),
                         p0=args.p0, passes=args.passes, points=_points(args), score=args.score)
     names = data.outputs
@@ -256,12 +354,13 @@ def _orders(args, text) -> dict:
                 print(f"  n = {row['order']:<3}" + "".join(f"{v:>12.4g}" for v in row[key]), file=text)
     print(f"order by AIC {table['aic_order']}, by F {table['f_order']}: system order {table['system_order']}",
           file=text)
+    table["scope"] = span
     return table
 
 
 def _compare(args, text) -> dict:
     from seapup_ident.identify import compare_methods
-    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
+    data, span = _scoped_source(args, text)
     table = compare_methods(data, args.order, tuple(args.methods.split(",")), forgetting_factory=_forgetting(args),
                             p0=args.p0, passes=args.passes, points=_points(args), rpem_filter=_rpem_filter(args),
                             score=args.score)
@@ -279,12 +378,13 @@ def _compare(args, text) -> dict:
             print(f"plot {path}", file=text)
     else:
         table.pop("results")
+    table["scope"] = span
     return table
 
 
 def _residuals(args, text) -> dict:
     from seapup_ident.identify import residual_whiteness
-    data = load_source(args.source, args.outputs, args.inputs, args.output_set)
+    data, span = _scoped_source(args, text)
     na, nb, nc = _parse_orders(args.orders)
     result = _fit_model(args, data, (na, nb, nc))
     table = residual_whiteness(result.model, data, args.lags, args.risk)
@@ -295,7 +395,7 @@ def _residuals(args, text) -> dict:
     for i, name in enumerate(table["outputs"]):
         print(f"{name:<10}{table['inside'][i]:>12.0%}{table['max_abs'][i]:>12.3f}{table['ljung_box_q'][i]:>10.1f}"
               f"{table['p_value'][i]:>10.3g}  {'white' if table['white'][i] else 'correlated'}", file=text)
-    table.update(method=args.method, orders=[na, nb, nc])
+    table.update(method=args.method, orders=[na, nb, nc], scope=span)
     if args.plots:
         table["plots"] = [_plot_residuals(table, Path(args.plots), f"{args.source}: residuals of {args.method} "
                                           f"({na}, {nb}, {nc})", f"ident_residuals_{args.method}.png")]
@@ -309,11 +409,10 @@ def _experiment(args, text) -> dict:
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
     orders = list(_parse_orders(args.orders))
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ValueError(f"--duration must be > 0 s, got {args.duration}")
+    samples = experiment_samples(args.duration, EXPERIMENT_PERIOD)
     arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
-                 "identifier_bag": out / "identifier"}
+                 "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD)}
     if args.closed_loop:
         graph, excitation = "seapup_bringup identification_closed_loop.yaml", _closed_loop_excitation(args, out, text)
     else:
@@ -324,16 +423,57 @@ def _experiment(args, text) -> dict:
     with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
         print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
               f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
-        start = sil.t
-        while sil.t < start + args.duration:
-            sil.run_for(min(5.0, start + args.duration - sil.t))
-            progress("experiment", (sil.t - start) / args.duration)
+        _fly_to_end(sil, args.duration)
         bag = sil.bag
-    print(f"ident experiment: bag {bag}; the identifier's run (readings used, model after each sample) in "
-          f"{out / 'identifier'}", file=text)
-    return {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method, "orders": orders,
-            "duration": args.duration, "dynamics": args.dynamics, "current": args.current, "sensors": args.sensors,
-            **excitation}
+    stamps = _recorded_samples(bag)
+    if stamps != [round(k * EXPERIMENT_PERIOD * 1e9) for k in range(samples + 1)]:
+        raise ValueError(f"{bag}: the truth holds {len(stamps)} samples"
+                         + (f", t = {stamps[0] * 1e-9:g} .. {stamps[-1] * 1e-9:g} s" if stamps else "")
+                         + f"; the experiment asked for the {samples + 1} samples t = 0 .. {args.duration:g} s "
+                         f"(missing or extra samples: the recorder's log is {out / 'recorder.log'})")
+    doc = {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method, "orders": orders,
+           "duration": args.duration, "sample_period": EXPERIMENT_PERIOD, "samples": samples + 1,
+           "dynamics": args.dynamics, "current": args.current, "sensors": args.sensors, **excitation}
+    (out / EXPERIMENT_RECORD).write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"ident experiment: bag {bag}: {samples + 1} samples, t = 0 .. {args.duration:g} s (the identification "
+          f"data: the {samples} with an input interval); the identifier's run (readings used, model after each "
+          f"sample) in {out / 'identifier'}; the request in {out / EXPERIMENT_RECORD}", file=text)
+    return doc
+
+
+def experiment_samples(duration: float, period: float) -> int:
+    """D / T: the sample intervals an experiment of ``duration`` seconds flies (its bag holds one more
+    sample, t = D). Raises ValueError unless D is a positive whole number of periods."""
+    count = round(duration / period) if math.isfinite(duration) else 0
+    if not (count >= 1 and abs(count * period - duration) <= 1e-9 * max(1.0, duration)):
+        raise ValueError(f"--duration must be > 0 s and a whole number of {period:g} s sample periods, "
+                         f"got {duration}")
+    return int(count)
+
+
+def _fly_to_end(sil, duration: float) -> None:
+    """Until the simulator has published its last sample (t = duration: it steps no further, its
+    ``end_time``) and the answer to it was heard, so the recorder has every message of t <= duration."""
+    while sil.t < duration - 1e-9:
+        sil.run_for(min(5.0, duration - sil.t))
+        progress("experiment", sil.t / duration)
+    sil.spin_until(lambda: sil.log["command"] and _stamp(sil.log["command"][-1]) >= duration - 1e-9, 10.0)
+    sil.spin_until(lambda: False, 0.5)  # the recorder takes the last messages as the probe did (nothing new comes)
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def _recorded_samples(bag) -> list[int]:
+    """The truth's sample stamps in a bag [ns], in the order recorded."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+
+    from seapup_common.bag import read_bag
+    from seapup_common.ros.messages import stamp_to_ns
+    return [stamp_to_ns(deserialize_message(m.cdr, Odometry).header.stamp)
+            for m in read_bag(bag, [TRUTH_ODOMETRY])]
 
 
 def _prbs_excitation(args) -> dict:
@@ -343,8 +483,8 @@ def _prbs_excitation(args) -> dict:
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config
 
-    period = 0.2
-    samples = int(round(args.duration / period))
+    period = EXPERIMENT_PERIOD
+    samples = experiment_samples(args.duration, period)
     hover = hover_blade_pitch(VehicleModel(load_vehicle_config(args.vehicle)))
     signal = prbs(samples, clock=args.clock, amplitude=math.radians(args.amplitude), n_inputs=4, offset=hover)
     switches = np.flatnonzero(np.r_[True, np.any(np.diff(signal, axis=0) != 0, axis=1)])
@@ -420,7 +560,9 @@ def main(argv=None) -> int:
     resid_p.add_argument("--plots", help="directory for the autocorrelation plot")
     exp_p = sub.add_parser("experiment", help="an identification experiment in SIL, recorded: open-loop PRBS "
                                               "(sec. 6.5.1-6.5.4) or closed loop (sec. 6.5.5)")
-    exp_p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60, sec. 6.5.1)")
+    exp_p.add_argument("--duration", type=float, default=60.0,
+                       help="simulated seconds, a whole number of 0.2 s samples (default 60, sec. 6.5.1): the bag "
+                            "holds t = 0 .. DURATION, DURATION / 0.2 + 1 samples")
     exp_p.add_argument("--clock", type=int, default=10, help="PRBS clock period in samples (default 10)")
     exp_p.add_argument("--amplitude", type=float, default=10.0, help="PRBS amplitude [deg] (default 10)")
     exp_p.add_argument("--closed-loop", action="store_true",

@@ -47,13 +47,21 @@ def print_scenario(result: RunResult, text) -> None:
             return f"{body + (f' ({ref:g})' if ref is not None else ''):>{width}}"
         print(f"{key:>6} {o['reference']:10.3f} {cell('final', 9, '{:.3f}')} {cell('rise95_s', 14, '{:.2f}')} "
               f"{cell('overshoot_pct', 16, '{:.1f}')} {cell('max_interaction', 16, '{:.3f}')}", file=text)
-    print("units: m/s, r in deg/s; saturation [s] per thruster: "
+    window = metrics["pitch_deg"]["window_s"]
+    print(f"units: m/s, r in deg/s; final = mean over the last {window:g} s; saturation [s] per thruster: "
           + ", ".join(f"{s:.1f}" for s in metrics["saturation_s"]), file=text)
+    unsettled = [f"{key} {o['range'][0]:.3f} to {o['range'][1]:.3f} {'deg/s' if key == 'r' else 'm/s'}"
+                 for key, o in metrics["outputs"].items() if not o["settled"]]
+    if unsettled:
+        print(f"not settled over the last {window:g} s: " + "; ".join(unsettled), file=text)
     lc = metrics["limit_cycle"]
-    print(f"pitch peak {metrics['pitch_deg']['peak']:.1f} deg"
+    pitch = metrics["pitch_deg"]
+    print(f"pitch peak {pitch['peak']:.1f} deg"
           + (f" ({thesis['pitch_peak_deg']:g})" if "pitch_peak_deg" in thesis else "")
-          + f", final {metrics['pitch_deg']['final']:.1f} deg"
+          + f", final {pitch['final']:.1f} deg"
           + (f" ({thesis['pitch_final_deg']:g})" if "pitch_final_deg" in thesis else "")
+          + ("" if pitch["settled"] else f" (not settled: {pitch['range'][0]:.1f} to {pitch['range'][1]:.1f} deg "
+                                         f"over the last {pitch['window_s']:g} s)")
           + f"; roll peak {metrics['roll_deg']['peak']:.1f} deg; sway limit cycle: "
           + (f"period {lc['period_s']:.1f} s, {lc['amplitude']:.3f} m/s peak to peak" if lc["detected"] else "none")
           + (f" ({thesis['limit_cycle_period_s']:g} s)" if "limit_cycle_period_s" in thesis else ""), file=text)

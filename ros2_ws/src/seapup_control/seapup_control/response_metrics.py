@@ -6,6 +6,10 @@ overshoot, the steady-state error, the interaction in the other outputs
 cycle of the yaw test) and, for disturbance rejection, how far the vehicle
 strays. These functions compute them from sampled time histories; they know
 nothing of where the histories came from.
+
+A final value is the mean over a stated window at the end of the run, with
+whether the signal has settled there (:func:`settle`): a snapshot of the last
+sample of a signal still swinging is not a final value.
 """
 from __future__ import annotations
 
@@ -14,7 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["rise_time", "overshoot_percent", "settled_value", "saturation_time", "LimitCycle", "limit_cycle"]
+__all__ = ["rise_time", "overshoot_percent", "settled_value", "Settled", "settle", "MetricError",
+           "saturation_time", "LimitCycle", "limit_cycle"]
+
+
+class MetricError(ValueError):
+    """A figure of merit has no answer for this signal (the message says why and what was allowed)."""
 
 
 def _series(t, y) -> tuple[np.ndarray, np.ndarray]:
@@ -60,10 +69,117 @@ def overshoot_percent(y, target: float, start: float = 0.0) -> float:
     return float(max(0.0, np.max(beyond)) * 100.0)
 
 
+def _window(t: np.ndarray, window: float) -> np.ndarray:
+    """The samples of the last ``window`` seconds, both ends included: t >= t[-1] - window."""
+    span = float(t[-1] - t[0])
+    if not (math.isfinite(window) and 0.0 < window <= span + 1e-9):
+        raise MetricError(f"window must be in (0, {span:g}] s (the record's span), got {window!r}")
+    return t >= t[-1] - window - 1e-9
+
+
 def settled_value(t, y, window: float) -> float:
-    """Mean of ``y`` over the last ``window`` seconds."""
+    """Mean of ``y`` over the samples of the last ``window`` seconds (``settle(...).value``).
+
+    Raises
+    ------
+    MetricError
+        ``window`` is not in (0, record span].
+    """
     t, y = _series(t, y)
-    return float(np.mean(y[t >= t[-1] - window - 1e-9]))
+    return float(np.mean(y[_window(t, window)]))
+
+
+@dataclass(frozen=True)
+class Settled:
+    """A final value: the mean over the last ``window_s`` seconds of a run, and whether it settled there.
+
+    Attributes
+    ----------
+    value : float
+        Mean of the samples in the window.
+    settled : bool
+        Every sample of the window lies within ``tolerance`` of ``value``.
+    window_s : float
+        The window's length [s]: the samples with t >= t_end - window_s.
+    low, high : float
+        The smallest and the largest sample in the window.
+    tolerance : float
+        The half-width of the band the samples had to stay in (units of the signal).
+    """
+
+    value: float
+    settled: bool
+    window_s: float
+    low: float
+    high: float
+    tolerance: float
+
+    def scaled(self, factor: float) -> "Settled":
+        """The same in other units (``factor`` > 0, e.g. 180/pi for degrees)."""
+        if not (math.isfinite(factor) and factor > 0):
+            raise MetricError(f"factor must be finite and > 0, got {factor!r}")
+        return Settled(self.value * factor, self.settled, self.window_s, self.low * factor, self.high * factor,
+                       self.tolerance * factor)
+
+    def as_dict(self) -> dict:
+        """JSON fields: ``final`` (the mean), ``settled``, ``window_s``, ``range`` [low, high], ``tolerance``."""
+        return {"final": self.value, "settled": self.settled, "window_s": self.window_s,
+                "range": [self.low, self.high], "tolerance": self.tolerance}
+
+
+def settle(t, y, window: float, *, relative: float = 0.05, floor: float = 0.0) -> Settled:
+    r"""The mean of ``y`` over the last ``window`` seconds and whether ``y`` has settled there.
+
+    .. math::
+
+        \bar y = \frac{1}{n} \sum_{t_k \ge t_N - W} y_k, \qquad
+        \text{settled} \iff \max_{t_k \ge t_N - W} |y_k - \bar y| \le
+        \max(\rho\,|\bar y|, \epsilon)
+
+    Parameters
+    ----------
+    t, y : array_like
+        Increasing sample times [s] and the signal.
+    window : float
+        W [s], in (0, t_N - t_0]. Over W = m T (sample period T) the window holds m + 1 samples.
+    relative : float
+        rho: the band's half-width relative to the mean (default 5 %, the band of the 95 % rise
+        time, sec. 5.4.2).
+    floor : float
+        epsilon: the smallest half-width, in the signal's units (e.g. what a sensor resolves), so
+        that a signal settled at zero is not judged on its rounding noise.
+
+    Returns
+    -------
+    Settled
+
+    Raises
+    ------
+    MetricError
+        ``window`` outside (0, t_N - t_0], or ``relative``/``floor`` negative or not finite.
+
+    Notes
+    -----
+    The mean weighs every sample of the window equally, so over a window holding whole periods'
+    worth of samples (n T = whole periods) the mean of a sinusoid is its offset whatever its phase.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 10.01, 0.2)
+    >>> s = settle(t, 20 + 5 * np.sin(2 * np.pi * t / 5.6), 1.0)
+    >>> s.settled, round(s.low, 1), round(s.high, 1)
+    (False, 15.0, 16.9)
+    >>> settle(t, 1 - np.exp(-t), 1.0).settled
+    True
+    """
+    t, y = _series(t, y)
+    if not (math.isfinite(relative) and relative >= 0 and math.isfinite(floor) and floor >= 0):
+        raise MetricError(f"relative and floor must be finite and >= 0, got {relative!r}, {floor!r}")
+    inside = y[_window(t, window)]
+    value = float(np.mean(inside))
+    tolerance = max(relative * abs(value), floor)
+    return Settled(value, bool(np.max(np.abs(inside - value)) <= tolerance), float(window),
+                   float(np.min(inside)), float(np.max(inside)), tolerance)
 
 
 def saturation_time(t, command, limit: float) -> np.ndarray:

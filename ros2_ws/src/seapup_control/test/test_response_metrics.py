@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from seapup_control.response_metrics import (limit_cycle, overshoot_percent, rise_time, saturation_time,
-                                             settled_value)
+from seapup_control.response_metrics import (MetricError, Settled, limit_cycle, overshoot_percent, rise_time,
+                                             saturation_time, settle, settled_value)
 
 
 def test_rise_time_of_first_and_second_order_steps():
@@ -25,6 +25,53 @@ def test_overshoot_of_an_underdamped_second_order_step():
     assert overshoot_percent(y, 1.0) == pytest.approx(expected, rel=1e-4)
     assert overshoot_percent(1 - np.exp(-t), 1.0) == 0.0
     assert settled_value(t, y, 2.0) == pytest.approx(1.0, abs=1e-3)
+
+
+def test_a_decaying_exponential_settles_and_its_mean_is_the_analytic_one():
+    t = np.arange(0.0, 10.0 + 1e-9, 0.2)
+    y = 0.85 * (1 - np.exp(-t / 1.5))
+    s = settle(t, y, 1.0)
+    last = t >= 9.0 - 1e-9                                        # 6 samples: 9.0, 9.2, ..., 10.0
+    assert isinstance(s, Settled) and s.settled and s.window_s == 1.0
+    assert s.value == pytest.approx(np.mean(0.85 * (1 - np.exp(-t[last] / 1.5))), rel=1e-12)
+    assert (s.low, s.high) == pytest.approx((0.85 * (1 - math.exp(-9 / 1.5)), 0.85 * (1 - math.exp(-10 / 1.5))))
+    assert s.value == settled_value(t, y, 1.0)
+    # earlier, still rising by more than 5 % of its value within the window: not settled
+    assert not settle(t[t <= 2.0], y[t <= 2.0], 1.0).settled
+
+
+def test_a_sustained_sine_does_not_settle_and_its_window_mean_is_its_offset():
+    period, dt = 5.6, 0.2
+    t = np.arange(0.0, 30.0, dt)
+    for phase in (0.0, 0.7, 2.0):
+        y = 20.0 + 5.0 * np.sin(2 * np.pi * t / period + phase)
+        # a window of 2 periods less one step holds 2 periods' worth of samples (56 = 2 * 28)
+        s = settle(t, y, 2 * period - dt)
+        assert not s.settled and s.value == pytest.approx(20.0, abs=1e-12)
+        assert s.high - s.low == pytest.approx(10.0, abs=0.1) and s.tolerance == pytest.approx(1.0)
+    # a tolerance wider than the swing (relative 30 % of 20 = 6 > 5) calls it settled
+    assert settle(t, 20.0 + 5.0 * np.sin(t), 2.0, relative=0.3).settled
+
+
+def test_the_floor_keeps_a_signal_settled_at_zero_from_being_judged_on_its_noise():
+    t = np.arange(0.0, 10.0, 0.2)
+    y = 1e-4 * np.sin(7 * t)
+    assert not settle(t, y, 2.0).settled                                  # 5 % of ~0
+    s = settle(t, y, 2.0, floor=0.01)
+    assert s.settled and s.tolerance == 0.01
+    assert s.as_dict() == {"final": s.value, "settled": True, "window_s": 2.0, "range": [s.low, s.high],
+                           "tolerance": 0.01}
+
+
+def test_settle_refuses_a_window_it_cannot_answer_for():
+    t = np.arange(0.0, 10.0, 0.2)
+    for window in (0.0, -1.0, math.nan, 20.0):
+        with pytest.raises(MetricError, match="window must be in"):
+            settle(t, np.ones_like(t), window)
+    with pytest.raises(MetricError, match="window must be in"):
+        settled_value(t, np.ones_like(t), 20.0)
+    with pytest.raises(MetricError, match="relative and floor"):
+        settle(t, np.ones_like(t), 1.0, relative=-0.1)
 
 
 def test_saturation_time_counts_held_samples_at_the_limit():

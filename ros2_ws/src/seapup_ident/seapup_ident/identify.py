@@ -85,6 +85,33 @@ class IdentificationData:
         finite = self.t[np.isfinite(self.t)]
         return float(np.median(np.diff(finite))) if len(finite) > 1 else 1.0
 
+    def span(self) -> dict:
+        """What the record covers: ``samples``, ``t`` [first, last] sample times [s], ``sample_period``
+        T and ``seconds`` = samples x T, the time its inputs cover (u[k] is held over [t_k, t_k + T]);
+        times rounded to the nanosecond (a bag's stamps)."""
+        period = self.sample_period
+        return {"samples": len(self.t), "t": [round(float(self.t[0]), 9), round(float(self.t[-1]), 9)]
+                if len(self.t) else [], "sample_period": round(period, 9), "seconds": round(len(self.t) * period, 9)}
+
+    def first(self, duration: float) -> "IdentificationData":
+        """The samples whose inputs lie in the first ``duration`` seconds of the record: t_k - t_0 <= duration - T.
+
+        An experiment of D seconds at period T gives D / T of them (the sample at t = D has no
+        input interval left in the record).
+
+        Examples
+        --------
+        >>> data = IdentificationData(np.zeros(425), np.arange(425.0), 0.2 * np.arange(425))
+        >>> span = data.first(60.0).span()
+        >>> span["samples"], span["t"], span["seconds"]
+        (300, [0.0, 59.8], 60.0)
+        """
+        period = self.sample_period
+        if not (math.isfinite(duration) and duration >= period - 1e-9):
+            raise ValueError(f"duration must be >= one sample period ({period:g} s), got {duration!r}")
+        keep = self.t - self.t[0] <= duration - period + 0.5 * period
+        return IdentificationData(self.y[keep], self.u[keep], self.t[keep], self.outputs, self.inputs)
+
     def segments(self) -> tuple[list[np.ndarray], DataReport]:
         """Index arrays of the contiguous, finite stretches, and the report."""
         good = np.all(np.isfinite(self.y), axis=1) & np.all(np.isfinite(self.u), axis=1) & np.isfinite(self.t)

@@ -112,3 +112,23 @@ def test_prior_and_posterior_scores_bracket_the_noise_variance():
     assert np.all(first.loss > prior.loss)
     with pytest.raises(ValueError, match="score"):
         fit(data, o, "ls", score="median")
+
+
+def test_first_keeps_the_samples_whose_inputs_lie_in_the_first_seconds():
+    """An experiment of D s at T = 0.2 s: D / T identification samples (t = 0 .. D - T); a record run on
+    to 84.8 s (425 samples, the defect of issue 22) cut back to 60 s gives the 300 of the experiment."""
+    data = record(425)
+    assert data.span() == {"samples": 425, "t": [0.0, pytest.approx(84.8)], "sample_period": pytest.approx(0.2),
+                           "seconds": pytest.approx(85.0)}
+    first = data.first(60.0)
+    assert first.span()["samples"] == 300 and first.t[-1] == pytest.approx(59.8)
+    np.testing.assert_array_equal(first.y, data.y[:300])
+    np.testing.assert_array_equal(first.u, data.u[:300])
+    assert first.outputs == data.outputs and first.inputs == data.inputs
+    assert data.first(1000.0).span()["samples"] == 425      # longer than the record: all of it
+    assert data.first(0.2).span()["samples"] == 1
+    late = IdentificationData(data.y, data.u, data.t + 3.0)  # times from the record's first sample
+    assert late.first(10.0).span()["samples"] == 50
+    for bad in (0.0, 0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="duration must be >= one sample period"):
+            data.first(bad)

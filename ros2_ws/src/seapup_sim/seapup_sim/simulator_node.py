@@ -15,6 +15,12 @@ Modes:
   T / real_time_factor (0: as fast as the executor allows) with the latest
   valid command.
 
+With ``end_time`` > 0 the simulator stops stepping once it has published the
+sample t_k >= end_time (in either mode): commands are still taken and counted,
+/clock stays at t_k, diagnostics say it is at its end. A recorded experiment
+then ends at exactly end_time in graph time, however late its driver stops the
+graph.
+
 Every environment setting is a read-only parameter ``environment.<section>.<key>``
 (defaults from ``environment/default.yaml``, overridden by the YAML file named
 in ``environment_file``, then by ``-p``/``--params-file``); services change
@@ -127,6 +133,7 @@ class SimulatorNode(Node):
             "start_depth": _float_range(0.0, 6000.0, "initial depth [m]", **ro),
             "publish_clock": ParameterDescriptor(description="publish /clock (the simulator owns time)", **ro),
             "diagnostics_period": _float_range(0.05, 60.0, "diagnostics period [s wall]", **ro),
+            "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on", **ro),
             "wait_for_subscribers": ParameterDescriptor(
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
@@ -169,6 +176,7 @@ class SimulatorNode(Node):
         self._started = False  # the first sample is published once the subscriber gate is open
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._last_gate_log = 0.0
+        self._end_ns = int(round(p["end_time"] * 1e9))  # 0: no end
         if self.mode == "lockstep":
             self._start_when_ready()
             self.create_timer(0.01, self._lockstep_watch)
@@ -298,8 +306,12 @@ class SimulatorNode(Node):
             self._unanswered = 0
             self._advance()
 
+    def _at_end(self) -> bool:
+        """The sample of ``end_time`` (or a later one) is published: step no further."""
+        return 0 < self._end_ns <= self.simulator.t_ns
+
     def _advance(self) -> None:
-        if self._halted:
+        if self._halted or self._at_end():
             return
         try:
             self.simulator.step()
@@ -311,7 +323,7 @@ class SimulatorNode(Node):
         self._waiting_since = time.monotonic()
 
     def _lockstep_watch(self) -> None:
-        if self._halted or not self._start_when_ready():
+        if self._halted or not self._start_when_ready() or self._at_end():
             return
         now = time.monotonic()
         if self._handshake:
@@ -372,12 +384,15 @@ class SimulatorNode(Node):
             level, message = DiagnosticStatus.WARN, message + ", " + "; ".join(problems)
         elif self.simulator.watchdog_active:
             level, message = DiagnosticStatus.WARN, message + ", watchdog active (no valid command)"
+        if self._at_end():
+            message += f", at end_time {self._end_ns * 1e-9:g} s (holding)"
         elif rejected:
             level, message = DiagnosticStatus.WARN, message + f", last rejection: {self.simulator.last_error}"
         values = {**c, "samples_published": self._samples_published, "sim_time": f"{self.simulator.t:.3f}",
                   "real_time_factor_measured": f"{self.simulator.t / elapsed:.2f}" if elapsed > 0 else "0",
                   "control_steps_per_wall_second": f"{c['steps'] / elapsed:.1f}" if elapsed > 0 else "0",
-                  "watchdog_active": str(self.simulator.watchdog_active), "vehicle": self.config.vehicle,
+                  "watchdog_active": str(self.simulator.watchdog_active), "at_end": str(self._at_end()),
+                  "vehicle": self.config.vehicle,
                   "sensor_profile": self.simulator.sensor_profile.name}
         status = DiagnosticStatus(level=level, name="seapup/simulator", hardware_id="seapup_sim",
                                   message=message, values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
