@@ -277,8 +277,9 @@ class Target:
     high: float
     primary: bool
     source: str
-    #: A documented deviation: why the model does not reach this number (one line, with a pointer
-    #: to the README's explanation). Shown as DEV, kept in the JSON, never a reason to exit 1.
+    #: A documented deviation: why the model does not reach this number (one line, with a pointer to
+    #: its entry in the deviation register, docs/decisions.md). Shown as DEV, kept in the JSON, never a
+    #: reason to exit 1.
     deviation: str = ""
 
     def value(self, res: dict):
@@ -308,12 +309,12 @@ def _rel(key, label, value, tol, primary, source, deviation=""):
 
 #: Why the camera's crossover comes later than the thesis's (issue 11).
 CAMERA_NMP_DEVIATION = ("the bow payload's own heave-pitch added mass and its forward CG stabilise the pitch "
-                        "zero dynamics, so the camera crosses after the baseline, not before; README "
-                        "'Documented deviations: camera crossover'")
+                        "zero dynamics, so the camera crosses after the baseline, not before; "
+                        "docs/decisions.md#camera-crossover")
 
 #: Why the umbilical table's F_z is not reached (issue 11 decided to keep the exact cable solution).
 UMBILICAL_FZ_DEVIATION = ("exact solution of the thesis's stated cable assumptions leaves the cable ~26 deg above "
-                          "horizontal where the table implies ~35 deg; README 'Documented deviations: umbilical F_z'")
+                          "horizontal where the table implies ~35 deg; docs/decisions.md#umbilical-fz")
 
 
 def _abs(key, label, value, tol, primary, source):

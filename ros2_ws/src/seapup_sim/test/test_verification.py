@@ -4,13 +4,17 @@ The targets and tolerances are the thesis's numbers (seapup_sim.verification.
 TARGETS, from issue #3); this test fails whenever a primary target is missed.
 """
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
-from seapup_sim.verification import check_targets, summary, verify
+from seapup_sim.verification import CAMERA_NMP_DEVIATION, UMBILICAL_FZ_DEVIATION, check_targets, summary, verify
+
+ROOT = Path(__file__).resolve().parents[4]   # ros2_ws/src/seapup_sim/test -> the repository
 
 
 @pytest.fixture(scope="module")
@@ -32,10 +36,20 @@ def test_the_umbilical_f_z_rows_are_documented_deviations(baseline_results):
     rows = check_targets(res, "baseline")
     dev = [r for r in rows if r["deviation"]]
     assert {r["label"] for r in dev} == {f"umbilical {d} m: F_z [N]" for d in (50, 100, 200)}
-    assert all(r["status"] == "DEV" and not r["primary"] and "README" in r["deviation"] for r in dev)
+    assert all(r["status"] == "DEV" and not r["primary"] and r["deviation"] == UMBILICAL_FZ_DEVIATION for r in dev)
     assert all(r["value"] < 0 for r in dev)  # still measured and reported: the cable pulls up
     assert summary(rows)["deviations"] == 3
     assert all(r["primary"] for r in rows if r["key"].startswith("umbilical.") and not r["key"].endswith("Fz"))
+
+
+@pytest.mark.parametrize("deviation", [UMBILICAL_FZ_DEVIATION, CAMERA_NMP_DEVIATION])
+def test_each_deviation_points_at_its_entry_in_the_deviation_register(deviation):
+    """The one-line reason names the page and anchor that explain it (docs/decisions.md#...)."""
+    match = re.search(r"(docs/[\w/.-]+\.md)#([\w-]+)", deviation)
+    assert match, f"no docs/<page>.md#<anchor> in {deviation!r}"
+    page = ROOT / match.group(1)
+    assert page.is_file(), f"{match.group(1)} does not exist"
+    assert f'id="{match.group(2)}"' in page.read_text(), f"{match.group(1)} has no anchor {match.group(2)!r}"
 
 
 def test_umbilical_speed_and_drag_force_match_the_table(baseline_results):
