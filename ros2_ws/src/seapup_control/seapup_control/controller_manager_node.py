@@ -40,6 +40,7 @@ from seapup_msgs.srv import ListControllers, SwitchController
 
 from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
 __all__ = ["ControllerManagerNode", "main"]
@@ -49,7 +50,7 @@ class ControllerManagerNode(Node):
     """rclpy shell around :class:`ControllerManagerCore` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("controller_manager", namespace="/seapup", **kwargs)
+        super().__init__("controller_manager", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager")
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
@@ -59,17 +60,17 @@ class ControllerManagerNode(Node):
         self.switch_timeout = float(p["switch_timeout"])
         self.topics = {n: p["command_topic"].format(name=n) for n in names}
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
-        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name in names:
             self.create_subscription(BladePitch, self.topics[name],
                                      lambda msg, name=name: self._on_command(name, msg), COMMAND_QOS)
         self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)
-        self._client_node = rclpy.create_node("controller_manager_lifecycle_client", namespace="/seapup",
+        self._client_node = rclpy.create_node("controller_manager_lifecycle_client", namespace=NAMESPACE,
                                               context=self.context)
         self._client_executor = SingleThreadedExecutor(context=self.context)
         self._client_executor.add_node(self._client_node)
-        self.change = {n: self._client_node.create_client(ChangeState, f"/seapup/{n}/change_state") for n in names}
-        self.get_state = {n: self._client_node.create_client(GetState, f"/seapup/{n}/get_state") for n in names}
+        self.change = {n: self._client_node.create_client(ChangeState, f"{NAMESPACE}/{n}/change_state") for n in names}
+        self.get_state = {n: self._client_node.create_client(GetState, f"{NAMESPACE}/{n}/get_state") for n in names}
         self.create_service(ListControllers, "~/list_controllers", self._list, qos_profile=SERVICE_QOS)
         self.create_service(SwitchController, "~/switch_controller", self._switch, qos_profile=SERVICE_QOS)
         self.latest_sample_ns: int | None = None

@@ -25,6 +25,7 @@ from seapup_msgs.msg import Depth
 from seapup_common.contract import ContractError
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.navigation import Navigator, NavigatorParams
 
 __all__ = ["NavigatorNode", "main"]
@@ -37,7 +38,7 @@ class NavigatorNode(Node):
     """rclpy shell around :class:`Navigator` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("navigator", namespace="/seapup", **kwargs)
+        super().__init__("navigator", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator")
         self.sample_topics = set(p.pop("sample_topics"))
         unknown = self.sample_topics - set(_TOPICS)
@@ -50,7 +51,7 @@ class NavigatorNode(Node):
         self._arrived: dict[int, set] = {}  # sample stamp -> topics heard for it
         self._processed_ns: int | None = None
         self.publisher = self.create_publisher(Odometry, "navigation/odometry", RELIABLE_QOS)
-        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name, (topic, kind) in _TOPICS.items():
             self.create_subscription(kind, topic, lambda msg, name=name: self._on_reading(name, msg), COMMAND_QOS)
         self.create_timer(1.0, self._diagnose)

@@ -18,6 +18,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Measurement, Reference
 from seapup_common.ros.messages import command_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher
 from seapup_control.schedule import OpenLoop, PitchSchedule
 
@@ -28,7 +29,7 @@ class OpenLoopNode(Node):
     """rclpy shell around a :class:`PitchSchedule` (see module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("open_loop", namespace="/seapup", **kwargs)
+        super().__init__("open_loop", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "open_loop.yaml", {
             "sample_period": ParameterDescriptor(
                 description="controller sample period [s]", read_only=True,

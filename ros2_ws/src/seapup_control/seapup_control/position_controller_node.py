@@ -31,6 +31,7 @@ from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry
                                         reference_to_msg)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions, \
     run_node
+from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
 
 __all__ = ["PositionControllerNode", "main"]
@@ -42,7 +43,7 @@ class PositionControllerNode(LifecycleNode):
     """rclpy lifecycle shell around :class:`PositionController` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("position_controller", namespace="/seapup", **kwargs)
+        super().__init__("position_controller", namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "position_controller.yaml",
                                            section="position_controller")
         self.controller: PositionController | None = None
@@ -65,7 +66,7 @@ class PositionControllerNode(LifecycleNode):
         self.setpoints = ReferenceSchedule(initial=None)
         self.delay = int(self.get_parameter("reference_delay").value) * self.controller.sample_period
         self.publisher = self.create_lifecycle_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
-        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
             self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),
             self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]

@@ -17,6 +17,7 @@ from rclpy.node import Node
 
 from seapup_common.ros.messages import reference_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher
 from seapup_control.schedule import ReferenceProfile
 
@@ -27,7 +28,7 @@ class ReferenceScheduleNode(Node):
     """rclpy shell around a :class:`ReferenceProfile` (see module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("reference_schedule", namespace="/seapup", **kwargs)
+        super().__init__("reference_schedule", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "reference_schedule.yaml", {
             "sample_period": ParameterDescriptor(
                 description="controller sample period [s]", read_only=True,

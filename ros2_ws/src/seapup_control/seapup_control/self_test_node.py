@@ -43,6 +43,7 @@ from seapup_common.lockstep import SamplePolicy
 from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
 
@@ -67,7 +68,7 @@ class SelfTestNode(Node):
     """rclpy shell around :class:`SelfTest` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("self_test", namespace="/seapup", **kwargs)
+        super().__init__("self_test", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test")
         self.lockstep = bool(p["lockstep"])
         self.hover_after = bool(p["hover_after"])
@@ -88,7 +89,7 @@ class SelfTestNode(Node):
         self._done: Future | None = None
         self.rejected = 0
         if self.lockstep:
-            self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
+            self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._timer = None
         self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
                                    goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT)

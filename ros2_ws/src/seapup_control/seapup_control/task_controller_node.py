@@ -35,6 +35,7 @@ from seapup_common.contract import ContractError
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
 from seapup_control.tasks import Hover as HoverTask
@@ -61,7 +62,7 @@ class TaskControllerNode(Node):
     """rclpy shell around the tasks of :mod:`seapup_control.tasks` (see the module docstring)."""
 
     def __init__(self, **kwargs):
-        super().__init__("task_controller", namespace="/seapup", **kwargs)
+        super().__init__("task_controller", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "task_controller.yaml", section="task_controller")
         self.limits = TaskLimits.from_mapping({k.removeprefix("limits."): v for k, v in p.items()
                                                if k.startswith("limits.")})
@@ -75,7 +76,7 @@ class TaskControllerNode(Node):
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0}
         self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
-        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self.create_timer(0.5, self._diagnose)
         self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)
         self.create_subscription(Range, "sensors/altitude", self._on_altitude, COMMAND_QOS)

@@ -48,6 +48,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
 from rclpy.clock import Clock as SteadyClock, ClockType
+from rclpy.exceptions import ParameterUninitializedException
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
@@ -59,6 +60,7 @@ from seapup_common.ros.messages import (MeasurementCollector, command_from_msg, 
                                         reference_from_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
                                     refuse_invalid_transitions, run_node)
+from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol"]
 
@@ -75,7 +77,7 @@ class VelocityControllerNode(LifecycleNode):
     """
 
     def __init__(self, name: str = "velocity_controller", default_type: str = "mfol", **kwargs):
-        super().__init__(name, namespace="/seapup", **kwargs)
+        super().__init__(name, namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "velocity_controller.yaml",
                                            section="velocity_controller")
         if default_type != self.p["controller_type"] and not self._overridden("controller_type"):
@@ -96,8 +98,10 @@ class VelocityControllerNode(LifecycleNode):
         self._timer = None
         refuse_invalid_transitions(self)  # e.g. a second activate: refused, not fatal
         if self.p["autostart"]:
-            self.trigger_configure()
-            self.trigger_activate()
+            if self.trigger_configure() == TransitionCallbackReturn.SUCCESS:
+                self.trigger_activate()
+            else:
+                self.get_logger().error("autostart: not activated, the configuration failed (see above)")
 
     def _overridden(self, name: str) -> bool:
         return name in self._parameter_overrides
@@ -108,7 +112,10 @@ class VelocityControllerNode(LifecycleNode):
         return Parameter(name, value=value)
 
     def _value(self, name: str):
-        return self.get_parameter(name).value
+        try:
+            return self.get_parameter(name).value
+        except ParameterUninitializedException:  # an empty list given on the command line has no type
+            return []
 
     # -- life cycle ------------------------------------------------------------------
     def on_configure(self, state) -> TransitionCallbackReturn:
@@ -132,13 +139,13 @@ class VelocityControllerNode(LifecycleNode):
             reference_every_sample=bool(self._value("reference_every_sample")),
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
-        self.diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
             self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
             self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
             self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)]
         if lockstep:
-            self._interfaces.append(self.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS))
+            self._interfaces.append(self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS))
         else:
             self._interfaces.append(self.create_timer(self.controller.sample_period, self._on_timer))
         self.get_logger().info(f"configured {self.kind.name} ({spec.file or 'no file'}; "

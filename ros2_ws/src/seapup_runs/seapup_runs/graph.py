@@ -4,9 +4,10 @@ and their parameters (pure data in the graph-file format of ``./seapup launch``;
 The graph flies in lockstep and equals the in-process run sample for sample:
 
 - ``simulator``: the vehicle, dynamics, seed, start depth, control period
-  and physics step of the spec, its environment overrides, and its plant
+  and physics step of the spec, its environment overrides, its plant
   events as the ``events`` parameter (each lands on its physics step,
-  whatever the transport);
+  whatever the transport), and ``end_time``: it flies no further than the
+  spec's duration;
 - one ``velocity_controller`` per entry of the spec's controller timeline
   (``controller_0``, ``controller_1``, ...), each flying its registered type
   over the window of simulated time it is in charge of (``start_at``,
@@ -81,6 +82,7 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
     simulator = {"mode": "lockstep", "lockstep_timeout": float(lockstep_timeout), "vehicle": spec.vehicle,
                  "dynamics": spec.dynamics, "seed": spec.seed, "start_depth": spec.start_depth,
                  "control_period": spec.control_period, "physics_step": spec.physics_step,
+                 "end_time": spec.duration,
                  "wait_for_subscribers": SAMPLE_TOPICS * (len(spec.controller_timeline()) + int(listeners))
                  + TRUTH_TOPICS * int(listeners),
                  "events": yaml.safe_dump([e.to_dict() for e in spec.plant_events()], default_flow_style=True).strip()}

@@ -16,6 +16,7 @@ from rosgraph_msgs.msg import Clock
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.messages import stamp_to_ns
 from seapup_common.ros.node import RELIABLE_QOS
+from seapup_common.topics import CLOCK
 
 __all__ = ["SamplePublisher"]
 
@@ -31,7 +32,7 @@ class SamplePublisher:
         self.sent = 0
         self._last_clock = None
         if lockstep:
-            node.create_subscription(Clock, "/clock", self._on_clock, RELIABLE_QOS)
+            node.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         else:
             node.create_timer(sample_period, self._tick)
 
