@@ -14,7 +14,7 @@ import yaml
 
 from seapup_common.controllers import ControllerSpec
 from seapup_runs.runner import design, run, start_pitch
-from seapup_runs.spec import ReferenceProfile, RunSpec, SelfTestDesign
+from seapup_runs.spec import ReferenceSteps, RunSpec, SelfTestDesign
 
 TOY = '''
 import numpy as np
@@ -73,7 +73,7 @@ def toy_package(tmp_path, monkeypatch):
 
 def _spec(controller) -> RunSpec:
     return RunSpec(name="toy", duration=12.0, controller=controller, environment={"sensors": "ideal"},
-                   reference=ReferenceProfile.from_list([[0.0, 0.2, 0.0, 0.0, 0.0], [6.0, 0.1, 0.0, 0.05, 0.0]]),
+                   reference=ReferenceSteps.from_list([[0.0, 0.2, 0.0, 0.0, 0.0], [6.0, 0.1, 0.0, 0.05, 0.0]]),
                    metrics=("step_response",))
 
 
@@ -114,7 +114,8 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
         {"package": "seapup_sim", "executable": "simulator", "required": True,
          "parameters": [{"mode": "lockstep", "start_depth": 30.0, "lockstep_timeout": 10.0,
                          "environment": {"sensors": "ideal"},
-                         "wait_for_subscribers": ["/seapup/sensors/velocity", "/seapup/thrusters/applied"]}]},
+                         # the probe and both controllers hear the first sample
+                         "wait_for_subscribers": ["/seapup/sensors/velocity"] * 3 + ["/seapup/thrusters/applied"]}]},
         {"package": "seapup_control", "executable": "velocity_controller", "name": "mfol_fixed",
          "parameters": [{"controller_type": "mfol", "controller_file": str(controller_file), "schedule": False,
                          **common}],
@@ -127,7 +128,7 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
                          "fallback": "mfol_fixed", "initial": "mfol_fixed", "command_deadline": 0.5}]}]}
     path = tmp_path / "swap.yaml"
     path.write_text(yaml.safe_dump(graph, sort_keys=False))
-    with SilGraph(path, out_dir=tmp_path / "logs", ready_status=None) as sil:
+    with SilGraph(path, out_dir=tmp_path / "logs", ready_status=None, instruments=True) as sil:
         sil.run_for(4.0)
         answer = sil.switch(activate=["toy"], deactivate=["mfol_fixed"])
         assert answer.ok, answer.message

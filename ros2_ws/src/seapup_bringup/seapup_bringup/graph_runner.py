@@ -78,7 +78,7 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
     graph.write_text(yaml.safe_dump(graph_document(spec, _write_documents(spec, out), listeners=listeners),
                                     sort_keys=False))
     limit = 60.0 + 2.0 * spec.duration if timeout is None else float(timeout)
-    with SilGraph(graph, out_dir=out, ready_status=None, ready_timeout=60.0,
+    with SilGraph(graph, out_dir=out, ready_status=None, ready_timeout=60.0, instruments=True,
                   record=typed(*RECORDED_TOPICS) if record else None) as sil:
         end = spec.duration - 1e-6
         flown = sil.spin_until(lambda: _report(progress, sil.t / spec.duration) or sil.t >= end, limit)

@@ -412,7 +412,10 @@ def _experiment(args, text) -> dict:
     samples = experiment_samples(args.duration, EXPERIMENT_PERIOD)
     arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
-                 "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD)}
+                 "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD),
+                 # the first sample waits for every reader of it: the recorder and this process's probe hear the
+                 # truth, and a run that ends at end_time never publishes it again for a late reader
+                 "wait_for_subscribers": str([VELOCITY, IMU, DEPTH, APPLIED, TRUTH_ODOMETRY, TRUTH_ODOMETRY])}
     if args.closed_loop:
         graph, excitation = "seapup_bringup identification_closed_loop.yaml", _closed_loop_excitation(args, out, text)
     else:
@@ -588,9 +591,10 @@ def main(argv=None) -> int:
     text = text_stream(args)
     handlers = {"fit": _fit, "orders": _orders, "compare": _compare, "residuals": _residuals,
                 "experiment": _experiment}
+    from seapup_bringup.sil import SilError
     try:
         result = handlers[args.command](args, text)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, SilError) as exc:  # one line, never a traceback
         print(f"seapup ident {args.command}: error: {exc}", file=text)
         return 1
     emit_json(args, result)

@@ -46,6 +46,7 @@ def _summary(result, text) -> None:
 
 def fly(argv: list[str]) -> int:
     """``./seapup fly SPEC [--graph] [--out DIR] [--plots DIR] [--json [F]]``."""
+    from seapup_bringup.sil import SilError
     from seapup_common.controllers import ControllerRegistryError
     from seapup_runs.runner import DesignFailed, run
     from seapup_runs.spec import RunSpecError
@@ -66,7 +67,7 @@ def fly(argv: list[str]) -> int:
             result = run_on_graph(spec, out_dir=args.out, progress=lambda f: progress(spec.name, f))
         else:
             result = run(spec, progress=lambda f: progress(spec.name, f))
-    except (RunSpecError, ControllerRegistryError, ConfigError, DesignFailed, ValueError) as exc:
+    except (RunSpecError, ControllerRegistryError, ConfigError, DesignFailed, ValueError, SilError) as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1
     _summary(result, text)

@@ -20,6 +20,7 @@ import numpy as np
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.controllers import ControllerRegistryError
+from seapup_bringup.sil import SilError
 from seapup_runs.result import RunResult
 from seapup_runs.runner import DesignFailed, run
 from seapup_runs.scenarios import scenario_spec, scenarios
@@ -130,7 +131,7 @@ def scenario_command(argv: list[str]) -> int:
             result = run_on_graph(spec, progress=lambda f: progress(args.name, f))
         else:
             result = run(spec, progress=lambda f: progress(args.name, f))
-    except (KeyError, ConfigError, RunSpecError, ControllerRegistryError, DesignFailed) as exc:
+    except (KeyError, ConfigError, RunSpecError, ControllerRegistryError, DesignFailed, SilError) as exc:
         print(f"seapup: error: {str(exc).strip(chr(39))}", file=sys.stderr)
         return 1
     print_scenario(result, text)

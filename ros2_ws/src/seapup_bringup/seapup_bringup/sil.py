@@ -33,7 +33,7 @@ import numpy as np
 from seapup_common import topics
 from seapup_common.topics import TOPIC_TYPES
 
-__all__ = ["SilGraph", "SilError", "TOPICS"]
+__all__ = ["SilGraph", "SilError", "TOPICS", "INSTRUMENTS"]
 
 #: What the probe logs: name -> (topic, message type as a Python path).
 TOPICS = {name: (topic, TOPIC_TYPES[topic].replace("/", ".")) for name, topic in {
@@ -51,6 +51,10 @@ TOPICS = {name: (topic, TOPIC_TYPES[topic].replace("/", ".")) for name, topic in
     "rejections": topics.TASK_REJECTIONS,
     "diagnostics": topics.DIAGNOSTICS,
 }.items()}
+#: The instruments' topics, logged only when asked (``instruments=True``): a graph whose simulator waits
+#: for a subscriber of one of them (the identification graphs wait for the recorder's) must not be
+#: started by the probe's subscription.
+INSTRUMENTS = ("velocity", "imu", "depth", "position")
 
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
@@ -81,6 +85,9 @@ class SilGraph:
         a publisher has told the recorder their type.
     ready_timeout : float
         Wall seconds for the first navigation estimate.
+    instruments : bool
+        Also log the instruments (velocity, IMU, depth, position fixes: :data:`INSTRUMENTS`). Off by
+        default, since the probe's subscriptions count for a simulator's ``wait_for_subscribers``.
     ready_status : str or tuple of str, optional
         The graph is ready once the latest ``/diagnostics`` statuses of these names say OK
         (default ``seapup/task_controller``: it hears the navigator and a position controller
@@ -96,8 +103,10 @@ class SilGraph:
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
                  out_dir, record: list[str] | None = None, ready_timeout: float = 60.0,
                  ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
-                                                                "seapup/position_controller")):
+                                                                "seapup/position_controller"),
+                 instruments: bool = False):
         self.graph = str(graph)
+        self.instruments = bool(instruments)
         self.arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in (arguments or {}).items()}
         self.out_dir = Path(out_dir)
         self.record = list(record or [])
@@ -140,6 +149,8 @@ class SilGraph:
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
         for name, (topic, kind) in TOPICS.items():
+            if name in INSTRUMENTS and not self.instruments:
+                continue  # a graph may use these subscriptions as its start signal (the recorder's, say)
             self._node.create_subscription(_import(kind), topic, self.log[name].append, 10000)
         if self.record:
             self.bag = self.out_dir / "bag"
@@ -176,7 +187,7 @@ class SilGraph:
         """Before the graph starts: the recorder subscribes to every typed topic (``/t:pkg/msg/Type``) at
         once, so wait for those subscriptions -- a lockstep simulator can fly a minute in a second
         and would otherwise run ahead of the recorder's discovery."""
-        own = {topic for topic, _ in TOPICS.values()}
+        own = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
         typed = [entry.split(":")[0] for entry in self.record if ":" in entry]
 
         def subscribed():

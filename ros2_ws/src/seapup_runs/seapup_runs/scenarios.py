@@ -17,7 +17,7 @@ from importlib import resources
 import yaml
 
 from seapup_common.controllers import ControllerSpec
-from seapup_runs.spec import ReferenceProfile, RunEvent, RunSpec, RunSpecError, SelfTestDesign
+from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError, SelfTestDesign
 
 __all__ = ["scenarios", "scenario_spec", "CASE_KEYS"]
 
@@ -70,5 +70,5 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
     return RunSpec(name=name, vehicle=vehicle, environment=environment, control_period=period,
                    duration=float(case["duration"]), start_depth=50.0, controller=controller,
                    design=SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7)))),
-                   reference=ReferenceProfile.from_list(case["reference"]), events=tuple(events), seed=seed,
+                   reference=ReferenceSteps.from_list(case["reference"]), events=tuple(events), seed=seed,
                    metrics=("step_response",))

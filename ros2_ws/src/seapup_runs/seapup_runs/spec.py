@@ -27,7 +27,7 @@ import numpy as np
 from seapup_common.contract import Reference
 from seapup_common.controllers import ControllerSpec
 
-__all__ = ["RunSpecError", "PHYSICS_STEP", "ReferenceProfile", "RunEvent", "SelfTestDesign", "RunSpec",
+__all__ = ["RunSpecError", "PHYSICS_STEP", "ReferenceSteps", "RunEvent", "SelfTestDesign", "RunSpec",
            "EVENT_KINDS", "CURRENT_FIELDS"]
 
 #: The RK4 physics step of the thesis's simulation [s] (sec. 3.2).
@@ -61,14 +61,14 @@ def _refuse_unknown(data: Mapping, known, what: str) -> None:
 
 
 @dataclass(frozen=True)
-class ReferenceProfile:
+class ReferenceSteps:
     """Piecewise-constant body-velocity reference: ``(time, (u, v, w, r))`` steps held until the next.
 
     Before the first step's time the first step's value holds (a profile starts at its first value).
 
     Examples
     --------
-    >>> profile = ReferenceProfile.from_list([[0.0, 0.7, 0, 0, 0], [15.0, 0.8, 0, 0, 0]])
+    >>> profile = ReferenceSteps.from_list([[0.0, 0.7, 0, 0, 0], [15.0, 0.8, 0, 0, 0]])
     >>> float(profile.at(14.9).velocity[0]), float(profile.at(15.0).velocity[0])
     (0.7, 0.8)
     """
@@ -105,7 +105,7 @@ class ReferenceProfile:
         return [[t, *v] for t, v in self.steps]
 
     @classmethod
-    def from_list(cls, rows) -> "ReferenceProfile":
+    def from_list(cls, rows) -> "ReferenceSteps":
         """From ``[[t, u, v, w, r], ...]``."""
         try:
             return cls(tuple((row[0], tuple(row[1:])) for row in rows))
@@ -243,7 +243,7 @@ class RunSpec:
         The velocity controller from t = 0 (``controller`` events switch it later).
     design : SelfTestDesign, optional
         Designs every controller of the run that needs a document and has none.
-    reference : ReferenceProfile
+    reference : ReferenceSteps
         The body-velocity reference.
     events : tuple of RunEvent
         Scheduled changes (current, configuration, thruster efficiency, controller).
@@ -264,7 +264,7 @@ class RunSpec:
     start_pitch: tuple | None = None
     controller: ControllerSpec = field(default_factory=lambda: ControllerSpec("hold"))
     design: SelfTestDesign | None = None
-    reference: ReferenceProfile = field(default_factory=ReferenceProfile)
+    reference: ReferenceSteps = field(default_factory=ReferenceSteps)
     events: tuple = ()
     seed: int = 0
     metrics: tuple = ()
@@ -300,8 +300,8 @@ class RunSpec:
                 object.__setattr__(self, name, value)
         if not isinstance(self.controller, ControllerSpec):
             object.__setattr__(self, "controller", ControllerSpec.from_dict(self.controller))
-        if not isinstance(self.reference, ReferenceProfile):
-            object.__setattr__(self, "reference", ReferenceProfile.from_list(self.reference))
+        if not isinstance(self.reference, ReferenceSteps):
+            object.__setattr__(self, "reference", ReferenceSteps.from_list(self.reference))
         events = tuple(e if isinstance(e, RunEvent) else RunEvent.from_dict(e) for e in self.events)
         object.__setattr__(self, "events", tuple(sorted(events, key=lambda e: e.time)))
         object.__setattr__(self, "metrics", tuple(self.metrics))

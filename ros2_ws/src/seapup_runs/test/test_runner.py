@@ -15,7 +15,7 @@ from seapup_control.mfol_controller import MFOLController
 from seapup_runs.metrics import MetricError, compute
 from seapup_runs.result import RunResult, RunResultError, STATE_INDEX, jsonable
 from seapup_runs.runner import run, start_pitch
-from seapup_runs.spec import ReferenceProfile, RunEvent, RunSpec, RunSpecError
+from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError
 from seapup_sim.simulation import Simulation
 
 
@@ -47,7 +47,7 @@ def test_a_held_setting_flies_exactly_as_the_simulation_loop_flies_it():
 
 def test_an_mfol_run_equals_the_simulation_loop_with_the_same_controller():
     document = _mfol_document()
-    reference = ReferenceProfile.from_list([[0.0, 0.1, 0.0, 0.0, 0.0], [4.0, 0.1, 0.05, 0.0, 0.1]])
+    reference = ReferenceSteps.from_list([[0.0, 0.1, 0.0, 0.0, 0.0], [4.0, 0.1, 0.05, 0.0, 0.1]])
     spec = RunSpec(duration=8.0, controller=ControllerSpec("mfol", {"schedule": False}, document=document),
                    environment={"sensors": "ideal"}, reference=reference, metrics=("step_response",))
     result = run(spec)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from seapup_common.controllers import ControllerSpec
-from seapup_runs.spec import (PHYSICS_STEP, ReferenceProfile, RunEvent, RunSpec, RunSpecError, SelfTestDesign)
+from seapup_runs.spec import (PHYSICS_STEP, ReferenceSteps, RunEvent, RunSpec, RunSpecError, SelfTestDesign)
 
 
 def full_spec() -> RunSpec:
@@ -14,7 +14,7 @@ def full_spec() -> RunSpec:
                    control_period=0.05, duration=20.0, start_depth=30.0,
                    controller=ControllerSpec("hold", {"blade_pitch": [0.1, 0.1, 0.0, 0.0]}),
                    design=SelfTestDesign("baseline", (0.0, 0.7)),
-                   reference=ReferenceProfile.from_list([[0.0, 0.2, 0, 0, 0], [5.0, 0.3, 0, 0, 0.1]]),
+                   reference=ReferenceSteps.from_list([[0.0, 0.2, 0, 0, 0], [5.0, 0.3, 0, 0, 0.1]]),
                    events=(RunEvent(10.0, "controller", {"type": "mfol", "parameters": {"schedule": False}}),
                            RunEvent(2.0, "current", {"mean_speed": 0.26, "speed_std": 0.0, "mean_direction": 0.0,
                                                      "direction_std": 0.0}),
@@ -71,7 +71,7 @@ def test_unknown_spec_keys_and_a_disagreeing_physics_step_are_refused():
 
 
 def test_a_reference_profile_holds_each_step_and_starts_at_its_first_value():
-    profile = ReferenceProfile.from_list([[2.0, 0.1, 0, 0, 0], [4.0, 0.2, 0, 0, 0]])
+    profile = ReferenceSteps.from_list([[2.0, 0.1, 0, 0, 0], [4.0, 0.2, 0, 0, 0]])
     assert [float(profile.at(t).velocity[0]) for t in (0.0, 1.999, 2.0, 3.9, 4.0 - 1e-12, 100.0)] == \
         [0.1, 0.1, 0.1, 0.1, 0.2, 0.2]
 
