@@ -21,9 +21,14 @@ def cli(env, *args, timeout=60):
 
 
 @pytest.fixture
-def realtime_simulator(node_process):
+def realtime_simulator(node_process, ros_env):
     # 5 Hz samples at 5x real time: 25 messages per wall second on every sample topic
-    return start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "start_depth:=50.0")
+    simulator = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "start_depth:=50.0")
+    # on the graph and publishing before a verb looks: a node takes ~1.5-2 s to start and be discovered, and
+    # `topic list --timeout T` shows what was discovered within T (seen: an empty list on a loaded machine)
+    up = cli(ros_env, "topic", "echo", "/seapup/truth/odometry", "--once")
+    assert up.returncode == 0, up.stderr
+    return simulator
 
 
 def test_topic_list_info_echo_and_hz(realtime_simulator, ros_env):

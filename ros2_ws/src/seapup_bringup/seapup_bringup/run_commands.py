@@ -40,7 +40,9 @@ def _summary(result, text) -> None:
           + f", r {np.degrees(series.truth['r'][-1]):.2f} deg/s", file=text)
     if result.metrics.get("outputs"):
         for key, o in result.metrics["outputs"].items():
-            cells = ", ".join(f"{name} {value:.3g}" for name, value in o.items() if value is not None)
+            cells = ", ".join(f"{name} {value:.3g}" for name, value in o.items()
+                              if isinstance(value, (int, float)) and not isinstance(value, bool))
+            cells += "" if o.get("settled", True) else " (not settled)"
             print(f"  {key}: {cells}", file=text)
 
 
