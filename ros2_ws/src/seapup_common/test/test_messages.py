@@ -88,3 +88,28 @@ def test_altitude_outside_the_range_is_invalid_and_odometry_frames():
     assert (enu.header.frame_id, enu.child_frame_id) == (frames.FRAME_ENU, frames.FRAME_FLU)
     assert (enu.pose.pose.position.x, enu.pose.pose.position.y, enu.pose.pose.position.z) == (2.0, 1.0, -3.0)
     assert enu.twist.twist.linear.x == 0.5
+
+
+def test_a_sample_feed_answers_samples_once_and_refuses_what_the_collector_refuses():
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+    from rosgraph_msgs.msg import Clock
+
+    from seapup_common.lockstep import SamplePolicy
+    from seapup_common.ros.messages import MeasurementCollector, SampleFeed, ns_to_stamp
+
+    def velocity(t_ns, u=0.1):
+        msg = TwistWithCovarianceStamped()
+        msg.header.stamp, msg.header.frame_id = ns_to_stamp(t_ns), "base_link_frd"
+        msg.twist.twist.linear.x = u
+        return msg
+    refused = []
+    policy = SamplePolicy(True)
+    policy.activate(heard_applied=True)
+    feed = SampleFeed(MeasurementCollector(), policy, refused.append)
+    assert feed.clock(Clock(clock=ns_to_stamp(0))) is None            # announced, its sample not here yet
+    assert feed.velocity(velocity(0)) == 0                            # the sample: answer t_0
+    assert feed.clock(Clock(clock=ns_to_stamp(0))) == 0               # the handshake's repeat, still pending
+    policy.answered(0)
+    assert feed.velocity(velocity(200_000_000, u=float("nan"))) is None  # refused: never a sample
+    assert len(refused) == 1 and "finite" in refused[0] and policy.latest_ns == 0
+    assert feed.collector.measurement(0.0).velocity.value[0] == 0.1

@@ -40,7 +40,7 @@ from seapup_msgs.msg import BladePitch, SelfTestSample
 from seapup_common.config import ConfigError
 from seapup_common.contract import ContractError
 from seapup_common.lockstep import SamplePolicy
-from seapup_common.ros.messages import MeasurementCollector, command_to_msg, ns_to_stamp, stamp_to_ns
+from seapup_common.ros.messages import MeasurementCollector, SampleFeed, command_to_msg, ns_to_stamp
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import CLOCK, NAMESPACE
@@ -78,6 +78,8 @@ class SelfTestNode(Node):
         self._last_sample_wall = 0.0
         self.collector = MeasurementCollector()
         self.policy = SamplePolicy(self.lockstep)  # which sample is pending (the self-test never waits)
+        self.policy.activate(heard_applied=True)
+        self.feed = SampleFeed(self.collector, self.policy, self._rejected)
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
         # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
@@ -164,18 +166,17 @@ class SelfTestNode(Node):
             self._done.set_result(True)
 
     # -- sampling --------------------------------------------------------------------
+    def _rejected(self, reason: str) -> None:  # a non-finite or malformed sensor message: counted, never used
+        self.rejected += 1
+        self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=5.0)
+
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        if not self.collector.add(msg):  # non-finite or malformed: counted, never used
-            self.rejected += 1
-            self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
-                                   throttle_duration_sec=5.0)
-            return
-        t_ns = self.policy.on_sample(stamp_to_ns(msg.header.stamp))
+        t_ns = self.feed.velocity(msg)
         if t_ns is not None:
             self._answer(t_ns)
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = self.policy.on_clock(stamp_to_ns(msg.clock))
+        t_ns = self.feed.clock(msg)
         if t_ns is not None:
             self._answer(t_ns)
 

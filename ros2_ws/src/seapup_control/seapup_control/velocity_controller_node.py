@@ -56,8 +56,8 @@ from seapup_msgs.msg import BladePitch
 from seapup_common.contract import Command, ContractError, ReferenceSchedule
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
-from seapup_common.ros.messages import (MeasurementCollector, command_from_msg, command_to_msg, diagnostic_array,
-                                        reference_from_msg, stamp_to_ns)
+from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
+                                        diagnostic_array, reference_from_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
                                     refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
@@ -138,6 +138,7 @@ class VelocityControllerNode(LifecycleNode):
             first_reference_wait=float(self._value("first_reference_wait")), needs_applied=self.kind.needs_applied,
             reference_every_sample=bool(self._value("reference_every_sample")),
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
+        self.feed = SampleFeed(self.collector, self.policy, self._rejected)
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
@@ -223,18 +224,17 @@ class VelocityControllerNode(LifecycleNode):
         if self.controller is not None and self.policy.on_applied(t_ns) and self.policy.latest_ns is not None:
             self._answer(self.policy.latest_ns)  # a sample that waited for it
 
+    def _rejected(self, reason: str) -> None:  # a non-finite or malformed sensor message: counted, never used
+        self.counts["rejected_measurements"] += 1
+        self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=2.0)
+
     def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        if not self.collector.add(msg):  # non-finite or malformed: counted, never used
-            self.counts["rejected_measurements"] += 1
-            self.get_logger().warn(f"sensor message rejected: {self.collector.last_error}",
-                                   throttle_duration_sec=2.0)
-            return
-        t_ns = self.policy.on_sample(stamp_to_ns(msg.header.stamp))
+        t_ns = self.feed.velocity(msg)
         if t_ns is not None:
             self._answer(t_ns)
 
     def _on_clock(self, msg: Clock) -> None:
-        t_ns = self.policy.on_clock(stamp_to_ns(msg.clock))
+        t_ns = self.feed.clock(msg)
         if t_ns is not None:
             self._answer(t_ns)
 

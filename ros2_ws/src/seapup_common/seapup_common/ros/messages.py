@@ -33,7 +33,7 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
            "position_to_msg", "position_from_msg", "depth_to_msg", "depth_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
-           "vector3_stamped", "wrench_stamped", "MeasurementCollector",
+           "vector3_stamped", "wrench_stamped", "MeasurementCollector", "SampleFeed",
            "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
            "reference_to_msg", "reference_from_msg", "diagnostic_array",
            "UNKNOWN_VARIANCE"]
@@ -376,3 +376,34 @@ class MeasurementCollector:
             if -1e-9 <= age <= self.max_age[name] + 1e-9:
                 fields[name] = reading
         return Measurement(float(t), **fields)
+
+
+class SampleFeed:
+    """The sample inputs of a node that answers samples: sensor messages into a :class:`MeasurementCollector`,
+    sample stamps and ``/clock`` into a :class:`~seapup_common.lockstep.SamplePolicy`.
+
+    :meth:`velocity` and :meth:`clock` return the sample to answer now (or None); a message the
+    collector refuses (non-finite, malformed, another frame) is counted and passed to ``rejected``
+    with the reason, never used.
+
+    Parameters
+    ----------
+    collector : MeasurementCollector
+    policy : seapup_common.lockstep.SamplePolicy
+    rejected : callable
+        ``rejected(reason)``: the node counts and logs it.
+    """
+
+    def __init__(self, collector: MeasurementCollector, policy, rejected):
+        self.collector, self.policy, self.rejected = collector, policy, rejected
+
+    def velocity(self, msg) -> int | None:
+        """A velocity (sample) message: the sample to answer, or None."""
+        if not self.collector.add(msg):
+            self.rejected(self.collector.last_error)
+            return None
+        return self.policy.on_sample(stamp_to_ns(msg.header.stamp))
+
+    def clock(self, msg) -> int | None:
+        """A ``/clock`` message: the sample to answer (the simulator's repeated t_k), or None."""
+        return self.policy.on_clock(stamp_to_ns(msg.clock))
