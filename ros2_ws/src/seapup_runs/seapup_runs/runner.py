@@ -76,9 +76,27 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
 
 def simulation_events(spec: RunSpec) -> list:
     """The spec's plant events as :class:`seapup_sim.simulation.Event` objects (the parser the simulator
-    node's ``events`` parameter uses too)."""
+    node's ``events`` parameter uses too), checked before anything flies: an unknown configuration or a
+    current beyond the environment's limits is refused now, not when its time comes.
+
+    Raises
+    ------
+    RunSpecError
+        Naming the event and why.
+    """
+    from seapup_sim.environment_config import load_limits
     from seapup_sim.simulation import events_from_data
-    return events_from_data([e.to_dict() for e in spec.plant_events()])
+    from seapup_sim.vehicle_config import ConfigError, load_vehicle_config
+    events = events_from_data([e.to_dict() for e in spec.plant_events()])
+    for event in events:
+        try:
+            if event.kind == "configuration":
+                load_vehicle_config(event.value)
+            elif event.kind == "current" and event.value is not None:
+                load_limits().check_current(event.value)
+        except (ConfigError, ValueError) as exc:
+            raise RunSpecError(f"{event.kind} event at {event.time:g} s: {exc}") from None
+    return events
 
 
 def start_pitch(spec: RunSpec) -> np.ndarray:

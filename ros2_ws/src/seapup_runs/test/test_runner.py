@@ -106,3 +106,14 @@ def test_unknown_metrics_and_undesigned_controllers_are_refused():
     result.spec = RunSpec(duration=1.0, metrics=("no_such_metric",))
     with pytest.raises(MetricError, match="unknown metric 'no_such_metric'"):
         compute(result)
+
+
+@pytest.mark.parametrize("event, message", [
+    ({"time": 1.0, "kind": "configuration", "detail": "submarine"}, "configuration event at 1 s"),
+    ({"time": 1.0, "kind": "current", "detail": {"mean_speed": 50.0, "speed_std": 0.0, "mean_direction": 0.0,
+                                                 "direction_std": 0.0}}, "current event at 1 s"),
+])
+def test_an_event_that_cannot_happen_is_refused_before_anything_flies(event, message):
+    spec = RunSpec(duration=2.0, controller=ControllerSpec("hold"), events=(event,))
+    with pytest.raises(RunSpecError, match=message):
+        run(spec)
