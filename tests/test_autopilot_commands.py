@@ -58,3 +58,10 @@ def test_selftest_through_the_action_records_a_bag_that_refits_to_the_same_resul
     np.testing.assert_allclose(live["operating_points"][0]["u0_deg"], local["operating_points"][0]["u0_deg"],
                                atol=0.05)
     assert list((tmp_path / "run").glob("self_test_*.yaml"))  # the controller file
+
+
+def test_what_stops_a_selftest_is_one_line_not_a_traceback(capsys):
+    assert selftest(["--config", "submarine", "--in-process"]) == 1
+    assert selftest(["--speeds", "0,fast", "--in-process"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("seapup selftest: error: ") for line in err), err

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, SELF_TEST_ACTION, SELF_TEST_SAMPLES, SENSORS,
                                   TRUTH_ODOMETRY, VELOCITY, typed)
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
@@ -28,7 +29,11 @@ from seapup_sim.analysis import TrimError, linearise, output_matrix, trim
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
 
-__all__ = ["selftest", "closed_loop_command", "analyse", "MODES"]
+__all__ = ["selftest", "closed_loop_command", "analyse", "MODES", "SelfTestFailed"]
+
+
+class SelfTestFailed(RuntimeError):
+    """A self-test or closed-loop analysis that cannot go on: the reason says why (and where the logs are)."""
 
 #: Eq. 5.3a/b and 5.7a/b (the thesis's velocity log, human observer), thesis units (m/s and deg/s per deg).
 THESIS = {0.0: {"B0inv": [[.0026, .0026, .000125, .000125], [-.0001, .0001, -.0004265, .0004265],
@@ -53,7 +58,7 @@ def _model(name: str) -> VehicleModel:
     try:
         return VehicleModel(load_vehicle_config(name))
     except ConfigError as exc:
-        raise SystemExit(f"seapup: {exc}")
+        raise SelfTestFailed(f"{exc}")
 
 
 def _self_test_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,7 +78,7 @@ def _fly(args, text):
                                       "mode": args.mode},
                         progress=lambda f: progress("self-test", f))
     if run.test.phase.value != "done":
-        raise SystemExit(f"seapup: the self-test {run.test.phase.value}: {run.test.reason}")
+        raise SelfTestFailed(f"the self-test {run.test.phase.value}: {run.test.reason}")
     return run
 
 
@@ -81,83 +86,47 @@ def _fly(args, text):
 SELF_TEST_TOPICS = (CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY, SELF_TEST_SAMPLES)
 
 
-def _fly_graph(args, out: Path, bag_dir: Path, text) -> dict:
-    """The self-test through the ROS graph in lockstep: simulator, self_test action server and
-    recorder as processes on a leased domain; this process is the action client."""
-    import rclpy
-    from rclpy.action import ActionClient
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from seapup_msgs.action import SelfTest as SelfTestAction
+def _fly_graph(args, out: Path, bag: Path, text) -> dict:
+    """The self-test through the ROS graph in lockstep (``seapup_bringup/launch/self_test.yaml``: simulator
+    and self_test action server) in the SIL harness, recorded to ``bag``; this process is the action client.
 
-    from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-    from seapup_common.ros.graph import GoalNotAnswered, send_goal
+    Raises
+    ------
+    SelfTestFailed
+        If the goal is refused or the self-test does not succeed; the harness's SilError if the graph
+        does not come up.
+    """
+    from seapup_bringup.sil import SilGraph
+    from seapup_runs.spec import PHYSICS_STEP
+
     speeds = _speeds(args)
-    with DomainLease() as lease:
-        env = ros_environment(lease.domain_id)
+    period = 1.0 / args.rate
+    # the first sample waits for the recorder on every sample topic and the probe on the truth, and the
+    # first command for the simulator, the recorder and the probe: nothing of the run is lost
+    waits = [t for t in SELF_TEST_TOPICS if t in SENSORS or t == TRUTH_ODOMETRY] + [CLOCK, TRUTH_ODOMETRY]
+    arguments = {"vehicle": args.config, "control_period": period, "physics_step": min(PHYSICS_STEP, period),
+                 "start_depth": 50.0, "result_dir": str(out.resolve()), "command_subscribers": 3,
+                 "sample_subscribers": 1, "wait_for_subscribers": str(waits)}
+    with SilGraph("seapup_bringup self_test.yaml", arguments, out_dir=out, record=typed(*SELF_TEST_TOPICS),
+                  ready_status=None) as sil:
         print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
-              f"(domain {lease.domain_id}); output in {out}", file=text, flush=True)
-        recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p",
-                                f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
-                                "-p", f"topics:={typed(*SELF_TEST_TOPICS)}"],
-                               env, out / "recorder.log", "recorder")
-        period = 1.0 / args.rate
-        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
-                                 "-p", f"vehicle:={args.config}", "-p", "mode:=lockstep", "-p", "start_depth:=50.0",
-                                 "-p", f"control_period:={period}", "-p", f"physics_step:={min(0.1, period)}",
-                                 "-p", "environment.sensors:=ideal", "-p", "lockstep_timeout:=60.0",
-                                 "-p", "wait_for_subscribers:=" + str([t for t in SELF_TEST_TOPICS
-                                                                        if t in SENSORS or t == TRUTH_ODOMETRY]
-                                                                       + [CLOCK])],
-                                env, out / "simulator.log", "simulator")
-        node = NodeProcess([find_executable("seapup_control", "self_test"), "--ros-args",
-                            "-p", f"result_dir:={out.resolve()}", "-p", "wait_for_command_subscribers:=2",
-                            "-p", "wait_for_sample_subscribers:=1"], env, out / "self_test.log", "self_test")
-        ctx = Context()
-        rclpy.init(context=ctx, domain_id=lease.domain_id)
-        client_node = rclpy.create_node("selftest_client", context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(client_node)
-        client = ActionClient(client_node, SelfTestAction, SELF_TEST_ACTION)
-        procs = [node, simulator, recorder]
-
-        def spin_until(predicate, timeout):
-            return graph_spin_until(executor, predicate, timeout)
-        try:
-            recorder.start()
-            node.start()
-            simulator.start()
-            goal = SelfTestAction.Goal()
-            goal.sample_period = period
-            goal.operating_points = speeds
-            try:
-                handle = send_goal(executor, client, goal, lambda f: progress(
-                    f"{f.feedback.phase} c{f.feedback.cycle} t{f.feedback.thruster}", f.feedback.progress),
-                    ready_timeout=60.0)
-            except GoalNotAnswered as exc:
-                raise SystemExit(f"seapup: {exc}; see the logs in {out}") from None
-            if not handle.accepted:
-                raise SystemExit("seapup: the self-test goal was refused")
-            done = handle.get_result_async()
-            spin_until(done.done, 3600.0)
-            answer = done.result()
-        finally:
-            for p in procs:
-                p.stop()
-            executor.shutdown()
-            client_node.destroy_node()
-            ctx.try_shutdown()
-    result = answer.result
+              f"(domain {sil.env['ROS_DOMAIN_ID']}); output in {out}", file=text, flush=True)
+        result = sil.action(SELF_TEST_ACTION, "seapup_msgs/action/SelfTest",
+                            {"sample_period": period, "operating_points": speeds}, timeout=3600.0, ready_timeout=60.0,
+                            feedback=lambda f: progress(f"{f.phase} c{f.cycle} t{f.thruster}", f.progress))
+        bag_dir = sil.bag
     if not result.success:
-        raise SystemExit(f"seapup: the self-test did not succeed: {result.message}; see {out}")
-    return {"result": result, "bag": bag_dir}
+        raise SelfTestFailed(f"the self-test did not succeed: {result.message}; see {out}")
+    if bag_dir != bag:
+        shutil.move(str(bag_dir), str(bag))
+    return {"result": result, "bag": bag}
 
 
 def _speeds(args) -> list[float]:
     try:
         return [float(s) for s in args.speeds.split(",")]
     except ValueError:
-        raise SystemExit(f"seapup: --speeds must be numbers separated by commas, got {args.speeds!r}")
+        raise SelfTestFailed(f"--speeds must be numbers separated by commas, got {args.speeds!r}")
 
 
 def _from_bag(bag_dir: Path) -> dict:
@@ -183,7 +152,7 @@ def _from_bag(bag_dir: Path) -> dict:
                         "equilibrium": list(s.equilibrium), "velocity": list(s.velocity),
                         "sample_period": s.sample_period})
     if not records:
-        raise SystemExit(f"seapup: {bag_dir} has no {SELF_TEST_SAMPLES}: not a self-test bag")
+        raise SelfTestFailed(f"{bag_dir} has no {SELF_TEST_SAMPLES}: not a self-test bag")
     config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
     points = refit(tests_from_samples(records), config.sample_period, config.poles, config.max_condition)
     # the box of water of the run itself: truth from its first to its last sample
@@ -193,7 +162,7 @@ def _from_bag(bag_dir: Path) -> dict:
             "space": position.max(axis=0) - position.min(axis=0)}
 
 
-def selftest(argv: list[str]) -> int:
+def _selftest(argv: list[str]) -> int:
     """``./seapup selftest``: the self-test through the ROS graph (or in process, or refitted from a bag)."""
     parser = argparse.ArgumentParser(prog="./seapup selftest", description=__doc__.splitlines()[0])
     _self_test_arguments(parser)
@@ -226,7 +195,7 @@ def selftest(argv: list[str]) -> int:
         points, duration, space = refitted["points"], flown["result"].duration, refitted["space"]
         live = np.reshape(flown["result"].b1_inverse, (-1, 4, 4))
         if not np.allclose(live, [p.model.B1inv for p in points], rtol=1e-12, atol=1e-15):
-            raise SystemExit("seapup: the bag's refit differs from the live result (a sample was lost?)")
+            raise SelfTestFailed("the bag's refit differs from the live result (a sample was lost?)")
         print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
     rows = _print_points(points, text)
     print(f"\ntime {duration:.1f} s, space {space[0]:.1f} x {space[1]:.1f} x {space[2]:.1f} m (X x Y x Z); "
@@ -302,7 +271,7 @@ def analyse(model: VehicleModel, schedule, speeds, scheduled: bool) -> list[dict
     return rows
 
 
-def closed_loop_command(argv: list[str]) -> int:
+def _closed_loop_command(argv: list[str]) -> int:
     """``./seapup closed-loop``: closed-loop eigenvalues over surge speed (sec. 5.4.1)."""
     parser = argparse.ArgumentParser(prog="./seapup closed-loop", description=__doc__.splitlines()[0])
     _self_test_arguments(parser)
@@ -370,3 +339,23 @@ def plot_loci(result: dict, out_dir: Path) -> list[Path]:
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def _one_line(verb: str, body, argv: list[str]) -> int:
+    """Run a verb; what stops it is one line on standard error and exit 1, never a traceback."""
+    from seapup_bringup.sil import SilError
+    try:
+        return body(argv)
+    except (SelfTestFailed, SilError, ConfigError, OSError) as exc:
+        print(f"seapup {verb}: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def selftest(argv: list[str]) -> int:
+    """``./seapup selftest``: the self-test through the ROS graph (or in process, or refitted from a bag)."""
+    return _one_line("selftest", _selftest, argv)
+
+
+def closed_loop_command(argv: list[str]) -> int:
+    """``./seapup closed-loop``: closed-loop eigenvalues over surge speed under the self-tested controller."""
+    return _one_line("closed-loop", _closed_loop_command, argv)

@@ -311,17 +311,24 @@ class SilGraph:
         finally:
             client.destroy()
 
-    def action(self, name: str, action_type: str, fields: dict | None = None, timeout: float = 600.0):
+    def action(self, name: str, action_type: str, fields: dict | None = None, timeout: float = 600.0,
+               feedback=None, ready_timeout: float = 30.0):
         """Send a goal (``action_type`` like ``seapup_msgs/action/SelfTest``, its fields) to action server
-        ``name`` and wait for the end; the result message."""
+        ``name`` and wait for the end; the result message. ``feedback(msg)`` is called with each
+        feedback message; ``ready_timeout`` [s wall] is how long the server may take to appear."""
         from rclpy.action import ActionClient
 
-        from seapup_common.ros.graph import send_goal
+        from seapup_common.ros.graph import GoalNotAnswered, send_goal
         package, _, kind_name = action_type.split("/")
         kind = _import(f"{package}.action.{kind_name}")
         client = ActionClient(self._node, kind, name)
         try:
-            handle = send_goal(self._executor, client, kind.Goal(**(fields or {})))
+            try:
+                handle = send_goal(self._executor, client, kind.Goal(**(fields or {})),
+                                   (lambda msg: feedback(msg.feedback)) if feedback else None,
+                                   ready_timeout=ready_timeout)
+            except GoalNotAnswered as exc:
+                raise SilError(f"{exc}{self._dead()}") from None
             if not handle.accepted:
                 raise SilError(f"{name} refused the goal")
             future = handle.get_result_async()

@@ -11,12 +11,15 @@ sec. 6.5.5 identifies the closed loop is two rows and a 20 s period.
 """
 from __future__ import annotations
 
+import types
+
 import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
+from seapup_common.controllers import ControllerType
 
-__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceProfile"]
+__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceProfile", "OPEN_LOOP_TYPE"]
 
 
 class ScheduleError(ValueError):
@@ -169,3 +172,21 @@ class OpenLoop:
 
     def diagnostics(self) -> dict:
         return {"start_time": self.start_time}
+
+
+def _open_loop(parameters: dict, document, sample_period: float | None) -> OpenLoop:
+    if sample_period is None:
+        raise ScheduleError("the open_loop controller needs the sample period of its caller")
+    if not parameters["times"] or not parameters["pitches"]:
+        raise ScheduleError("open_loop needs its switching times and four pitches per time")
+    return OpenLoop(PitchSchedule(parameters["times"], parameters["pitches"], parameters["blade_pitch_limit"]),
+                    sample_period)
+
+
+#: An open-loop blade-pitch schedule flown as a velocity controller (registered as ``open_loop``): the
+#: open-loop tests of sec. 3.3 / Table 3.2 as run specifications. ``times`` [s] from the controller's
+#: start, ``pitches`` [rad] four per time (``BladePitch`` order), ``blade_pitch_limit`` [rad].
+OPEN_LOOP_TYPE = ControllerType(
+    "open_loop", _open_loop,
+    types.MappingProxyType({"times": [], "pitches": [], "blade_pitch_limit": BLADE_PITCH_LIMIT}),
+    "blade pitches held between switching times from its start (open loop, sec. 3.3)")

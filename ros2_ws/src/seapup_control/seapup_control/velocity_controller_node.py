@@ -170,7 +170,8 @@ class VelocityControllerNode(LifecycleNode):
             fallback = getattr(self.controller, "fallback_command", None)
             applied = np.asarray(fallback(), float) if fallback is not None else np.zeros(4)
             source = "the law's fallback setting (no applied pitch heard)"
-        self.controller.reset(Command(applied))  # bumpless: from what the vehicle holds now
+        t_ns = t_ns if t_ns is not None else (self.policy.latest_ns or 0)
+        self.controller.reset(Command(applied, stamp=t_ns * 1e-9))  # bumpless: from what the vehicle holds now
         self.get_logger().info(f"starting from {source}: " + ", ".join(f"{np.degrees(a):.2f}" for a in applied)
                                + " deg")
 

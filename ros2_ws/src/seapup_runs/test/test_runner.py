@@ -117,3 +117,21 @@ def test_an_event_that_cannot_happen_is_refused_before_anything_flies(event, mes
     spec = RunSpec(duration=2.0, controller=ControllerSpec("hold"), events=(event,))
     with pytest.raises(RunSpecError, match=message):
         run(spec)
+
+
+def test_an_open_loop_schedule_is_a_registered_law_timed_from_its_start():
+    """Table 3.2's surge test (both mains at +35 deg) after 2 s at hover: the schedule's time 0 is the
+    sample the law takes over at, and the flight equals the simulation loop holding the same pitches."""
+    from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+    surge = [BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT, 0.0, 0.0]
+    law = {"type": "open_loop", "parameters": {"times": [0.0, 3.0], "pitches": surge + [0.0] * 4}}
+    spec = RunSpec(duration=8.0, controller=ControllerSpec("hold"), events=(RunEvent(2.0, "controller", law),),
+                   environment={"sensors": "ideal"})
+    series = run(spec).series
+    t = series.t
+    hover = start_pitch(spec)
+    np.testing.assert_array_equal(series.command[t < 2.0 - 1e-9], np.tile(hover, ((t < 2.0 - 1e-9).sum(), 1)))
+    on = (t > 2.0 - 1e-9) & (t < 5.0 - 1e-9)
+    np.testing.assert_array_equal(series.command[on], np.tile(surge, (on.sum(), 1)))
+    np.testing.assert_array_equal(series.command[(t > 5.0 - 1e-9)][:-1], 0.0)
+    assert series.truth["u"][on].max() > 0.3   # the surge test pushes ahead
