@@ -1,39 +1,35 @@
 """``./seapup open-loop``: fly the Seapup open-loop through the ROS graph.
 
-Until the autopilots land, the demo flies the thesis's open-loop manoeuvres
-(Table 3.2 style) with the full plant, as separate processes on a private ROS
-domain: the ``simulator`` (seapup_sim) in lockstep with a Gauss-Markov current
-and the baseline sensors, ``open_loop`` (seapup_control) answering every
-sample with a blade-pitch schedule -- hover (eq. 5.2), surge (both mains
-+35 deg), sway (vectored push-pull), hover -- and ``recorder`` (seapup_common)
-writing commands, truth, sensors and diagnostics into a rosbag2/MCAP bag,
-which the demo reads back and summarises per manoeuvre.
+The thesis's open-loop manoeuvres (Table 3.2 style) with the full plant, as
+separate processes on a private ROS domain in the SIL harness
+(:class:`seapup_bringup.sil.SilGraph`): the ``simulator`` (seapup_sim) in
+lockstep with a Gauss-Markov current and the baseline sensors, ending at the
+flight's duration, ``open_loop`` (seapup_control) answering every sample with
+a blade-pitch schedule -- hover (eq. 5.2), surge (both mains +35 deg), sway
+(vectored push-pull), hover -- and the harness's ``recorder`` writing
+commands, truth, sensors and diagnostics into a rosbag2/MCAP bag, which the
+command reads back and summarises per manoeuvre, checking that every message
+the simulator counted is in it.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from rosgraph_msgs.msg import Clock
 
-from seapup_common.ros.graph import spin_until as graph_spin_until
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common import frames
 from seapup_common.bag import read_bag
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 from seapup_common.ros.messages import stamp_to_ns
 from seapup_common.topics import APPLIED, CLOCK, COMMAND, DEPTH, DIAGNOSTICS, IMU, TRUTH_ODOMETRY, VELOCITY, typed
 from seapup_sim.analysis import hover_blade_pitch
@@ -68,17 +64,28 @@ def schedule_times(duration: float, plan) -> list[float]:
 
 
 def schedule_args(duration: float, plan) -> list[str]:
+    """The ``open_loop`` node's ``-p`` arguments for ``plan`` flown over ``duration`` (lockstep)."""
     pitches = [float(x) for _, row in plan for x in row]
     return ["-p", "lockstep:=true", "-p", f"times:={schedule_times(duration, plan)}", "-p", f"pitches:={pitches}"]
 
 
-def wait_for(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
+def graph_document(duration: float, plan) -> dict:
+    """The open-loop graph (launch-file format): the simulator with ``config/demo.yaml``'s parameters, in
+    lockstep, ending at ``duration``, and ``open_loop`` holding ``plan``. Each first message waits for
+    every reader of it: the simulator's per-sample topics for the recorder and (truth, applied pitch,
+    diagnostics) the harness's probe as well, the first command for the simulator, the recorder and the
+    probe -- nothing published is missed by the bag."""
+    per_sample = [t for t, each in RECORDED if each]
+    waits = per_sample + [CLOCK, DIAGNOSTICS] + [TRUTH_ODOMETRY, APPLIED, DIAGNOSTICS]
+    simulator = {**demo_config()["simulator"], "mode": "lockstep", "end_time": float(duration),
+                 "wait_for_subscribers": waits}
+    pitches = [float(x) for _, row in plan for x in row]
+    schedule = {"lockstep": True, "times": schedule_times(duration, plan), "pitches": pitches,
+                "wait_for_subscribers": 3}
+    return {"nodes": [{"package": "seapup_sim", "executable": "simulator", "required": True,
+                       "parameters": [simulator]},
+                      {"package": "seapup_control", "executable": "open_loop", "required": True,
+                       "parameters": [schedule]}]}
 
 
 def _simulator_status(diags: list) -> dict:
@@ -90,84 +97,45 @@ def _simulator_status(diags: list) -> dict:
 
 
 def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
-    """Start the graph, fly ``args.duration`` simulated seconds, stop it so that the
-    recorder has everything; the run's numbers, or None if the graph failed."""
-    per_sample = [t for t, each in RECORDED if each]
-    with DomainLease() as lease:
-        env = ros_environment(lease.domain_id)
-        print(f"seapup open-loop: ROS domain {lease.domain_id} (loopback only), output in {out}", file=text)
-        recorder = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args",
-                                "-p", f"bag_path:={bag_dir}", "-p", "use_sim_time:=true",
-                                "-p", f"topics:={typed(*TOPICS)}"],
-                               env, out / "recorder.log", "recorder")
-        # graph-ready handshake: the simulator publishes its first sample only once the
-        # recorder listens to every recorded topic, the controller answers only once
-        # both the simulator and the recorder listen to its commands
-        parameters = [a for k, v in demo_config()["simulator"].items()
-                      for a in ("-p", f"{k}:={str(v).lower() if isinstance(v, bool) else v}")]
-        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", *parameters,
-                                 "-p", f"wait_for_subscribers:={per_sample + [CLOCK, DIAGNOSTICS]}"],
-                                env, out / "simulator.log", "simulator")
-        controller = NodeProcess([find_executable("seapup_control", "open_loop"), "--ros-args",
-                                  "-p", "wait_for_subscribers:=2", *schedule_args(args.duration, plan)],
-                                 env, out / "open_loop.log", "open_loop")
-        ctx = Context()
-        rclpy.init(context=ctx, domain_id=lease.domain_id)
-        node = rclpy.create_node("demo_progress", context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        sim_time, diags = [-1.0], []
-        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        node.create_subscription(Clock, CLOCK, lambda m: sim_time.__setitem__(0, stamp_to_ns(m.clock) * 1e-9),
-                                 reliable)
-        node.create_subscription(DiagnosticArray, DIAGNOSTICS, diags.append, reliable)
-        procs = [controller, simulator, recorder]  # stop order: source first, recorder last
+    """Fly ``args.duration`` simulated seconds through the graph in the SIL harness, recorded; the run's
+    numbers, or None if the graph failed (the reason printed)."""
+    from seapup_bringup.sil import SilError, SilGraph
 
-        def spin_until(predicate, timeout):
-            return graph_spin_until(executor, predicate, timeout)
+    graph = out / "graph.yaml"
+    graph.write_text(yaml.safe_dump(graph_document(args.duration, plan), sort_keys=False))
+    steady = {"real_time_factor_measured", "control_steps_per_wall_second"}
 
-        try:
-            recorder.start()
-            simulator.start()
-            # the simulator holds t_0 (re-sent on /clock) until a controller answers: start
-            # the controller once this process hears t_0 too, so it watches from the start
-            if not spin_until(lambda: sim_time[0] >= 0, 60.0):
-                print(f"seapup open-loop: the nodes did not come up; see the logs in {out}", file=text)
-                return None
-            controller.start()
+    def counters(diags) -> dict:
+        return {k: v for k, v in _simulator_status(diags).items() if k not in steady}
+    try:
+        with SilGraph(graph, out_dir=out, record=typed(*TOPICS), ready_status=None) as sil:
+            print(f"seapup open-loop: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}",
+                  file=text)
             wall0 = time.monotonic()
-            while sim_time[0] < args.duration and time.monotonic() - wall0 < 600.0:
-                executor.spin_once(timeout_sec=0.1)
-                progress("flying", sim_time[0] / args.duration)
+            flown = sil.spin_until(lambda: progress("flying", sil.t / args.duration) or sil.t >= args.duration - 1e-6,
+                                   600.0)
             wall = time.monotonic() - wall0
-            controller.stop()  # the lockstep simulator now waits: no more samples
-
-            def settled():  # two successive reports with the same counters: nothing left in flight
-                statuses = [st for d in diags[-2:] for st in d.status if st.name == "seapup/simulator"]
-                return len(diags) >= seen + 3 and len(statuses) == 2 and \
-                    {kv.key: kv.value for kv in statuses[0].values if kv.key != "real_time_factor_measured"
-                     and kv.key != "control_steps_per_wall_second"} == \
-                    {kv.key: kv.value for kv in statuses[1].values if kv.key != "real_time_factor_measured"
-                     and kv.key != "control_steps_per_wall_second"}
-            seen = len(diags)
-            spin_until(settled, 10.0)
-            final = _simulator_status(diags)
-            time.sleep(0.5)  # let the recorder take what is still in flight
-        finally:
-            for p in procs:
-                p.stop()
-            executor.shutdown()
-            node.destroy_node()
-            ctx.try_shutdown()
-        dead = [p.name for p in procs if p.returncode not in (0, -2)]
-        if dead:
-            print(f"seapup open-loop: {', '.join(dead)} exited abnormally; see the logs in {out}", file=text)
-            return None
+            if not flown:
+                print(f"seapup open-loop: the graph stopped at {sil.t:.1f} s; see the logs in {out}", file=text)
+                return None
+            # the simulator holds at its end: two successive reports with the same counters, nothing in flight
+            seen = len(sil.log["diagnostics"])
+            sil.spin_until(lambda: len(sil.log["diagnostics"]) >= seen + 3
+                           and counters(sil.log["diagnostics"][-1:]) == counters(sil.log["diagnostics"][-2:-1]), 10.0)
+            final = _simulator_status(sil.log["diagnostics"])
+            sim_seconds = sil.t
+            bag_written = sil.bag
+    except SilError as exc:
+        print(f"seapup open-loop: {exc}", file=text)
+        return None
+    if bag_written != bag_dir:
+        shutil.move(str(bag_written), str(bag_dir))
+    per_sample = [t for t, each in RECORDED if each]
     published = {t: int(final.get("samples_published", -1)) for t in per_sample}
     # every command the simulator received, good or refused (each is in the bag too)
     published[COMMAND] = sum(int(final.get(k, -1)) for k in (
         "accepted", "rejected_invalid", "rejected_stale", "rejected_future", "rejected_malformed"))
-    return {"sim_seconds": sim_time[0], "wall_seconds": wall, "published": published}
+    return {"sim_seconds": sim_seconds, "wall_seconds": wall, "published": published}
 
 
 def main(argv=None) -> int:
