@@ -8,7 +8,7 @@ import yaml
 from seapup_bringup.run_commands import controllers, fly
 from seapup_runs.result import RunResult
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "seapup_runs" / "seapup_runs" / "data" / "runs" / "drift_then_hold.yaml"
+EXAMPLE = Path(__file__).resolve().parents[2] / "seapup_runs" / "seapup_runs" / "data" / "specs" / "drift_then_hold.yaml"
 
 
 def test_the_example_spec_flies_in_process_and_its_json_is_a_run_result(tmp_path, capsys):
