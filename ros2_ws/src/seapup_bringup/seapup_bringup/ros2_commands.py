@@ -67,15 +67,22 @@ class Probe:
         return found[topic][0]
 
     def settle(self, getter, timeout: float, extra: float = 5.0):
-        """Spin ``timeout`` s of discovery, then up to ``extra`` s more until ``getter()`` shows someone else's
-        entries and stops changing for 0.3 s; returns its last value (without this probe's own entries)."""
+        """Spin ``timeout`` s of discovery, then up to ``extra`` s more until another node is on the graph and
+        ``getter()`` stops changing for 0.3 s; returns its last value (without this probe's own entries).
+
+        Another *node*, not merely another entry: every participant has ``/rosout`` and
+        ``/parameter_events``, so a list holding only those says nothing was discovered yet (seen: a
+        simulator publishing for seconds, listed after 2 s of discovery as an empty graph)."""
         own = f"/{self.node.get_name()}/"
 
         def seen():
             return sorted(x for x in getter() if not str(x[0] if isinstance(x, tuple) else x).startswith(own))
+
+        def others() -> bool:
+            return any(name != self.node.get_name() for name in self.node.get_node_names())
         self.spin_until(lambda: False, timeout)
         deadline, last, since = time.monotonic() + extra, seen(), time.monotonic()
-        while time.monotonic() < deadline and (not last or time.monotonic() - since < 0.3):
+        while time.monotonic() < deadline and (not last or not others() or time.monotonic() - since < 0.3):
             self.executor.spin_once(timeout_sec=0.05)
             now = seen()
             if now != last:

@@ -203,9 +203,13 @@ class SilGraph:
 
     def close(self) -> None:
         """Stop every node (the recorder last, so it has everything), the probe and the lease."""
-        for name, process in list(self.processes.items()):
-            if name != "recorder":
-                process.stop()
+        from seapup_common.processes import stop_process_groups
+        # the graph's nodes together (each takes a moment to shut down; one after another added up to seconds
+        # per run), then the recorder, so it has everything
+        nodes = [p for name, p in self.processes.items() if name != "recorder" and p.popen is not None]
+        stop_process_groups([p.popen for p in nodes], 5.0, 2.0)
+        for process in nodes:
+            process.popen.wait()
         if "recorder" in self.processes:
             self.processes["recorder"].stop(grace=10.0)
         # the probe's DDS participant must go with the graph: alive, it keeps announcing itself on a
