@@ -155,3 +155,32 @@ def test_a_sample_whose_applied_pitch_was_missed_is_answered_after_applied_wait(
     assert command.header.stamp.sec == 12 and command.header.stamp.nanosec == 0
     u0 = GainSchedule.from_document(yaml.safe_load(path.read_text())).offset_at(0.0)
     np.testing.assert_allclose(command.pitch, u0, atol=np.radians(2.0))   # from u0, one PI step on zero error
+
+
+def test_the_first_command_waits_for_every_awaited_subscriber(ros_context, node_process, spin, tmp_path):
+    """``wait_for_subscribers`` n: a lockstep sample is not answered until n subscriptions have matched
+    the command publisher (a run's probe and recorder hear every command); then it is, with its stamp."""
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+    from seapup_common.contract import Reading
+    from seapup_common.ros.messages import velocity_to_msg
+    node = node_process(package="seapup_control", executable="velocity_controller",
+                        args=["--ros-args", "-p", "controller_type:=hold", "-p", "blade_pitch:=[0.1, 0.1, 0.2, 0.2]",
+                              "-p", "sample_period:=0.2", "-p", "wait_for_subscribers:=2", "-p", "applied_wait:=0.2",
+                              "-r", "__node:=mfol_velocity_controller"])
+    probe = Probe(ros_context, spin)  # one subscription to the commands
+    velocity = probe.node.create_publisher(TwistWithCovarianceStamped, "/seapup/sensors/velocity", 10)
+    assert probe.transition(Transition.TRANSITION_CONFIGURE)
+    assert probe.transition(Transition.TRANSITION_ACTIVATE)
+    assert probe.spin(lambda: velocity.get_subscription_count() > 0, 20.0)
+    probe.spin(lambda: False, 0.3)
+    t_ns = 3 * 10**9
+    velocity.publish(velocity_to_msg(Reading(np.zeros(3), 3.0), Reading(np.zeros(3), 3.0), t_ns))
+    probe.spin(lambda: False, 2.0)
+    assert probe.commands == [], "answered with one of two awaited subscribers"
+    assert probe.spin(lambda: "waiting for subscribers of /seapup/thrusters/command (1/2)" in node.log_text(), 5.0)
+    second = []
+    probe.node.create_subscription(BladePitch, "/seapup/thrusters/command", second.append, 10)
+    assert probe.spin(lambda: probe.commands and second, 20.0), "the held sample was never answered"
+    for heard in (probe.commands, second):
+        assert len(heard) == 1 and heard[0].header.stamp.sec == 3 and heard[0].header.stamp.nanosec == 0
+        np.testing.assert_allclose(heard[0].pitch, [0.1, 0.1, 0.2, 0.2])

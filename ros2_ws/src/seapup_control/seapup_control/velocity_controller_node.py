@@ -26,6 +26,12 @@ the MFOL-only era keep working).
   publishes ``/seapup/thrusters/command`` stamped with the sample time;
 - **deactivate** stops commanding.
 
+With ``wait_for_subscribers`` n > 0 the first command is held until n
+subscriptions have matched the command publisher
+(:class:`~seapup_common.ros.graph.SubscriberGate`): in lockstep, simulated
+time stands still meanwhile, so a run's probe or recorder hears every
+command.
+
 With ``start_at``/``stop_at`` (lockstep) the node answers only the samples of
 that window of simulated time and starts at ``start_at`` from the applied pitch
 stamped with that sample: a run's scheduled controller switch falls on one
@@ -58,6 +64,7 @@ from seapup_common.controllers import ControllerRegistryError, ControllerSpec, c
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
 from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
                                         diagnostic_array, reference_from_msg, stamp_to_ns)
+from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
                                     refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
@@ -140,6 +147,7 @@ class VelocityControllerNode(LifecycleNode):
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
         self.feed = SampleFeed(self.collector, self.policy, self._rejected)
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_subscribers")))])
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
             self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
@@ -244,6 +252,14 @@ class VelocityControllerNode(LifecycleNode):
 
     # -- the loop --------------------------------------------------------------------
     def _answer(self, t_ns: int) -> None:
+        if (self.policy.active and self.policy.pending(t_ns) is not None and self.policy.in_window(t_ns)
+                and not self.gate.ready()):
+            # the first command waits until every awaited subscriber (the simulator, a run's probe or
+            # recorder) has matched the publisher: simulated time stands still meanwhile
+            self.get_logger().info("holding the first command: waiting for subscribers of "
+                                   + ", ".join(self.gate.missing()), throttle_duration_sec=5.0)
+            self._wake_at(time.monotonic() + 0.05)
+            return
         decision = self.policy.decide(t_ns, time.monotonic())
         if decision.action == SKIP:
             # not this node's sample (inactive, outside its window, answered): it keeps the reference in

@@ -27,21 +27,25 @@ import yaml
 from seapup_common import topics
 from seapup_runs.spec import RunSpec, RunSpecError
 
-__all__ = ["graph_document", "controller_nodes", "SAMPLE_TOPICS", "TRUTH_TOPICS", "REFERENCE_WAIT"]
+__all__ = ["graph_document", "controller_nodes", "SAMPLE_TOPICS", "LISTENED_TOPICS", "REFERENCE_WAIT"]
 
-#: What the simulator waits for before its first sample: each controller's and each listener's
-#: subscription to the sample and the applied pitch, the listeners' to the truth (nothing of the run
-#: is lost; a topic listed k times needs k subscribers).
+#: What the simulator waits for before its first sample: each controller's subscription to the sample
+#: and the applied pitch, and each listener's (a probe's, a recorder's) to everything of the simulator's
+#: that a run's series is read from (nothing of the run is lost; a topic listed k times needs k
+#: subscribers). Each controller likewise holds its first command until the simulator and every
+#: listener have matched it, and the reference publisher its first reference.
 SAMPLE_TOPICS = [topics.VELOCITY, topics.APPLIED]
-TRUTH_TOPICS = [topics.TRUTH_ODOMETRY]
+LISTENED_TOPICS = [topics.TRUTH_ODOMETRY, topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION,
+                   topics.ALTITUDE, topics.APPLIED]
 #: [s wall] how long a sample waits for its reference or applied pitch before going on (counted
 #: late): generous, since a lockstep run must not depend on how busy the machine is.
 REFERENCE_WAIT = 10.0
 
 
-def controller_nodes(spec: RunSpec, files: list[str]) -> list[dict]:
+def controller_nodes(spec: RunSpec, files: list[str], listeners: int = 0) -> list[dict]:
     """A ``velocity_controller`` node per controller of the spec's timeline (``files[i]``: its design
-    document's path, "" for none)."""
+    document's path, "" for none), each holding its first command until the simulator and ``listeners``
+    more subscribers have matched it."""
     from seapup_common.controllers import controller_type
 
     timeline = spec.controller_timeline()
@@ -55,7 +59,7 @@ def controller_nodes(spec: RunSpec, files: list[str]) -> list[dict]:
                       "sample_period": spec.control_period, "lockstep": True, "autostart": True,
                       "start_at": float(start), "stop_at": float(stop), "first_reference_wait": REFERENCE_WAIT,
                       "reference_every_sample": True, "reference_wait": REFERENCE_WAIT,
-                      "applied_wait": REFERENCE_WAIT}
+                      "applied_wait": REFERENCE_WAIT, "wait_for_subscribers": 1 + int(listeners)}
         parameters.update(kind.complete(controller.parameters))
         nodes.append({"package": "seapup_control", "executable": "velocity_controller", "name": f"controller_{i}",
                       "required": True, "parameters": [parameters]})
@@ -66,8 +70,10 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
     """The graph of a run (see the module docstring), as a graph-file mapping.
 
     ``files``: each controller's design-document path (:func:`controller_nodes`); ``listeners``: how
-    many subscribers of the references besides the controllers (a harness's probe) the reference
-    publisher waits for before its first reference, so that none misses it.
+    many subscribers besides the graph's own nodes (a harness's probe, a recorder) listen to every
+    topic a run's series is read from (:data:`LISTENED_TOPICS`, the commands, the references): the
+    simulator, each controller and the reference publisher hold their first message until all are
+    matched, so that none misses one.
 
     Raises
     ------
@@ -83,8 +89,8 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
                  "dynamics": spec.dynamics, "seed": spec.seed, "start_depth": spec.start_depth,
                  "control_period": spec.control_period, "physics_step": spec.physics_step,
                  "end_time": spec.duration,
-                 "wait_for_subscribers": SAMPLE_TOPICS * (len(spec.controller_timeline()) + int(listeners))
-                 + TRUTH_TOPICS * int(listeners),
+                 "wait_for_subscribers": SAMPLE_TOPICS * len(spec.controller_timeline())
+                 + LISTENED_TOPICS * int(listeners),
                  "events": yaml.safe_dump([e.to_dict() for e in spec.plant_events()], default_flow_style=True).strip()}
     if spec.environment:
         simulator["environment"] = spec.environment
@@ -96,6 +102,6 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
                   "wait_for_subscribers": len(spec.controller_timeline()) + int(listeners)}
     return {"nodes": [{"package": "seapup_sim", "executable": "simulator", "required": True,
                        "parameters": [simulator]},
-                      *controller_nodes(spec, files),
+                      *controller_nodes(spec, files, listeners),
                       {"package": "seapup_control", "executable": "reference_schedule", "required": True,
                        "parameters": [references]}]}
