@@ -61,6 +61,18 @@ class Probe:
         assert self.spin(future.done, 20.0)
         return future.result().success
 
+    def activate_and_sample(self, t_ns: int) -> None:
+        """Configure and activate the controller, then publish one velocity sample stamped ``t_ns``."""
+        from geometry_msgs.msg import TwistWithCovarianceStamped
+        from seapup_common.contract import Reading
+        from seapup_common.ros.messages import velocity_to_msg
+        velocity = self.node.create_publisher(TwistWithCovarianceStamped, "/seapup/sensors/velocity", 10)
+        assert self.transition(Transition.TRANSITION_CONFIGURE)
+        assert self.transition(Transition.TRANSITION_ACTIVATE)
+        assert self.spin(lambda: velocity.get_subscription_count() > 0, 20.0)
+        self.spin(lambda: False, 0.3)
+        velocity.publish(velocity_to_msg(Reading(np.zeros(3), t_ns * 1e-9), Reading(np.zeros(3), t_ns * 1e-9), t_ns))
+
     def send_reference(self, u, v=0.0, w=0.0, r=0.0, at_ns=0):
         msg = TwistStamped()
         msg.header.frame_id = "base_link_frd"
@@ -136,20 +148,12 @@ def test_a_sample_whose_applied_pitch_was_missed_is_answered_after_applied_wait(
     node may subscribe after the simulator published that sample's applied pitch; in lockstep nothing
     else comes until the sample is answered. It must start from u0 after ``applied_wait``, not hang
     until the simulator's lockstep timeout."""
-    from geometry_msgs.msg import TwistWithCovarianceStamped
-    from seapup_common.contract import Reading
-    from seapup_common.ros.messages import velocity_to_msg
     path = controller_file(tmp_path)
     node_process(package="seapup_control", executable="mfol_velocity_controller",
                  args=["--ros-args", "-p", f"controller_file:={path}", "-p", "applied_wait:=0.5"])
     probe = Probe(ros_context, spin)
-    velocity = probe.node.create_publisher(TwistWithCovarianceStamped, "/seapup/sensors/velocity", 10)
-    assert probe.transition(Transition.TRANSITION_CONFIGURE)
-    assert probe.transition(Transition.TRANSITION_ACTIVATE)
-    assert probe.spin(lambda: velocity.get_subscription_count() > 0, 20.0)
-    probe.spin(lambda: False, 0.3)
     t_ns = 12 * 10**9
-    velocity.publish(velocity_to_msg(Reading(np.zeros(3), t_ns * 1e-9), Reading(np.zeros(3), t_ns * 1e-9), t_ns))
+    probe.activate_and_sample(t_ns)
     assert probe.spin(lambda: probe.commands, 5.0), "the sample was never answered"
     command = probe.commands[0]
     assert command.header.stamp.sec == 12 and command.header.stamp.nanosec == 0
@@ -160,21 +164,12 @@ def test_a_sample_whose_applied_pitch_was_missed_is_answered_after_applied_wait(
 def test_the_first_command_waits_for_every_awaited_subscriber(ros_context, node_process, spin, tmp_path):
     """``wait_for_subscribers`` n: a lockstep sample is not answered until n subscriptions have matched
     the command publisher (a run's probe and recorder hear every command); then it is, with its stamp."""
-    from geometry_msgs.msg import TwistWithCovarianceStamped
-    from seapup_common.contract import Reading
-    from seapup_common.ros.messages import velocity_to_msg
     node = node_process(package="seapup_control", executable="velocity_controller",
                         args=["--ros-args", "-p", "controller_type:=hold", "-p", "blade_pitch:=[0.1, 0.1, 0.2, 0.2]",
                               "-p", "sample_period:=0.2", "-p", "wait_for_subscribers:=2", "-p", "applied_wait:=0.2",
                               "-r", "__node:=mfol_velocity_controller"])
     probe = Probe(ros_context, spin)  # one subscription to the commands
-    velocity = probe.node.create_publisher(TwistWithCovarianceStamped, "/seapup/sensors/velocity", 10)
-    assert probe.transition(Transition.TRANSITION_CONFIGURE)
-    assert probe.transition(Transition.TRANSITION_ACTIVATE)
-    assert probe.spin(lambda: velocity.get_subscription_count() > 0, 20.0)
-    probe.spin(lambda: False, 0.3)
-    t_ns = 3 * 10**9
-    velocity.publish(velocity_to_msg(Reading(np.zeros(3), 3.0), Reading(np.zeros(3), 3.0), t_ns))
+    probe.activate_and_sample(3 * 10**9)
     probe.spin(lambda: False, 2.0)
     assert probe.commands == [], "answered with one of two awaited subscribers"
     assert probe.spin(lambda: "waiting for subscribers of /seapup/thrusters/command (1/2)" in node.log_text(), 5.0)
