@@ -71,7 +71,7 @@ def test_demo_bag_reads_back_with_both_readers_and_one_message_per_sample():
 def _refly():
     """The demo flown by the pure core (no ROS) with the demo's configuration and schedule."""
     from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_times
-    from seapup_control.schedule import OpenLoop, PitchSchedule
+    from seapup_control.profiles import OpenLoop, PitchProfile
     from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
     from seapup_sim.simulation import Simulation
 
@@ -89,7 +89,7 @@ def _refly():
     state = np.zeros(12)
     state[2] = sim["start_depth"]
     core = Simulation.from_config(sim["vehicle"], environment, seed=sim["seed"], state=state, pitch=plan[0][1])
-    schedule = PitchSchedule(schedule_times(config["duration"], plan), [x for _, r in plan for x in r],
+    schedule = PitchProfile(schedule_times(config["duration"], plan), [x for _, r in plan for x in r],
                              BLADE_PITCH_LIMIT)
     return core.run(OpenLoop(schedule, 0.2), config["duration"])
 

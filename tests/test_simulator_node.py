@@ -28,7 +28,7 @@ from seapup_msgs.msg import BladePitch, Depth
 from seapup_msgs.srv import Reset, SetConfiguration, SetSensorProfile, SetThrusterEfficiency
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT as LIMIT
-from seapup_control.schedule import OpenLoop, PitchSchedule
+from seapup_control.profiles import OpenLoop, PitchProfile
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.simulation import Simulation
 from seapup_sim.vehicle import VehicleModel
@@ -220,7 +220,7 @@ def test_lockstep_is_deterministic_and_equals_the_pure_core_loop(ros_context, no
     np.testing.assert_array_equal(truth1, truth2)
     np.testing.assert_array_equal(vel1, vel2)
     # the same scenario through the pure core (no ROS), sample by sample
-    schedule = PitchSchedule(SCHEDULE_TIMES, SCHEDULE_PITCHES, LIMIT)
+    schedule = PitchProfile(SCHEDULE_TIMES, SCHEDULE_PITCHES, LIMIT)
     core = Simulation.from_config("baseline", {"current": {"enabled": True}, "sensors": "baseline"}, seed=7,
                                   pitch=HOVER)
     log = core.run(OpenLoop(schedule, 0.2), 10.0)

@@ -35,7 +35,7 @@ setup(
         # control laws by name (seapup_common.controllers)
         "seapup.velocity_controllers": [
             "mfol = seapup_control.mfol_controller:MFOL_TYPE",
-            "open_loop = seapup_control.schedule:OPEN_LOOP_TYPE",
+            "open_loop = seapup_control.profiles:OPEN_LOOP_TYPE",
         ],
     },
 )

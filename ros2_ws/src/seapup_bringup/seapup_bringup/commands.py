@@ -117,14 +117,14 @@ def bench(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     out_text = text_stream(args)
     model = _model(args.config)
-    sim = VehicleIntegrator(model, dt=0.1)
+    integrator = VehicleIntegrator(model, dt=0.1)
     cmd = np.radians([20.0, 20.0, -10.0, -10.0])
     for _ in range(50):
-        sim.step(cmd)
+        integrator.step(cmd)
     n = args.steps
     t0 = time.perf_counter()
     for _ in range(n):
-        sim.step(cmd)
+        integrator.step(cmd)
     per_step = (time.perf_counter() - t0) / n
     out = {"model": {"step_us": per_step * 1e6, "rtf": 0.1 / per_step, "dt": 0.1,
                      "steps": n, "config": model.config_name}}
@@ -132,12 +132,12 @@ def bench(argv: list[str]) -> int:
     x0 = np.zeros(12)
     x0[2] = 100.0
     cable = load_environment(rho=model.rho).umbilical.build()
-    sim = VehicleIntegrator(model, dt=0.1, state=x0)
+    integrator = VehicleIntegrator(model, dt=0.1, state=x0)
     for _ in range(50):
-        sim.step(cmd, external=cable.wrench(sim.state))
+        integrator.step(cmd, external=cable.wrench(integrator.state))
     t0 = time.perf_counter()
     for _ in range(n):
-        sim.step(cmd, external=cable.wrench(sim.state))
+        integrator.step(cmd, external=cable.wrench(integrator.state))
     per_cable = (time.perf_counter() - t0) / n
     out["model_umbilical"] = {"step_us": per_cable * 1e6, "rtf": 0.1 / per_cable,
                               "extra_percent": 100.0 * (per_cable / per_step - 1.0)}

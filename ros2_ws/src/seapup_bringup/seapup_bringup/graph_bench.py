@@ -5,7 +5,7 @@
   on ``/clock`` from a third process (this one).
 - :func:`recording_memory`: the recorder's resident memory while it records
   everything a free-running simulator publishes (real_time_factor 0, the
-  simulator's full rate), in sim time, for minutes of wall time.
+  simulator's full rate), in simulated time, for minutes of wall time.
 - :func:`dds_round_trip`: median time for a small message to go to another
   process and back (the floor of every lockstep step: the simulator publishes
   t_k, the controller answers).
@@ -61,7 +61,7 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     physics = min(0.1, control_period)
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
-        sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
+        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
                            "-p", f"control_period:={control_period}", "-p", f"physics_step:={physics}",
                            "-p", "lockstep_timeout:=5.0", "-p", "watchdog_timeout:=1000.0"],
                           env, f"{log_dir}/bench_sim.log").start()
@@ -91,7 +91,7 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
         finally:
             if ctl is not None:
                 ctl.stop()
-            sim.stop()
+            simulator.stop()
             ex.shutdown()
             node.destroy_node()
             ctx.try_shutdown()
@@ -172,13 +172,13 @@ def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp",
         env = ros_environment(lease.domain_id)
         rec = NodeProcess([find_executable("seapup_common", "recorder"), "--ros-args", "-p", f"bag_path:={bag_dir}",
                            "-p", "all:=true", "-p", "use_sim_time:=true"], env, f"{log_dir}/bench_rec.log").start()
-        sim = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", "-p", "mode:=realtime",
+        simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args", "-p", "mode:=realtime",
                            "-p", "real_time_factor:=0.0", "-p", "watchdog_timeout:=1000.0",
                            "-p", "environment.current.enabled:=true"], env, f"{log_dir}/bench_sim.log").start()
         try:
             t0 = time.monotonic()
             while (elapsed := time.monotonic() - t0) < minutes * 60.0:
-                if not (rec.running and sim.running):
+                if not (rec.running and simulator.running):
                     raise RuntimeError(f"a node died during the recording benchmark; see {log_dir}/bench_*.log")
                 samples.append((elapsed, _rss_mb(rec.popen.pid)))
                 if progress:
@@ -187,7 +187,7 @@ def recording_memory(minutes: float = 10.0, period: float = 5.0, log_dir="/tmp",
             samples.append((time.monotonic() - t0, _rss_mb(rec.popen.pid)))
             wall = samples[-1][0]
         finally:
-            sim.stop()
+            simulator.stop()
             rec.stop()
         info = bag_info(bag_dir)
     shutil.rmtree(tmp, ignore_errors=True)
@@ -238,7 +238,7 @@ def mfol_step_us(n: int = 20000) -> dict:
 
 
 def mfol_lockstep_rate(control_period: float, sim_seconds: float, log_dir="/tmp") -> dict:
-    """Simulator + mfol_velocity_controller (self-tested gains, autostart) in lockstep."""
+    """SimulatorCore + mfol_velocity_controller (self-tested gains, autostart) in lockstep."""
     import tempfile
     with tempfile.TemporaryDirectory() as tmp:
         path = _controller_file(Path(tmp), control_period)

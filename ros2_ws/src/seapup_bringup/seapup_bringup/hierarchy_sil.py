@@ -9,7 +9,7 @@ the lockstep graph of ``seapup_bringup/launch/hierarchy.yaml``: the task's
 setpoint from the estimate at t_k is used by the position controller from
 t_{k+1} on (stamped t_k + T), and the velocity reference it makes at t_k is
 stamped t_k + reference_delay x T into the velocity controller's
-:class:`~seapup_common.contract.ReferenceSchedule`, the queue the
+:class:`~seapup_common.contract.StampedReferences`, the queue the
 ``velocity_controller`` node keeps. So a task can be studied (and unit
 tested) in seconds, and the ROS graph checked against it.
 """
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_common.contract import Command, Reference, ReferenceSchedule
+from seapup_common.contract import Command, Reference, StampedReferences
 from seapup_common.controllers import ControllerSpec, create_controller
 from seapup_common.parameters import load_node_parameters
 
@@ -86,16 +86,16 @@ def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", 
     law = create_controller(controller, period)
     fallback = getattr(law, "fallback_command", None)
     pitch = np.asarray(fallback(), float) if fallback is not None else np.zeros(4)
-    sim = Simulation.from_config(vehicle, environment or {}, seed=seed, control_period=period, state=start,
+    simulation = Simulation.from_config(vehicle, environment or {}, seed=seed, control_period=period, state=start,
                                  pitch=pitch)
     law.reset(Command(pitch))
-    references = ReferenceSchedule()            # velocity references stamped t + delay T, as the node keeps them
+    references = StampedReferences()            # velocity references stamped t + delay T, as the node keeps them
     pending: PoseReference | None = None        # the setpoint stamped t_k + T, used from t_{k+1}
     task, started, hover = None, None, None
     rows = {name: [] for name in ("t", "state", "estimate", "setpoint", "reference", "command", "altitude")}
     steps = []
     while True:
-        sample = sim.sample()
+        sample = simulation.sample()
         t, measurement = sample.t, sample.measurement
         estimate = navigator.update(measurement)
         altitude = measurement.altitude if measurement.altitude.valid else None
@@ -115,7 +115,7 @@ def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", 
         else:
             references.add(Reference(), at=t + delay * period)
         reference = references.at(t)
-        law.applied(t, Command(sim.plant.pitch.copy(), t))
+        law.applied(t, Command(simulation.plant.pitch.copy(), t))
         command = law.update(t, measurement, reference)
         for name, value in (("t", t), ("state", sample.state), ("estimate", estimate.position if estimate else
                                                                   np.full(3, np.nan)),
@@ -126,5 +126,5 @@ def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", 
             rows[name].append(value)
         if task is not None and (steps[-1].done or t - started >= duration):
             break
-        sim.advance(command.blade_pitch)
+        simulation.advance(command.blade_pitch)
     return HierarchyRun(**{k: np.asarray(v, float) for k, v in rows.items()}, steps=steps, task=task)

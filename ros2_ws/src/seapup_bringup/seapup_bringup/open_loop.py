@@ -224,11 +224,11 @@ def print_summary(summary: dict, text=sys.stdout) -> None:
         print(f"{r['manoeuvre']:<8} {r['from_s']:6.1f} {r['u_max']:7.3f} {r['v_abs_max']:8.3f} "
               f"{r['w_end']:7.3f} {r['roll_abs_max_deg']:10.1f} {r['pitch_end_deg']:10.1f} "
               f"{r['depth_end']:10.1f}", file=text)
-    sim = summary["simulator"]
-    if sim:
-        rejected = sum(int(v) for k, v in sim.items() if k.startswith("rejected"))
-        print(f"\nsimulator: {sim['message']}; steps {sim.get('steps')}, commands accepted "
-              f"{sim.get('accepted')}, rejected {rejected}, lockstep timeouts {sim.get('lockstep_timeouts')}",
+    counts = summary["simulator"]
+    if counts:
+        rejected = sum(int(v) for k, v in counts.items() if k.startswith("rejected"))
+        print(f"\nsimulator: {counts['message']}; steps {counts.get('steps')}, commands accepted "
+              f"{counts.get('accepted')}, rejected {rejected}, lockstep timeouts {counts.get('lockstep_timeouts')}",
               file=text)
     print("Thesis, no current: surge top speed 0.98 m/s with 27.4 deg bow-up; sway 0.34 m/s, "
           "max roll 24.8 deg (sec. 3.5).", file=text)

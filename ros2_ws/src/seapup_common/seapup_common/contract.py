@@ -28,7 +28,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import InvalidBladePitchError
 
-__all__ = ["ContractError", "Reading", "Measurement", "Reference", "ReferenceSchedule", "Command", "VelocityController",
+__all__ = ["ContractError", "Reading", "Measurement", "Reference", "StampedReferences", "Command", "VelocityController",
            "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate"]
 
 #: Measurement fields, their sizes (0 = scalar) and meanings.
@@ -172,7 +172,7 @@ class Reference:
         object.__setattr__(self, "velocity", _finite_array(self.velocity, 4, "velocity reference"))
 
 
-class ReferenceSchedule:
+class StampedReferences:
     """References that take effect at their own time: what a controller uses at sample t_k.
 
     A reference stamped in the future waits; at each sample the latest one
@@ -192,7 +192,7 @@ class ReferenceSchedule:
 
     Examples
     --------
-    >>> schedule = ReferenceSchedule()
+    >>> schedule = StampedReferences()
     >>> schedule.add(Reference([0.3, 0, 0, 0]), at=10.0)
     >>> float(schedule.at(9.8).velocity[0]), float(schedule.at(10.0).velocity[0])
     (0.0, 0.3)
@@ -202,7 +202,7 @@ class ReferenceSchedule:
 
     def __init__(self, capacity: int = 1000, initial=_ZERO):
         self.capacity = int(capacity)
-        self.current = Reference() if initial is ReferenceSchedule._ZERO else initial
+        self.current = Reference() if initial is StampedReferences._ZERO else initial
         self._waiting: list[tuple[float, int, Reference]] = []  # (time, arrival order, reference), sorted
         self._immediate: list = []  # added without a time since the last due()
         self._arrivals = 0

@@ -53,8 +53,8 @@ def test_hold_command_is_a_velocity_controller():
 
 
 def test_reference_schedule_applies_each_reference_at_its_time():
-    from seapup_common.contract import ReferenceSchedule
-    schedule = ReferenceSchedule(capacity=3)
+    from seapup_common.contract import StampedReferences
+    schedule = StampedReferences(capacity=3)
     schedule.add(Reference([0.5, 0, 0, 0]), at=20.0)   # arrives first, due later
     schedule.add(Reference([0.3, 0, 0, 0]), at=10.0)
     schedule.add(Reference([0.4, 0, 0, 0]), at=10.0)   # same time: the later arrival wins

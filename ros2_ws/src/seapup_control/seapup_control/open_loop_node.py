@@ -1,6 +1,6 @@
 """The ``open_loop`` node: publishes a blade-pitch schedule at the sample rate.
 
-A thin shell over :class:`seapup_control.schedule.PitchSchedule`, publishing on
+A thin shell over :class:`seapup_control.profiles.PitchProfile`, publishing on
 ``/seapup/thrusters/command``. With ``lockstep`` false it publishes every
 ``sample_period`` the pitches for the time elapsed since the node started
 (node clock, so ``use_sim_time`` works). With ``lockstep`` true it answers
@@ -20,13 +20,13 @@ from seapup_common.ros.messages import command_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher
-from seapup_control.schedule import OpenLoop, PitchSchedule
+from seapup_control.profiles import OpenLoop, PitchProfile
 
 __all__ = ["OpenLoopNode", "main"]
 
 
 class OpenLoopNode(Node):
-    """rclpy shell around a :class:`PitchSchedule` (see module docstring)."""
+    """rclpy shell around a :class:`PitchProfile` (see module docstring)."""
 
     def __init__(self, **kwargs):
         super().__init__("open_loop", namespace=NAMESPACE, **kwargs)
@@ -38,7 +38,7 @@ class OpenLoopNode(Node):
                 description="blade-pitch limit [rad] the schedule must respect", read_only=True,
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=BLADE_PITCH_LIMIT)]),
         }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="open_loop")
-        self.schedule = PitchSchedule(p["times"], p["pitches"], p["blade_pitch_limit"])
+        self.schedule = PitchProfile(p["times"], p["pitches"], p["blade_pitch_limit"])
         self.controller = OpenLoop(self.schedule, p["sample_period"])
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start

@@ -26,7 +26,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
-from seapup_common.contract import ContractError, ReferenceSchedule
+from seapup_common.contract import ContractError, StampedReferences
 from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
                                         reference_to_msg)
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions, \
@@ -63,7 +63,7 @@ class PositionControllerNode(LifecycleNode):
         except ValueError as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
-        self.setpoints = ReferenceSchedule(initial=None)
+        self.setpoints = StampedReferences(initial=None)
         self.delay = int(self.get_parameter("reference_delay").value) * self.controller.sample_period
         self.publisher = self.create_lifecycle_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)

@@ -1,6 +1,6 @@
 """The ``reference_schedule`` node: a velocity-reference schedule for the velocity controller.
 
-A thin shell over :class:`seapup_control.schedule.ReferenceProfile`, publishing body-velocity
+A thin shell over :class:`seapup_control.profiles.ReferenceProfile`, publishing body-velocity
 references (u, v, w, r; geometry_msgs/TwistStamped in ``base_link_frd``) on
 ``/seapup/velocity_controller/reference`` -- what the position controller publishes in the
 hierarchy, here from a fixed, optionally repeating schedule: the square-wave reference of thesis
@@ -19,7 +19,7 @@ from seapup_common.ros.messages import reference_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher
-from seapup_control.schedule import ReferenceProfile
+from seapup_control.profiles import ReferenceProfile
 
 __all__ = ["ReferenceScheduleNode", "main"]
 

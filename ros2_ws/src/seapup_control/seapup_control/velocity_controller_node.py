@@ -22,7 +22,7 @@ the MFOL-only era keep working).
   takes the reference in force on ``/seapup/velocity_controller/reference``
   (``geometry_msgs/TwistStamped``: linear x, y, z = u, v, w [m/s], angular z =
   r [rad/s], ``base_link_frd``, taking effect at its header stamp, at once when
-  the stamp is zero: :class:`~seapup_common.contract.ReferenceSchedule`) and
+  the stamp is zero: :class:`~seapup_common.contract.StampedReferences`) and
   publishes ``/seapup/thrusters/command`` stamped with the sample time;
 - **deactivate** stops commanding.
 
@@ -59,7 +59,7 @@ from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch
 
-from seapup_common.contract import Command, ContractError, ReferenceSchedule
+from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
 from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
@@ -98,7 +98,7 @@ class VelocityControllerNode(LifecycleNode):
         self.controller = None
         self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0,
                        "late_references": 0, "late_applied": 0}
-        self.references = ReferenceSchedule()
+        self.references = StampedReferences()
         self.applied: np.ndarray | None = None      # the latest applied blade pitch heard
         self._applied_at: dict[int, np.ndarray] = {}  # applied pitch by sample stamp (the last few)
         self._interfaces = []

@@ -126,7 +126,7 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
     from seapup_sim.simulation import Simulation
 
     spec = design(spec)
-    sim = Simulation.from_config(spec.vehicle, spec.environment, seed=spec.seed, dt=spec.physics_step,
+    simulation = Simulation.from_config(spec.vehicle, spec.environment, seed=spec.seed, dt=spec.physics_step,
                                  control_period=spec.control_period, events=simulation_events(spec),
                                  state=spec.initial_state(), pitch=start_pitch(spec), dynamics=spec.dynamics)
     timeline = spec.controller_timeline()
@@ -138,23 +138,23 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
     events = [{"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]} for e in spec.plant_events()]
     controller, next_switch = None, 0
     for k in range(n + 1):
-        sample = sim.sample()
-        t[k], states[k], applied[k] = sample.t, sample.state, sim.plant.pitch
+        sample = simulation.sample()
+        t[k], states[k], applied[k] = sample.t, sample.state, simulation.plant.pitch
         _record_measurement(measured, k, sample.measurement)
         if k == n:
             break
         while next_switch < len(timeline) and timeline[next_switch][0] <= sample.t + 1e-9:
             controller = create_controller(timeline[next_switch][1], spec.control_period)
-            controller.reset(Command(sim.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
+            controller.reset(Command(simulation.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
             if next_switch > 0:
                 events.append({"time": sample.t, "kind": "controller",
                                "detail": {"type": timeline[next_switch][1].type}})
             next_switch += 1
-        controller.applied(sample.t, Command(sim.plant.pitch.copy(), sample.t))
+        controller.applied(sample.t, Command(simulation.plant.pitch.copy(), sample.t))
         ref = spec.reference.at(sample.t)
         out = controller.update(sample.t, sample.measurement, ref)
         reference[k], command[k] = ref.velocity, out.blade_pitch
-        sim.advance(out.blade_pitch)
+        simulation.advance(out.blade_pitch)
         if progress is not None and (k % 25 == 0 or k == n - 1):
             progress((k + 1) / n)
     series = Series.from_states(t, states, measured, reference, command, applied, sorted(events, key=lambda e: e["time"]))

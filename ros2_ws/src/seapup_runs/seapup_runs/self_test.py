@@ -65,12 +65,12 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
                                       dt=min(PHYSICS_STEP, config.sample_period), state=state, pitch=pitch)
 
     pitch = config.zero_level if start_pitch is None else np.asarray(start_pitch, float)
-    sim = new_simulation(start, pitch)
+    simulation = new_simulation(start, pitch)
     test = SelfTest(config)
     test.reset(Command(pitch))
     truth, offset = [], 0.0
     while not test.finished:
-        sample = sim.sample()
+        sample = simulation.sample()
         t = sample.t + offset
         truth.append(np.r_[t, sample.state])
         if t >= max_time:
@@ -79,7 +79,7 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
         command = test.update(t, sample.measurement)
         if test.reset_request is not None:  # artificial quiescence: restart at the operating point
             try:
-                held = trim(sim.model, test.reset_request)
+                held = trim(simulation.model, test.reset_request)
             except TrimError as exc:  # e.g. a dead thruster: no setting holds the operating point
                 test.abort(f"the plant cannot be reset to {test.reset_request:g} m/s: {exc}")
                 continue
@@ -87,10 +87,10 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
             state[:3] = sample.state[:3]
             state[3:12] = held.state[3:12]
             offset = t
-            sim = new_simulation(state, held.blade_pitch)
+            simulation = new_simulation(state, held.blade_pitch)
             test.plant_reset(Command(held.blade_pitch))
             continue
-        sim.advance(command.blade_pitch)
+        simulation.advance(command.blade_pitch)
         if progress is not None and len(truth) % 25 == 0:
             progress(test.progress)
     if progress is not None:

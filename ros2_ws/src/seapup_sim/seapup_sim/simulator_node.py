@@ -1,6 +1,6 @@
 """The ``simulator`` node: the Seapup plant on the ROS graph.
 
-A shell over :class:`seapup_sim.simulator.Simulator` (all computation is
+A shell over :class:`seapup_sim.simulator_core.SimulatorCore` (all computation is
 there). Namespace ``/seapup``; topics, services and parameters are listed in
 the README. Times are simulated time: every message is stamped t_k and, with
 ``publish_clock``, ``/clock`` carries t_k so other nodes can run with
@@ -63,7 +63,7 @@ from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import default_environment_mapping, load_environment
 from seapup_sim.sensors import sensor_profiles
-from seapup_sim.simulator import Simulator, SimulatorConfig
+from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
 from seapup_sim.vehicle_config import available_configs
 
 __all__ = ["SimulatorNode", "main"]
@@ -110,7 +110,7 @@ def _events_parameter(text: str) -> list:
     return [] if events is None else events
 
 class SimulatorNode(Node):
-    """rclpy shell around :class:`Simulator` (see module docstring)."""
+    """rclpy shell around :class:`SimulatorCore` (see module docstring)."""
 
     def __init__(self, **kwargs):
         super().__init__("simulator", namespace=NAMESPACE, **kwargs)
@@ -158,7 +158,7 @@ class SimulatorNode(Node):
                                       events=_events_parameter(p["events"]))
         self.start_state = np.zeros(12)
         self.start_state[2] = p["start_depth"]
-        self.simulator = Simulator(self.config, self.start_state)
+        self.simulator = SimulatorCore(self.config, self.start_state)
         self.simulator.limits.check_state(self.start_state)
         self.simulator.limits.check_real_time_factor(p["real_time_factor"], self.config.control_period)
         self.add_on_set_parameters_callback(self._on_set_parameters)

@@ -43,16 +43,16 @@ def run_open_loop(model: VehicleModel, command, duration: float, state0=None, pi
                   thrusters_on: bool = True, dt: float = 0.1):
     """Integrate with a constant blade-pitch command; return (t, states, pitches)."""
     n = int(round(duration / dt))
-    sim = VehicleIntegrator(model, dt=dt, state=state0,
+    integrator = VehicleIntegrator(model, dt=dt, state=state0,
                             pitch=command if pitch0 is None else pitch0)
-    sim.thrusters_on = thrusters_on
+    integrator.thrusters_on = thrusters_on
     t = np.arange(n + 1) * dt
     states = np.empty((n + 1, 12))
     pitches = np.empty((n + 1, 4))
-    states[0], pitches[0] = sim.state, sim.pitch
+    states[0], pitches[0] = integrator.state, integrator.pitch
     for k in range(1, n + 1):
-        states[k] = sim.step(command)
-        pitches[k] = sim.pitch
+        states[k] = integrator.step(command)
+        pitches[k] = integrator.pitch
     return t, states, pitches
 
 
@@ -252,14 +252,14 @@ def verify_umbilical(model: VehicleModel, depths=(50.0, 100.0, 200.0), duration:
         x0 = np.zeros(12)
         x0[2] = depth
         cable = cable_config.build()
-        sim = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
+        simulation = Simulation(model, umbilical=cable, state=x0, pitch=cmd)
         shape, best = None, -1.0
-        n = int(round(duration / sim.control_period))
+        n = int(round(duration / simulation.control_period))
         for _ in range(n):
-            sim.advance(cmd)
-            if sim.plant.state[6] > best:
-                best = float(sim.plant.state[6])
-                force = sim.umbilical.wrench(sim.plant.state)[:3]
+            simulation.advance(cmd)
+            if simulation.plant.state[6] > best:
+                best = float(simulation.plant.state[6])
+                force = simulation.umbilical.wrench(simulation.plant.state)[:3]
                 shape = cable.solution.shape(60) if not cable.solution.bypassed else None
         out[f"{depth:g}"] = {"max_u": best, "Fx": float(force[0]), "Fz": float(force[2])}
         shapes[f"{depth:g}"] = shape

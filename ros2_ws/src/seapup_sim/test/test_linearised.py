@@ -13,7 +13,7 @@ import scipy.signal
 from seapup_sim.analysis import trim
 from seapup_sim.linearised import LinearisedVehicleModel, vehicle_model
 from seapup_sim.simulation import Simulation
-from seapup_sim.simulator import Simulator, SimulatorConfig
+from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
@@ -72,9 +72,9 @@ def test_fouling_linearises_again_about_the_new_trim(models):
 
 
 def test_the_simulator_flies_either_model_and_refuses_others():
-    assert type(Simulator(SimulatorConfig(dynamics="linearised")).simulation.model) is LinearisedVehicleModel
-    assert type(Simulator(SimulatorConfig()).simulation.model) is VehicleModel
+    assert type(SimulatorCore(SimulatorConfig(dynamics="linearised")).simulation.model) is LinearisedVehicleModel
+    assert type(SimulatorCore(SimulatorConfig()).simulation.model) is VehicleModel
     with pytest.raises(ValueError, match="dynamics must be one of nonlinear, linearised"):
-        Simulator(SimulatorConfig(dynamics="quadratic"))
+        SimulatorCore(SimulatorConfig(dynamics="quadratic"))
     with pytest.raises(ValueError, match="dynamics"):
         vehicle_model(load_vehicle_config("baseline"), "")

@@ -1,17 +1,17 @@
-"""Tests of seapup_control.schedule (piecewise-constant blade-pitch inputs and velocity references)."""
+"""Tests of seapup_control.profiles (piecewise-constant blade-pitch inputs and velocity references)."""
 import math
 
 import numpy as np
 import pytest
 
-from seapup_control.schedule import PitchSchedule, ReferenceProfile, ScheduleError
+from seapup_control.profiles import PitchProfile, ReferenceProfile, ProfileError
 
 LIMIT = math.radians(35.0)
 SURGE = [[LIMIT, LIMIT, 0, 0], [0, 0, 0, 0]]  # Table 3.2 style: mains full ahead, then off
 
 
 def test_holds_each_row_until_the_next_switch():
-    s = PitchSchedule([0.0, 10.0], SURGE, LIMIT)
+    s = PitchProfile([0.0, 10.0], SURGE, LIMIT)
     np.testing.assert_array_equal(s.at(0.0), SURGE[0])
     np.testing.assert_array_equal(s.at(9.999), SURGE[0])
     np.testing.assert_array_equal(s.at(10.0), SURGE[1])
@@ -20,12 +20,12 @@ def test_holds_each_row_until_the_next_switch():
 
 
 def test_flat_pitch_list_as_in_the_yaml():
-    s = PitchSchedule([0.0, 1.0], np.ravel(SURGE), LIMIT)
+    s = PitchProfile([0.0, 1.0], np.ravel(SURGE), LIMIT)
     np.testing.assert_array_equal(s.pitches, SURGE)
 
 
 def test_returned_rows_are_copies():
-    s = PitchSchedule([0.0], [[0.1, 0.1, 0.1, 0.1]], LIMIT)
+    s = PitchProfile([0.0], [[0.1, 0.1, 0.1, 0.1]], LIMIT)
     s.at(0.0)[:] = 5.0
     assert s.at(0.0)[0] == 0.1
 
@@ -42,13 +42,13 @@ def test_returned_rows_are_copies():
 ])
 def test_inconsistent_schedules_are_refused(times, pitches):
     with pytest.raises(ValueError):
-        PitchSchedule(times, pitches, LIMIT)
+        PitchProfile(times, pitches, LIMIT)
 
 
 @pytest.mark.parametrize("t", [-0.1, math.nan, math.inf])
 def test_bad_query_time(t):
-    with pytest.raises(ScheduleError):
-        PitchSchedule([0.0], [0, 0, 0, 0], LIMIT).at(t)
+    with pytest.raises(ProfileError):
+        PitchProfile([0.0], [0, 0, 0, 0], LIMIT).at(t)
 
 
 def test_reference_schedule_repeats_the_thesis_square_wave():
@@ -69,5 +69,5 @@ def test_reference_schedule_repeats_the_thesis_square_wave():
     ([0.0], [np.nan, 0, 0, 0], None, "finite"),
 ])
 def test_reference_schedule_refuses_inconsistent_schedules(times, references, period, reason):
-    with pytest.raises(ScheduleError, match=reason):
+    with pytest.raises(ProfileError, match=reason):
         ReferenceProfile(times, references, period)

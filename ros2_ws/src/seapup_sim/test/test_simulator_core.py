@@ -1,4 +1,4 @@
-"""Tests of seapup_sim.simulator: the node's logic without ROS, and what each setter changes."""
+"""Tests of seapup_sim.simulator_core: the node's logic without ROS, and what each setter changes."""
 import math
 
 import numpy as np
@@ -9,13 +9,13 @@ from seapup_common.contract import HoldCommand
 from seapup_sim.analysis import hover_blade_pitch, trim
 from seapup_sim.current import CurrentParams
 from seapup_sim.simulation import Simulation
-from seapup_sim.simulator import Simulator, SimulatorConfig
+from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
 
 def make(sensors="ideal", **kw):
-    return Simulator(SimulatorConfig(environment={"sensors": sensors}, **kw))
+    return SimulatorCore(SimulatorConfig(environment={"sensors": sensors}, **kw))
 
 
 def fly(sim, command, seconds):
@@ -87,7 +87,7 @@ def test_hover_follows_the_active_configuration():
 
 
 def test_same_as_the_pure_core_loop():
-    """Stepping the Simulator equals Simulation.run with the same controller."""
+    """Stepping the SimulatorCore equals Simulation.run with the same controller."""
     cmd = np.radians([20.0, 10.0, -5.0, -15.0])
     sim = make(seed=3)
     fly(sim, cmd, 10.0)
@@ -202,7 +202,7 @@ def test_bad_configuration_is_refused():
     for kw in ({"control_period": 0.25}, {"watchdog_action": "panic"}, {"blade_pitch_limit": 1.0},
                {"watchdog_timeout": 0.0}):
         with pytest.raises(ValueError):
-            Simulator(SimulatorConfig(**kw))
+            SimulatorCore(SimulatorConfig(**kw))
 
 
 def test_refused_requests_leave_the_plant_as_it_was():

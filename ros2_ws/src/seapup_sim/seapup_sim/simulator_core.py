@@ -1,6 +1,6 @@
 """What the simulator node computes, without ROS.
 
-:class:`Simulator` wraps a :class:`seapup_sim.simulation.Simulation` with the
+:class:`SimulatorCore` wraps a :class:`seapup_sim.simulation.Simulation` with the
 node's contract:
 
 - commands pass the :class:`~seapup_common.blade_pitch.CommandGate` (wrong length
@@ -33,7 +33,7 @@ from seapup_sim.simulation import Event, Simulation, events_from_data
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
-__all__ = ["SimulatorConfig", "Simulator"]
+__all__ = ["SimulatorConfig", "SimulatorCore"]
 
 
 @dataclass
@@ -82,7 +82,7 @@ class SimulatorConfig:
                 limits.check_current(event.value)
 
 
-class Simulator:
+class SimulatorCore:
     """The simulator's state machine (see module docstring)."""
 
     COUNTERS = ("accepted", "saturated", "rejected_invalid", "rejected_stale", "rejected_future",

@@ -1,10 +1,10 @@
-"""Piecewise-constant schedules: the open-loop tests' blade pitches and the velocity references of
+"""Piecewise-constant profiles: the open-loop tests' blade pitches and the velocity references of
 closed-loop runs.
 
 The open-loop verification tests of the thesis (sec. 3.3, Table 3.2) drive the
 vehicle with blade pitches held constant between switching instants, e.g. both
 main thrusters at +35 deg from t = 0 for the surge test. A
-:class:`PitchSchedule` is such an input: switching times and the four pitches
+:class:`PitchProfile` is such an input: switching times and the four pitches
 held from each time on. A :class:`ReferenceProfile` holds body-velocity references (u, v, w, r)
 the same way and may repeat with a period: the square wave of half-period 10 s under which thesis
 sec. 6.5.5 identifies the closed loop is two rows and a 20 s period.
@@ -19,14 +19,14 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
 from seapup_common.controllers import ControllerType
 
-__all__ = ["ScheduleError", "PitchSchedule", "OpenLoop", "ReferenceProfile", "OPEN_LOOP_TYPE"]
+__all__ = ["ProfileError", "PitchProfile", "OpenLoop", "ReferenceProfile", "OPEN_LOOP_TYPE"]
 
 
-class ScheduleError(ValueError):
-    """A schedule whose times or pitches are inconsistent."""
+class ProfileError(ValueError):
+    """A profile whose times or pitches are inconsistent."""
 
 
-class PitchSchedule:
+class PitchProfile:
     """Blade pitches held constant between switching times.
 
     Parameters
@@ -42,7 +42,7 @@ class PitchSchedule:
 
     Examples
     --------
-    >>> s = PitchSchedule([0.0, 5.0], [[0.6, 0.6, 0, 0], [0, 0, 0, 0]], limit=0.61)
+    >>> s = PitchProfile([0.0, 5.0], [[0.6, 0.6, 0, 0], [0, 0, 0, 0]], limit=0.61)
     >>> float(s.at(4.9)[0]), float(s.at(5.0)[0])
     (0.6, 0.0)
     """
@@ -52,7 +52,7 @@ class PitchSchedule:
         for i, row in enumerate(p):
             _, clipped = check_blade_pitch(row, limit)  # raises on non-finite rows
             if clipped:
-                raise ScheduleError(
+                raise ProfileError(
                     f"row {i} asks for more than the blade limit {limit:.4f} rad: {row.tolist()}")
         self.times = t
         self.pitches = p
@@ -60,7 +60,7 @@ class PitchSchedule:
     def at(self, t: float) -> np.ndarray:
         """Blade pitches [rad] at time ``t`` >= 0 (a copy)."""
         if not (np.isfinite(t) and t >= 0.0):
-            raise ScheduleError(f"schedule time must be finite and >= 0, got {t!r}")
+            raise ProfileError(f"schedule time must be finite and >= 0, got {t!r}")
         i = int(np.searchsorted(self.times, t, side="right")) - 1
         return self.pitches[i].copy()
 
@@ -74,21 +74,21 @@ def _rows(times, values, what: str) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(times, dtype=float)
     v = np.asarray(values, dtype=float)
     if t.ndim != 1 or t.size == 0:
-        raise ScheduleError(f"times must be a non-empty list, got shape {t.shape}")
+        raise ProfileError(f"times must be a non-empty list, got shape {t.shape}")
     if v.ndim == 1:
         if v.size != 4 * t.size:
-            raise ScheduleError(f"{t.size} switching times need {4 * t.size} {what} (4 each), got {v.size}")
+            raise ProfileError(f"{t.size} switching times need {4 * t.size} {what} (4 each), got {v.size}")
         v = v.reshape(t.size, 4)
     if v.shape != (t.size, 4):
-        raise ScheduleError(f"{what} must have shape ({t.size}, 4), got {v.shape}")
+        raise ProfileError(f"{what} must have shape ({t.size}, 4), got {v.shape}")
     if not np.all(np.isfinite(t)) or t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
-        raise ScheduleError(f"times must be finite, start at 0 and increase strictly: {t.tolist()}")
+        raise ProfileError(f"times must be finite, start at 0 and increase strictly: {t.tolist()}")
     return t, v
 
 
 class ReferenceProfile:
     """Body-velocity references (u, v, w [m/s], r [rad/s]) held between switching times, optionally
-    repeating: a fixed test profile (unlike :class:`seapup_common.contract.ReferenceSchedule`, the
+    repeating: a fixed test profile (unlike :class:`seapup_common.contract.StampedReferences`, the
     velocity controller's queue of stamped references as they arrive).
 
     Parameters
@@ -114,17 +114,17 @@ class ReferenceProfile:
     def __init__(self, times, references, period: float | None = None):
         self.times, self.references = _rows(times, references, "references")
         if not np.all(np.isfinite(self.references)):
-            raise ScheduleError(f"references must be finite: {self.references.tolist()}")
+            raise ProfileError(f"references must be finite: {self.references.tolist()}")
         period = 0.0 if period is None else float(period)
         if not np.isfinite(period) or (period != 0.0 and period <= self.times[-1]):
-            raise ScheduleError(f"period must be 0 (no repeat) or longer than the last switch "
+            raise ProfileError(f"period must be 0 (no repeat) or longer than the last switch "
                                 f"{self.times[-1]:g} s, got {period!r}")
         self.period = period
 
     def at(self, t: float) -> Reference:
         """The reference at time ``t`` >= 0."""
         if not (np.isfinite(t) and t >= 0.0):
-            raise ScheduleError(f"schedule time must be finite and >= 0, got {t!r}")
+            raise ProfileError(f"schedule time must be finite and >= 0, got {t!r}")
         if self.period:
             t = t % self.period
         i = int(np.searchsorted(self.times, t, side="right")) - 1
@@ -132,11 +132,11 @@ class ReferenceProfile:
 
 
 class OpenLoop:
-    """A :class:`PitchSchedule` flown as a velocity controller (open loop).
+    """A :class:`PitchProfile` flown as a velocity controller (open loop).
 
     Parameters
     ----------
-    schedule : PitchSchedule
+    schedule : PitchProfile
     sample_period : float
         T [s], > 0.
     start_time : float
@@ -145,15 +145,15 @@ class OpenLoop:
 
     Examples
     --------
-    >>> ctl = OpenLoop(PitchSchedule([0.0, 1.0], [[0.1] * 4, [0.0] * 4]), 0.2)
+    >>> ctl = OpenLoop(PitchProfile([0.0, 1.0], [[0.1] * 4, [0.0] * 4]), 0.2)
     >>> ctl.reset(Command([0.0] * 4, stamp=0.0))
     >>> ctl.update(1.2, Measurement(1.2), Reference()).blade_pitch.tolist()
     [0.0, 0.0, 0.0, 0.0]
     """
 
-    def __init__(self, schedule: PitchSchedule, sample_period: float, start_time: float = 0.0):
+    def __init__(self, schedule: PitchProfile, sample_period: float, start_time: float = 0.0):
         if not (np.isfinite(sample_period) and sample_period > 0):
-            raise ScheduleError(f"sample period must be finite and > 0 s, got {sample_period!r}")
+            raise ProfileError(f"sample period must be finite and > 0 s, got {sample_period!r}")
         self.schedule = schedule
         self.sample_period = float(sample_period)
         self.start_time = float(start_time)
@@ -176,10 +176,10 @@ class OpenLoop:
 
 def _open_loop(parameters: dict, document, sample_period: float | None) -> OpenLoop:
     if sample_period is None:
-        raise ScheduleError("the open_loop controller needs the sample period of its caller")
+        raise ProfileError("the open_loop controller needs the sample period of its caller")
     if not parameters["times"] or not parameters["pitches"]:
-        raise ScheduleError("open_loop needs its switching times and four pitches per time")
-    return OpenLoop(PitchSchedule(parameters["times"], parameters["pitches"], parameters["blade_pitch_limit"]),
+        raise ProfileError("open_loop needs its switching times and four pitches per time")
+    return OpenLoop(PitchProfile(parameters["times"], parameters["pitches"], parameters["blade_pitch_limit"]),
                     sample_period)
 
 
