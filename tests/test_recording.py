@@ -35,7 +35,12 @@ def test_sigint_gives_a_complete_bag_both_readers_decode_to_the_published_values
     probe = Probe(ros_context, spin)
     probe.record(ODOM, Odometry)
     rec = start_recorder(node_process, tmp_path / "bag")
-    assert probe.spin(lambda: len(probe.msgs[ODOM]) > 40, 30.0), sim.log_text()
+    # once the recorder hears the topic (discovery may take seconds here, and what a live publisher
+    # sends before it has matched the recorder is not for the recorder): two more seconds of samples
+    # (50/s at 10x real time) to record
+    assert probe.spin(lambda: f"first message on {ODOM}" in rec.log_text(), 30.0), rec.log_text()
+    heard = len(probe.msgs[ODOM])
+    assert probe.spin(lambda: len(probe.msgs[ODOM]) > heard + 100, 30.0), sim.log_text()
     assert rec.stop() == 0, rec.log_text()
     sent = {stamp(m): m for m in probe.msgs[ODOM]}
     bag = [deserialize_message(m.cdr, Odometry) for m in read_bag(tmp_path / "bag")]
@@ -179,6 +184,20 @@ def test_seapup_record_stops_on_max_duration_or_sigint_and_reports_the_bag(
                          name="record_again")
     assert again.popen.wait(60) == 2 and "exists" in again.log_text()
     assert json.loads((tmp_path / "held.json").read_text()) == report
+    # 4. ./seapup record killed outright (SIGKILL: no handler runs): its recorder is not orphaned -- it
+    # finishes the bag (readable without recovery) and is gone within 2 s
+    from tests.test_process_ownership import descendants, gone_within
+    killed = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "killed"), "--topics", ODOM],
+                          name="record_sigkill")
+    deadline = time.monotonic() + 60
+    while f"recording {ODOM} [" not in killed.log_text() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    probe.spin(lambda: False, 1.0)
+    recorder = descendants(killed.popen.pid)
+    assert recorder
+    killed.popen.send_signal(signal.SIGKILL)
+    assert gone_within(recorder, 2.0)
+    assert len(list(read_bag(tmp_path / "killed"))) >= 5 and (tmp_path / "killed" / "metadata.yaml").is_file()
     probe.close()
 
 

@@ -48,7 +48,7 @@ def record(argv: list[str]) -> int:
         parser.error("give --topics or --all")
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
-    from seapup_common.processes import find_executable
+    from seapup_common.processes import child_options, find_executable
     from seapup_common.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
     if output.exists():
@@ -62,11 +62,11 @@ def record(argv: list[str]) -> int:
            "-p", f"use_sim_time:={str(args.use_sim_time).lower()}", "-p", f"bag_path:={output}"]
     # the recorder runs as a child so that, when it has closed the bag (Ctrl-C, SIGTERM or
     # --max-duration), this process can say what is in it
-    child = subprocess.Popen([str(exe), *ros], start_new_session=True)  # signals come once, from us
+    child = subprocess.Popen([str(exe), *ros], **child_options())  # signals come once, from us; dies with us
 
-    def forward(signum, frame):
-        child.send_signal(signum)
-    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    def forward(signum, frame):  # a closed terminal (SIGHUP) finalises the bag as Ctrl-C does
+        child.send_signal(signal.SIGINT if signum == signal.SIGHUP else signum)
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:
         code = child.wait()
     finally:

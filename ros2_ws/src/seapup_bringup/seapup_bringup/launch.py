@@ -39,6 +39,7 @@ import threading
 import time
 
 from seapup_bringup.output import add_json_argument, emit_json
+from seapup_common.processes import child_options
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch"]
@@ -88,7 +89,7 @@ class Launch:
 
     def _start(self, node: _Running) -> None:
         node.popen = subprocess.Popen(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, **child_options())
         node.starts += 1
         node.restart_at = None
         self.say("launch", f"started {node.spec.label} (pid {node.popen.pid})"
@@ -109,7 +110,7 @@ class Launch:
         """Start every node and supervise until all have ended; the exit status."""
         handlers = {}
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 handlers[sig] = signal.signal(sig, lambda s, _f: self.request_stop(f"{signal.Signals(s).name}"))
         failed = []
         try:

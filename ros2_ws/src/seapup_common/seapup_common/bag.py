@@ -25,9 +25,10 @@ Messages go in and come out as CDR bytes (rclpy raw subscriptions,
 """
 from __future__ import annotations
 
+import fcntl
 import io
-import struct
 import os
+import struct
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +42,7 @@ from mcap.writer import CompressionType, Writer
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-__all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "header_stamp_ns", "read_bag", "bag_info",
+__all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "header_stamp_ns", "read_bag", "bag_info", "writer_alive",
            "recover_bag", "storage_file", "storage_files", "DEFAULT_QOS", "BAG_VERSION"]
 
 #: rosbag2 metadata version written by ROS 2 Jazzy.
@@ -234,11 +235,24 @@ class BagWriter:
         self._unflushed = 0
         self._last_flush_wall = 0.0
         self._last_flush_ns: int | None = None
+        self._dir_fd: int | None = None
 
     # -- life cycle ------------------------------------------------------------------
     def open(self) -> "BagWriter":
         self.path.mkdir(parents=True)
+        self._lock_directory()
         return self._start("seapup (rosbag2 jazzy layout, mcap writer)")
+
+    def _lock_directory(self) -> None:
+        """Hold an exclusive ``flock`` on the bag directory while writing: :func:`recover_bag` refuses a
+        bag whose writer is alive (the kernel drops the lock when the writer ends, however it ends)."""
+        self._dir_fd = os.open(self.path, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            fcntl.flock(self._dir_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(self._dir_fd)
+            self._dir_fd = None
+            raise BagError(f"another process is writing {self.path}") from None
 
     @classmethod
     def into_existing(cls, path: str | Path, typestore) -> "BagWriter":
@@ -248,6 +262,7 @@ class BagWriter:
         cls.__init__(writer, Path(path).with_name(Path(path).name + ".new"), typestore, flush_interval=3600.0,
                      max_file_chunks=1 << 30)
         writer.path = Path(path)
+        writer._lock_directory()
         return writer._start("seapup (rosbag2 jazzy layout, recovered)")
 
     def _start(self, library: str) -> "BagWriter":
@@ -308,6 +323,9 @@ class BagWriter:
             return
         self._finish_file()
         _write_metadata_file(self.path, self.metadata())
+        if self._dir_fd is not None:
+            os.close(self._dir_fd)  # the lock goes with it
+            self._dir_fd = None
 
     def __enter__(self) -> "BagWriter":
         return self.open()
@@ -463,6 +481,21 @@ def _parse_qos(text: str) -> list:
     return value if isinstance(value, list) else []
 
 
+def writer_alive(path: str | Path) -> bool:
+    """True while a :class:`BagWriter` (in any process) holds the bag directory's lock."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)  # closing drops a lock taken here
+    return False
+
+
 def recover_bag(path: str | Path, typestore=None) -> dict:
     """Rebuild a readable, indexed bag and its metadata.yaml from what is on disk.
 
@@ -484,6 +517,9 @@ def recover_bag(path: str | Path, typestore=None) -> dict:
         If there is no MCAP file or not even the first one's header is readable.
     """
     path = Path(path)
+    if writer_alive(path):
+        raise BagError(f"{path} is still being written by a live recorder: stop it (Ctrl-C) and it "
+                       "finishes the bag itself; recover only a bag whose writer died")
     sources = storage_files(path)
     if not sources:
         raise BagError(f"no {storage_file(path).name} in {path}: nothing to recover")

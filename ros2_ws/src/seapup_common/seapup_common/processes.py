@@ -11,10 +11,16 @@ that machinery, with no rclpy import:
   domain and ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` so no DDS traffic
   leaves loopback;
 - :class:`NodeProcess` runs one node in its own process group, logs to a file
-  and stops it with SIGINT, then SIGTERM, then SIGKILL.
+  and stops it with SIGINT, then SIGTERM, then SIGKILL;
+- :func:`child_options`: how every child seapup starts is tied to its parent.
+  The child asks the kernel for SIGTERM when its parent dies
+  (``PR_SET_PDEATHSIG``), whatever kills the parent (SIGKILL included, where
+  no handler runs), and inherits every domain lease the parent holds, so a
+  leased domain stays taken until the last child is gone.
 """
 from __future__ import annotations
 
+import ctypes
 import fcntl
 import os
 import signal
@@ -30,11 +36,47 @@ __all__ = [
     "find_executable",
     "NodeProcess",
     "stop_process_groups",
+    "child_options",
 ]
 
 #: Domain IDs seapup leases. 0 is left to users; the Linux port mapping of
 #: DDS allows 0-101 (and 215-232) with the default participant limits.
 LEASE_RANGE = range(10, 102)
+
+
+#: File descriptors of the domain leases this process holds (children inherit them: :func:`child_options`).
+_LEASE_FDS: set[int] = set()
+
+_PR_SET_PDEATHSIG = 1
+try:
+    _prctl = ctypes.CDLL(None, use_errno=True).prctl  # resolved here: nothing is looked up after fork
+except (OSError, AttributeError):  # not Linux: children are stopped by their parent's handlers only
+    _prctl = None
+
+
+def child_options(new_session: bool = True, death_signal: int = signal.SIGTERM) -> dict:
+    """Keyword arguments for :class:`subprocess.Popen` that tie the child to this process.
+
+    - In the child, before it runs its program: its own session and process
+      group (``new_session``: signals reach it once, from its parent, not
+      twice from a terminal), and ``PR_SET_PDEATHSIG``: the kernel sends it
+      ``death_signal`` when this process (strictly: the thread that started
+      it) ends, however it ends. A parent that died before the request
+      took effect is caught by comparing the parent's pid.
+    - ``pass_fds``: the domain leases this process holds (:class:`DomainLease`),
+      so a domain stays leased while any child that uses it lives.
+    """
+    parent = os.getpid()
+    prctl = _prctl
+
+    def setup() -> None:  # runs in the child between fork and exec: no imports, no allocation
+        if new_session:
+            os.setsid()
+        if prctl is not None:
+            prctl(_PR_SET_PDEATHSIG, int(death_signal), 0, 0, 0)
+        if os.getppid() != parent:
+            os.kill(os.getpid(), int(death_signal))
+    return {"preexec_fn": setup, "pass_fds": tuple(sorted(_LEASE_FDS))}
 
 
 class NoFreeDomainError(RuntimeError):
@@ -45,8 +87,11 @@ class DomainLease:
     """A ROS_DOMAIN_ID held exclusively by this process until released.
 
     The lease is an exclusive ``flock`` on ``<lock_dir>/domain-<id>.lock``; the
-    kernel drops it if the process dies, so a crashed test never blocks a
-    domain. Use as a context manager.
+    kernel drops it when the last process holding it ends, so a crashed test
+    never blocks a domain. Children started with :func:`child_options` hold it
+    too: released here, the domain stays taken until they are gone (a child
+    orphaned by a killed parent is not joined by the next run). Use as a
+    context manager.
 
     Parameters
     ----------
@@ -80,15 +125,18 @@ class DomainLease:
                 os.close(fd)
                 continue
             self._fd, self.domain_id = fd, domain
+            _LEASE_FDS.add(fd)
             return domain
         raise NoFreeDomainError(
             f"all ROS domains {self.candidates[0]}-{self.candidates[-1]} are leased "
             f"(lock files in {self.lock_dir}); wait for other seapup runs to finish")
 
     def release(self) -> None:
-        """Give the domain back (idempotent)."""
+        """Give the domain back (idempotent): close this process's hold on the lock. Children that
+        inherited it keep the domain taken until they end (no ``LOCK_UN``, which would free it for
+        them too)."""
         if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            _LEASE_FDS.discard(self._fd)
             os.close(self._fd)
             self._fd = None
 
@@ -150,7 +198,8 @@ def stop_process_groups(popens, grace: float, term_grace: float) -> None:
 
 
 class NodeProcess:
-    """One node (or any command) in its own process group, logging to a file.
+    """One node (or any command) in its own process group, logging to a file; it dies with this
+    process (:func:`child_options`).
 
     Parameters
     ----------
@@ -177,7 +226,7 @@ class NodeProcess:
         with open(self.log_path, "wb") as log:
             self.popen = subprocess.Popen(self.command, env=self.env, stdout=log,
                                           stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                          start_new_session=True)
+                                          **child_options())
         return self
 
     @property

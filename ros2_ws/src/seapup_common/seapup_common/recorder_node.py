@@ -104,6 +104,7 @@ class RecorderNode(Node):
         self.stamped: dict[str, bool] = {}
         self.drain_on_shutdown = True  # run_node takes the messages already received before closing
         self.received = 0
+        self._heard: set[str] = set()  # topics a message has arrived on
         self.max_duration = float(p["max_duration"])
         self._first_ns: int | None = None
         self.subscribed: dict[str, str] = {}
@@ -187,6 +188,9 @@ class RecorderNode(Node):
         self.received += 1
         if topic not in self.bag.topics:  # first message of a typed topic: its publisher exists now
             self._add_to_bag(topic, self.subscribed[topic], self.get_publishers_info_by_topic(topic))
+        if topic not in self._heard:
+            self._heard.add(topic)
+            self.get_logger().info(f"first message on {topic}")  # the publisher's side has matched us too
         log_ns = self.get_clock().now().nanoseconds
         if self.sim_time:
             at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))

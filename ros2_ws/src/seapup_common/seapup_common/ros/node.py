@@ -171,13 +171,15 @@ def refuse_invalid_transitions(node) -> None:
     service.callback = guarded
 
 
-def _drain(executor, node, budget: float = 3.0) -> None:
-    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping."""
+def _drain(executor, node, budget: float = 1.5) -> None:
+    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until a
+    short wait brings nothing new (a live graph keeps publishing; what arrives after the stop is not
+    waited for) or ``budget`` seconds pass (a stopped process must end promptly: its parent may be gone)."""
     deadline = time.monotonic() + budget
     try:
         while time.monotonic() < deadline:
             before = getattr(node, "received", None)
-            executor.spin_once(timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.01)
             if getattr(node, "received", None) == before:
                 break
     except (KeyboardInterrupt, ExternalShutdownException):

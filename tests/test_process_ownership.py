@@ -1,0 +1,132 @@
+"""Every process seapup starts dies with its parent, however the parent dies; a leased domain stays
+taken while a child that uses it lives; a bag whose writer lives is never "recovered".
+
+Independent truth: the kernel's process table (``/proc``) after killing the parent with SIGKILL
+(no handler runs), SIGHUP (a closed terminal) or SIGTERM.
+"""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from seapup_common.bag import BagError, BagWriter, make_typestore, recover_bag, storage_files, writer_alive
+from seapup_common.processes import DomainLease, NoFreeDomainError
+
+PARENT = """
+import sys, time
+from seapup_common.processes import DomainLease, NodeProcess, ros_environment
+lease = DomainLease(lock_dir=sys.argv[1], candidates=[int(sys.argv[2])])
+lease.acquire()
+child = NodeProcess([sys.executable, "-c", sys.argv[3]], ros_environment(lease.domain_id), sys.argv[4]).start()
+if sys.argv[5] == "release-and-exit":  # once the child ignores SIGTERM (the log says so)
+    while "ready" not in child.log_text():
+        time.sleep(0.01)
+print(child.popen.pid, flush=True)
+if sys.argv[5] == "release-and-exit":
+    lease.release()
+    sys.exit(0)
+time.sleep(120)
+"""
+SLEEPER = "import time; time.sleep(120)"
+STUBBORN = "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); print('ready', flush=True); time.sleep(120)"
+
+
+def alive(pid: int) -> bool:
+    """A process that exists and is not a zombie (an orphan's zombie waits for its reaper)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return False
+    return state not in ("Z", "X")
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children of all its threads, recursively)."""
+    found, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                kids = [int(k) for k in (task / "children").read_text().split()]
+            except (FileNotFoundError, ProcessLookupError):
+                continue
+            found += kids
+            todo += kids
+    return found
+
+
+def gone_within(pids, seconds: float) -> bool:
+    deadline = time.monotonic() + seconds
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return not any(alive(p) for p in pids)
+
+
+def start_parent(tmp_path, domain, child_code, mode="hold"):
+    parent = subprocess.Popen([sys.executable, "-c", PARENT, str(tmp_path / "locks"), str(domain), child_code,
+                               str(tmp_path / "child.log"), mode], stdout=subprocess.PIPE, text=True,
+                              start_new_session=True)
+    child = int(parent.stdout.readline())
+    assert alive(child)
+    return parent, child
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP, signal.SIGTERM])
+def test_a_child_dies_within_two_seconds_of_its_parent(tmp_path, sig):
+    parent, child = start_parent(tmp_path, 150, SLEEPER)
+    os.kill(parent.pid, sig)
+    parent.wait(10)
+    assert gone_within([child], 2.0), f"child {child} outlived its parent killed by {sig.name}"
+
+
+def test_a_leased_domain_stays_taken_while_a_child_lives(tmp_path):
+    """The parent releases its lease and exits; its child (which ignores the SIGTERM of its parent's
+    death) still holds the domain: a second run cannot lease it until the child is gone."""
+    parent, child = start_parent(tmp_path, 151, STUBBORN, "release-and-exit")
+    assert parent.wait(10) == 0
+    time.sleep(0.2)
+    assert alive(child)
+    with pytest.raises(NoFreeDomainError):
+        DomainLease(lock_dir=tmp_path / "locks", candidates=[151]).acquire()
+    os.kill(child, signal.SIGKILL)
+    assert gone_within([child], 2.0)
+    with DomainLease(lock_dir=tmp_path / "locks", candidates=[151]) as lease:
+        assert lease.domain_id == 151
+
+
+def test_recover_refuses_a_bag_whose_writer_is_alive_and_touches_nothing(tmp_path):
+    from std_msgs.msg import String
+    from rclpy.serialization import serialize_message
+
+    writer = BagWriter(tmp_path / "bag", make_typestore()).open()
+    writer.add_topic("/chatter", "std_msgs/msg/String")
+    writer.write("/chatter", serialize_message(String(data="hello")), 1, 1)
+    writer.flush()
+    before = sorted(p.name for p in (tmp_path / "bag").iterdir())
+    assert writer_alive(tmp_path / "bag")
+    with pytest.raises(BagError, match="still being written"):
+        recover_bag(tmp_path / "bag")
+    assert sorted(p.name for p in (tmp_path / "bag").iterdir()) == before  # nothing renamed
+    writer.close()
+    assert not writer_alive(tmp_path / "bag")
+    assert recover_bag(tmp_path / "bag")["messages"] == 1
+    assert [p.name for p in storage_files(tmp_path / "bag")] == ["bag_0.mcap"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP])
+def test_a_launched_graph_dies_with_the_launcher(tmp_path, ros_env, sig):
+    """``./seapup launch`` killed outright (SIGKILL: no handler runs) or by a closed terminal (SIGHUP):
+    none of its nodes is left running."""
+    from tests.test_launch import Launched
+    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.yaml")
+    proc.wait_for(r"started simulator \(pid (\d+)\)")
+    proc.wait_for(r"started \S*controller\S* \(pid (\d+)\)")
+    nodes = descendants(proc.pid)
+    assert len(nodes) >= 2
+    os.kill(proc.pid, sig)
+    proc.finish(30)
+    assert gone_within(nodes, 2.0), [p for p in nodes if alive(p)]
