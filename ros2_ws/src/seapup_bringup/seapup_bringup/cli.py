@@ -11,13 +11,21 @@ Conventions for every command: ``--help`` explains it; ``--json [FILE]``
 writes its result as JSON to FILE (to standard output with no FILE, and the
 human text then goes to standard error); long work shows a progress bar on a
 terminal (a line per 10 % otherwise); exit 0 on success, 1 on failure, 2 on
-bad usage. The helpers for these conventions live in
+bad usage. :func:`main` holds what every command shares: Ctrl-C (or SIGTERM,
+or SIGHUP from a closed terminal) ends a command with one line,
+``seapup: interrupted``, and exit 128 + the signal (130 for Ctrl-C), after
+the command's own clean-up ran (its context managers stop its nodes); a
+closed output pipe (``| head``) ends it quietly; an unexpected error is one
+line naming it (the traceback only with ``--debug`` before the command, or
+``SEAPUP_DEBUG=1``); and ``ROS_DOMAIN_ID`` is checked before DDS sees it.
+The helpers for these conventions live in
 :mod:`seapup_bringup.output`; command modules import them from there and never
 import this registry back.
 """
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from dataclasses import dataclass
 from typing import Callable
@@ -210,10 +218,69 @@ def usage() -> str:
         head = f"{e.name} {e.usage}".strip()
         lines.append(f"  {head:<{width}} {e.summary}" if len(head) < width else f"  {head}\n  {'':<{width}} {e.summary}")
     lines.append(f"  {'help':<{width}} this text")
-    lines += ["", "Every command takes --help; results as JSON with --json [FILE].",
+    lines += ["", "Every command takes --help; results as JSON with --json [FILE]; --debug before the command "
+              "shows an error's traceback.",
               "Environment: SEAPUP_PYTHON (default python3.11), ROS_DOMAIN_ID (default 0).",
               "Every process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST."]
     return "\n".join(lines)
+
+
+#: The largest ROS_DOMAIN_ID DDS can map to ports (ROS 2 documents 0-232; 0-101 avoid the Linux
+#: ephemeral port range with the default participant limits).
+MAX_DOMAIN_ID = 232
+
+
+def domain_problem(value: str | None) -> str:
+    """Why ``value`` (``$ROS_DOMAIN_ID``) cannot be used, or "" (unset or empty means domain 0)."""
+    if value is None or value.strip() == "":
+        return ""
+    try:
+        domain = int(value.strip())
+    except ValueError:
+        domain = -1
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        return (f"ROS_DOMAIN_ID must be an integer 0-{MAX_DOMAIN_ID} (0-101 is safe on Linux), got {value!r}; "
+                "unset it for domain 0")
+    return ""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the command is, so its clean-up runs as for Ctrl-C."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
+    """Run a command under the shared conventions (module docstring)."""
+    from seapup_bringup.output import SIGNALS
+
+    def on_signal(signum, frame):
+        SIGNALS.append(signum)
+        raise KeyboardInterrupt if signum == signal.SIGINT else Interrupted(signum)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, on_signal)
+    try:
+        return int(entry.run(argv) or 0)
+    except KeyboardInterrupt as exc:
+        signum = getattr(exc, "signum", signal.SIGINT)
+    except BrokenPipeError:
+        try:  # the reader is gone (| head): nothing more to say, and no error at exit either
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 128 + signal.SIGPIPE
+    except Exception as exc:
+        if not SIGNALS:
+            if debug:
+                raise
+            print(f"seapup {entry.name}: error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+                  f" (./seapup --debug {entry.name} ... shows where)", file=sys.stderr)
+            return 1
+        signum = SIGNALS[0]  # a signal surfaced inside a library as another error (rclpy, pybind11)
+    print("seapup: interrupted", file=sys.stderr)
+    return 128 + int(signum)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -223,6 +290,9 @@ def main(argv: list[str] | None = None) -> int:
     check = bool(argv) and argv[0] == "--check"
     if check:
         argv = argv[1:]
+    debug = os.environ.get("SEAPUP_DEBUG", "") not in ("", "0")
+    while argv and argv[0] == "--debug":
+        debug, argv = True, argv[1:]
     name = argv[0] if argv else "help"
     if name in ("help", "-h", "--help"):
         print(usage())
@@ -236,7 +306,11 @@ def main(argv: list[str] | None = None) -> int:
     if entry.run is None:
         print(f"seapup: '{name}' is handled by the ./seapup script", file=sys.stderr)
         return 2
-    return int(entry.run(argv[1:]) or 0)
+    problem = "" if name == "test" else domain_problem(os.environ.get("ROS_DOMAIN_ID"))
+    if problem:
+        print(f"seapup: error: {problem}", file=sys.stderr)
+        return 2
+    return _dispatch(entry, argv[1:], debug)
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, emit_json, progress, stopped_by_signal, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common import topics
 
@@ -119,28 +119,46 @@ def fly_mission(out: Path, config: dict, text) -> dict:
     plan = config["mission"]
     total = sum(leg.get("expected", 60.0) for leg in plan)
     done = 0.0
-    with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="") as sil:
-        print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
-        for leg in plan:
-            start, wall = sil.t, time.monotonic()
-            progress(f"{leg['name']:<18}", done / total)
-            numbers = _fly_leg(sil, leg, swap)
-            numbers.setdefault("t0", start)
-            numbers.setdefault("t1", sil.t)
-            done += leg.get("expected", 60.0)
-            legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
-                         "hold_from": float(leg.get("hold_from", 0.0)),
-                         "wall_s": time.monotonic() - wall, **numbers})
-            print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
-                  f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)", file=text)
-        progress("mission", 1.0)
-        logs = sil.logs()
-        bag = sil.bag
+    stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
+    logs, bag = {}, out / "bag"
+    try:
+        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="") as sil:
+            print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
+            for leg in plan:
+                start, wall = sil.t, time.monotonic()
+                progress(f"{leg['name']:<18}", done / total)
+                try:
+                    numbers = _fly_leg(sil, leg, swap)
+                except BaseException as exc:  # interrupted: the legs flown so far still get their numbers
+                    if not stopped_by_signal(exc):
+                        raise
+                    stopped = exc
+                    print(f"\nseapup demo: interrupted in leg {leg['name']}; reporting the {len(legs)} legs flown",
+                          file=text)
+                    break
+                numbers.setdefault("t0", start)
+                numbers.setdefault("t1", sil.t)
+                done += leg.get("expected", 60.0)
+                legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
+                             "hold_from": float(leg.get("hold_from", 0.0)),
+                             "wall_s": time.monotonic() - wall, **numbers})
+                print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
+                      f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)",
+                      file=text)
+            if stopped is None:
+                progress("mission", 1.0)
+            logs = sil.logs()
+            bag = sil.bag
+    except BaseException as exc:  # interrupted while the graph started or stopped: nothing (more) flown
+        if stopped is not None or not stopped_by_signal(exc):
+            raise
+        stopped = exc
+        print(f"\nseapup demo: interrupted; reporting the {len(legs)} legs flown", file=text)
     for leg in legs:
         leg.update(_truth_numbers(logs, leg, seabed))
-    if swap:
+    if swap and swap["leg"] < len(legs):
         legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
-    return {"legs": legs, "bag": str(bag), "logs": logs}
+    return {"legs": legs, "bag": str(bag), "logs": logs, "stopped": stopped}
 
 
 def _fly_leg(sil, leg: dict, swap: dict) -> dict:
@@ -299,17 +317,23 @@ def main(argv=None) -> int:
     try:
         result = fly_mission(out, config, text)
     except Exception as exc:  # a failed leg or graph: say which, point at the logs
+        if stopped_by_signal(exc):
+            raise
         print(f"seapup demo: failed: {exc}; node logs in {out}", file=text)
         return 1
     _table(result["legs"], text)
-    if not args.no_plots:
+    if not args.no_plots and result["legs"]:
         result["plots"] = _plots(result, out)
         print(f"seapup demo: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
     result["wall_s"] = time.monotonic() - wall
     print(f"seapup demo: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
+    stopped = result.pop("stopped")
     summary = {k: v for k, v in result.items() if k != "logs"}
+    summary["interrupted"] = stopped is not None
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     emit_json(args, summary)
+    if stopped is not None:
+        raise stopped  # ./seapup: "interrupted", exit 128 + the signal
     failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
     if failed:
         print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)

@@ -22,7 +22,16 @@ import sys
 
 from seapup_common.jsondata import jsonable
 
-__all__ = ["add_json_argument", "jsonable", "emit_json", "text_stream", "progress"]
+__all__ = ["add_json_argument", "jsonable", "emit_json", "text_stream", "progress", "SIGNALS", "stopped_by_signal"]
+
+#: The signals (SIGINT, SIGTERM, SIGHUP) ``./seapup`` received while its command ran (``cli`` appends).
+SIGNALS: list[int] = []
+
+
+def stopped_by_signal(exc: BaseException) -> bool:
+    """True if ``exc`` is how a signal surfaced: a KeyboardInterrupt, or any error raised while one
+    was being handled (rclpy and pybind11 turn an interrupted wait into other exceptions)."""
+    return isinstance(exc, KeyboardInterrupt) or bool(SIGNALS)
 
 
 def add_json_argument(parser: argparse.ArgumentParser) -> None:

@@ -158,9 +158,7 @@ def _run(fn, args) -> int:
         return code
     except (CommandError, InterfaceError, yaml.YAMLError) as exc:
         return _fail(str(exc).splitlines()[0])
-    except KeyboardInterrupt:
-        return 130
-    finally:
+    finally:  # Ctrl-C goes on to ./seapup's one line and exit 130, after the probe is closed
         if probe is not None:
             probe.close()
 
@@ -599,7 +597,7 @@ def action(argv: list[str]) -> int:
             cancel = handle.cancel_goal_async()
             probe.spin_until(cancel.done, 5.0)
             print("Goal canceled.")
-            return 130
+            raise
         answer = future.result()
         status = _STATUS.get(answer.status, str(answer.status))
         print("Result:\n" + to_yaml(answer.result) + f"\n\nGoal finished with status: {status}")

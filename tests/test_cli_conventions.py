@@ -1,0 +1,116 @@
+"""What every ``./seapup`` command shares: one line and exit 128 + signal when interrupted (after the
+command's own clean-up), quiet on a closed pipe, one line for an unexpected error (a traceback only with
+``--debug``), and ``ROS_DOMAIN_ID`` checked before DDS sees it."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from seapup_bringup import cli, output
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def fake_command(monkeypatch):
+    """Register a throw-away command ``probe`` whose body the test supplies; restore the handlers."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    monkeypatch.setattr(output, "SIGNALS", [])
+
+    def register(body):
+        monkeypatch.setitem(cli.COMMANDS, "probe", cli.Entry("probe", "test", "", body, True))
+    yield register
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_a_signal_runs_the_commands_clean_up_then_says_interrupted(fake_command, capsys, sig, code):
+    cleaned = []
+
+    def body(argv):
+        try:
+            os.kill(os.getpid(), sig)
+            time.sleep(5)  # the handler raises here
+            return 0
+        finally:
+            cleaned.append(True)
+    fake_command(body)
+    assert cli.main(["probe"]) == code
+    assert cleaned == [True]
+    assert capsys.readouterr().err == "seapup: interrupted\n"
+
+
+def test_an_error_raised_while_a_signal_is_handled_still_counts_as_interrupted(fake_command, capsys):
+    """rclpy/pybind11 may turn an interrupted wait into another exception ("Unable to convert call
+    argument"): it is the interruption, not a failure, that the user is told about."""
+    def body(argv):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            raise TypeError("Unable to convert call argument") from None
+    fake_command(body)
+    assert cli.main(["probe"]) == 130
+    assert capsys.readouterr().err == "seapup: interrupted\n"
+
+
+def test_an_unexpected_error_is_one_line_and_a_traceback_only_with_debug(fake_command, capsys, monkeypatch):
+    def body(argv):
+        raise ValueError("the sea is dry\nsecond line")
+    fake_command(body)
+    monkeypatch.delenv("SEAPUP_DEBUG", raising=False)
+    assert cli.main(["probe"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "ValueError: the sea is dry" in err and "--debug" in err
+    with pytest.raises(ValueError, match="the sea is dry"):
+        cli.main(["--debug", "probe"])
+
+
+def test_a_closed_pipe_ends_the_command_quietly(fake_command, capsys, monkeypatch):
+    def body(argv):
+        raise BrokenPipeError(32, "Broken pipe")
+    fake_command(body)
+    assert cli.main(["probe"]) == 128 + signal.SIGPIPE
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(sys, "stdout", sys.__stdout__)
+
+
+@pytest.mark.parametrize("value", ["233", "300", "-1", "abc", "1.5"])
+def test_a_bad_domain_id_is_refused_before_dds_sees_it(value):
+    run = subprocess.run([str(ROOT / "seapup"), "topic", "list"], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "ROS_DOMAIN_ID": value})
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines()[-1].startswith("seapup: error: ROS_DOMAIN_ID must be an integer 0-232")
+    assert "Traceback" not in run.stderr and "rmw" not in run.stderr.lower()
+
+
+def test_domain_ids_that_ros_accepts_pass():
+    assert all(cli.domain_problem(v) == "" for v in (None, "", " ", "0", "101", "232"))
+
+
+def test_ctrl_c_in_the_demo_reports_what_was_flown_and_leaves_no_node(tmp_path, ros_env):
+    """Interrupted while its graph runs, the demo stops every node, writes its summary (legs flown so
+    far, ``interrupted``) and ends with one line and exit 130."""
+    from tests.test_process_ownership import descendants, gone_within
+    demo = subprocess.Popen([str(ROOT / "seapup"), "demo", "--out", str(tmp_path / "demo"), "--no-plots"],
+                            env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and not (tmp_path / "demo" / "self_test.log").is_file():
+        time.sleep(0.2)  # the graph is starting: its nodes exist
+    time.sleep(3.0)
+    nodes = descendants(demo.pid)
+    assert len(nodes) >= 5, nodes
+    os.kill(demo.pid, signal.SIGINT)
+    _, err = demo.communicate(timeout=120)
+    assert demo.returncode == 130, err[-2000:]
+    assert err.rstrip().splitlines()[-1] == "seapup: interrupted" and "Traceback" not in err
+    assert gone_within(nodes, 2.0)
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    assert summary["interrupted"] is True and isinstance(summary["legs"], list)
