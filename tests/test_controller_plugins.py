@@ -135,6 +135,19 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
         switched = sil.t
         sil.run_for(4.0)
         logs = sil.logs()
+        # hostile switches (regressions): a timeout too short to do anything is refused and changes
+        # nothing; a switch that plans but fails after a successful one (its controller is gone) rolls
+        # back and the manager lives on (it died on its log line: "Logger severity cannot be changed")
+        for timeout in (1e-9, -1.0, float("nan"), 1e300):
+            answer = sil.call("/seapup/controller_manager/switch_controller", "seapup_msgs/srv/SwitchController",
+                              {"activate_controllers": ["mfol_fixed"], "deactivate_controllers": ["toy"],
+                               "strictness": 2, "timeout": timeout})
+            assert not answer.ok and "refused" in answer.message, (timeout, answer.message)
+        sil.kill("mfol_fixed")
+        answer = sil.switch(activate=["mfol_fixed"], deactivate=["toy"], timeout=0.5)
+        assert not answer.ok and "rolled back to toy" in answer.message, answer.message
+        listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        assert listing.active == "toy" and sil.processes["controller_manager"].running
     after = logs["command_t"] > switched + 0.5
     assert after.sum() >= 15
     stamps = logs["command_t"][after]

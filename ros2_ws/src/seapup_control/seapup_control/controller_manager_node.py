@@ -43,6 +43,10 @@ from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, decla
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
+#: [s] the switch timeouts a request may give (0: the node's ``switch_timeout``): a lifecycle
+#: transition through the graph takes milliseconds at best.
+MIN_SWITCH_TIMEOUT, MAX_SWITCH_TIMEOUT = 0.1, 120.0
+
 __all__ = ["ControllerManagerNode", "main"]
 
 
@@ -158,7 +162,14 @@ class ControllerManagerNode(Node):
         return response
 
     def _switch(self, request, response):
-        timeout = request.timeout if request.timeout > 0 else self.switch_timeout
+        timeout = request.timeout if request.timeout != 0 else self.switch_timeout
+        if not MIN_SWITCH_TIMEOUT <= timeout <= MAX_SWITCH_TIMEOUT:  # NaN too: nothing is changed
+            response.ok = False
+            response.message = (f"timeout {request.timeout!r} s refused: give 0 (the node's switch_timeout, "
+                                f"{self.switch_timeout:g} s) or {MIN_SWITCH_TIMEOUT:g}-{MAX_SWITCH_TIMEOUT:g} s; "
+                                "a shorter one could only leave no controller active")
+            self.get_logger().warn(f"switch refused: {response.message}")
+            return response
         try:
             plan = self.core.plan_switch(list(request.activate_controllers), list(request.deactivate_controllers),
                                          request.strictness)
@@ -167,8 +178,11 @@ class ControllerManagerNode(Node):
             self.get_logger().warn(f"switch refused: {exc}")
             return response
         response.ok, response.message = self._run_plan(plan, timeout)
-        log = self.get_logger().info if response.ok else self.get_logger().error
-        log(f"switch: {response.message}")
+        # one call site per severity: rclpy refuses a call site whose severity changes between calls
+        if response.ok:
+            self.get_logger().info(f"switch: {response.message}")
+        else:
+            self.get_logger().error(f"switch: {response.message}")
         self._diagnose()
         return response
 
