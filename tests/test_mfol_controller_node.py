@@ -179,3 +179,29 @@ def test_the_first_command_waits_for_every_awaited_subscriber(ros_context, node_
     for heard in (probe.commands, second):
         assert len(heard) == 1 and heard[0].header.stamp.sec == 3 and heard[0].header.stamp.nanosec == 0
         np.testing.assert_allclose(heard[0].pitch, [0.1, 0.1, 0.2, 0.2])
+
+
+def test_every_numeric_parameter_is_range_checked_at_start_and_on_every_change(ros_context, node_process, spin):
+    """``reference_wait`` inf, NaN, 1e300 or -1 once killed the controller at its next sample: now a bad
+    value is refused at start (exit 1, the parameter named) and by ``param set`` (the node flies on)."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    bad = node_process(package="seapup_control", executable="velocity_controller",
+                       args=["--ros-args", "-p", "reference_wait:=.nan", "-r", "__node:=bad"])
+    assert bad.popen.wait(60) == 1, bad.log_text()[-800:]
+    assert "fatal" in bad.log_text() and "reference_wait" in bad.log_text() and "nan" in bad.log_text()
+    node_process(package="seapup_control", executable="velocity_controller",
+                 args=["--ros-args", "-p", "controller_type:=hold", "-p", "sample_period:=0.2",
+                       "-r", "__node:=mfol_velocity_controller"])
+    probe = Probe(ros_context, spin)
+    client = AsyncParameterClient(probe.node, NAME)
+    assert probe.spin(lambda: client.services_are_ready(), 20.0)
+    for value in (math.inf, math.nan, 1e300, -1.0):
+        future = client.set_parameters([Parameter("reference_wait", value=value)])
+        assert probe.spin(future.done, 10.0)
+        result = future.result().results[0]
+        assert not result.successful and "reference_wait" in result.reason, (value, result)
+    future = client.set_parameters([Parameter("reference_wait", value=0.5)])
+    assert probe.spin(future.done, 10.0) and future.result().results[0].successful
+    future = client.get_parameters(["reference_wait"])
+    assert probe.spin(future.done, 10.0) and future.result().values[0].double_value == 0.5

@@ -147,7 +147,11 @@ def test_bad_environment_parameters_stop_the_start_with_the_key_named(node_proce
                            ("environment.current.mean_speed:=.nan", "current.mean_speed"),
                            ("environment.current.mean_speed:=-5.0", "current.mean_speed"),
                            ("environment.seabed.depth:=-1.0", "seabed.depth"),
-                           ("environment.sensors:=sonar", "sensors")):
+                           ("environment.sensors:=sonar", "sensors"),
+                           # names no parameter: refused, not silently ignored (the nearest is named)
+                           ("environment.current.enabeld:=true",
+                            "'environment.current.enabeld' (did you mean 'environment.current.enabled'?)"),
+                           ("real_time_facter:=2.0", "'real_time_facter' (did you mean 'real_time_factor'?)")):
         sim = start_simulator(node_process, setting)
         deadline = time.monotonic() + 20
         while sim.running and time.monotonic() < deadline:

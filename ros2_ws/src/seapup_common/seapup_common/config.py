@@ -36,21 +36,42 @@ class ConfigError(ValueError):
     """A configuration that is missing, malformed, or has a bad or missing key."""
 
 
-def merge(base: Mapping, overlay: Mapping) -> dict:
+def merge(base: Mapping, overlay: Mapping, strict: str | None = None, _path: str = "") -> dict:
     """Deep merge (copies): mappings merge recursively, other values replace.
+
+    With ``strict`` (the overlay's source, for the message) every key of the overlay must be one the
+    base has: a misspelled key would otherwise be carried along unread, and what it meant to change
+    would silently stay as it was.
+
+    Raises
+    ------
+    ConfigError
+        ``strict`` and a key the base does not have, naming it (dotted) and the nearest valid key.
 
     Examples
     --------
     >>> merge({"a": {"x": 1, "y": 2}, "b": 1}, {"a": {"y": 3}})
     {'a': {'x': 1, 'y': 3}, 'b': 1}
+    >>> merge({"current": {"enabled": False}}, {"current": {"enabeld": True}}, strict="my.yaml")
+    Traceback (most recent call last):
+    ...
+    seapup_common.config.ConfigError: my.yaml: unknown key current.enabeld (did you mean current.enabled?)
     """
     out = {k: copy.deepcopy(v) for k, v in base.items()}
     for key, value in overlay.items():
+        if strict is not None and key not in out:
+            raise ConfigError(f"{strict}: unknown key {_path}{key}" + _nearest(key, out, _path))
         if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
-            out[key] = merge(out[key], value)
+            out[key] = merge(out[key], value, strict, f"{_path}{key}.")
         else:
             out[key] = copy.deepcopy(value)
     return out
+
+
+def _nearest(key, options, path: str = "") -> str:
+    import difflib
+    near = difflib.get_close_matches(str(key), [str(o) for o in options], n=1, cutoff=0.6)
+    return f" (did you mean {path}{near[0]}?)" if near else f" (valid: {', '.join(map(str, options))})"
 
 
 def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:

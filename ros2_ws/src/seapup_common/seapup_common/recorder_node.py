@@ -82,7 +82,9 @@ class RecorderNode(Node):
         super().__init__("recorder", **kwargs)
         p = declare_from_package_file(self, "seapup_common", "recorder.yaml", {
             "topics": ParameterDescriptor(type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True),
-        }, section="recorder")
+        }, section="recorder", ranges={"flush_interval": (0.0, 3600.0), "max_bag_size": (0, 2**62),
+                                       "max_bag_duration": (0.0, 1e7), "max_stamp_lead": (0.0, 3600.0),
+                                       "max_duration": (0.0, 1e7), "discovery_period": (0.01, 60.0)})
         entries = [t for t in p["topics"] if t]
         self.record_all = bool(p["all"])
         self.exclude = re.compile(p["exclude"]) if p["exclude"] else None

@@ -69,3 +69,13 @@ def test_vector_flag_choice_integer():
         v.choice("s", ("hover", "neutral"))
     assert v.integer("i", lo=0, hi=10) == 4
     assert v.number("absent", 2.5) == 2.5
+
+
+def test_a_strict_merge_names_an_unknown_key_its_path_and_the_nearest_valid_one():
+    base = {"current": {"enabled": False, "mean_speed": 0.0}, "sensors": "baseline"}
+    assert merge(base, {"current": {"enabled": True}}, strict="x.yaml")["current"]["enabled"] is True
+    with pytest.raises(ConfigError, match=r"^x.yaml: unknown key current.enabeld \(did you mean current.enabled\?\)$"):
+        merge(base, {"current": {"enabeld": True}}, strict="x.yaml")
+    with pytest.raises(ConfigError, match=r"unknown key zzz \(valid: current, sensors\)"):
+        merge(base, {"zzz": 1}, strict="x.yaml")
+    assert merge(base, {"zzz": 1})["zzz"] == 1  # not strict: carried along

@@ -55,7 +55,8 @@ class ControllerManagerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("controller_manager", namespace=NAMESPACE, **kwargs)
-        p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager")
+        p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",
+                                      ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0)})
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
             raise ValueError(f"types: {len(types)} given for {len(names)} controllers")

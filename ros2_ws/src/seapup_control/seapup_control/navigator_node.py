@@ -39,7 +39,9 @@ class NavigatorNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("navigator", namespace=NAMESPACE, **kwargs)
-        p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator")
+        p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator", ranges={
+            "q_walk": (0.0, 1e3), "velocity_std": (1e-6, 10.0), "fix_std": (1e-3, 1e3), "depth_std": (1e-4, 1e3),
+            "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6)})
         self.sample_topics = set(p.pop("sample_topics"))
         unknown = self.sample_topics - set(_TOPICS)
         if unknown or "velocity" not in self.sample_topics:

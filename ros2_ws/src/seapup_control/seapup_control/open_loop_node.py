@@ -37,7 +37,9 @@ class OpenLoopNode(Node):
             "blade_pitch_limit": ParameterDescriptor(
                 description="blade-pitch limit [rad] the schedule must respect", read_only=True,
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=BLADE_PITCH_LIMIT)]),
-        }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="open_loop")
+        }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="open_loop",
+            ranges={"times": (0.0, 1e9), "pitches": (-BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT),
+                    "wait_for_subscribers": (0, 100)})
         self.schedule = PitchProfile(p["times"], p["pitches"], p["blade_pitch_limit"])
         self.controller = OpenLoop(self.schedule, p["sample_period"])
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)

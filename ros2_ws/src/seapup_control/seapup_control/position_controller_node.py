@@ -45,7 +45,11 @@ class PositionControllerNode(LifecycleNode):
     def __init__(self, **kwargs):
         super().__init__("position_controller", namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "position_controller.yaml",
-                                           section="position_controller")
+                                           section="position_controller", ranges={
+                                               "sample_period": (0.01, 10.0), "reference_delay": (0, 100),
+                                               "gains": (0.0, 10.0), "yaw_gain": (0.0, 10.0),
+                                               "speed_limits": (0.0, 5.0), "max_yaw_rate": (0.0, 5.0),
+                                               "acceleration_limits": (1e-4, 10.0)})
         self.controller: PositionController | None = None
         self.active = False
         self.counts = {"estimates": 0, "references": 0, "rejected_setpoints": 0, "rejected_estimates": 0,

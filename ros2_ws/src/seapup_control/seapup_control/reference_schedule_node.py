@@ -33,7 +33,9 @@ class ReferenceScheduleNode(Node):
             "sample_period": ParameterDescriptor(
                 description="controller sample period [s]", read_only=True,
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)]),
-        }, section="reference_schedule")
+        }, section="reference_schedule",
+            ranges={"times": (0.0, 1e9), "references": (-10.0, 10.0),  # [m/s], [rad/s]
+                    "period": (0.0, 1e9), "wait_for_subscribers": (0, 100)})
         self.schedule = ReferenceProfile(p["times"], p["references"], p["period"])
         self.publisher = self.create_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
         self.sampler = SamplePublisher(self, self.publisher, self._reference, lockstep=p["lockstep"],

@@ -93,7 +93,8 @@ class SelfTestConfig:
         ConfigError
             Naming the key and the allowed range.
         """
-        view = ConfigView(merge(load_yaml(DEFAULTS_FILE), dict(overrides or {})), "self-test settings")
+        view = ConfigView(merge(load_yaml(DEFAULTS_FILE), dict(overrides or {}), strict="self-test settings"),
+                          "self-test settings")
         period = view.number("sample_period", lo=1e-3, hi=10.0)
         quiescence = view.get("quiescence_speed")
         if quiescence != "auto":

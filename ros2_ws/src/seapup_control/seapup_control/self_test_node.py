@@ -69,7 +69,9 @@ class SelfTestNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("self_test", namespace=NAMESPACE, **kwargs)
-        p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test")
+        p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test", ranges={
+            "no_data_timeout": (0.1, 3600.0), "wait_for_command_subscribers": (0, 100),
+            "wait_for_sample_subscribers": (0, 100)})
         self.lockstep = bool(p["lockstep"])
         self.hover_after = bool(p["hover_after"])
         root = Path(os.environ.get("SEAPUP_ROOT", "."))

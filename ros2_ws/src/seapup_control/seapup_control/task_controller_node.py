@@ -63,7 +63,16 @@ class TaskControllerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("task_controller", namespace=NAMESPACE, **kwargs)
-        p = declare_from_package_file(self, "seapup_control", "task_controller.yaml", section="task_controller")
+        p = declare_from_package_file(self, "seapup_control", "task_controller.yaml", section="task_controller", ranges={
+            "sample_period": (0.01, 10.0), "navigation_timeout": (0.01, 600.0),
+            "limits.min_depth": (0.0, 11000.0), "limits.max_depth": (0.0, 11000.0),  # [m]
+            "limits.max_distance": (0.0, 1e5), "limits.min_speed": (0.0, 5.0), "limits.max_speed": (0.0, 5.0),
+            "limits.min_altitude": (0.0, 1e3), "limits.max_altitude": (0.0, 1e3), "limits.max_duration": (1.0, 1e7),
+            "limits.default_speed": (0.0, 5.0), "limits.default_tolerance": (0.01, 1e3),
+            "limits.default_yaw_tolerance": (1e-4, 3.1416), "limits.settle_time": (0.0, 3600.0),
+            "limits.timeout_margin": (0.0, 1e6), "limits.altitude_timeout": (0.01, 3600.0),
+            "limits.seabed_filter_time": (0.0, 3600.0), "limits.max_estimate_std": (0.0, 1e4),
+            "limits.max_lead": (0.0, 3600.0)})
         self.limits = TaskLimits.from_mapping({k.removeprefix("limits."): v for k, v in p.items()
                                                if k.startswith("limits.")})
         self.period = float(p["sample_period"])

@@ -69,7 +69,14 @@ from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_pack
                                     refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 
-__all__ = ["VelocityControllerNode", "main", "main_mfol"]
+__all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
+
+#: Allowed values of the node's numeric parameters ([s] wall or simulated, counts): anything else,
+#: NaN and inf included, is refused at start and by ``param set``.
+RANGES = {"sample_period": (0.0, 10.0), "applied_wait": (0.0, 600.0), "reference_wait": (0.0, 600.0),
+          "reference_stream": (0.0, 3600.0), "first_reference_wait": (0.0, 600.0), "start_at": (0.0, 1e9),
+          "stop_at": (0.0, 1e9), "reference_horizon": (0.0, 1e9), "wait_for_subscribers": (0, 100),
+          "diagnostics_every": (1, 10**6)}
 
 
 class VelocityControllerNode(LifecycleNode):
@@ -86,7 +93,7 @@ class VelocityControllerNode(LifecycleNode):
     def __init__(self, name: str = "velocity_controller", default_type: str = "mfol", **kwargs):
         super().__init__(name, namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "velocity_controller.yaml",
-                                           section="velocity_controller")
+                                           section="velocity_controller", ranges=RANGES)
         if default_type != self.p["controller_type"] and not self._overridden("controller_type"):
             self.set_parameters([self._parameter("controller_type", default_type)])
         self.kind = controller_type(self.get_parameter("controller_type").value)  # unknown: the node refuses to start

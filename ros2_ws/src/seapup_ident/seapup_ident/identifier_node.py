@@ -43,7 +43,10 @@ class IdentifierNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("identifier", namespace=NAMESPACE, **kwargs)
-        p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier")
+        p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier", ranges={
+            "orders": (0, 20), "lambda0": (0.0, 1.0), "alpha": (0.0, 1.0), "forgetting": (0.0, 1.0),
+            "p0": (1e-6, 1e12), "rpem_filter_k0": (0.0, 1.0), "rpem_filter_gamma": (0.0, 1.0),
+            "sample_period": (0.01, 10.0)})
         outputs = list(p["outputs"])
         na, nb, nc = (int(v) for v in p["orders"])
         forgetting = Forgetting(float(p["forgetting"])) if p["forgetting"] > 0 else \

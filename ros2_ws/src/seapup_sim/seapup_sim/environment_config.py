@@ -145,7 +145,7 @@ def load_environment(overrides=None, *, rho: float = 1025.0) -> EnvironmentConfi
     if isinstance(overrides, (str, Path)):
         path = Path(overrides)
         overrides, source = load_yaml(path), f"{path.name} over environment/default.yaml"
-    return environment_from_mapping(merge(default_environment_mapping(), overrides or {}), source, rho)
+    return environment_from_mapping(merge(default_environment_mapping(), overrides or {}, strict=source), source, rho)
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import yaml
@@ -84,7 +85,7 @@ def _environment_overrides(node) -> dict:
     defaults = default_environment_mapping()
     path = node.get_parameter("environment_file").value
     if path:
-        defaults = merge(defaults, load_yaml(path))
+        defaults = merge(defaults, load_yaml(path), strict=f"{Path(path).name} over environment/default.yaml")
     ro = ParameterDescriptor(read_only=True, description="environment (see environment/default.yaml); "
                                                          "services change the current and sensors at run time")
     flat = {}

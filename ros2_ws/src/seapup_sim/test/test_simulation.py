@@ -182,3 +182,16 @@ def test_references_may_be_constant_arrays_references_or_functions():
         Simulation.from_config("baseline", {"sensors": "ideal"}, control_period=0.5, pitch=HOVER).run(
             ctl, 1.0, reference=reference)
         assert [list(ref.velocity) for _, _, ref in ctl.calls] == [[0.2, 0.0, 0.0, 0.1]] * 2
+
+
+def test_a_misspelled_environment_key_is_refused_not_ignored(tmp_path):
+    """``current: {enabeld: true}`` once ran no current without a word: now the key is named."""
+    import pytest
+    from seapup_common.config import ConfigError
+    from seapup_sim.environment_config import load_environment
+    with pytest.raises(ConfigError, match=r"unknown key current.enabeld \(did you mean current.enabled\?\)"):
+        load_environment({"current": {"enabeld": True}})
+    path = tmp_path / "sea.yaml"
+    path.write_text("curent:\n  enabled: true\n")
+    with pytest.raises(ConfigError, match=r"sea.yaml over environment/default.yaml: unknown key curent \(did you mean current\?\)"):
+        load_environment(path)

@@ -125,8 +125,65 @@ def declare_mapping(node, prefix: str, mapping: Mapping, descriptors: dict | Non
     return out
 
 
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _numeric(value) -> bool:
+    """A number or a (non-empty) list of numbers."""
+    if isinstance(value, (list, tuple)):
+        return bool(value) and all(_numeric(v) for v in value)
+    return _is_number(value)
+
+
+def _range_of(descriptor) -> tuple | None:
+    if descriptor is None:
+        return None
+    for r in list(descriptor.floating_point_range) + list(descriptor.integer_range):
+        return (r.from_value, r.to_value)
+    return None
+
+
+class ParameterGuard:
+    """The allowed range of every numeric parameter of a node, checked on every change.
+
+    rclpy checks a scalar's declared range but lets NaN through (no comparison
+    with NaN is false... or true) and never checks arrays; a value out of range
+    or not finite must be refused before the node uses it (``reference_wait:
+    .nan`` once killed a controller at its next sample). Registered by
+    :func:`declare_from_package_file` as an on-set-parameters callback; the
+    declared values are checked too (a bad ``-p`` stops the start, naming it).
+    """
+
+    def __init__(self, ranges: dict):
+        self.ranges = dict(ranges)
+
+    def problem(self, name: str, value) -> str:
+        """Why ``value`` cannot be parameter ``name``, or ""."""
+        bounds = self.ranges.get(name)
+        if bounds is None:
+            return ""
+        lo, hi = bounds
+        values = value if isinstance(value, (list, tuple)) or hasattr(value, "tolist") else [value]
+        for v in (list(values.tolist()) if hasattr(values, "tolist") else values):
+            if not _is_number(v):
+                continue
+            if v != v or v in (float("inf"), float("-inf")) or not lo <= v <= hi:
+                return f"{name} = {value!r} refused: it must be finite and within [{lo:g}, {hi:g}]"
+        return ""
+
+    def __call__(self, parameters):
+        from rcl_interfaces.msg import SetParametersResult
+        for parameter in parameters:
+            reason = self.problem(parameter.name, parameter.value)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+
 def declare_from_package_file(node, package: str, file_name: str, descriptors: dict | None = None,
-                              defaults: dict | None = None, section: str | None = None) -> dict:
+                              defaults: dict | None = None, section: str | None = None,
+                              ranges: dict | None = None) -> dict:
     """Declare every parameter of ``share/<package>/config/<file_name>`` for ``node``;
     return their values (after overrides) by name.
 
@@ -137,11 +194,44 @@ def declare_from_package_file(node, package: str, file_name: str, descriptors: d
     usual. ``descriptors`` maps names to ``ParameterDescriptor`` objects.
     ``section`` is the node's name in the file (default: its name now; pass the
     executable's own name so a remapped ``__node:=other`` still finds its defaults).
+
+    Every numeric parameter (and numeric array) has an allowed range: from its
+    descriptor's range or from ``ranges`` (name: (lo, hi), for each element of
+    an array); a number without one is a programming error (``ValueError`` at
+    start). A :class:`ParameterGuard` refuses any value outside its range or
+    not finite, at declaration (``ValueError`` naming it) and on every change.
     """
     path = Path(get_package_share_directory(package)) / "config" / file_name
     values = {**(defaults or {}), **flatten(load_node_parameters(path, section or node.get_name()))}
-    descriptors = descriptors or {}
-    return {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
+    descriptors = dict(descriptors or {})
+    ranges = dict(ranges or {})
+    for name, bounds in ranges.items():
+        if name not in values:
+            raise ValueError(f"{file_name}: a range for {name!r}, which the file does not have")
+        if name not in descriptors and _is_number(values[name]):
+            descriptors[name] = _ranged_descriptor(values[name], bounds)
+    for name, descriptor in descriptors.items():
+        if _range_of(descriptor) is not None:
+            ranges.setdefault(name, _range_of(descriptor))
+    unranged = sorted(name for name, value in values.items() if _numeric(value) and name not in ranges)
+    if unranged:
+        raise ValueError(f"{file_name}: numeric parameters without an allowed range: {', '.join(unranged)}")
+    guard = ParameterGuard(ranges)
+    declared = {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
+    for name, value in declared.items():
+        reason = guard.problem(name, value)
+        if reason:
+            raise ValueError(reason)
+    node.add_on_set_parameters_callback(guard)
+    return declared
+
+
+def _ranged_descriptor(default, bounds):
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    lo, hi = bounds
+    if isinstance(default, int):
+        return ParameterDescriptor(integer_range=[IntegerRange(from_value=int(lo), to_value=int(hi), step=1)])
+    return ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=float(lo), to_value=float(hi))])
 
 
 def refuse_invalid_transitions(node) -> None:
@@ -206,6 +296,30 @@ def _await_acknowledgements(node, budget: float = 0.5) -> None:
         pass
 
 
+#: Parameters a node may be given without declaring them itself (rclpy's own).
+_IMPLICIT_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
+def refuse_unknown_overrides(node) -> None:
+    """Raise ``ValueError`` for a parameter given to ``node`` (``-p``, ``--params-file``, a graph file)
+    that it never declared: rclpy ignores such a value silently, so a misspelled
+    ``real_time_facter:=2.0`` or ``environment.current.enabeld:=true`` would change nothing while
+    the user believes it did. The message names each one and the nearest declared name."""
+    import difflib
+
+    declared = set(node._parameters)
+    unknown = sorted(name for name in node._parameter_overrides
+                     if name not in declared and name not in _IMPLICIT_PARAMETERS
+                     and not name.startswith("qos_overrides."))
+    if unknown:
+        hints = []
+        for name in unknown:
+            near = difflib.get_close_matches(name, sorted(declared), n=1, cutoff=0.6)
+            hints.append(f"{name!r}" + (f" (did you mean {near[0]!r}?)" if near else ""))
+        raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; "
+                         f"'./seapup param list {node.get_fully_qualified_name()}' on a running node lists them")
+
+
 def run_node(make_node, args=None) -> int:
     """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
 
@@ -230,13 +344,14 @@ def run_node(make_node, args=None) -> int:
         print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
         return 1
     stop: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: stop.append(signum))
-    signal.signal(signal.SIGTERM, lambda signum, frame: stop.append(signum))
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # SIGHUP: the terminal it ran in closed
+        signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = None
     routed = []
     try:
         executor = None
         node = make_node()
+        refuse_unknown_overrides(node)
         routed = _route_core_logs(node)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
@@ -255,8 +370,8 @@ def run_node(make_node, args=None) -> int:
         print(f"[{name}] fatal: {exc}", file=sys.stderr)
         return 1
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second signal must not interrupt the clean-up
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # a second signal must not interrupt the clean-up
+            signal.signal(sig, signal.SIG_IGN)
         for logger, handler in routed:
             logger.removeHandler(handler)
         if node is not None:
