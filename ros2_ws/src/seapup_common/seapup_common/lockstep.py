@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["SamplePolicy", "Decision", "WaitSettings", "ANSWER", "WAIT", "SKIP"]
+__all__ = ["SamplePolicy", "Decision", "WaitSettings", "ANSWER", "WAIT", "SKIP", "StampGate"]
 
 ANSWER, WAIT, SKIP = "answer", "wait", "skip"
 
@@ -287,3 +287,64 @@ class SamplePolicy:
             self._reference_wait = _Wait(t_ns, now)
         until = self._reference_wait.since + self.settings.reference_wait
         return until if now < until else None
+
+
+class StampGate:
+    """Refuse a message stamped far ahead of the graph's time, so that one bad stamp cannot stall a node.
+
+    A velocity reading stamped 10^6 s ahead used to be answered by the controller (the controller
+    manager then dropped every real command as older) and taken by the navigator as its newest sample
+    (every real one after it was "late" and ignored: the estimate froze). The graph's time is the
+    newest accepted stamp (a node need not hear ``/clock``): a stamp more than ``max_jump`` s beyond
+    it is refused and counted. Time may go back (a simulator reset): a stamp behind is accepted and
+    becomes the new reference. If the graph's time really jumped ahead (a long dropout, a restarted
+    source), ``resync_after`` refusals in a row, each within ``max_jump`` of the one before, re-anchor
+    the gate there.
+
+    Parameters
+    ----------
+    max_jump : float
+        [s] the largest step ahead accepted.
+    resync_after : int
+        Consecutive consistent refusals that re-anchor the gate.
+
+    Examples
+    --------
+    >>> gate = StampGate(max_jump=60.0)
+    >>> gate.accept(10_000_000_000), gate.accept(10**6 * 10**9), gate.accept(10_200_000_000)
+    (True, False, True)
+    >>> gate.refused
+    1
+    """
+
+    def __init__(self, max_jump: float = 60.0, resync_after: int = 25):
+        if not (math.isfinite(max_jump) and max_jump > 0 and resync_after >= 1):
+            raise ValueError("max_jump must be a positive number of seconds and resync_after >= 1")
+        self.max_jump_ns = int(max_jump * 1e9)
+        self.resync_after = int(resync_after)
+        self.latest_ns: int | None = None
+        self.refused = 0
+        self._streak: list[int] = []
+
+    def accept(self, stamp_ns: int) -> bool:
+        """True if a message stamped ``stamp_ns`` may be used (then it is the graph's newest time)."""
+        stamp_ns = int(stamp_ns)
+        if self.latest_ns is None or stamp_ns <= self.latest_ns + self.max_jump_ns:
+            if self.latest_ns is None or stamp_ns > self.latest_ns or stamp_ns < self.latest_ns - self.max_jump_ns:
+                self.latest_ns = stamp_ns  # newer, or far back (a reset); a little older changes nothing
+            self._streak = []
+            return True
+        if self._streak and abs(stamp_ns - self._streak[-1]) > self.max_jump_ns:
+            self._streak = []
+        self._streak.append(stamp_ns)
+        if len(self._streak) >= self.resync_after:
+            self.latest_ns, self._streak = stamp_ns, []
+            return True
+        self.refused += 1
+        return False
+
+    def why(self, stamp_ns: int) -> str:
+        """The refusal's reason, for a log line."""
+        ahead = (int(stamp_ns) - (self.latest_ns or 0)) * 1e-9
+        return (f"stamped {ahead:.6g} s ahead of the graph's time ({(self.latest_ns or 0) * 1e-9:.3f} s), more "
+                f"than {self.max_jump_ns * 1e-9:g} s: refused")

@@ -187,3 +187,21 @@ def test_with_a_reference_every_sample_each_sample_waits_for_its_own_even_before
     assert policy.decide(200 * MS, now=1.0).action == WAIT    # waits for the one stamped 0.2 s
     assert policy.on_reference(0.2) is True
     assert policy.decide(200 * MS, now=1.01).action == ANSWER
+
+
+def test_the_stamp_gate_refuses_a_far_future_stamp_follows_resets_and_resyncs_a_real_jump():
+    from seapup_common.lockstep import StampGate
+    s = 10**9
+    gate = StampGate(max_jump=60.0, resync_after=3)
+    assert gate.accept(10 * s) and gate.accept(10 * s + s // 5)
+    assert not gate.accept(10**6 * s) and gate.refused == 1            # one hostile stamp: refused
+    assert gate.accept(11 * s) and gate.latest_ns == 11 * s            # real samples go on
+    assert gate.accept(70 * s) and gate.latest_ns == 70 * s
+    assert gate.accept(0) and gate.latest_ns == 0                      # a reset (time back to 0)
+    assert gate.accept(5 * s) and gate.latest_ns == 5 * s
+    assert gate.accept(4 * s) and gate.latest_ns == 5 * s              # a little late: changes nothing
+    # the source really jumped 1000 s ahead: after three consistent refusals the gate follows it
+    assert [gate.accept((1000 + k) * s) for k in range(4)] == [False, False, True, True]
+    assert "ahead of the graph's time" in StampGate().why(10**18)
+    with pytest.raises(ValueError):
+        StampGate(max_jump=float("nan"))

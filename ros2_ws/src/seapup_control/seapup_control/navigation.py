@@ -24,6 +24,15 @@ whose normalised innovation squared exceeds the chi-square quantile
 outlier (multipath, sec. 1.3): rejected and counted, never fused. A missing
 velocity reading makes the prediction hold the last velocity with the
 process noise inflated by ``coast_inflation``.
+
+Faults are not data: a velocity beyond ``max_speed`` is treated as a lost
+log reading (the prediction coasts), a depth outside ``depth_range`` or whose
+innovation fails the 1-dof chi-square gate is rejected and counted. And the
+filter recovers from a divergence instead of gating out every true fix
+forever: ``reacquire_after`` rejected fixes in a row that agree with each
+other (their innovations all within ``4 fix_std`` of their mean: the fixes are
+consistent, the estimate is not, which sporadic multipath never is)
+re-initialise the position at the latest fix (``reacquisitions`` counted).
 """
 from __future__ import annotations
 
@@ -59,6 +68,12 @@ class NavigatorParams:
         Fixes beyond this chi-square quantile (3 dof) of the innovation are rejected; 1 = no gate.
     coast_inflation : float
         Process-noise factor while the velocity log is lost.
+    max_speed : float
+        [m/s] A log reading faster than this is a fault: the prediction coasts on the last good one.
+    depth_range : tuple of 2 float
+        [m] Depth readings outside are faults, never fused.
+    reacquire_after : int
+        Consistent rejected fixes in a row that re-initialise the position (0: never).
     """
 
     q_walk: float = 1e-4
@@ -68,6 +83,9 @@ class NavigatorParams:
     initial_std: float = 2.0
     gate_probability: float = 0.9999
     coast_inflation: float = 100.0
+    max_speed: float = 5.0
+    depth_range: tuple = (-10.0, 11000.0)
+    reacquire_after: int = 5
 
     def __post_init__(self):
         values = [self.q_walk, *self.velocity_std, self.fix_std, self.depth_std, self.initial_std]
@@ -79,6 +97,10 @@ class NavigatorParams:
         if not 0 < self.gate_probability <= 1 or self.coast_inflation < 1:
             raise ValueError(f"navigator: gate_probability in (0, 1] and coast_inflation >= 1, got "
                              f"{self.gate_probability}, {self.coast_inflation}")
+        if not (math.isfinite(self.max_speed) and self.max_speed > 0 and len(self.depth_range) == 2
+                and self.depth_range[0] < self.depth_range[1] and int(self.reacquire_after) >= 0):
+            raise ValueError(f"navigator: max_speed > 0, depth_range (lo < hi), reacquire_after >= 0, got "
+                             f"{self.max_speed}, {self.depth_range}, {self.reacquire_after}")
 
     @classmethod
     def from_mapping(cls, mapping: dict) -> "NavigatorParams":
@@ -86,8 +108,9 @@ class NavigatorParams:
         unknown = set(mapping) - set(known)
         if unknown:
             raise ValueError(f"navigator: unknown parameter(s) {sorted(unknown)}")
-        if "velocity_std" in known:
-            known["velocity_std"] = tuple(float(v) for v in known["velocity_std"])
+        for name in ("velocity_std", "depth_range"):
+            if name in known:
+                known[name] = tuple(float(v) for v in known[name])
         return cls(**known)
 
 
@@ -108,6 +131,8 @@ class Navigator:
         self.params = params or NavigatorParams()
         self.chi2_gate = (math.inf if self.params.gate_probability >= 1
                           else float(stats.chi2.ppf(self.params.gate_probability, 3)))
+        self.chi2_gate_depth = (math.inf if self.params.gate_probability >= 1
+                                else float(stats.chi2.ppf(self.params.gate_probability, 1)))
         self.reset()
 
     def reset(self) -> None:
@@ -121,7 +146,9 @@ class Navigator:
         self._velocity_lost = False
         self._velocity_variance = np.asarray(self.params.velocity_std, dtype=float) ** 2
         self.counts = {"samples": 0, "fixes_fused": 0, "fixes_rejected": 0, "depths_fused": 0,
+                       "depths_rejected": 0, "velocities_rejected": 0, "reacquisitions": 0,
                        "coasting_samples": 0, "rejected_samples": 0}
+        self._rejected_innovations: list[np.ndarray] = []  # of the rejected fixes in a row
         self._last_fix_stamp = -math.inf
         self._last_depth_stamp = -math.inf
 
@@ -169,6 +196,9 @@ class Navigator:
         if measurement.attitude.valid:
             self.attitude = np.array(measurement.attitude.value, dtype=float)
         self._velocity_lost = not measurement.velocity.valid
+        if not self._velocity_lost and not np.linalg.norm(measurement.velocity.value) <= self.params.max_speed:
+            self._velocity_lost = True  # a fault, not a velocity: coast on the last good one
+            self.counts["velocities_rejected"] += 1
         if not self._velocity_lost:
             self.velocity = np.array(measurement.velocity.value, dtype=float)
             self._velocity_variance = self._variance(measurement.velocity, self.params.velocity_std)
@@ -193,10 +223,22 @@ class Navigator:
             self.P = np.diag(np.maximum(variance, self.params.initial_std ** 2))
             self.counts["fixes_fused"] += 1
             return
-        if self._fuse(np.eye(3), np.asarray(fix.value, float), np.diag(variance), self.chi2_gate):
+        y = np.asarray(fix.value, float)
+        if self._fuse(np.eye(3), y, np.diag(variance), self.chi2_gate):
             self.counts["fixes_fused"] += 1
-        else:
-            self.counts["fixes_rejected"] += 1
+            self._rejected_innovations = []
+            return
+        self.counts["fixes_rejected"] += 1
+        self._rejected_innovations.append(y - self.x)
+        n = int(self.params.reacquire_after)
+        recent = np.array(self._rejected_innovations[-n:]) if n else np.zeros((0, 3))
+        if n and len(recent) == n and np.all(np.linalg.norm(recent - recent.mean(axis=0), axis=1)
+                                             <= 4.0 * math.sqrt(float(np.max(variance)))):
+            # the fixes agree with each other, not with the estimate: the estimate diverged
+            self.x = y.copy()
+            self.P = np.diag(np.maximum(variance, self.params.initial_std ** 2))
+            self.counts["reacquisitions"] += 1
+            self._rejected_innovations = []
 
     def _take_depth(self, measurement: Measurement) -> None:
         depth = measurement.depth
@@ -204,8 +246,12 @@ class Navigator:
             return
         self._last_depth_stamp = depth.stamp
         variance = self._variance(depth, self.params.depth_std)
-        if self._fuse(np.array([[0.0, 0.0, 1.0]]), np.array([float(depth.value)]), np.diag(variance), math.inf):
+        lo, hi = self.params.depth_range
+        if lo <= float(depth.value) <= hi and self._fuse(np.array([[0.0, 0.0, 1.0]]), np.array([float(depth.value)]),
+                                                         np.diag(variance), self.chi2_gate_depth):
             self.counts["depths_fused"] += 1
+        else:
+            self.counts["depths_rejected"] += 1
 
     def estimate(self) -> NavigationEstimate | None:
         """The present estimate (None before the first fix or attitude)."""

@@ -23,6 +23,7 @@ from sensor_msgs.msg import Imu
 from seapup_msgs.msg import Depth
 
 from seapup_common.contract import ContractError
+from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
@@ -41,7 +42,8 @@ class NavigatorNode(Node):
         super().__init__("navigator", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator", ranges={
             "q_walk": (0.0, 1e3), "velocity_std": (1e-6, 10.0), "fix_std": (1e-3, 1e3), "depth_std": (1e-4, 1e3),
-            "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6)})
+            "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6),
+            "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6)})
         self.sample_topics = set(p.pop("sample_topics"))
         unknown = self.sample_topics - set(_TOPICS)
         if unknown or "velocity" not in self.sample_topics:
@@ -52,6 +54,7 @@ class NavigatorNode(Node):
         self.rejected = 0
         self._arrived: dict[int, set] = {}  # sample stamp -> topics heard for it
         self._processed_ns: int | None = None
+        self.stamps = StampGate()
         self.publisher = self.create_publisher(Odometry, "navigation/odometry", RELIABLE_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name, (topic, kind) in _TOPICS.items():
@@ -59,6 +62,11 @@ class NavigatorNode(Node):
         self.create_timer(1.0, self._diagnose)
 
     def _on_reading(self, name: str, msg) -> None:
+        stamp = stamp_to_ns(msg.header.stamp)
+        if not self.stamps.accept(stamp):  # one far-future stamp would make every real sample "late"
+            self.rejected += 1
+            self.get_logger().warn(f"{name} reading rejected: {self.stamps.why(stamp)}", throttle_duration_sec=2.0)
+            return
         if not self.collector.add(msg):
             self.rejected += 1
             self.get_logger().warn(f"{name} reading rejected: {self.collector.last_error}", throttle_duration_sec=2.0)

@@ -94,12 +94,12 @@ class IdentifierNode(Node):
                 values = attitude.value[:2]
             else:
                 values = list(msg.pitch)
-            if self.bag is not None:
-                self._held.setdefault(stamp, {})[kind] = serialize_message(msg)
             used = self.core.add(kind, stamp, values)
         except (DataError, ValueError) as exc:
             self.get_logger().warn(f"{kind} reading refused: {exc}", throttle_duration_sec=2.0)
             return
+        if self.bag is not None:  # only a reading the core took (a refused one never replaces a good one)
+            self._held.setdefault(stamp, {})[kind] = serialize_message(msg)
         for sample in used:
             self._publish(sample)
 

@@ -24,12 +24,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.lockstep import StampGate
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.recursive import DataError, Forgetting, RecursiveArmax
 
 __all__ = ["OUTPUTS", "UsedSample", "OnlineIdentifier", "input_stamp", "held_inputs"]
 
 #: Output names and the reading each comes from.
+#: The largest magnitude a reading may have: [m/s] and [rad/s] (velocity u, v, w, r: ten times the
+#: Seapup's top speed), [rad] (roll, pitch), [rad] (blade pitches: the +/-35 deg stops). Beyond them a
+#: reading is a fault, not data.
+READING_LIMITS = {"velocity": 10.0, "attitude": np.pi, "applied": BLADE_PITCH_LIMIT + 1e-9}
 OUTPUTS = {"u": ("velocity", 0), "v": ("velocity", 1), "w": ("velocity", 2), "r": ("velocity", 3),
            "roll": ("attitude", 0), "pitch": ("attitude", 1)}
 
@@ -103,6 +109,7 @@ class OnlineIdentifier:
         self._last_used: int | None = None
         self._filled = 0          # samples in the regressor since the last restart
         self.counts = {"used": 0, "dropped": 0, "rejected": 0, "segments": 0}
+        self.stamps = StampGate()
 
     def add(self, kind: str, stamp_ns: int, values) -> list[UsedSample]:
         """A reading of ``kind`` (velocity: u, v, w, r; attitude: roll, pitch; applied: 4 pitches) at
@@ -115,6 +122,13 @@ class OnlineIdentifier:
             self.counts["rejected"] += 1
             raise DataError(f"{kind} reading at {stamp_ns * 1e-9:.3f} s must be {size} finite values, "
                             f"got {values.tolist()}")
+        if np.any(np.abs(values) > READING_LIMITS[kind]):  # one 1e200 would make every later model non-finite
+            self.counts["rejected"] += 1
+            raise DataError(f"{kind} reading at {stamp_ns * 1e-9:.3f} s is beyond what the vehicle can do "
+                            f"(|value| <= {READING_LIMITS[kind]:g}): {values.tolist()}")
+        if not self.stamps.accept(stamp_ns):  # one far-future stamp would make every real sample late
+            self.counts["rejected"] += 1
+            raise DataError(f"{kind} reading {self.stamps.why(stamp_ns)}")
         if kind not in self.kinds:
             return []
         if self._last_used is not None and stamp_ns <= self._last_used:

@@ -101,3 +101,25 @@ def test_online_rpem_with_a_weakened_filter_equals_the_offline_fit():
                   forgetting=Forgetting.schedule(0.6, 0.9), filter_weakening=(0.1, 0.98))
     assert ident.estimator.filter_weakening is not None
     np.testing.assert_allclose(offline.model.theta(), ident.estimator.theta, rtol=1e-9, atol=1e-12)
+
+
+def test_a_reading_no_vehicle_gives_or_stamped_far_ahead_is_refused_and_changes_nothing():
+    """Hostile run: one finite 1e200 reading made every later model non-finite; one sample stamped 1e6 s
+    ahead stopped the identification (every real one after it was late). Both are refused (counted),
+    and the identification goes on to the same model as without them."""
+    from seapup_ident.recursive import DataError
+    stamps, y, applied, _ = published()
+    clean, _ = online(stamps, y, applied)
+    ident = OnlineIdentifier(ArmaxOrders(4, 4, 1, 1, 0), "ls", ("u", "v", "w", "r"), forgetting=Forgetting(1.0),
+                             p0=1e6)
+    for k, stamp in enumerate(stamps):
+        if k == 100:
+            with pytest.raises(DataError, match="beyond what the vehicle can do"):
+                ident.add("velocity", int(stamp), [1e200, 0, 0, 0])
+            with pytest.raises(DataError, match="ahead of the graph's time"):
+                ident.add("velocity", int(stamp) + 10**6 * 10**9, y[k])
+        ident.add("applied", int(stamp), applied[k])
+        ident.add("velocity", int(stamp), y[k])
+    assert ident.counts["rejected"] == 2 and ident.counts["used"] == clean.counts["used"]
+    assert np.all(np.isfinite(ident.estimator.theta))
+    np.testing.assert_allclose(ident.estimator.theta, clean.estimator.theta, rtol=1e-12, atol=1e-15)

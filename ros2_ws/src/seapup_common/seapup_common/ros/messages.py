@@ -383,8 +383,8 @@ class SampleFeed:
     sample stamps and ``/clock`` into a :class:`~seapup_common.lockstep.SamplePolicy`.
 
     :meth:`velocity` and :meth:`clock` return the sample to answer now (or None); a message the
-    collector refuses (non-finite, malformed, another frame) is counted and passed to ``rejected``
-    with the reason, never used.
+    collector refuses (non-finite, malformed, another frame) or stamped far ahead of the graph's time
+    is counted and passed to ``rejected`` with the reason, never used.
 
     Parameters
     ----------
@@ -395,10 +395,17 @@ class SampleFeed:
     """
 
     def __init__(self, collector: MeasurementCollector, policy, rejected):
+        from seapup_common.lockstep import StampGate
         self.collector, self.policy, self.rejected = collector, policy, rejected
+        self.stamps = StampGate()
 
     def velocity(self, msg) -> int | None:
-        """A velocity (sample) message: the sample to answer, or None."""
+        """A velocity (sample) message: the sample to answer, or None (also for a stamp far ahead of the
+        graph's time: :class:`~seapup_common.lockstep.StampGate`)."""
+        stamp = stamp_to_ns(msg.header.stamp)
+        if not self.stamps.accept(stamp):
+            self.rejected(self.stamps.why(stamp))
+            return None
         if not self.collector.add(msg):
             self.rejected(self.collector.last_error)
             return None
