@@ -62,3 +62,18 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
                 last[status.name] = (int(values["samples"]), int(values["late_references"]))
     assert set(last) == {"seapup/mfol_fixed", "seapup/mfol_scheduled"}
     assert sum(late for _, late in last.values()) <= 0.01 * sum(n for n, _ in last.values())
+    # one time base: every stamped message of every topic is logged no earlier than its own header stamp,
+    # and no node stamps with the wall clock on this sim-time graph (/diagnostics once mixed the two)
+    from seapup_common.bag import header_stamp_ns
+    early, stamped = {}, {}
+    with AnyReader([out / "bag"]) as reader:
+        for connection, log_ns, raw in reader.messages():
+            topic = connection.topic
+            if topic not in stamped:
+                stamped[topic] = hasattr(reader.deserialize(raw, connection.msgtype), "header")
+            stamp = header_stamp_ns(raw) if stamped[topic] else None
+            if stamp is not None:
+                assert stamp < 10**6 * 10**9, f"{topic} stamped {stamp * 1e-9:.0f} s: the wall clock?"
+                if log_ns < stamp:
+                    early[topic] = early.get(topic, 0) + 1
+    assert sum(stamped.values()) >= 10 and early == {}, early

@@ -162,7 +162,8 @@ def test_seapup_record_stops_on_max_duration_or_sigint_and_reports_the_bag(
     assert probe.spin(lambda: len(probe.msgs[ODOM]) > 5, 30.0)
     # 1. --max-duration: the recorder stops by itself after 2 s of (wall-clock) graph time
     timed = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "timed"), "--topics", ODOM,
-                          "--max-duration", "2", "--json", str(tmp_path / "timed.json")], name="record_timed")
+                          "--max-duration", "2", "--wall-time", "--json", str(tmp_path / "timed.json")],
+                         name="record_timed")
     assert timed.popen.wait(60) == 0, timed.log_text()
     report = json.loads((tmp_path / "timed.json").read_text())
     got = list(read_bag(tmp_path / "timed"))
@@ -170,7 +171,7 @@ def test_seapup_record_stops_on_max_duration_or_sigint_and_reports_the_bag(
     assert 1.9 <= report["duration_s"] <= 2.5 and len(got) >= 20  # 25 samples/s at 5x real time
     # 2. SIGINT to ./seapup: the bag is finalised and reported
     held = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "held"), "--topics", ODOM,
-                         "--json", str(tmp_path / "held.json")], name="record_sigint")
+                         "--clock-wait", "30", "--json", str(tmp_path / "held.json")], name="record_sigint")
     deadline = time.monotonic() + 60
     while f"recording {ODOM} [" not in held.log_text() and time.monotonic() < deadline:
         time.sleep(0.1)  # subscribed (the bootstrap and discovery can take a while on a loaded machine)
@@ -179,6 +180,10 @@ def test_seapup_record_stops_on_max_duration_or_sigint_and_reports_the_bag(
     assert held.popen.wait(30) == 0, held.log_text()
     report = json.loads((tmp_path / "held.json").read_text())
     assert report["messages"] == len(list(read_bag(tmp_path / "held"))) >= 10
+    # the simulator publishes /clock: without a flag the bag logs graph time, and says so
+    assert "logging the graph time of /clock (/clock is published)" in held.log_text()
+    for m in read_bag(tmp_path / "held"):  # graph time: never before the stamp, at most a few samples after
+        assert 0 <= m.t_ns - stamp(deserialize_message(m.cdr, Odometry)) <= 10**9
     # 3. an existing bag is refused, nothing is touched
     again = node_process([str(root / "seapup"), "record", "-o", str(tmp_path / "held"), "--topics", ODOM],
                          name="record_again")

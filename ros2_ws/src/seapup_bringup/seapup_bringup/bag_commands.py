@@ -29,6 +29,27 @@ from seapup_common.topics import CLOCK
 __all__ = ["record", "bag", "replay"]
 
 
+def _clock_published(wait: float) -> bool:
+    """True if ``/clock`` has a publisher on the graph within ``wait`` seconds."""
+    import rclpy
+    from rclpy.context import Context
+
+    from seapup_common.topics import CLOCK
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node("seapup_record_clock_probe", context=context)
+        deadline = time.monotonic() + max(wait, 0.0)
+        while True:
+            if node.count_publishers(CLOCK) > 0:
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.05)
+    finally:
+        context.try_shutdown()
+
+
 def record(argv: list[str]) -> int:
     """``./seapup record``: start a recorder node with the given topics (Ctrl-C finalises the bag)."""
     parser = argparse.ArgumentParser(prog="./seapup record", description="record topics into a rosbag2/MCAP bag")
@@ -41,11 +62,24 @@ def record(argv: list[str]) -> int:
     parser.add_argument("--max-bag-size", type=int, default=0, help="split files at this many bytes (0: never)")
     parser.add_argument("--max-bag-duration", type=float, default=0.0,
                         help="split files at this many seconds (0: never)")
-    parser.add_argument("--use-sim-time", action="store_true", help="time stamps from /clock")
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument("--use-sim-time", dest="use_sim_time", action="store_const", const=True, default=None,
+                       help="log the graph's /clock time (the default when /clock has a publisher)")
+    clock.add_argument("--wall-time", dest="use_sim_time", action="store_const", const=False,
+                       help="log wall-clock time even when /clock is published")
+    parser.add_argument("--clock-wait", type=float, default=5.0,
+                        help="seconds to look for a /clock publisher when neither is given (default 5)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
     if not args.topics and not args.all:
         parser.error("give --topics or --all")
+    if args.use_sim_time is None:
+        args.use_sim_time = _clock_published(args.clock_wait)
+        reason = "/clock is published" if args.use_sim_time else f"no /clock publisher within {args.clock_wait:g} s"
+    else:
+        reason = "--use-sim-time" if args.use_sim_time else "--wall-time"
+    print(f"seapup record: logging {'the graph time of /clock' if args.use_sim_time else 'wall-clock time'} "
+          f"({reason})", file=sys.stderr)
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
     from seapup_common.processes import child_options, find_executable

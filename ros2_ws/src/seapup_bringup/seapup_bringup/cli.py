@@ -169,7 +169,7 @@ def _controllers(argv: list[str]) -> int:
 
 
 @command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
-         "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--flush-interval S]")
+         "[-o DIR] [--topics T...|--all] [--exclude RE] [--max-duration S] [--use-sim-time|--wall-time]")
 def _record(argv: list[str]) -> int:
     from seapup_bringup.bag_commands import record
     return record(argv)

@@ -20,7 +20,10 @@ the publish time the DDS source timestamp on a wall clock and, under sim time
 recorder's clock can lag the graph by one sample (a message of t_k may arrive
 before ``/clock`` says t_k); a received header stamp is a lower bound of the
 graph's time, so the clock used is the later of the two (stamps more than
-``max_stamp_lead`` ahead of ``/clock`` are not trusted).
+``max_stamp_lead`` ahead of ``/clock`` do not move it). And a message is never
+logged before its own header stamp (topics' queues are served in any order;
+a stamp more than ``max_stamp_jump`` ahead is a wrong stamp: logged at
+receipt, counted, warned about).
 
 The bag is flushed and fsync'd every ``flush_interval`` (a ``kill -9`` loses
 at most that) and finalised on SIGINT/SIGTERM or after ``max_duration``
@@ -84,6 +87,7 @@ class RecorderNode(Node):
             "topics": ParameterDescriptor(type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True),
         }, section="recorder", ranges={"flush_interval": (0.0, 3600.0), "max_bag_size": (0, 2**62),
                                        "max_bag_duration": (0.0, 1e7), "max_stamp_lead": (0.0, 3600.0),
+                                       "max_stamp_jump": (0.0, 1e7),
                                        "max_duration": (0.0, 1e7), "discovery_period": (0.01, 60.0)})
         entries = [t for t in p["topics"] if t]
         self.record_all = bool(p["all"])
@@ -93,6 +97,8 @@ class RecorderNode(Node):
         self.wanted = [e.split(":", 1)[0] for e in entries]
         self.sim_time = bool(self.get_parameter("use_sim_time").value)
         self.max_stamp_lead_ns = int(p["max_stamp_lead"] * 1e9)
+        self.max_stamp_jump_ns = int(p["max_stamp_jump"] * 1e9)
+        self.distrusted_stamps = 0
         self._graph_floor_ns = 0
         self._clock_wall: list[int] = []  # DDS receive wall times of the /clock samples (increasing)
         self._clock_sim: list[int] = []   # and their values
@@ -202,6 +208,16 @@ class RecorderNode(Node):
             if stamp is not None and log_ns < stamp <= log_ns + self.max_stamp_lead_ns:
                 self._graph_floor_ns = max(self._graph_floor_ns, stamp)
             log_ns = max(log_ns, self._graph_floor_ns)
+            if stamp is not None and stamp > log_ns:
+                if stamp - log_ns <= self.max_stamp_jump_ns:
+                    # a message of t_k was sent at t_k or later: never logged before its own stamp, whatever
+                    # order the topics' queues are served in (the 1 Hz fixes once came 5-12 s "early")
+                    log_ns = stamp
+                else:
+                    self.distrusted_stamps += 1
+                    self.get_logger().warn(f"{topic}: header stamp {stamp * 1e-9:.3f} s is more than max_stamp_jump "
+                                           f"ahead of the graph's time ({log_ns * 1e-9:.3f} s): logged at receipt",
+                                           throttle_duration_sec=5.0)
         publish_ns = log_ns if self.sim_time else int(info.get("source_timestamp", log_ns))
         self.bag.write(topic, raw, log_ns, publish_ns)
         if self._first_ns is None:

@@ -28,9 +28,9 @@ from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
 from seapup_common.contract import ContractError, StampedReferences
 from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
-                                        reference_to_msg)
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, refuse_invalid_transitions, \
-    run_node
+                                        reference_to_msg, stamp_to_ns)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, graph_time_ns,
+                                    refuse_invalid_transitions, run_node)
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
 
@@ -76,6 +76,7 @@ class PositionControllerNode(LifecycleNode):
             self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]
         self._last_diag = 0.0
         self._estimate_wall: float | None = None
+        self._estimate_ns: int | None = None
         self._idle_timer = self.create_timer(1.0, self._diagnose_idle)
         return TransitionCallbackReturn.SUCCESS
 
@@ -107,6 +108,7 @@ class PositionControllerNode(LifecycleNode):
             self.get_logger().warn(f"setpoint rejected: {exc}", throttle_duration_sec=2.0)
 
     def _on_estimate(self, msg: Odometry) -> None:
+        self._estimate_ns = stamp_to_ns(msg.header.stamp)  # the graph's time, for the idle status
         if not self.active:
             return
         try:
@@ -152,7 +154,7 @@ class PositionControllerNode(LifecycleNode):
             "no navigation estimate" if not heard else "no setpoint publisher (task controller) matched"
         values = {**self.counts, f"subscribers:{self.publisher.topic_name}": self.publisher.get_subscription_count()}
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level, message, values,
-                                                  self.get_clock().now().nanoseconds))
+                                                  graph_time_ns(self, self._estimate_ns)))
 
 
 def main(args=None) -> int:

@@ -34,7 +34,7 @@ from std_msgs.msg import String
 from seapup_common.contract import ContractError
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg)
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, graph_time_ns, run_node
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -210,7 +210,7 @@ class TaskControllerNode(Node):
             "no navigation estimate" if not fresh else "no position controller listening"
         self.diagnostics.publish(diagnostic_array(
             "seapup/task_controller", DiagnosticStatus.OK if fresh and listening else DiagnosticStatus.WARN,
-            message, values, self.get_clock().now().nanoseconds))
+            message, values, graph_time_ns(self, None if self.estimate is None else round(self.estimate.t * 1e9))))
 
 
 def main(args=None) -> int:

@@ -296,6 +296,16 @@ def _await_acknowledgements(node, budget: float = 0.5) -> None:
         pass
 
 
+def graph_time_ns(node, latest_stamp_ns: int | None) -> int:
+    """The stamp for a message a node publishes on its own (a periodic status, not an answer to a sample):
+    the graph's time as the node knows it -- its clock under ``use_sim_time``, else the newest stamp it
+    received (a lockstep graph's time lives in its stamps), else 0 (unknown). Never the wall clock on a
+    sim-time graph: ``/diagnostics`` once mixed the two."""
+    if node.get_parameter("use_sim_time").value:
+        return node.get_clock().now().nanoseconds
+    return int(latest_stamp_ns) if latest_stamp_ns is not None else 0
+
+
 #: Parameters a node may be given without declaring them itself (rclpy's own).
 _IMPLICIT_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
