@@ -136,6 +136,22 @@ def test_invalid_goals_are_rejected_with_reasons_and_cancel_hovers(controller_fi
         position = sil.logs()["estimate_position"][-1]
         sil.run_for(10.0)
         logs = sil.logs()
+        # hostile-run regressions: two goals sent at once without preempt -- one is accepted, not both
+        # (both were, then one aborted the other); a storm of 90 cancels -- every one answered
+        from seapup_msgs.action import Goto
+        from seapup_common.ros.node import SERVICE_QOS  # the client keeps every answer too (default: 10)
+        deep = dict(goal_service_qos_profile=SERVICE_QOS, cancel_service_qos_profile=SERVICE_QOS,
+                    result_service_qos_profile=SERVICE_QOS)
+        clients = [ActionClient(sil._node, Hover, "/seapup/task/hover", **deep),
+                   ActionClient(sil._node, Goto, "/seapup/task/goto", **deep)]
+        assert sil.spin_until(lambda: all(c.server_is_ready() for c in clients), 20.0)
+        futures = [clients[0].send_goal_async(Hover.Goal(hold_current=True, duration=0.0)),
+                   clients[1].send_goal_async(Goto.Goal(x=position[0] + 2, y=position[1], z=position[2]))]
+        assert sil.spin_until(lambda: all(f.done() for f in futures), 20.0)
+        accepted = [f.result() for f in futures if f.result().accepted]
+        assert len(accepted) == 1, [f.result().accepted for f in futures]
+        cancels = [accepted[0].cancel_goal_async() for _ in range(90)]
+        assert sil.spin_until(lambda: all(c.done() for c in cancels), 30.0), sum(c.done() for c in cancels)
     reasons = {name: r["rejection"] for name, r in
                {"far": far, "shallow": shallow, "nan": nan, "fast": fast, "low": low, "busy": busy}.items()}
     print(reasons)

@@ -42,7 +42,7 @@ from seapup_common.contract import ContractError
 from seapup_common.lockstep import SamplePolicy
 from seapup_common.ros.messages import MeasurementCollector, SampleFeed, command_to_msg, ns_to_stamp
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
@@ -96,7 +96,9 @@ class SelfTestNode(Node):
             self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._timer = None
         self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
-                                   goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT)
+                                   goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                   goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
+                                   cancel_service_qos_profile=SERVICE_QOS)  # a request storm gets every answer
         self.get_logger().info(f"self-test action server ready ({'lockstep' if self.lockstep else 'timer'})")
 
     # -- the action ------------------------------------------------------------------

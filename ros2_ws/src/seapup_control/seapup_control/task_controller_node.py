@@ -34,7 +34,8 @@ from std_msgs.msg import String
 from seapup_common.contract import ContractError
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg)
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, graph_time_ns, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, graph_time_ns,
+                                    run_node)
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -89,11 +90,16 @@ class TaskControllerNode(Node):
         self.create_timer(0.5, self._diagnose)
         self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)
         self.create_subscription(Range, "sensors/altitude", self._on_altitude, COMMAND_QOS)
+        # every goal, cancel and result request gets an answer: a storm of them must not overflow the
+        # services' default queue of 10 (21-57 of 90 cancels went unanswered)
         self.servers = [ActionServer(self, action, f"task/{kind}",
                                      execute_callback=functools.partial(self._execute, kind),
                                      goal_callback=lambda goal, kind=kind: self._accept(kind, goal),
-                                     cancel_callback=lambda _: CancelResponse.ACCEPT)
+                                     cancel_callback=lambda _: CancelResponse.ACCEPT,
+                                     goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
+                                     cancel_service_qos_profile=SERVICE_QOS)
                         for kind, action in _ACTIONS.items()]
+        self._starting: tuple[str, float] | None = None  # a goal accepted, not yet executing (kind, wall time)
 
     # -- goals -------------------------------------------------------------------------------
     def _build(self, kind: str, goal):
@@ -121,14 +127,19 @@ class TaskControllerNode(Node):
                                       "(position_controller/reference): nothing would fly it")
         if self.running is not None and not goal.preempt:
             return self._reject(kind, f"a {self.running.task.kind} task is running (set preempt to replace it)")
+        starting = self._starting if self._starting and time.monotonic() - self._starting[1] < 10.0 else None
+        if starting is not None and not goal.preempt:  # accepted a moment ago, its execution not begun yet
+            return self._reject(kind, f"a {starting[0]} task is starting (set preempt to replace it)")
         try:
             self._build(kind, goal)
         except TaskRejected as exc:
             return self._reject(kind, str(exc))
+        self._starting = (kind, time.monotonic())
         return GoalResponse.ACCEPT
 
     async def _execute(self, kind: str, handle):
         action = _ACTIONS[kind]
+        self._starting = None
         try:
             task = self._build(kind, handle.request)
         except TaskRejected as exc:  # the world changed between acceptance and execution
