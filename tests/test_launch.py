@@ -121,22 +121,43 @@ def test_sigterm_stops_every_node_cleanly(tmp_path, ros_env):
     assert proc.returncode == 0 and not alive(sim)
 
 
-def test_shipped_controller_graph_flies_the_simulator_in_lockstep(tmp_path, ros_env):
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_shipped_controller_graph_flies_the_simulator_in_either_mode(tmp_path, ros_env, mode):
+    """One argument, ``mode``: in lockstep the simulator advances only because the controller answers
+    every sample; in realtime (the default) the controller's commands carry the simulator's sample
+    stamps, so the simulator takes them (wall-clock stamps were refused as "from the future" and the
+    vehicle never flew) and the vehicle follows a surge reference."""
     from seapup_runs.self_test import fly_self_test
     from seapup_control.self_test import result_document
     controller = tmp_path / "controller.yaml"
     controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))
     proc = Launched(ros_env, "seapup_bringup", "simulator_controller.yaml", f"controller_file:={controller}",
-                    "mode:=lockstep", "lockstep:=true", "sensors:=ideal")
+                    f"mode:={mode}", "sensors:=ideal", "real_time_factor:=5.0")
+    cli = [sys.executable, "-m", "seapup_bringup.cli"]
+    publisher = None
     try:
         proc.wait_for(r"starting from the applied blade pitch")
-        # the lockstep simulator advances only because the controller answers every sample
-        echo = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "topic", "echo", "/seapup/thrusters/command",
-                               "--count", "20", "--field", "header.stamp.sec", "--csv"], env=ros_env,
-                              capture_output=True, text=True, timeout=60)
-        seconds = [int(x) for x in echo.stdout.split()]
-        assert len(seconds) == 20 and seconds[-1] >= seconds[0]
+        if mode == "realtime":
+            publisher = subprocess.Popen([*cli, "topic", "pub", "/seapup/velocity_controller/reference",
+                                          "geometry_msgs/msg/TwistStamped", "{twist: {linear: {x: 0.3}}}", "-r", "5"],
+                                         env=ros_env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                         start_new_session=True)
+            time.sleep(12.0)  # 60 s simulated at 5x: the surge settles
+            echo = subprocess.run([*cli, "topic", "echo", "/seapup/truth/odometry", "--count", "5",
+                                   "--field", "twist.twist.linear.x", "--csv"], env=ros_env,
+                                  capture_output=True, text=True, timeout=60)
+            speeds = [float(x) for x in echo.stdout.split()]
+            assert len(speeds) == 5 and all(abs(u - 0.3) < 0.05 for u in speeds), echo.stdout + echo.stderr
+        else:
+            echo = subprocess.run([*cli, "topic", "echo", "/seapup/thrusters/command", "--count", "20",
+                                   "--field", "header.stamp.sec", "--csv"], env=ros_env,
+                                  capture_output=True, text=True, timeout=60)
+            seconds = [int(x) for x in echo.stdout.split()]
+            assert len(seconds) == 20 and seconds[-1] >= seconds[0]
     finally:
+        if publisher is not None:
+            os.killpg(publisher.pid, signal.SIGINT)
+            publisher.wait(30)
         os.kill(proc.pid, signal.SIGINT)
         proc.finish(30)
     assert proc.returncode == 0
