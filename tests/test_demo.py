@@ -49,7 +49,9 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     assert counts == theirs
     samples = counts["/seapup/truth/odometry"]
     assert samples > 5 * 500 and counts["/seapup/navigation/odometry"] > 0.95 * samples
-    assert counts["/seapup/thrusters/command"] >= samples - 10
+    # every sample's command is in the bag (the first waits for the recorder; the graph may stop with the
+    # last sample unanswered)
+    assert counts["/seapup/thrusters/command"] >= samples - 2
     # in lockstep the velocity controllers waited for the position level's reference of every sample
     from diagnostic_msgs.msg import DiagnosticArray
     from seapup_common.bag import read_bag

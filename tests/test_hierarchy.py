@@ -13,7 +13,9 @@ pytestmark = pytest.mark.graph
 
 def sil_graph(controller_file, tmp_path, **arguments):
     from seapup_bringup.sil import SilGraph
-    return SilGraph(arguments={"controller_file": controller_file, **arguments}, out_dir=tmp_path)
+    # the probe hears every thruster command: the first waits for it too (and for the simulator)
+    return SilGraph(arguments={"controller_file": controller_file, "command_subscribers": 2, **arguments},
+                    out_dir=tmp_path)
 
 
 def test_hover_holds_station_in_the_stochastic_current(controller_file, tmp_path):  # noqa: F811

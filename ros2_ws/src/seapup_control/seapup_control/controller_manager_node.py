@@ -39,6 +39,7 @@ from seapup_msgs.msg import BladePitch, ControllerState
 from seapup_msgs.srv import ListControllers, SwitchController
 
 from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
+from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
@@ -56,7 +57,8 @@ class ControllerManagerNode(Node):
     def __init__(self, **kwargs):
         super().__init__("controller_manager", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",
-                                      ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0)})
+                                      ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0),
+                                              "wait_for_subscribers": (0, 100)})
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
             raise ValueError(f"types: {len(types)} given for {len(names)} controllers")
@@ -65,6 +67,11 @@ class ControllerManagerNode(Node):
         self.switch_timeout = float(p["switch_timeout"])
         self.topics = {n: p["command_topic"].format(name=n) for n in names}
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        # the first forwarded command waits for every awaited subscriber (the vehicle, a recorder): a
+        # bag once lacked the first 2-8 s of commands
+        self.gate = SubscriberGate([(self.publisher, int(p["wait_for_subscribers"]))])
+        self._held: BladePitch | None = None
+        self.create_timer(0.05, self._release_held)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name in names:
             self.create_subscription(BladePitch, self.topics[name],
@@ -223,9 +230,17 @@ class ControllerManagerNode(Node):
             return
         stamp_ns = stamp_to_ns(msg.header.stamp)
         if self.core.accept_command(name, stamp_ns):
-            self.publisher.publish(msg)
+            if self.gate.ready():
+                self.publisher.publish(msg)
+            else:
+                self._held = msg  # the newest: sent once the awaited subscribers have matched
             if self.latest_sample_ns is None or stamp_ns >= self.latest_sample_ns:
                 self._unanswered_since = None
+
+    def _release_held(self) -> None:
+        if self._held is not None and self.gate.ready():
+            self.publisher.publish(self._held)
+            self._held = None
 
     def _on_applied(self, msg: BladePitch) -> None:
         stamp_ns = stamp_to_ns(msg.header.stamp)
