@@ -23,6 +23,8 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     summary = json.loads((tmp_path / "summary.json").read_text())
     legs = {leg["kind"]: leg for leg in summary["legs"]}
     assert [leg["status"] for leg in summary["legs"]] == ["succeeded"] * 6
+    # and the truth agrees with every verdict: the estimate within 4 of its stated std at each leg's end
+    assert [leg["truth_verdict"] for leg in summary["legs"]] == [""] * 6
     assert {"self_test", "hover", "goto", "inspection", "follow_seabed", "current"} == set(legs)
     assert legs["goto"]["end_error_true"] <= 0.5 + 0.3            # arrival tolerance + navigation error
     assert legs["follow_seabed"]["altitude_true_max"] <= 0.3       # on the 1 in 10 slope, from the truth
@@ -79,3 +81,28 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
                 if log_ns < stamp:
                     early[topic] = early.get(topic, 0) + 1
     assert sum(stamped.values()) >= 10 and early == {}, early
+
+
+def _logs(estimate_xy, std):
+    import numpy as np
+    t = np.arange(0.0, 10.01, 0.2)
+    return {"estimate_t": t, "estimate_position": np.tile([*estimate_xy, 30.0], (len(t), 1)),
+            "estimate_horizontal_std": np.full(len(t), std)}
+
+
+def test_a_leg_the_truth_contradicts_is_marked_whatever_the_task_said():
+    """The task controller judges by its estimate: the demo's 9 m navigation error and a goto "succeeded"
+    3.74 m from its target must fail in the leg table, while an estimate within its stated uncertainty
+    and a target reached within tolerance + that pass."""
+    import numpy as np
+    from seapup_bringup.demo import _navigation_check
+    truth_end = np.array([0.0, 0.0, 30.0])
+    hover = {"kind": "hover"}
+    assert _navigation_check(_logs((0.1, 0.1), 0.08), hover, 10.0, truth_end)["truth_verdict"] == ""
+    off = _navigation_check(_logs((9.0, 0.0), 0.08), hover, 10.0, truth_end)
+    assert off["nav_error"] == 9.0 and "from the truth" in off["truth_verdict"]
+    goto = {"kind": "goto", "target": [3.74, 0.0, 30.0], "tolerance": 0.5}
+    missed = _navigation_check(_logs((3.5, 0.0), 0.5), goto, 10.0, truth_end)  # the estimate believed it arrived
+    assert "from the target in truth" in missed["truth_verdict"]
+    reached = _navigation_check(_logs((0.3, 0.0), 0.1), dict(goto, target=[0.6, 0.0, 30.0]), 10.0, truth_end)
+    assert reached["truth_verdict"] == ""

@@ -93,6 +93,35 @@ def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
                        altitude_true_max=float(np.abs(error).max()))
     elif "target" in leg:
         out["end_error_true"] = float(np.linalg.norm(truth[window][-1] - leg["target"]))
+    out.update(_navigation_check(logs, leg, t[window][-1], truth[window][-1]))
+    return out
+
+
+#: How far [in the navigator's stated horizontal standard deviations] the estimate may be from the truth
+#: before a leg's verdict, which the task controller can only take from the estimate, is not believed:
+#: a 2-D Gaussian error exceeds 4 sigma with probability exp(-8) = 3e-4.
+NAVIGATION_SIGMAS = 4.0
+
+
+def _navigation_check(logs: dict, leg: dict, t_end: float, truth_end) -> dict:
+    """The leg's end in truth against the task's verdict: the navigation error then (``nav_error``) against
+    the navigator's stated uncertainty (``nav_std``), and for a leg with a target its true end error
+    against the tolerance plus that uncertainty. ``truth_verdict``: "" when they agree, else why not."""
+    et, est = logs["estimate_t"], logs["estimate_position"]
+    if not len(et):
+        return {"truth_verdict": "no navigation estimate"}
+    k = int(np.argmin(np.abs(et - t_end)))
+    std = float(logs["estimate_horizontal_std"][k]) if len(logs.get("estimate_horizontal_std", ())) else math.nan
+    error = float(np.hypot(*(est[k, :2] - truth_end[:2])))
+    out = {"nav_error": error, "nav_std": std, "truth_verdict": ""}
+    if error > NAVIGATION_SIGMAS * std:
+        out["truth_verdict"] = (f"navigation {error:.2f} m from the truth, more than {NAVIGATION_SIGMAS:g} x its "
+                                f"stated {std:.2f} m")
+    if "target" in leg:
+        limit = float(leg["tolerance"]) + NAVIGATION_SIGMAS * std
+        end = float(np.linalg.norm(truth_end - np.asarray(leg["target"])))
+        if end > limit:
+            out["truth_verdict"] = f"ended {end:.2f} m from the target in truth (tolerance + navigation: {limit:.2f} m)"
     return out
 
 
@@ -215,6 +244,7 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
     out.update(t0=result["accepted_t"], t1=result["end_t"])
     if target is not None:
         out["target"] = [float(v) for v in target]
+        out["tolerance"] = float(goal.get("tolerance", 0.5))  # the task controller's default arrival radius
     return out
 
 
@@ -242,17 +272,22 @@ def _truth_error(leg: dict) -> str:
 
 def _table(legs: list, text) -> None:
     head = (f"{'leg':<20}{'status':<11}{'sim s':>7}{'wall s':>7}  {'task (navigation)':<24}{'truth':<26}"
-            f"{'sat %':>6}{'swap step':>16}")
+            f"{'nav err (std)':>15}{'sat %':>6}{'swap step':>16}")
     print(head, file=text)
     print("-" * len(head), file=text)
     for leg in legs:
         swap = leg.get("switch_step_deg", math.nan)
         swap = "" if math.isnan(swap) else f"{swap:.2f} ({leg['normal_step_deg']:.2f}) deg"
+        nav = f"{leg['nav_error']:.2f} ({leg['nav_std']:.2f}){' !' if leg.get('truth_verdict') else ''}" \
+            if "nav_error" in leg else ""
         print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
-              f"{_task_error(leg):<24}{_truth_error(leg):<26}{leg['saturation_pct']:>6.1f}{swap:>16}", file=text)
+              f"{_task_error(leg):<24}{_truth_error(leg):<26}{nav:>15}{leg['saturation_pct']:>6.1f}{swap:>16}",
+              file=text)
     print("truth: hold and altitude errors from hold_from s into the leg (config/mission.yaml: after braking from "
-          "the previous leg, or reaching the altitude); swap step: largest one-sample blade-pitch change at the switch (in the 15 s before it)",
-          file=text)
+          "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
+          f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
+          "missed by more than tolerance + that); swap step: largest one-sample blade-pitch change at the switch (in "
+          "the 15 s before it)", file=text)
 
 
 def _plots(result: dict, out: Path) -> list[str]:
@@ -337,7 +372,10 @@ def main(argv=None) -> int:
     failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
     if failed:
         print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)
-    return 1 if failed else 0
+    doubted = [f"{leg['name']}: {leg['truth_verdict']}" for leg in result["legs"] if leg.get("truth_verdict")]
+    if doubted:  # the task judged by its estimate; the truth says otherwise
+        print("seapup demo: legs whose verdict the truth contradicts: " + "; ".join(doubted), file=text)
+    return 1 if failed or doubted else 0
 
 
 if __name__ == "__main__":

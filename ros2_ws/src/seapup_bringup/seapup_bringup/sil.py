@@ -368,7 +368,7 @@ class SilGraph:
         """Everything heard so far as arrays (times in s, SI units, NED/FRD).
 
         ``truth_t``, ``truth_position`` (N, 3), ``truth_attitude`` (N, 3), ``truth_velocity`` (N, 6);
-        ``estimate_t``, ``estimate_position``; ``reference_t``, ``reference`` (N, 4: u, v, w, r);
+        ``estimate_t``, ``estimate_position``, ``estimate_horizontal_std`` [m]; ``reference_t``, ``reference`` (N, 4: u, v, w, r);
         ``command_t``, ``command`` (N, 4 blade pitches); ``applied_t``, ``applied``;
         ``setpoint_t``, ``setpoint`` (N, 4: x, y, z, yaw); ``altitude_t``, ``altitude`` (NaN out of range);
         the instruments: ``velocity_t``, ``velocity`` (N, 6: u, v, w, p, q, r), ``imu_t``, ``attitude``
@@ -392,6 +392,9 @@ class SilGraph:
             out[f"{name}_attitude"] = np.array([quat(m.pose.pose.orientation) for m in msgs]).reshape(-1, 3)
             out[f"{name}_velocity"] = np.array([xyz(m.twist.twist.linear) + xyz(m.twist.twist.angular)
                                                 for m in msgs]).reshape(-1, 6)
+        # the navigator's stated horizontal uncertainty [m]: the larger of its x, y standard deviations
+        out["estimate_horizontal_std"] = np.array([math.sqrt(max(m.pose.covariance[0], m.pose.covariance[7], 0.0))
+                                                   for m in self.log["estimate"]])
         out["reference_t"] = np.array([stamp(m) for m in self.log["reference"]])
         out["reference"] = np.array([xyz(m.twist.linear) + [m.twist.angular.z] for m in self.log["reference"]]
                                     ).reshape(-1, 4)

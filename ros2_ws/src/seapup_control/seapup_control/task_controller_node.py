@@ -27,16 +27,17 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Range
 from seapup_msgs.action import FollowSeabed, Goto, Hover
 from std_msgs.msg import String
 
 from seapup_common.contract import ContractError
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
-                                        pose_setpoint_to_msg)
+                                        pose_setpoint_to_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, graph_time_ns,
                                     run_node)
-from seapup_common.topics import DIAGNOSTICS, NAMESPACE
+from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
 from seapup_control.tasks import Hover as HoverTask
@@ -80,6 +81,8 @@ class TaskControllerNode(Node):
         self.navigation_timeout = float(p["navigation_timeout"])
         self.estimate = None
         self._estimate_wall = -math.inf
+        self._clock_ns: int | None = None  # the graph's /clock, when there is one
+        self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._altitudes = collections.deque(maxlen=100)  # valid altimeter readings, oldest first
         self.running: _Running | None = None
         self.setpoint = None
@@ -103,7 +106,7 @@ class TaskControllerNode(Node):
 
     # -- goals -------------------------------------------------------------------------------
     def _build(self, kind: str, goal):
-        estimate = self.estimate if time.monotonic() - self._estimate_wall <= self.navigation_timeout else None
+        estimate = self.estimate if self._fresh() else None
         if kind == "hover":
             return HoverTask(self.limits, estimate, hold_current=goal.hold_current,
                              pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration)
@@ -176,6 +179,19 @@ class TaskControllerNode(Node):
                 return reading if t - reading.stamp <= 1.0 else None
         return None
 
+    def _on_clock(self, msg: Clock) -> None:
+        self._clock_ns = stamp_to_ns(msg.clock)
+
+    def _fresh(self) -> bool:
+        """Is the navigation estimate current? Judged in the graph's time when it has a /clock (a lockstep
+        graph stands still while nobody answers a sample: a wall-clock age would call the newest estimate
+        stale and refuse a goal, as a loaded machine made it do), else by its wall-clock age."""
+        if self.estimate is None:
+            return False
+        if self._clock_ns is not None:
+            return self._clock_ns * 1e-9 - self.estimate.t <= self.navigation_timeout
+        return time.monotonic() - self._estimate_wall <= self.navigation_timeout
+
     def _on_estimate(self, msg: Odometry) -> None:
         try:
             estimate = estimate_from_odometry(msg)
@@ -211,7 +227,7 @@ class TaskControllerNode(Node):
     def _diagnose(self) -> None:
         """``seapup/task_controller``: OK while the navigation is fresh and a position controller listens
         to the setpoints (goals can be accepted and flown), else WARN with the reason."""
-        fresh = self.estimate is not None and time.monotonic() - self._estimate_wall <= self.navigation_timeout
+        fresh = self._fresh()
         listening = self.setpoints.get_subscription_count() > 0
         running = self.running.task.kind if self.running is not None else ""
         values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none",
