@@ -105,6 +105,8 @@ def test_params_and_services_of_the_simulator(realtime_simulator, ros_env):
 
 def test_bad_input_is_one_line_and_exit_1(realtime_simulator, ros_env):
     for args, words in ((["topic", "echo", "/nope", "--once", "--timeout", "1"], "unknown topic /nope"),
+                        (["topic", "echo", "/seapup/truth/odometri", "--once", "--timeout", "1"],
+                         "did you mean /seapup/truth/odometry?"),
                         (["topic", "pub", "/x", "seapup_msgs/msg/Nope", "{}"], "has no 'Nope'"),
                         (["topic", "pub", "/x", "seapup_msgs/msg/BladePitch", "{pitch: [1, 2]}", "-1"],
                          "exactly 4 values"),
@@ -128,7 +130,10 @@ def test_interface_show_lists_the_fields_nested():
     assert "float64 at" in lines and "---" in lines and lines[-1] == "string message"
     nested = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "interface", "show",
                              "seapup_msgs/msg/BladePitch"], capture_output=True, text=True, timeout=60).stdout
-    assert nested.splitlines() == ["std_msgs/Header header", "\tbuiltin_interfaces/Time stamp", "\t\tint32 sec",
+    # the constants that define the thruster order come first, typed as in the .msg (they were dropped)
+    assert nested.splitlines() == ["uint8 MAIN_PORT=0", "uint8 MAIN_STARBOARD=1", "uint8 VECTORED_STARBOARD=2",
+                                   "uint8 VECTORED_PORT=3", "uint8 COUNT=4", "",
+                                   "std_msgs/Header header", "\tbuiltin_interfaces/Time stamp", "\t\tint32 sec",
                                    "\t\tuint32 nanosec", "\tstring frame_id", "float64[4] pitch"]
 
 

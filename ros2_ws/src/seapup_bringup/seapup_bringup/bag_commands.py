@@ -123,6 +123,11 @@ def record(argv: list[str]) -> int:
 
 def bag(argv: list[str]) -> int:
     """``./seapup bag info DIR`` / ``./seapup bag recover DIR``."""
+    hints = {"play": "replay DIR", "record": "record [--topics T... | --all]"}
+    if argv and argv[0] in hints:  # the ros2 bag spelling
+        print(f"seapup bag: '{argv[0]}' is its own command here: ./seapup {hints[argv[0]]} "
+              f"(./seapup {hints[argv[0]].split()[0]} --help)", file=sys.stderr)
+        return 2
     parser = argparse.ArgumentParser(prog="./seapup bag", description="inspect or recover a bag")
     parser.add_argument("verb", choices=("info", "recover"))
     parser.add_argument("path", type=Path)

@@ -27,6 +27,13 @@ class CommandError(RuntimeError):
     """A one-line reason for exit 1."""
 
 
+def _did_you_mean(name: str, known) -> str:
+    """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names, or ""."""
+    import difflib
+    near = difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
+    return f"; did you mean {near[0]}?" if near else ""
+
+
 class Probe:
     """One node on the graph, spun by hand."""
 
@@ -50,7 +57,9 @@ class Probe:
     def call(self, srv_type, name: str, request, timeout: float):
         client = self.node.create_client(srv_type, name)
         if not self.spin_until(client.service_is_ready, timeout):
-            raise CommandError(f"service {name} is not available (waited {timeout:g} s)")
+            services = [n for n, _ in self.node.get_service_names_and_types()]
+            raise CommandError(f"service {name} is not available (waited {timeout:g} s)"
+                               + _did_you_mean(name, services))
         future = client.call_async(request)
         if not self.spin_until(future.done, timeout):
             raise CommandError(f"service {name} did not answer within {timeout:g} s")
@@ -63,7 +72,9 @@ class Probe:
             found.update(dict(self.node.get_topic_names_and_types()))
             return topic in found
         if not self.spin_until(seen, timeout):
-            raise CommandError(f"unknown topic {topic} (not on the graph after {timeout:g} s)")
+            known = [name for name, _ in self.settle(self.node.get_topic_names_and_types, 0.0)]
+            raise CommandError(f"unknown topic {topic} (not on the graph after {timeout:g} s)"
+                               + _did_you_mean(topic, known))
         return found[topic][0]
 
     def settle(self, getter, timeout: float, extra: float = 5.0):

@@ -238,6 +238,31 @@ def _msg_type_text(slot) -> str:
     return str(slot)
 
 
+def _constants(cls) -> list[str]:
+    """``TYPE NAME=VALUE`` for each constant of a message class (the thruster order of BladePitch, say):
+    the values from the generated class, the types from the installed ``.msg`` file where there is one
+    (else the Python value's kind)."""
+    import re
+    values = getattr(type(cls), f"_Metaclass_{cls.__name__}__constants", None) or {}
+    if not values:
+        return []
+    types = {}
+    module = cls.__module__.split(".")
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        path = f"{get_package_share_directory(module[0])}/{module[1]}/{cls.__name__}.msg"
+        with open(path) as f:
+            for line in f:
+                m = re.match(r"\s*([\w/\[\]<=]+)\s+([A-Z][A-Z0-9_]*)\s*=", line)
+                if m:
+                    types[m.group(2)] = m.group(1)
+    except (ImportError, LookupError, OSError, IndexError):
+        pass
+    guess = {bool: "bool", int: "int64", float: "float64", str: "string"}
+    return [f"{types.get(name, guess.get(type(value), 'int64'))} {name}="
+            + (repr(value) if isinstance(value, str) else str(value)) for name, value in values.items()]
+
+
 def definition(cls, indent: int = 0) -> str:
     """The fields of an interface as ``ros2 interface show`` lists them (nested types expanded)."""
     cls = cls if isinstance(cls, type) else type(cls)
@@ -245,10 +270,12 @@ def definition(cls, indent: int = 0) -> str:
         return "\n---\n".join(definition(part) for part in (cls.Goal, cls.Result, cls.Feedback))
     if hasattr(cls, "Request") and hasattr(cls, "Response"):  # a service
         return "\n---\n".join(definition(part) for part in (cls.Request, cls.Response))
-    lines = []
+    lines = ["\t" * indent + line for line in _constants(cls)]
+    if lines:
+        lines.append("")
     for name, slot in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):
         lines.append("\t" * indent + f"{_msg_type_text(slot)} {name}")
         inner = slot.value_type if isinstance(slot, idl.AbstractNestedType) else slot
         if isinstance(inner, idl.NamespacedType):
             lines.append(definition(interface_class("/".join([*inner.namespaces, inner.name])), indent + 1))
-    return "\n".join(line for line in lines if line)
+    return "\n".join(lines).strip("\n")
