@@ -60,6 +60,16 @@ def test_selftest_through_the_action_records_a_bag_that_refits_to_the_same_resul
     assert list((tmp_path / "run").glob("self_test_*.yaml"))  # the controller file
 
 
+def test_a_goal_the_self_test_server_refuses_is_reported_with_its_reason(tmp_path, ros_env, monkeypatch, capsys):
+    """Through ROS, a refused goal once said only "refused the goal"; the reason is the server's."""
+    for key, value in ros_env.items():
+        monkeypatch.setenv(key, value)
+    assert selftest(["--speeds", "0.7", "--out", str(tmp_path / "run")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("seapup selftest: error: /seapup/self_test refused the goal: ")
+    assert "operating_points must start with 0.0" in err[-1]
+
+
 def test_what_stops_a_selftest_is_one_line_not_a_traceback(capsys):
     assert selftest(["--config", "submarine", "--in-process"]) == 1
     assert selftest(["--speeds", "0,fast", "--in-process"]) == 1

@@ -315,6 +315,18 @@ class SilGraph:
         finally:
             client.destroy()
 
+    def _refusal_reason(self, wait: float = 2.0) -> str:
+        """``": <why>"`` from the newest "goal refused: ..." line a node logged (its log files), or ""."""
+        import re
+        deadline = time.monotonic() + wait  # the node's log line may land a moment after its answer
+        while True:
+            found = []
+            for process in self.processes.values():
+                found += re.findall(r"goal refused: (.*)", process.log_text())
+            if found or time.monotonic() >= deadline:
+                return f": {found[-1].strip()}" if found else ""
+            time.sleep(0.1)
+
     def action(self, name: str, action_type: str, fields: dict | None = None, timeout: float = 600.0,
                feedback=None, ready_timeout: float = 30.0):
         """Send a goal (``action_type`` like ``seapup_msgs/action/SelfTest``, its fields) to action server
@@ -334,7 +346,7 @@ class SilGraph:
             except GoalNotAnswered as exc:
                 raise SilError(f"{exc}{self._dead()}") from None
             if not handle.accepted:
-                raise SilError(f"{name} refused the goal")
+                raise SilError(f"{name} refused the goal" + self._refusal_reason())
             future = handle.get_result_async()
             if not self.spin_until(future.done, timeout):
                 raise SilError(f"{name} did not finish within {timeout:g} s{self._dead()}")
