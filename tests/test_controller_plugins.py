@@ -146,7 +146,9 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
         sil.kill("mfol_fixed")
         answer = sil.switch(activate=["mfol_fixed"], deactivate=["toy"], timeout=0.5)
         assert not answer.ok and "rolled back to toy" in answer.message, answer.message
-        listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        # (listing asks each controller its state: the dead one's query times out, slowly on a loaded machine)
+        listing = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers",
+                           timeout=60.0)
         assert listing.active == "toy" and sil.processes["controller_manager"].running
     after = logs["command_t"] > switched + 0.5
     assert after.sum() >= 15

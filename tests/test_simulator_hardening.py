@@ -210,7 +210,8 @@ time.sleep(30)
 
 
 def test_sigterm_under_command_spam_exits_0_every_time(node_process, ros_env):
-    """20 times: a simulator with 200 queued commands gets SIGTERM and exits 0 promptly.
+    """12 times: a simulator with 200 queued commands gets SIGTERM and exits 0 promptly (20 took 98 s of
+    the suite's 20 minutes; the defect this guards against struck 1 run in 30 before the fix).
 
     The commands come from a child process (``SPAMMER``), not from this one:
     a participant that keeps talking to processes being killed can hang
@@ -219,7 +220,7 @@ def test_sigterm_under_command_spam_exits_0_every_time(node_process, ros_env):
     import os
     import subprocess
     import sys
-    for run in range(20):
+    for run in range(12):
         sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=0.0")
         deadline = time.monotonic() + 30
         while "simulator ready" not in sim.log_text() and time.monotonic() < deadline:
