@@ -252,6 +252,16 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+def _closed_pipe() -> int:
+    """The reader of our output is gone (``| head``): nothing more to say, and no error when Python
+    flushes standard output at exit either (it now points at /dev/null)."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 128 + signal.SIGPIPE
+
+
 def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
     """Run a command under the shared conventions (module docstring)."""
     from seapup_bringup.output import SIGNALS
@@ -266,11 +276,7 @@ def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
     except BrokenPipeError:
-        try:  # the reader is gone (| head): nothing more to say, and no error at exit either
-            sys.stdout = open(os.devnull, "w")
-        except OSError:
-            pass
-        return 128 + signal.SIGPIPE
+        return _closed_pipe()
     except Exception as exc:
         if not SIGNALS:
             if debug:
@@ -295,7 +301,10 @@ def main(argv: list[str] | None = None) -> int:
         debug, argv = True, argv[1:]
     name = argv[0] if argv else "help"
     if name in ("help", "-h", "--help"):
-        print(usage())
+        try:
+            print(usage(), flush=True)
+        except BrokenPipeError:
+            return _closed_pipe()
         return 3 if check else 0
     entry = COMMANDS.get(name)
     if entry is None:
