@@ -51,19 +51,23 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     assert counts == theirs
     samples = counts["/seapup/truth/odometry"]
     assert samples > 5 * 500 and counts["/seapup/navigation/odometry"] > 0.95 * samples
-    # every sample's command is in the bag (the first waits for the recorder; the graph may stop with the
-    # last sample unanswered)
-    assert counts["/seapup/thrusters/command"] >= samples - 2
     # in lockstep the velocity controllers waited for the position level's reference of every sample
     from diagnostic_msgs.msg import DiagnosticArray
     from seapup_common.bag import read_bag
     from rclpy.serialization import deserialize_message
-    last = {}
+    last, vehicle = {}, {}
     for message in read_bag(out / "bag", ["/diagnostics"]):
         for status in deserialize_message(message.cdr, DiagnosticArray).status:
             values = {kv.key: kv.value for kv in status.values}
             if "late_references" in values:
                 last[status.name] = (int(values["samples"]), int(values["late_references"]))
+            if status.name == "seapup/simulator":
+                vehicle = values
+    # every command the vehicle took is in the bag (the first waits for the recorder: a bag once lacked the
+    # first seconds). Not every sample has one: while the demo configures and activates the controllers
+    # after the self-test, the lockstep simulator waits out its timeout and goes on without.
+    taken = int(vehicle["accepted"])  # as of its last status, a little before the end
+    assert taken > 0.9 * samples and counts["/seapup/thrusters/command"] >= taken, (taken, samples)
     assert set(last) == {"seapup/mfol_fixed", "seapup/mfol_scheduled"}
     assert sum(late for _, late in last.values()) <= 0.01 * sum(n for n, _ in last.values())
     # one time base: every stamped message of every topic is logged no earlier than its own header stamp,
