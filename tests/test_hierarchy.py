@@ -81,12 +81,9 @@ def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  
     t_switch = swap[0]
     times, steps = _step_sizes(logs, t_switch - 15.0, t_switch + 15.0)
     at_switch = steps[(times > t_switch - 0.3) & (times < t_switch + 1.0)].max()
-    # bumpless: no step at the switch larger than the ordinary control steps around it (the 15 s before
-    # and after; before alone was exceeded by 0.15 deg on a loaded machine, the swap landing a sample
-    # later in the manoeuvre -- a bump from an unprimed law is tens of degrees)
-    normal = max(steps[times < t_switch - 0.3].max(), steps[times >= t_switch + 1.0].max())
+    normal = steps[times < t_switch - 0.3].max()
     print(f"swap at {t_switch:.1f} s: largest command step {np.degrees(at_switch):.3f} deg; "
-          f"largest in the 15 s around it {np.degrees(normal):.3f} deg")
+          f"largest in the 15 s before {np.degrees(normal):.3f} deg")
     assert at_switch <= normal
     # one command per sample throughout: nothing doubled, nothing missing
     stamps = np.round(logs["command_t"] / 0.2).astype(int)

@@ -29,9 +29,9 @@ class CommandError(RuntimeError):
 
 def _did_you_mean(name: str, known) -> str:
     """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names, or ""."""
-    import difflib
-    near = difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
-    return f"; did you mean {near[0]}?" if near else ""
+    from seapup_common.config import nearest
+    near = nearest(name, known)
+    return f"; did you mean {near}?" if near else ""
 
 
 class Probe:

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-__all__ = ["ConfigError", "merge", "load_yaml", "ConfigView"]
+__all__ = ["ConfigError", "merge", "load_yaml", "ConfigView", "nearest"]
 
 _MISSING = object()
 
@@ -68,10 +68,17 @@ def merge(base: Mapping, overlay: Mapping, strict: str | None = None, _path: str
     return out
 
 
-def _nearest(key, options, path: str = "") -> str:
+def nearest(name, options) -> str | None:
+    """The one of ``options`` closest to a misspelled ``name`` (``difflib``), or None: the hint of every
+    "unknown key/parameter/topic" message."""
     import difflib
-    near = difflib.get_close_matches(str(key), [str(o) for o in options], n=1, cutoff=0.6)
-    return f" (did you mean {path}{near[0]}?)" if near else f" (valid: {', '.join(map(str, options))})"
+    near = difflib.get_close_matches(str(name), sorted(str(o) for o in options), n=1, cutoff=0.6)
+    return near[0] if near else None
+
+
+def _nearest(key, options, path: str = "") -> str:
+    near = nearest(key, options)
+    return f" (did you mean {path}{near}?)" if near else f" (valid: {', '.join(map(str, options))})"
 
 
 def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:

@@ -10,6 +10,7 @@ logger, so ``rosout`` and the console show them.
 from __future__ import annotations
 
 import logging
+import math
 import signal
 import sys
 import time
@@ -147,8 +148,8 @@ def _range_of(descriptor) -> tuple | None:
 class ParameterGuard:
     """The allowed range of every numeric parameter of a node, checked on every change.
 
-    rclpy checks a scalar's declared range but lets NaN through (no comparison
-    with NaN is false... or true) and never checks arrays; a value out of range
+    rclpy checks a scalar's declared range on ``param set`` but lets NaN through
+    (every comparison with NaN is false) and never checks arrays; a value out of range
     or not finite must be refused before the node uses it (``reference_wait:
     .nan`` once killed a controller at its next sample). Registered by
     :func:`declare_from_package_file` as an on-set-parameters callback; the
@@ -164,11 +165,9 @@ class ParameterGuard:
         if bounds is None:
             return ""
         lo, hi = bounds
-        values = value if isinstance(value, (list, tuple)) or hasattr(value, "tolist") else [value]
-        for v in (list(values.tolist()) if hasattr(values, "tolist") else values):
-            if not _is_number(v):
-                continue
-            if v != v or v in (float("inf"), float("-inf")) or not lo <= v <= hi:
+        values = value.tolist() if hasattr(value, "tolist") else value
+        for v in values if isinstance(values, (list, tuple)) else [values]:
+            if _is_number(v) and not (math.isfinite(v) and lo <= v <= hi):
                 return f"{name} = {value!r} refused: it must be finite and within [{lo:g}, {hi:g}]"
         return ""
 
@@ -315,7 +314,7 @@ def refuse_unknown_overrides(node) -> None:
     that it never declared: rclpy ignores such a value silently, so a misspelled
     ``real_time_facter:=2.0`` or ``environment.current.enabeld:=true`` would change nothing while
     the user believes it did. The message names each one and the nearest declared name."""
-    import difflib
+    from seapup_common.config import nearest
 
     declared = set(node._parameters)
     unknown = sorted(name for name in node._parameter_overrides
@@ -324,8 +323,8 @@ def refuse_unknown_overrides(node) -> None:
     if unknown:
         hints = []
         for name in unknown:
-            near = difflib.get_close_matches(name, sorted(declared), n=1, cutoff=0.6)
-            hints.append(f"{name!r}" + (f" (did you mean {near[0]!r}?)" if near else ""))
+            near = nearest(name, declared)
+            hints.append(f"{name!r}" + (f" (did you mean {near!r}?)" if near else ""))
         raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; "
                          f"'./seapup param list {node.get_fully_qualified_name()}' on a running node lists them")
 
