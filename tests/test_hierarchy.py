@@ -167,5 +167,14 @@ def test_invalid_goals_are_rejected_with_reasons_and_cancel_hovers(controller_fi
     assert hover_result.result().status == 6  # aborted: preempted
     assert "preempted" in hover_result.result().result.message
     assert preempting["status"] == "canceled"
-    # after the cancel the setpoint is where the vehicle was: it hovers there
-    assert np.linalg.norm(logs["setpoint"][-1, :3] - position) < 0.5
+    # after the cancel the setpoint is where the vehicle was when the task controller took the cancel:
+    # its estimate at that sample (the hold is published for the next sample, t + T), held from then
+    # on, and taken no earlier than the cancel was sent (5 s simulated after acceptance). How far the
+    # vehicle went meanwhile depends on how busy the machine is, so that is not asserted.
+    held = logs["setpoint"][-1, :3]
+    same = np.all(np.abs(logs["setpoint"][:, :3] - held) < 1e-9, axis=1)
+    first = len(same) - np.argmin(same[::-1]) if not same.all() else 0   # start of the final constant run
+    t_hold = logs["setpoint_t"][first] - 0.2
+    at = np.flatnonzero(np.abs(logs["estimate_t"] - t_hold) < 1e-6)
+    assert at.size == 1 and np.linalg.norm(logs["estimate_position"][at[0]] - held) < 1e-6, (t_hold, held)
+    assert t_hold >= preempting["accepted_t"] + 5.0 - 1e-6 and len(same) - first >= 40

@@ -55,6 +55,9 @@ TOPICS = {name: (topic, TOPIC_TYPES[topic].replace("/", ".")) for name, topic in
 #: for a subscriber of one of them (the identification graphs wait for the recorder's) must not be
 #: started by the probe's subscription.
 INSTRUMENTS = ("velocity", "imu", "depth", "position")
+#: The logged topics a graph publishes once per control sample: :meth:`SilGraph.catch_up` waits until
+#: each has reached the same time.
+SAMPLED = ("truth", "estimate", "reference", "setpoint", "command", "applied")
 
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
@@ -244,6 +247,31 @@ class SilGraph:
             self._executor.spin_once(timeout_sec=0.02)
         return bool(predicate())
 
+    def catch_up(self, target: float | None = None, stall: float = 2.0, slack: float = 0.25) -> None:
+        """Spin until every per-sample topic heard so far (:data:`SAMPLED`) has reached ``target`` [s
+        simulated] within ``slack`` (default target: the newest stamp heard on any of them).
+
+        The probe is not waited for by the graph: on a loaded machine it takes its messages seconds of
+        simulated time behind the nodes, one topic further behind than another (seen: setpoints at
+        48 s, estimates at 35 s). Logs read without this would end early or disagree with each other.
+        Gives up when no log has grown for ``stall`` wall seconds (the graph stopped)."""
+        def last(name):
+            stamp = self.log[name][-1].header.stamp
+            return stamp.sec + 1e-9 * stamp.nanosec
+        live = [name for name in SAMPLED if self.log[name]]
+        if not live:
+            return
+        if target is None:
+            target = max(last(name) for name in live)
+        sizes, moved = None, time.monotonic()
+        while any(last(name) < target - slack for name in live):
+            now = [len(self.log[name]) for name in live]
+            if now != sizes:
+                sizes, moved = now, time.monotonic()
+            elif time.monotonic() - moved > stall:
+                return
+            self._executor.spin_once(timeout_sec=0.02)
+
     @property
     def t(self) -> float:
         """Latest simulated time heard [s] (from the truth)."""
@@ -269,7 +297,8 @@ class SilGraph:
     def goal(self, kind: str, *, timeout: float = 300.0, cancel_after: float | None = None,
              during: tuple | None = None, **fields) -> dict:
         """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", "accepted_t", "end_t",
-        <result fields>}`` (``accepted_t``, ``end_t``: simulated times it was accepted and ended).
+        <result fields>}`` (``accepted_t``, ``end_t``: simulated times at which the probe heard it accepted and
+        ended -- on a loaded machine later than the graph's; the result's ``end_time`` is the graph's own).
 
         ``cancel_after`` [s simulated]: cancel the goal that long after it was accepted.
         ``during = (seconds, function)``: call ``function()`` once, that many simulated seconds
@@ -310,6 +339,7 @@ class SilGraph:
             status = {4: "succeeded", 5: "canceled", 6: "aborted"}.get(response.status, str(response.status))
             result = response.result
             out = {name: getattr(result, name) for name in result.get_fields_and_field_types()}
+            self.catch_up(out.get("end_time") or None)  # the logs hold the task's whole flight
             return {"status": status, "accepted": True, "rejection": "", "during": during_result,
                     "accepted_t": accepted_t, "end_t": self.t, **out}
         finally:
@@ -387,6 +417,8 @@ class SilGraph:
         (N, 3), ``depth_t``, ``depth``, ``position_t``, ``position`` (N, 3: acoustic fixes).
         """
         from seapup_common import frames
+
+        self.catch_up()
 
         def stamp(msg):
             return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec

@@ -111,14 +111,22 @@ class DomainLease:
         self._fd: int | None = None
 
     def acquire(self) -> int:
-        """Take the first free domain; raise :class:`NoFreeDomainError` if none."""
+        """Take the free domain released longest ago; raise :class:`NoFreeDomainError` if none.
+
+        Least recently used first (each lock file's modification time is stamped when a lease
+        takes or gives it back): a domain just released is the last choice, because a process of
+        its last holder that was slow to die (a DDS participant still announcing itself, a node
+        finishing its shutdown) would be heard on it for a moment -- a test once listed another
+        test's action servers. Ties (never used) go in the PID-dependent order that keeps
+        concurrent runs apart.
+        """
         if self._fd is not None:
             raise RuntimeError(f"lease already holds domain {self.domain_id}")
         self.lock_dir.mkdir(parents=True, exist_ok=True)
-        # Start at a PID-dependent offset so concurrent runs rarely collide.
         offset = os.getpid() % len(self.candidates)
-        for domain in self.candidates[offset:] + self.candidates[:offset]:
-            fd = os.open(self.lock_dir / f"domain-{domain}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+        ordered = self.candidates[offset:] + self.candidates[:offset]
+        for domain in sorted(ordered, key=lambda d: self._last_used(d)):   # stable: ties keep the order
+            fd = os.open(self._path(domain), os.O_RDWR | os.O_CREAT, 0o666)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
@@ -126,16 +134,33 @@ class DomainLease:
                 continue
             self._fd, self.domain_id = fd, domain
             _LEASE_FDS.add(fd)
+            self._stamp()
             return domain
         raise NoFreeDomainError(
             f"all ROS domains {self.candidates[0]}-{self.candidates[-1]} are leased "
             f"(lock files in {self.lock_dir}); wait for other seapup runs to finish")
+
+    def _path(self, domain: int) -> Path:
+        return self.lock_dir / f"domain-{domain}.lock"
+
+    def _last_used(self, domain: int) -> float:
+        try:
+            return self._path(domain).stat().st_mtime
+        except OSError:
+            return 0.0
+
+    def _stamp(self) -> None:
+        try:
+            os.utime(self._fd)
+        except OSError:  # another user's lock file: the order is only a preference
+            pass
 
     def release(self) -> None:
         """Give the domain back (idempotent): close this process's hold on the lock. Children that
         inherited it keep the domain taken until they end (no ``LOCK_UN``, which would free it for
         them too)."""
         if self._fd is not None:
+            self._stamp()   # released now: the last domain the next lease picks
             _LEASE_FDS.discard(self._fd)
             os.close(self._fd)
             self._fd = None

@@ -46,6 +46,19 @@ def test_release_is_idempotent_and_allows_reacquire(tmp_path):
     assert DomainLease(tmp_path, candidates=[60]).acquire() == 60
 
 
+def test_a_released_domain_is_the_last_one_taken_again(tmp_path):
+    """Least recently used first: a domain just given back is not handed to the next lease while
+    others are free (a slow-to-die process of its last holder would be heard there)."""
+    taken = []
+    for _ in range(4):
+        with DomainLease(tmp_path, candidates=[70, 71, 72]) as lease:
+            taken.append(lease.domain_id)
+    assert sorted(taken[:3]) == [70, 71, 72] and taken[3] == taken[0]
+    with DomainLease(tmp_path, candidates=[70, 71, 72]) as held:   # a held domain is skipped, used or not
+        with DomainLease(tmp_path, candidates=[70, 71, 72]) as other:
+            assert other.domain_id != held.domain_id
+
+
 def test_ros_environment_is_loopback_only():
     env = ros_environment(17, {"ROS_STATIC_PEERS": "10.0.0.1", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"})
     assert env["ROS_DOMAIN_ID"] == "17"

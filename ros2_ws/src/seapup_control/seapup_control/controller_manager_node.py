@@ -20,9 +20,18 @@ Services (``/seapup/controller_manager/...``):
 
 Failover: when the vehicle's sample t_k (``thrusters/applied``) has waited
 ``command_deadline`` wall seconds without a command from the active
-controller (its process died, it missed its deadline), the manager activates
-the ``fallback`` controller, which answers that sample; reported at ERROR on
-``/diagnostics`` (``seapup/controller_manager``) and in the log.
+controller, the manager asks that controller its lifecycle state
+(``liveness_timeout``). One that does not answer, or is no longer active,
+has failed (its process died, it hangs): the manager activates the
+``fallback`` controller, which answers that sample; reported at ERROR on
+``/diagnostics`` (``seapup/controller_manager``) and in the log. One that
+answers "active" is alive and only slow -- a loaded machine, where in
+lockstep simulated time waits for it -- and keeps the thrusters (counted as
+``slow_answers``), so no failover depends on how busy the machine is;
+``liveness_timeout: 0`` fails over on the deadline alone (hard real time).
+A transition that times out may still have happened: the manager then asks
+the controller's state before it decides, and a rollback is given the
+node's ``switch_timeout`` at least, whatever the request's timeout.
 """
 from __future__ import annotations
 
@@ -58,6 +67,7 @@ class ControllerManagerNode(Node):
         super().__init__("controller_manager", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",
                                       ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0),
+                                              "liveness_timeout": (0.0, 60.0),
                                               "wait_for_subscribers": (0, 100)})
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
@@ -65,6 +75,8 @@ class ControllerManagerNode(Node):
         self.core = ControllerManagerCore(names, p["fallback"], dict(zip(names, types)))
         self.deadline = float(p["command_deadline"])
         self.switch_timeout = float(p["switch_timeout"])
+        self.liveness_timeout = float(p["liveness_timeout"])
+        self.slow_answers = 0
         self.topics = {n: p["command_topic"].format(name=n) for n in names}
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
         # the first forwarded command waits for every awaited subscriber (the vehicle, a recorder): a
@@ -135,6 +147,8 @@ class ControllerManagerNode(Node):
                 return f"configure: {problem}"
         self.core.handover(name)  # its answer to the pending sample is the first forwarded
         problem = self._transition(name, Transition.TRANSITION_ACTIVATE, timeout)
+        if problem and "did not answer" in problem and self._state(name, timeout) == "active":
+            problem = None  # the answer came late (a loaded machine): it is active, and already forwarded
         if problem:
             self.core.handover(None)
             return f"activate: {problem}"
@@ -213,8 +227,9 @@ class ControllerManagerNode(Node):
         for name in plan.activate:
             problem = self._activate(name, timeout)
             if problem:
-                if outgoing is not None:  # rollback: the outgoing controller takes over again
-                    back = self._activate(outgoing, timeout)
+                if outgoing is not None:  # rollback: the outgoing controller takes over again (a short
+                    # timeout that made the switch fail must not leave the thrusters to nobody)
+                    back = self._activate(outgoing, max(timeout, self.switch_timeout))
                     return False, f"{problem}; rolled back to {outgoing}" + (f" (failed too: {back})" if back else "")
                 return False, problem
         done = [f"deactivated {', '.join(plan.deactivate)}"] if plan.deactivate else []
@@ -256,7 +271,24 @@ class ControllerManagerNode(Node):
             return
         waited = time.monotonic() - self._unanswered_since
         if self.core.overdue(self.latest_sample_ns, waited, self.deadline):
+            if self._alive_but_slow():
+                self._unanswered_since = time.monotonic()  # wait for it another deadline
+                return
             self._failover()
+
+    def _alive_but_slow(self) -> bool:
+        """The silent active controller still answers, and is active (see the module docstring)."""
+        name = self.core.active
+        if self.liveness_timeout <= 0 or name is None:
+            return False
+        response = self._call(self.get_state[name], GetState.Request(), self.liveness_timeout)
+        if response is None or response.current_state.label != "active":
+            return False
+        self.slow_answers += 1
+        self.get_logger().warn(f"{name} is {self.deadline:g} s late with sample t = {self.latest_sample_ns * 1e-9:.3f} s "
+                               f"but alive and active: it keeps the thrusters ({self.slow_answers} slow answers)",
+                               throttle_duration_sec=5.0)
+        return True
 
     def _failover(self) -> None:
         failed, fallback, sample = self.core.active, self.core.fallback, self.latest_sample_ns
@@ -291,6 +323,7 @@ class ControllerManagerNode(Node):
     def _diagnose(self) -> None:
         values = {"active": self.core.active or "", "fallback": self.core.fallback,
                   "failovers": len(self.core.failovers), "invalid_commands": self.invalid_commands,
+                  "slow_answers": self.slow_answers,
                   "last_failover": self.failover_message}
         for name, c in self.core.controllers.items():
             values[f"{name}.forwarded"] = c.commands_forwarded

@@ -155,7 +155,8 @@ class TaskControllerNode(Node):
         status, message, numbers = await running.done
         if self.running is running:
             self.running = None
-        out = action.Result(success=status == "succeeded", message=message)
+        out = action.Result(success=status == "succeeded", message=message,
+                            end_time=self.estimate.t if self.estimate is not None else 0.0)
         for key, value in numbers.items():
             setattr(out, key, float(value))
         {"succeeded": handle.succeed, "canceled": handle.canceled}.get(status, handle.abort)()
@@ -211,7 +212,7 @@ class TaskControllerNode(Node):
     def _step(self, running: _Running, estimate) -> None:
         if running.handle.is_cancel_requested:
             self.setpoint = running.task.hold(estimate, estimate.t)
-            running.done.set_result(("canceled", "cancelled: hovering where it is", {}))
+            running.done.set_result(("canceled", "cancelled: hovering where it is", {"end_time": estimate.t}))
             return
         altitude = self._altitude_at(estimate.t)
         step = running.task.step(estimate.t, estimate, altitude)
@@ -221,7 +222,8 @@ class TaskControllerNode(Node):
             setattr(fb, key, float(value))
         running.handle.publish_feedback(fb)
         if step.done:
-            running.done.set_result(("succeeded" if step.success else "aborted", step.message, step.result))
+            running.done.set_result(("succeeded" if step.success else "aborted", step.message,
+                                     {**step.result, "end_time": estimate.t}))
 
 
     def _diagnose(self) -> None:
