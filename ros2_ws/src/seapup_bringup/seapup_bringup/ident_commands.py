@@ -412,15 +412,17 @@ def _experiment(args, text) -> dict:
     samples = experiment_samples(args.duration, EXPERIMENT_PERIOD)
     arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
-                 "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD),
-                 # the first sample waits for every reader of it: the recorder and this process's probe hear the
-                 # truth, and a run that ends at end_time never publishes it again for a late reader
-                 "wait_for_subscribers": str([VELOCITY, IMU, DEPTH, APPLIED, TRUTH_ODOMETRY, TRUTH_ODOMETRY])}
+                 "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD)}
     if args.closed_loop:
         graph, excitation = "seapup_bringup identification_closed_loop.yaml", _closed_loop_excitation(args, out, text)
     else:
         graph, excitation = "seapup_bringup identification.yaml", _prbs_excitation(args)
     arguments.update(excitation.pop("arguments"))
+    # the first sample waits for every reader of it -- the graph's own (the identifier: it once started
+    # after a loaded run had ended, and estimated nothing), the recorder's and this process's probe's
+    # (truth, applied pitch): a run that ends at end_time never publishes them again for a late reader
+    arguments["wait_for_subscribers"] = str(_graph_listeners(graph) + [VELOCITY, IMU, DEPTH, APPLIED, TRUTH_ODOMETRY]
+                                            + [TRUTH_ODOMETRY, APPLIED])
     record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
                    *([VELOCITY_REFERENCE] if args.closed_loop else []))
     with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
@@ -442,6 +444,16 @@ def _experiment(args, text) -> dict:
           f"data: the {samples} with an input interval); the identifier's run (readings used, model after each "
           f"sample) in {out / 'identifier'}; the request in {out / EXPERIMENT_RECORD}", file=text)
     return doc
+
+
+def _graph_listeners(graph: str) -> list[str]:
+    """The simulator topics the nodes of ``graph`` ("PACKAGE FILE") must hear from the first sample on:
+    its ``wait_for_subscribers`` argument's default."""
+    import yaml
+
+    from seapup_common.ros.launch_graph import find_graph
+    default = yaml.safe_load(find_graph(*graph.split()).read_text())["arguments"]["wait_for_subscribers"]
+    return list(yaml.safe_load(default))
 
 
 def experiment_samples(duration: float, period: float) -> int:
