@@ -63,6 +63,21 @@ def _step_sizes(logs, t0, t1):
     return t[keep][1:], np.abs(np.diff(c[keep], axis=0)).max(axis=1)
 
 
+def test_the_hierarchy_flies_in_realtime_with_one_argument(controller_file, tmp_path):  # noqa: F811
+    """mode:=realtime alone (no second switch): the simulator steps on the wall clock (x2 here) and the
+    velocity controllers still answer every sample with a command stamped with it, so a hover holds."""
+    with sil_graph(controller_file, tmp_path, mode="realtime", real_time_factor=2.0) as sil:
+        sil.run_for(10.0)   # the navigator converges from its first acoustic fixes (0.5 m each)
+        result = sil.goal("hover", hold_current=True, duration=10.0)
+        logs = sil.logs()
+    assert result["status"] == "succeeded", result
+    t = logs["command_t"][logs["command_t"] >= result["end_time"] - 10.0]
+    assert np.allclose(t / 0.2, np.round(t / 0.2), atol=1e-6)       # stamped with their samples
+    assert len(t) >= 0.9 * 10.0 / 0.2                                # (nearly) every sample answered
+    truth = logs["truth_position"][logs["truth_t"] >= result["end_time"] - 10.0]
+    assert np.hypot(*(truth[:, :2] - truth[0, :2]).T).max() < 0.5   # it holds station
+
+
 def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  # noqa: F811
     with sil_graph(controller_file, tmp_path) as sil:
         start = sil.logs()["truth_position"][-1]

@@ -8,15 +8,31 @@ overlay can change one hydrodynamic derivative), any other value replaces the
 base's. Every parameter documents its origin in a comment next to it. The
 model reads the result through a :class:`~seapup_common.config.ConfigView`,
 so a missing or bad key is named in the error.
+
+The keys are checked when a configuration is loaded: ``baseline.yaml`` is
+the schema (every key a vehicle has), plus the optional keys of
+:data:`OPTIONAL_KEYS` (``payloads``: solid spheres added to the rigid body,
+sec. 3.6; ``thruster_efficiency``: per-thruster thrust fractions, fouling).
+A misspelled key (``rigid_body.bouyancy_mass``) is an error naming the file,
+the dotted key and the nearest valid one -- never silently ignored. The keys
+of ``hydrodynamics`` are derivative names, an open set (any term of sec. 2.3.1's
+notation): the term parser checks those.
 """
 from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
 
-from seapup_common.config import ConfigError, load_yaml
+from seapup_common.config import ConfigError, load_yaml, nearest
 
-__all__ = ["ConfigError", "available_configs", "load_vehicle_config"]
+__all__ = ["ConfigError", "available_configs", "load_vehicle_config", "OPTIONAL_KEYS", "PAYLOAD_KEYS"]
+
+#: Top-level keys a configuration may have beyond those of ``baseline.yaml``.
+OPTIONAL_KEYS = ("payloads", "thruster_efficiency")
+#: Mappings whose keys are not fixed (derivative names, checked by :func:`seapup_sim.hydrodynamics.parse_term`).
+OPEN_KEYS = ("hydrodynamics",)
+#: The keys of one payload (:func:`seapup_sim.vehicle.compose_mass_properties`).
+PAYLOAD_KEYS = ("name", "mass", "buoyancy_mass", "position", "radius")
 
 
 def _vehicles_dir() -> Path:
@@ -46,5 +62,37 @@ def load_vehicle_config(name_or_path: str | Path) -> dict:
     if not path.is_file():
         raise ConfigError(f"no vehicle configuration file {str(path)[:200]}")
     data = load_yaml(path)
+    schema = data if path.resolve() == (_vehicles_dir() / "baseline.yaml").resolve() \
+        else load_yaml(_vehicles_dir() / "baseline.yaml")
+    _check_keys(data, schema, path.name)
     data["name"] = path.stem
     return data
+
+
+def _check_keys(data: dict, schema: dict, source: str, prefix: str = "") -> None:
+    """Refuse a key the schema (baseline) lacks, naming it and the nearest valid one."""
+    for key, value in data.items():
+        if not prefix and key in (*OPTIONAL_KEYS, "name"):
+            if key == "payloads":
+                _check_payloads(value, source)
+            continue
+        if key not in schema:
+            options = list(schema) + (list(OPTIONAL_KEYS) if not prefix else [])
+            near = nearest(key, options)
+            raise ConfigError(f"{source}: unknown key {prefix}{key}"
+                              + (f" (did you mean {prefix}{near}?)" if near else f" (valid: {', '.join(options)})"))
+        if isinstance(value, dict) and isinstance(schema[key], dict) and f"{prefix}{key}" not in OPEN_KEYS:
+            _check_keys(value, schema[key], source, f"{prefix}{key}.")
+
+
+def _check_payloads(payloads, source: str) -> None:
+    if not isinstance(payloads, list):
+        raise ConfigError(f"{source}: payloads must be a list of {{{', '.join(PAYLOAD_KEYS)}}} mappings")
+    for i, payload in enumerate(payloads):
+        if not isinstance(payload, dict):
+            raise ConfigError(f"{source}: payloads[{i}] must be a mapping of {', '.join(PAYLOAD_KEYS)}")
+        for key in payload:
+            if key not in PAYLOAD_KEYS:
+                near = nearest(key, PAYLOAD_KEYS)
+                raise ConfigError(f"{source}: unknown key payloads[{i}].{key}"
+                                  + (f" (did you mean {near}?)" if near else f" (valid: {', '.join(PAYLOAD_KEYS)})"))

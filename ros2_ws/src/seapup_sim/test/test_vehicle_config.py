@@ -54,3 +54,24 @@ def test_model_can_be_reconfigured_in_place():
     model = VehicleModel(load_vehicle_config("baseline"))
     model.configure(load_vehicle_config("camera"))
     assert model.config_name == "camera" and model.mass_properties.mass == pytest.approx(125.0)
+
+
+def test_unknown_keys_are_refused_with_the_file_and_the_nearest_name(tmp_path):
+    """A misspelled key changed nothing before (the baseline value flew); now it names itself."""
+    cases = {"rigid_body:\n  bouyancy_mass: 100.0\n": "unknown key rigid_body.bouyancy_mass (did you mean rigid_body.buoyancy_mass?)",
+             "thruster_eficiency: [0.5, 1, 1, 1]\n": "unknown key thruster_eficiency (did you mean thruster_efficiency?)",
+             "payloads:\n  - {name: cam, mass: 1.0, buoyancy_mass: 1.0, position: [0, 0, 0], raduis: 0.1}\n":
+                 "unknown key payloads[0].raduis (did you mean radius?)"}
+    from importlib import resources
+    baseline = resources.files("seapup_sim") / "vehicles" / "baseline.yaml"
+    for text, message in cases.items():
+        path = tmp_path / "mine.yaml"
+        path.write_text(f"extends: {baseline}\n{text}")
+        with pytest.raises(ConfigError) as error:
+            load_vehicle_config(path)
+        assert str(error.value) == f"mine.yaml: {message}"
+    # the open set: any derivative of the notation is a key (the term parser checks it)
+    (tmp_path / "drag.yaml").write_text(f"extends: {baseline}\nhydrodynamics:\n  X_uuu: -1.0\n")
+    assert load_vehicle_config(tmp_path / "drag.yaml")["hydrodynamics"]["X_uuu"] == -1.0
+    for name in ("baseline", "camera", "fouled_main_port"):   # every shipped file passes its own schema
+        assert load_vehicle_config(name)["name"] == name

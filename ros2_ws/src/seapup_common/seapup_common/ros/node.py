@@ -30,7 +30,7 @@ from rclpy.signals import SignalHandlerOptions
 from seapup_common.parameters import load_node_parameters
 
 __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
-           "refuse_invalid_transitions",
+           "refuse_invalid_transitions", "stop_requested",
            "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
@@ -329,6 +329,16 @@ def refuse_unknown_overrides(node) -> None:
                          f"'./seapup param list {node.get_fully_qualified_name()}' on a running node lists them")
 
 
+#: The signals :func:`run_node` has been asked to stop by (empty while it runs on).
+_STOP: list[int] = []
+
+
+def stop_requested() -> bool:
+    """True once :func:`run_node` was asked to stop (SIGINT, SIGTERM, SIGHUP): a callback that waits
+    (a blocking service call) gives up, so the node exits promptly."""
+    return bool(_STOP)
+
+
 def run_node(make_node, args=None) -> int:
     """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
 
@@ -352,7 +362,8 @@ def run_node(make_node, args=None) -> int:
     except Exception as exc:  # rcl refuses the command line (e.g. a malformed -p rule)
         print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
         return 1
-    stop: list[int] = []
+    stop = _STOP
+    stop.clear()
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # SIGHUP: the terminal it ran in closed
         signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = None
