@@ -11,7 +11,7 @@ fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC
 from __future__ import annotations
 
 __all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "APPLIED", "TRUTH_ODOMETRY", "VELOCITY", "IMU", "DEPTH",
-           "POSITION", "ALTITUDE", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
+           "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
            "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SWITCH_CONTROLLER_SERVICE", "task_action", "typed"]
 
@@ -39,6 +39,8 @@ DEPTH = "/seapup/sensors/depth"
 POSITION = "/seapup/sensors/position"
 #: Altitude above the seabed.
 ALTITUDE = "/seapup/sensors/altitude"
+#: What the simulator published for each sample (seapup_msgs/SampleManifest), after the sample.
+SAMPLE_MANIFEST = "/seapup/sensors/sample"
 #: The navigator's estimate.
 NAVIGATION_ODOMETRY = "/seapup/navigation/odometry"
 #: Body-velocity reference of the velocity controllers.
@@ -67,6 +69,7 @@ TOPIC_TYPES = {
     DEPTH: "seapup_msgs/msg/Depth",
     POSITION: "geometry_msgs/msg/PoseWithCovarianceStamped",
     ALTITUDE: "sensor_msgs/msg/Range",
+    SAMPLE_MANIFEST: "seapup_msgs/msg/SampleManifest",
     NAVIGATION_ODOMETRY: "nav_msgs/msg/Odometry",
     VELOCITY_REFERENCE: "geometry_msgs/msg/TwistStamped",
     POSITION_REFERENCE: "geometry_msgs/msg/PoseStamped",

@@ -4,12 +4,21 @@ Subscribes (namespace ``/seapup``) to ``sensors/velocity`` (doppler log and
 gyros), ``sensors/imu`` (attitude), ``sensors/depth`` and ``sensors/position``
 (acoustic fix) and publishes ``navigation/odometry`` (nav_msgs/Odometry,
 ``odom_ned`` -> ``base_link_frd``, stamped with the sample time, position
-covariance from the filter) once per sample t_k. A sample is processed when
-the readings of ``sample_topics`` stamped t_k have all arrived (the
-simulator publishes them together), or when a later velocity reading comes
-first. Non-finite or malformed readings are rejected and counted, never
-fused; ``/diagnostics`` (``seapup/navigator``) carries the counts and the
-estimate's standard deviation.
+covariance from the filter) once per sample t_k.
+
+When is a sample complete? With the simulator's manifest (``sensors/sample``,
+seapup_msgs/SampleManifest: the topics it published for t_k), when every
+reading it lists that the navigator subscribes to has arrived -- the acoustic
+fix of t_k included, however the deliveries of the topics interleave (it
+came after the depth reading, and was then fused a sample late, depending
+on timing). A later sample complete while an earlier one still waits for a
+reading that never comes is taken after ``manifest_patience`` complete
+samples, the earlier ones first. Without a manifest (a vehicle's
+instruments): when the readings of ``sample_topics`` stamped t_k have all
+arrived, or when a later velocity reading comes first. Non-finite or
+malformed readings are rejected and counted, never fused (a rejected reading
+has arrived, for completeness); ``/diagnostics`` (``seapup/navigator``)
+carries the counts and the estimate's standard deviation.
 """
 from __future__ import annotations
 
@@ -20,7 +29,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStam
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
-from seapup_msgs.msg import Depth
+from seapup_msgs.msg import Depth, SampleManifest
 
 from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
@@ -43,8 +52,10 @@ class NavigatorNode(Node):
         p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator", ranges={
             "q_walk": (0.0, 1e3), "velocity_std": (1e-6, 10.0), "fix_std": (1e-3, 1e3), "depth_std": (1e-4, 1e3),
             "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6),
-            "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6)})
+            "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6),
+            "manifest_patience": (1, 1000)})
         self.sample_topics = set(p.pop("sample_topics"))
+        self.manifest_patience = int(p.pop("manifest_patience"))
         unknown = self.sample_topics - set(_TOPICS)
         if unknown or "velocity" not in self.sample_topics:
             raise ValueError(f"sample_topics {sorted(self.sample_topics)}: must include velocity and only "
@@ -54,11 +65,18 @@ class NavigatorNode(Node):
         self.rejected = 0
         self._arrived: dict[int, set] = {}  # sample stamp -> topics heard for it
         self._processed_ns: int | None = None
+        self._manifests: dict[int, set] = {}  # sample stamp -> the readings the simulator published for it
+        self._manifested = False                # samples complete by the manifest (_by_manifest)
+        self._held: dict[int, dict] = {}        # sample stamp -> readings (messages) waiting for it
+        self._manifest_topic = self.resolve_topic_name("sensors/sample")
+        self.forced_samples = 0                 # processed before a listed reading came (manifest_patience)
+        self._topic_names = {self.resolve_topic_name(topic): name for name, (topic, _) in _TOPICS.items()}
         self.stamps = StampGate()
         self.publisher = self.create_publisher(Odometry, "navigation/odometry", RELIABLE_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name, (topic, kind) in _TOPICS.items():
             self.create_subscription(kind, topic, lambda msg, name=name: self._on_reading(name, msg), COMMAND_QOS)
+        self.create_subscription(SampleManifest, "sensors/sample", self._on_manifest, COMMAND_QOS)
         self.create_timer(1.0, self._diagnose)
 
     def _on_reading(self, name: str, msg) -> None:
@@ -67,11 +85,14 @@ class NavigatorNode(Node):
             self.rejected += 1
             self.get_logger().warn(f"{name} reading rejected: {self.stamps.why(stamp)}", throttle_duration_sec=2.0)
             return
+        if self._by_manifest():
+            self._hold(name, stamp, msg)
+            return
         if not self.collector.add(msg):
             self.rejected += 1
             self.get_logger().warn(f"{name} reading rejected: {self.collector.last_error}", throttle_duration_sec=2.0)
             return
-        t_ns = stamp_to_ns(msg.header.stamp)
+        t_ns = stamp
         if self._processed_ns is not None and t_ns <= self._processed_ns:
             return  # a late reading of a processed sample: kept for the next one
         if name == "velocity":
@@ -82,9 +103,61 @@ class NavigatorNode(Node):
             if self.sample_topics <= self._arrived[t_ns]:
                 self._process(t_ns)
 
+    def _by_manifest(self) -> bool:
+        """Samples complete by the simulator's manifest: one was heard, or its publisher is on the graph
+        (so the first sample waits for it too)."""
+        if not self._manifested and self.count_publishers(self._manifest_topic) > 0:
+            self._manifested = True
+        return self._manifested
+
+    def _hold(self, name: str, t_ns: int, msg) -> None:
+        """Keep a reading for its sample (the collector takes it when the sample is processed: a later
+        sample's reading arriving first must not replace it)."""
+        if self._processed_ns is not None and t_ns <= self._processed_ns:
+            return  # late: its sample was processed without it
+        check = MeasurementCollector()
+        if check.add(msg):
+            self._held.setdefault(t_ns, {})[name] = msg
+        else:
+            self.rejected += 1
+            self.get_logger().warn(f"{name} reading rejected: {check.last_error}", throttle_duration_sec=2.0)
+        self._arrived.setdefault(t_ns, set()).add(name)   # a rejected reading came too: no waiting for it
+        self._complete()
+
+    def _on_manifest(self, msg: SampleManifest) -> None:
+        t_ns = stamp_to_ns(msg.header.stamp)
+        if (self._processed_ns is not None and t_ns <= self._processed_ns) or not self.stamps.accept(t_ns):
+            return
+        self._manifested = True
+        self._manifests[t_ns] = {self._topic_names[t] for t in msg.topics if t in self._topic_names}
+        self._complete()
+
+    def _complete(self) -> None:
+        """Process, in stamp order, every manifested sample whose listed readings have all arrived; one
+        still waiting goes first once ``manifest_patience`` later samples are complete (a lost reading)."""
+        while self._manifests:
+            first = min(self._manifests)
+            if self._manifests[first] <= self._arrived.get(first, set()):
+                del self._manifests[first]
+                self._process(first)
+                continue
+            ready = [t for t, need in self._manifests.items() if t != first and need <= self._arrived.get(t, set())]
+            if len(ready) < self.manifest_patience:
+                return
+            missing = sorted(self._manifests.pop(first) - self._arrived.get(first, set()))
+            self.forced_samples += 1
+            self.get_logger().warn(f"sample t = {first * 1e-9:.3f} s processed without its {', '.join(missing)} "
+                                   f"reading ({len(ready)} later samples complete)", throttle_duration_sec=2.0)
+            self._process(first)
+
     def _process(self, t_ns: int) -> None:
         for stamp in [k for k in self._arrived if k <= t_ns]:
             del self._arrived[stamp]
+        for stamp in sorted(k for k in self._held if k <= t_ns):  # held readings, in sample and topic order
+            readings = self._held.pop(stamp)
+            for name in _TOPICS:
+                if name in readings:
+                    self.collector.add(readings[name])
         if "velocity" not in self.collector.latest:
             return
         self._processed_ns = t_ns
@@ -99,7 +172,8 @@ class NavigatorNode(Node):
 
     def _diagnose(self) -> None:
         estimate = self.navigator.estimate()
-        values = {**self.navigator.counts, "rejected_readings": self.rejected,
+        values = {**self.navigator.counts, "rejected_readings": self.rejected, "forced_samples": self.forced_samples,
+                  "samples_by": "manifest" if self._manifested else "sample_topics",
                   "horizontal_std": estimate.horizontal_std if estimate else math.nan,
                   "depth_std": math.sqrt(estimate.position_cov[2, 2]) if estimate else math.nan}
         level = DiagnosticStatus.OK if estimate is not None else DiagnosticStatus.WARN

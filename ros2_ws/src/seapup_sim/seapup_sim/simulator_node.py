@@ -21,6 +21,12 @@ sample t_k >= end_time (in either mode): commands are still taken and counted,
 then ends at exactly end_time in graph time, however late its driver stops the
 graph.
 
+After the messages of each sample the simulator publishes its manifest,
+``sensors/sample`` (seapup_msgs/SampleManifest: the stamp t_k and the topics
+published for it -- the acoustic fix and the altimeter only at some
+samples), so a node that needs a sample's readings together knows which to
+wait for whatever order they arrive in (the navigator).
+
 Every environment setting is a read-only parameter ``environment.<section>.<key>``
 (defaults from ``environment/default.yaml``, overridden by the YAML file named
 in ``environment_file``, then by ``-p``/``--params-file``); services change
@@ -49,7 +55,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, Range
-from seapup_msgs.msg import BladePitch, Depth
+from seapup_msgs.msg import BladePitch, Depth, SampleManifest
 from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfile, SetThrusterEfficiency
 
 from seapup_common import frames
@@ -201,6 +207,7 @@ class SimulatorNode(Node):
         self.pub_odom = pub(Odometry, "odometry", RELIABLE_QOS)
         self.pub_current = pub(Vector3Stamped, "environment/current", RELIABLE_QOS)
         self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", RELIABLE_QOS)
+        self.pub_manifest = pub(SampleManifest, "sensors/sample", RELIABLE_QOS)
         self.pub_clock = pub(Clock, CLOCK, RELIABLE_QOS) if publish_clock else None
         self.pub_diag = pub(DiagnosticArray, DIAGNOSTICS, 10)
         self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True)
@@ -356,21 +363,26 @@ class SimulatorNode(Node):
             return  # handshake: say t_k again on /clock only (no duplicate data for recorders)
         self._samples_published += 1
         sample, m = out["sample"], out["sample"].measurement
-        self.pub_applied.publish(conv.command_to_msg(Command(out["applied_blade_pitch"]), t_ns, FRD))
-        self.pub_velocity.publish(conv.velocity_to_msg(m.velocity, m.rates, t_ns))
-        self.pub_imu.publish(conv.imu_to_msg(m.attitude, m.rates, sample.specific_force, t_ns))
-        if m.position.valid:
-            self.pub_position.publish(conv.position_to_msg(m.position, t_ns))
-        self.pub_depth.publish(conv.depth_to_msg(m.depth, t_ns))
-        if m.altitude.valid:
-            prof = self.simulator.sensor_profile
-            self.pub_altitude.publish(conv.altitude_to_msg(
-                m.altitude, t_ns, field_of_view=prof.altimeter_field_of_view,
-                min_range=prof.altimeter_min_range, max_range=prof.altimeter_max_range))
-        self.pub_truth.publish(conv.odometry_ned(sample.state, t_ns))
-        self.pub_odom.publish(conv.odometry_enu(sample.state, t_ns))
-        self.pub_current.publish(conv.vector3_stamped(sample.current_ned, t_ns, NED))
-        self.pub_wrench.publish(conv.wrench_stamped(sample.umbilical_body, t_ns, FRD))
+        prof = self.simulator.sensor_profile
+        messages = [
+            (self.pub_applied, conv.command_to_msg(Command(out["applied_blade_pitch"]), t_ns, FRD)),
+            (self.pub_velocity, conv.velocity_to_msg(m.velocity, m.rates, t_ns)),
+            (self.pub_imu, conv.imu_to_msg(m.attitude, m.rates, sample.specific_force, t_ns)),
+            *([(self.pub_position, conv.position_to_msg(m.position, t_ns))] if m.position.valid else []),
+            (self.pub_depth, conv.depth_to_msg(m.depth, t_ns)),
+            *([(self.pub_altitude, conv.altitude_to_msg(
+                m.altitude, t_ns, field_of_view=prof.altimeter_field_of_view, min_range=prof.altimeter_min_range,
+                max_range=prof.altimeter_max_range))] if m.altitude.valid else []),
+            (self.pub_truth, conv.odometry_ned(sample.state, t_ns)),
+            (self.pub_odom, conv.odometry_enu(sample.state, t_ns)),
+            (self.pub_current, conv.vector3_stamped(sample.current_ned, t_ns, NED)),
+            (self.pub_wrench, conv.wrench_stamped(sample.umbilical_body, t_ns, FRD))]
+        for publisher, msg in messages:
+            publisher.publish(msg)
+        # last: what this sample holds (the acoustic fix and the altimeter come only at some samples)
+        manifest = SampleManifest(topics=[publisher.topic_name for publisher, _ in messages])
+        manifest.header.stamp = conv.ns_to_stamp(t_ns)
+        self.pub_manifest.publish(manifest)
 
     def _publish_diagnostics(self) -> None:
         c = self.simulator.counters
