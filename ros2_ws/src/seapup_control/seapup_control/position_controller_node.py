@@ -8,7 +8,14 @@ effect at its header stamp, at once when the stamp is zero) and
 publishes ``velocity_controller/reference`` (geometry_msgs/TwistStamped in
 ``base_link_frd``: u, v, w, r) stamped t_k + ``reference_delay`` x T, the
 sample it is meant for. Without a setpoint it publishes nothing (the
-velocity controller holds its last reference). Non-finite or wrong-frame
+velocity controller holds its last reference).
+
+While stamped setpoints stream in (the task controller sends one per
+sample, stamped t_k + T at its estimate t_k), the estimate t_k waits up to
+``setpoint_wait`` wall seconds for the setpoint stamped t_k before it is
+used (then goes on with the one in force, counted as ``late_setpoints``):
+on a loaded machine the task controller can fall a sample behind, and the
+reference must not depend on that. Non-finite or wrong-frame
 setpoints are rejected, counted and logged. Inactive, it publishes nothing.
 
 ``/diagnostics`` (``seapup/position_controller``): while tracking, the setpoint,
@@ -49,11 +56,12 @@ class PositionControllerNode(LifecycleNode):
                                                "sample_period": (0.01, 10.0), "reference_delay": (0, 100),
                                                "gains": (0.0, 10.0), "yaw_gain": (0.0, 10.0),
                                                "speed_limits": (0.0, 5.0), "max_yaw_rate": (0.0, 5.0),
-                                               "acceleration_limits": (1e-4, 10.0)})
+                                               "acceleration_limits": (1e-4, 10.0),
+                                               "setpoint_wait": (0.0, 600.0)})
         self.controller: PositionController | None = None
         self.active = False
         self.counts = {"estimates": 0, "references": 0, "rejected_setpoints": 0, "rejected_estimates": 0,
-                       "limited_samples": 0}
+                       "limited_samples": 0, "late_setpoints": 0}
         self._interfaces = []
         refuse_invalid_transitions(self)
         if self.p["autostart"]:
@@ -78,6 +86,9 @@ class PositionControllerNode(LifecycleNode):
         self._estimate_wall: float | None = None
         self._estimate_ns: int | None = None
         self._idle_timer = self.create_timer(1.0, self._diagnose_idle)
+        self._newest_setpoint: float | None = None   # [s] stamp of the newest stamped setpoint
+        self._waiting = None                         # (estimate, wall deadline) held for its setpoint
+        self._wait_timer = self.create_timer(0.01, self._check_wait)
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state) -> TransitionCallbackReturn:
@@ -87,6 +98,7 @@ class PositionControllerNode(LifecycleNode):
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
         self.active = False
+        self._waiting = None
         return super().on_deactivate(state)
 
     def on_cleanup(self, state) -> TransitionCallbackReturn:
@@ -94,6 +106,7 @@ class PositionControllerNode(LifecycleNode):
             self.destroy_subscription(sub)
         self._interfaces = []
         self.destroy_timer(self._idle_timer)
+        self.destroy_timer(self._wait_timer)
         self.destroy_lifecycle_publisher(self.publisher)
         self.destroy_publisher(self.diagnostics)
         self.controller = None
@@ -106,6 +119,13 @@ class PositionControllerNode(LifecycleNode):
         except ContractError as exc:
             self.counts["rejected_setpoints"] += 1
             self.get_logger().warn(f"setpoint rejected: {exc}", throttle_duration_sec=2.0)
+            return
+        if stamp_ns:
+            self._newest_setpoint = max(self._newest_setpoint or 0.0, stamp_ns * 1e-9)
+        if self._waiting is not None and self._newest_setpoint is not None \
+                and self._newest_setpoint >= self._waiting[0].t - 1e-6:
+            estimate, self._waiting = self._waiting[0], None
+            self._track(estimate)
 
     def _on_estimate(self, msg: Odometry) -> None:
         self._estimate_ns = stamp_to_ns(msg.header.stamp)  # the graph's time, for the idle status
@@ -119,6 +139,30 @@ class PositionControllerNode(LifecycleNode):
             return
         self.counts["estimates"] += 1
         self._estimate_wall = time.monotonic()
+        if self._waiting is not None:  # a newer estimate: the held one goes with what it has
+            held, self._waiting = self._waiting[0], None
+            self.counts["late_setpoints"] += 1
+            self._track(held)
+        period = self.controller.sample_period
+        streaming = self._newest_setpoint is not None and self._newest_setpoint >= estimate.t - 1.5 * period
+        wait = float(self.get_parameter("setpoint_wait").value)
+        if streaming and self._newest_setpoint < estimate.t - 1e-6 and wait > 0:
+            self._waiting = (estimate, time.monotonic() + wait)
+            return
+        self._track(estimate)
+
+    def _check_wait(self) -> None:
+        if self._waiting is not None and time.monotonic() > self._waiting[1]:
+            estimate, self._waiting = self._waiting[0], None
+            self.counts["late_setpoints"] += 1
+            self.get_logger().warn(f"no setpoint for t = {estimate.t:.3f} s within the setpoint_wait: going on with "
+                                   "the one in force", throttle_duration_sec=5.0)
+            self._track(estimate)
+
+    def _track(self, estimate) -> None:
+        """The reference for the sample after ``estimate`` (reference_delay samples ahead)."""
+        if not self.active:
+            return
         for setpoint in self.setpoints.due(estimate.t):
             self.controller.set_reference(setpoint)
         if self.controller.reference is None:
