@@ -1,0 +1,83 @@
+"""The position controller node uses, for the estimate t_k, the setpoint stamped t_k even when the task
+controller's setpoint arrives after the estimate (a loaded machine), so its references do not depend on
+delivery order.
+
+Truth: the same setpoints and estimates delivered setpoint-first (as on a quiet machine); the node's
+callbacks are called directly in a chosen order, so the test decides the interleaving.
+"""
+import time
+
+import numpy as np
+import pytest
+
+from seapup_common.contract import NavigationEstimate
+from seapup_common.ros import messages as conv
+
+T = 0.2
+
+
+def _estimate(k):
+    t = k * T
+    return conv.estimate_to_odometry(NavigationEstimate(t, np.array([0.01 * k, 0.0, 30.0]), 0.01 * np.eye(3),
+                                                        np.zeros(3), np.zeros(3)), round(t * 1e9))
+
+
+def _setpoint(k):
+    """What the task controller sends at its estimate t_{k-1}: a goto line, stamped t_k."""
+    return conv.pose_setpoint_to_msg([0.05 * k, 0.02 * k, 30.0], 0.01 * k, round(k * T * 1e9))
+
+
+def _run(ros_context, deliveries, setpoint_wait=2.0):
+    from rclpy.parameter import Parameter
+    from seapup_control.position_controller_node import PositionControllerNode
+    node = PositionControllerNode(context=ros_context)
+    node.set_parameters([Parameter("setpoint_wait", value=setpoint_wait)])
+    references = []
+    node.publisher.publish = lambda msg: references.append(
+        (conv.stamp_to_ns(msg.header.stamp), msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z))
+    for kind, msg in deliveries:
+        (node._on_setpoint if kind == "setpoint" else node._on_estimate)(msg)
+    late = node.counts["late_setpoints"]
+    node.destroy_node()
+    return references, late
+
+
+@pytest.mark.graph
+def test_an_estimate_waits_for_its_setpoint(ros_context):
+    in_order = [d for k in range(1, 30) for d in (("setpoint", _setpoint(k)), ("estimate", _estimate(k)))]
+    # the task controller a sample behind: the setpoint for t_k arrives after the estimate t_k
+    # (from the second sample on: the first setpoint of a stream cannot be waited for)
+    behind = in_order[:2] + [d for k in range(2, 30) for d in (("estimate", _estimate(k)), ("setpoint", _setpoint(k)))]
+    reference, late = _run(ros_context, in_order)
+    waited, waited_late = _run(ros_context, behind)
+    assert len(reference) == 29 and late == 0
+    assert waited == reference and waited_late == 0
+    # without the wait each sample flies the previous sample's setpoint: the rule really matters
+    unwaited, _ = _run(ros_context, behind, setpoint_wait=0.0)
+    assert unwaited != reference
+
+
+@pytest.mark.graph
+def test_a_setpoint_that_never_comes_is_waited_for_only_setpoint_wait(ros_context):
+    """The stream stops (the task controller died): the estimate goes on with the setpoint in force after
+    setpoint_wait wall seconds, counted late; the next estimate does not wait again."""
+    from seapup_control.position_controller_node import PositionControllerNode
+    from rclpy.parameter import Parameter
+    node = PositionControllerNode(context=ros_context)
+    node.set_parameters([Parameter("setpoint_wait", value=0.3)])
+    references = []
+    node.publisher.publish = lambda msg: references.append(conv.stamp_to_ns(msg.header.stamp))
+    for k in range(1, 5):
+        node._on_setpoint(_setpoint(k))
+        node._on_estimate(_estimate(k))
+    node._on_estimate(_estimate(5))              # its setpoint never comes
+    assert len(references) == 4
+    start = time.monotonic()
+    while len(references) < 5 and time.monotonic() - start < 5.0:
+        node._check_wait()
+        time.sleep(0.01)
+    assert len(references) == 5 and 0.25 < time.monotonic() - start < 2.0 and node.counts["late_setpoints"] == 1
+    node._on_estimate(_estimate(6))              # not streaming any more: at once
+    node._on_estimate(_estimate(7))
+    assert len(references) == 7 and node.counts["late_setpoints"] == 1
+    node.destroy_node()
