@@ -102,9 +102,10 @@ def test_ctrl_c_in_the_demo_reports_what_was_flown_and_leaves_no_node(tmp_path, 
                             env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     deadline = time.monotonic() + 240
-    while time.monotonic() < deadline and not (tmp_path / "demo" / "self_test.log").is_file():
+    while time.monotonic() < deadline and not (tmp_path / "demo" / "self_test.log").is_file() and demo.poll() is None:
         time.sleep(0.2)  # the graph is starting: its nodes exist
     time.sleep(3.0)
+    assert demo.poll() is None, demo.communicate()[1][-2000:]   # still flying (not failed at its start)
     nodes = descendants(demo.pid)
     assert len(nodes) >= 5, nodes
     os.kill(demo.pid, signal.SIGINT)
