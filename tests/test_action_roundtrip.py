@@ -51,3 +51,41 @@ def test_self_test_action_round_trip(ros_context, spin):
     assert [f.thruster for f in feedback] == [0, 1, 2, 3] and feedback[2].velocity[0] == 0.2
     assert feedback[-1].progress == 1.0
     executor.shutdown()
+
+
+def test_a_goal_whose_answer_was_lost_is_adopted_not_sent_twice(ros_context, spin):
+    """Under load the middleware dropped the server's answer to a goal it had taken ("failed to send
+    response (timeout)"); send_goal used to send it again, so a second goal started and the caller's
+    handle named one the server never ran (its result: STATUS_UNKNOWN). The goal it took is found on
+    the action's status topic and its handle returned."""
+    from rclpy.task import Future
+
+    from seapup_common.ros.graph import send_goal
+    server_node = rclpy.create_node("self_test_server", context=ros_context)
+    client_node = rclpy.create_node("self_test_client", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(server_node)
+    executor.add_node(client_node)
+    ran = []
+
+    async def counting(goal_handle):
+        ran.append(bytes(goal_handle.goal_id.uuid))
+        return await execute(goal_handle)
+    ActionServer(server_node, SelfTest, "/seapup/self_test", execute_callback=counting)
+    client = ActionClient(client_node, SelfTest, "/seapup/self_test")
+    assert spin(executor, lambda: server_node.count_subscribers("/seapup/self_test/_action/feedback") > 0, 10.0)
+    original = client.send_goal_async
+
+    def answer_lost(goal, feedback_callback=None, goal_uuid=None):
+        original(goal, feedback_callback=feedback_callback, goal_uuid=goal_uuid)
+        return Future()   # the server gets it; its answer never reaches the caller
+    client.send_goal_async = answer_lost
+    feedback = []
+    handle = send_goal(executor, client, SelfTest.Goal(operating_points=[0.5], step=0.14, sample_period=0.2),
+                       lambda fb: feedback.append(fb.feedback), response_timeout=1.0, attempts=3)
+    assert handle.accepted and ran == [bytes(handle.goal_id.uuid)]     # one goal, the one it ran
+    result = handle.get_result_async()
+    assert spin(executor, result.done, 10.0)
+    assert result.result().status == 4 and result.result().result.message == "stepped by 0.14"
+    assert len(ran) == 1
+    executor.shutdown()

@@ -125,18 +125,52 @@ def send_goal(executor, client, goal, feedback_callback=None, *, ready_timeout: 
     until the server has matched the client too, a request is dropped by the
     middleware without an error (seen on a loaded machine). A request that
     gets no response within ``response_timeout`` s is therefore sent again,
-    up to ``attempts`` times: the server never saw the lost one, so nothing
-    runs twice.
+    up to ``attempts`` times -- unless the server did take it and only its
+    answer was lost (rmw: "failed to send response (timeout)", seen under
+    load: the retry then started a second goal and the caller's handle named
+    one the server never ran). Before a retry the action's status topic is
+    read: a goal listed there is the server's, and its handle is returned.
 
     Raises
     ------
     GoalNotAnswered
         If the server never became ready or never answered.
     """
+    import uuid
+
+    from unique_identifier_msgs.msg import UUID
     if not spin_until(executor, client.server_is_ready, ready_timeout):
         raise GoalNotAnswered(f"no action server {client._action_name!r} within {ready_timeout:g} s")
     for _ in range(attempts):
-        future = client.send_goal_async(goal, feedback_callback=feedback_callback)
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))
+        future = client.send_goal_async(goal, feedback_callback=feedback_callback, goal_uuid=goal_id)
         if spin_until(executor, future.done, response_timeout):
             return future.result()
+        adopted = _taken_goal(executor, client, goal_id)
+        if adopted is not None:
+            return adopted
     raise GoalNotAnswered(f"the action server {client._action_name!r} did not answer {attempts} goal requests")
+
+
+def _taken_goal(executor, client, goal_id, wait: float = 2.0):
+    """The handle of goal ``goal_id`` if the server lists it on its status topic (it took the goal and its
+    answer was lost), else None."""
+    import weakref
+
+    from action_msgs.msg import GoalStatusArray
+    from rclpy.action.client import ClientGoalHandle
+    from rclpy.qos import qos_profile_action_status_default
+    wanted, seen = bytes(goal_id.uuid), []
+
+    def on_status(msg):
+        seen.extend(bytes(s.goal_info.goal_id.uuid) for s in msg.status_list)
+    subscription = client._node.create_subscription(GoalStatusArray, f"{client._action_name}/_action/status",
+                                                    on_status, qos_profile_action_status_default)
+    try:
+        if not spin_until(executor, lambda: wanted in seen, wait):
+            return None
+    finally:
+        client._node.destroy_subscription(subscription)
+    handle = ClientGoalHandle(client, goal_id, client._action_type.Impl.SendGoalService.Response(accepted=True))
+    client._goal_handles[wanted] = weakref.ref(handle)   # status, feedback and result reach it as any
+    return handle
