@@ -66,7 +66,7 @@ def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", 
     duration : float
         Simulated seconds after the task started at most; the run ends when the task is done.
     """
-    from seapup_control.navigation import Navigator, NavigatorParams
+    from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
     from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
     from seapup_control.tasks import Hover, TaskLimits
     from seapup_sim.simulation import Simulation
@@ -78,7 +78,7 @@ def fly_hierarchy(make_task, controller: ControllerSpec, *, vehicle="baseline", 
     delay = int(position_p["reference_delay"])
     navigator_p = node_parameters("seapup_control", "navigator.yaml", "navigator")
     navigator = Navigator(NavigatorParams.from_mapping({k: v for k, v in navigator_p.items()
-                                                        if k != "sample_topics"}))
+                                                        if k not in SHELL_PARAMETERS}))
     position = PositionController(PositionControllerParams.from_mapping(
         {k: position_p[k] for k in ("gains", "yaw_gain", "speed_limits", "max_yaw_rate", "acceleration_limits",
                                     "feedforward")}), period)

@@ -45,7 +45,11 @@ from scipy import stats
 from seapup_common.contract import ContractError, Measurement, NavigationEstimate
 from seapup_common.frames import rotation_body_to_ned
 
-__all__ = ["NavigatorParams", "Navigator"]
+__all__ = ["NavigatorParams", "Navigator", "SHELL_PARAMETERS"]
+
+#: Keys of ``config/navigator.yaml`` that belong to the node shell (when a sample is complete), not to
+#: the filter: :meth:`NavigatorParams.from_mapping` takes the rest.
+SHELL_PARAMETERS = ("sample_topics", "manifest_patience")
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
 from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
-from seapup_control.navigation import Navigator, NavigatorParams
+from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
 
 __all__ = ["NavigatorNode", "main"]
 
@@ -54,8 +54,9 @@ class NavigatorNode(Node):
             "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6),
             "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6),
             "manifest_patience": (1, 1000)})
-        self.sample_topics = set(p.pop("sample_topics"))
-        self.manifest_patience = int(p.pop("manifest_patience"))
+        shell = {key: p.pop(key) for key in SHELL_PARAMETERS}   # the rest is the filter's
+        self.sample_topics = set(shell["sample_topics"])
+        self.manifest_patience = int(shell["manifest_patience"])
         unknown = self.sample_topics - set(_TOPICS)
         if unknown or "velocity" not in self.sample_topics:
             raise ValueError(f"sample_topics {sorted(self.sample_topics)}: must include velocity and only "
