@@ -108,6 +108,7 @@ class ControllerManagerNode(Node):
         if self._initial:
             if self._initial not in self.core.controllers:
                 raise ValueError(f"initial controller {self._initial!r} is not one of {names}")
+            self._initial_since: float | None = None
             self._initial_timer = self.create_timer(0.1, self._start_initial)
 
     # -- lifecycle calls -----------------------------------------------------------------------
@@ -166,8 +167,15 @@ class ControllerManagerNode(Node):
         return problem
 
     def _start_initial(self) -> None:
-        if not self.change[self._initial].service_is_ready():
-            return  # the controller node is not up yet: try again at the next tick
+        # every managed controller up first (or 30 s gone): all are configured now, so an inactive one
+        # hears every sample before a switch activates it (configured only at its switch, it had missed
+        # that sample and waited out the simulator's lockstep timeout, 10 s, under load)
+        if self._initial_since is None:
+            self._initial_since = time.monotonic()
+        everyone = all(client.service_is_ready() for client in self.change.values())
+        if not self.change[self._initial].service_is_ready() or \
+                (not everyone and time.monotonic() - self._initial_since < 30.0):
+            return  # the controller nodes are not up yet: try again at the next tick
         self.destroy_timer(self._initial_timer)
         self._configure_all(self.switch_timeout)
         problem = self._activate(self._initial, self.switch_timeout)
