@@ -293,8 +293,7 @@ class ControllerManagerNode(Node):
         name = self.core.active
         if self.liveness_timeout <= 0 or name is None:
             return False
-        response = self._call(self.get_state[name], GetState.Request(), self.liveness_timeout)
-        if response is None or response.current_state.label != "active":
+        if self._state(name, self.liveness_timeout) != "active":
             return False
         self.slow_answers += 1
         self.get_logger().warn(f"{name} is {self.deadline:g} s late with sample t = {self.latest_sample_ns * 1e-9:.3f} s "
