@@ -126,12 +126,14 @@ def _navigation_check(logs: dict, leg: dict, t_end: float, truth_end) -> dict:
 
 
 def _swap_bump(logs: dict, t_switch: float) -> dict:
-    """Largest one-sample command change at the switch, and in the 15 s of flight before it [deg]."""
+    """The command change into the incoming controller's first command (the switch is made while the graph
+    is held at sample ``t_switch``, answered by the outgoing one: the incoming one answers the next), and the
+    largest one-sample change in the 15 s of flight before it [deg, largest over the thrusters]."""
     t, c = logs["command_t"], logs["command"]
     steps = np.abs(np.diff(c, axis=0)).max(axis=1)
     ts = t[1:]
-    at = steps[(ts > t_switch - 0.3) & (ts < t_switch + 1.0)]
-    before = steps[(ts > t_switch - 15.0) & (ts <= t_switch - 0.3)]
+    at = steps[ts > t_switch + 1e-6][:1]
+    before = steps[(ts > t_switch - 15.0) & (ts <= t_switch + 1e-6)]
     return {"switch_step_deg": math.degrees(float(at.max())) if len(at) else math.nan,
             "normal_step_deg": math.degrees(float(before.max())) if len(before) else math.nan}
 
@@ -151,7 +153,7 @@ def fly_mission(out: Path, config: dict, text) -> dict:
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
     logs, bag = {}, out / "bag"
     try:
-        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="") as sil:
+        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0) as sil:
             print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
             for leg in plan:
                 start, wall = sil.t, time.monotonic()
@@ -286,8 +288,8 @@ def _table(legs: list, text) -> None:
     print("truth: hold and altitude errors from hold_from s into the leg (config/mission.yaml: after braking from "
           "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
           f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
-          "missed by more than tolerance + that); swap step: largest one-sample blade-pitch change at the switch (in "
-          "the 15 s before it)", file=text)
+          "missed by more than tolerance + that); swap step: blade-pitch change into the incoming controller's "
+          "first command (largest one-sample change in the 15 s before it)", file=text)
 
 
 def _plots(result: dict, out: Path) -> list[str]:

@@ -13,6 +13,20 @@ calls; every node runs in its own process, exactly as on a vehicle::
         logs = sil.logs()          # numpy arrays: truth, estimate, references, commands
         sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
 
+**Paced driving (deterministic under load).** A lockstep graph that declares
+an ``end_time`` argument for its simulator (``hierarchy.yaml`` does) is
+*held*: the simulator stops at the first sample at or after ``start_at``
+and the harness lets it run on in chunks of ``chunk`` simulated seconds,
+holding it at each chunk's end (the simulator's run-time ``end_time``).
+Every goal, cancel, controller switch and service call is made while the
+graph is held, once every node has answered the held sample, so it takes
+effect at the same sample however busy the machine is; a goal's result is
+acted on at the first chunk boundary a whole chunk after the graph's own
+end time (the result's ``end_time``), so when the harness hears it does not
+matter either. A lockstep graph whose every node is waited for then flies
+the same trajectory on a quiet and on a loaded machine
+(``tests/test_hierarchy_sil.py`` checks it under CPU stress).
+
 The harness leases a ``ROS_DOMAIN_ID`` of its own (machine-wide lock, so
 parallel runs never hear each other), keeps DDS on loopback, starts each
 node in its own process group (stopped with SIGINT, SIGTERM, SIGKILL at the
@@ -88,6 +102,12 @@ class SilGraph:
         a publisher has told the recorder their type.
     ready_timeout : float
         Wall seconds for the first navigation estimate.
+    start_at, chunk : float
+        Paced driving (module docstring) [s simulated]: the first hold, and the run between holds.
+        ``start_at`` 0: the first sample, for a graph in which nobody answers a sample before the
+        harness acts (the demo's: its first leg, the self-test, answers t_0).
+        Used when the graph declares an ``end_time`` argument and runs in lockstep (``paced`` says
+        whether it is); pass ``end_time`` in ``arguments`` to drive the graph unpaced.
     instruments : bool
         Also log the instruments (velocity, IMU, depth, position fixes: :data:`INSTRUMENTS`). Off by
         default, since the probe's subscriptions count for a simulator's ``wait_for_subscribers``.
@@ -107,7 +127,13 @@ class SilGraph:
                  out_dir, record: list[str] | None = None, ready_timeout: float = 60.0,
                  ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
                                                                 "seapup/position_controller"),
-                 instruments: bool = False):
+                 instruments: bool = False, start_at: float = 10.0, chunk: float = 1.0):
+        if not (math.isfinite(start_at) and start_at >= 0 and math.isfinite(chunk) and chunk > 0):
+            raise ValueError(f"start_at must be finite and >= 0 s, chunk > 0 s, got {start_at!r}, {chunk!r}")
+        self.start_at, self.chunk = float(start_at), float(chunk)
+        self.paced = False      # set at start: the graph is held between the harness's actions
+        self.held: float | None = None  # paced: the sample [s] the graph is held at
+        self.late_results = 0   # paced: results heard too late to be acted on at their chunk boundary
         self.graph = str(graph)
         self.instruments = bool(instruments)
         self.arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in (arguments or {}).items()}
@@ -138,13 +164,19 @@ class SilGraph:
         from rclpy.executors import SingleThreadedExecutor
 
         from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-        from seapup_common.ros.launch_graph import command_line, find_graph, load_graph
+        from seapup_common.ros.launch_graph import command_line, find_graph, graph_arguments, load_graph
 
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._lease = DomainLease()
         domain = self._lease.acquire()
         self.env = ros_environment(domain)
         graph_file = find_graph(self.graph) if Path(self.graph).is_file() else find_graph(*self.graph.split())
+        declared = graph_arguments(graph_file)
+        self.paced = ("end_time" in declared and "end_time" not in self.arguments
+                      and str(self.arguments.get("mode", declared.get("mode", "lockstep"))) == "lockstep")
+        if self.paced:
+            if self.start_at > 0:
+                self.arguments["end_time"] = repr(self.start_at)
         specs = load_graph(graph_file, self.arguments)
         self._context = Context()
         rclpy.init(context=self._context, domain_id=domain)
@@ -185,6 +217,14 @@ class SilGraph:
                                and (not self.ready_status or ready()), self.ready_timeout):
             raise SilError(f"no navigation estimate or no OK {self.ready_status!r} within "
                            f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
+        if self.paced:
+            from rcl_interfaces.srv import SetParameters
+            self._end_client = self._node.create_client(SetParameters, "/seapup/simulator/set_parameters")
+            if not self.spin_until(self._end_client.service_is_ready, self.ready_timeout):
+                raise SilError("the simulator's set_parameters service is not available" + self._dead())
+            if self._settle(self.start_at, self.ready_timeout) != "held":
+                raise SilError(f"the graph was not held at its start ({self.start_at:g} s) within "
+                               f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
 
     def _wait_for_recorder(self, timeout: float = 30.0) -> None:
         """Before the graph starts: the recorder subscribes to every typed topic (``/t:pkg/msg/Type``) at
@@ -288,8 +328,81 @@ class SilGraph:
         return (msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec, np.array([p.x, p.y, p.z]),
                 np.asarray(frames.quaternion_to_euler([q.x, q.y, q.z, q.w]), dtype=float))
 
+    # -- paced driving (module docstring) -------------------------------------------------------
+    def _set_end(self, end_time: float) -> None:
+        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+        from rcl_interfaces.srv import SetParameters
+        request = SetParameters.Request(parameters=[Parameter(name="end_time", value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE, double_value=float(end_time)))])
+        future = self._end_client.call_async(request)
+        if not self.spin_until(future.done, 10.0) or not future.result().results[0].successful:
+            raise SilError(f"the simulator did not take end_time {end_time:g} s{self._dead()}")
+
+    def _settle(self, until: float, timeout: float, done=None, stall: float = 2.0) -> str:
+        """Wait until the graph is held at the first sample at or after ``until`` and every per-sample
+        topic still flowing has reached it (so every node has answered it; one stopped short of it is
+        waited for ``stall`` wall seconds): "held". "blocked" when ``done()`` holds and simulated time
+        stopped short of ``until`` for ``stall`` wall seconds (nobody answers a sample: the graph waits
+        for the driver, e.g. after a self-test with no controller active)."""
+        previous = self.held if self.held is not None else 0.0
+
+        def last(name):
+            stamp = self.log[name][-1].header.stamp
+            return stamp.sec + 1e-9 * stamp.nanosec
+        deadline, moved, size = time.monotonic() + timeout, time.monotonic(), len(self.log["truth"])
+        while True:
+            if self.t >= until - 1e-6:
+                flowing = [n for n in SAMPLED if self.log[n] and last(n) >= previous - 1e-6]
+                if all(last(n) >= self.t - 1e-6 for n in flowing):
+                    self.held = self.t
+                    return "held"
+            if len(self.log["truth"]) != size:
+                size, moved = len(self.log["truth"]), time.monotonic()
+            elif time.monotonic() - moved > stall:
+                if self.t >= until - 1e-6:  # held there, but a topic stopped short of it
+                    self.held = self.t
+                    return "held"
+                if done is not None and done():
+                    self.held = self.t
+                    return "blocked"
+            if time.monotonic() > deadline:
+                raise SilError(f"simulated time stuck at {self.t:.1f} s (wanted {until:.1f} s){self._dead()}")
+            self._executor.spin_once(timeout_sec=0.01)
+
+    def _next_boundary(self, t: float) -> float:
+        """The first chunk boundary after ``t`` by at least a whole chunk [s]."""
+        return math.ceil((t + self.chunk) / self.chunk - 1e-9) * self.chunk
+
+    def _advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0) -> str:
+        """Paced: run the graph chunk by chunk and hold it at ``until``, or (``done()`` true) at the first
+        chunk boundary a whole chunk after ``end_time()`` (the graph time of what ``done`` waited for);
+        when the graph blocks waiting for the driver once ``done()`` holds, right there. "held" or
+        "blocked"."""
+        deadline = time.monotonic() + timeout
+        target = None
+        while True:
+            if done is not None and target is None and done():
+                end = end_time() if end_time is not None else None
+                target = self.held if end is None else self._next_boundary(end)
+                if target < self.held - 1e-6:
+                    self.late_results += 1  # heard more than a chunk after its end: acted on late
+                    target = self.held
+            goal = target if target is not None else until
+            if goal is not None and self.held >= goal - 1e-6:
+                return "held"
+            step = self.held + self.chunk if done is not None and target is None else math.inf
+            nxt = min(goal if goal is not None else math.inf, step)
+            if not math.isfinite(nxt):
+                nxt = self.held + self.chunk
+            self._set_end(nxt)
+            if self._settle(nxt, max(1.0, deadline - time.monotonic()), done) == "blocked":
+                return "blocked"
+
     def run_for(self, seconds: float, timeout: float | None = None) -> None:
-        """Let simulated time advance by ``seconds``."""
+        """Let simulated time advance by ``seconds`` (paced: and hold the graph there)."""
+        if self.paced:
+            self._advance(self.held + seconds, timeout=timeout or max(60.0, 2 * seconds))
+            return
         end = self.t + seconds
         if not self.spin_until(lambda: self.t >= end - 1e-9, timeout or max(30.0, 2 * seconds)):
             raise SilError(f"simulated time stuck at {self.t:.1f} s (wanted {end:.1f} s){self._dead()}")
@@ -323,16 +436,20 @@ class SilGraph:
             accepted_t = self.t
             future = handle.get_result_async()
             during_result = None
-            if during is not None:
-                start = self.t
-                self.spin_until(lambda: self.t >= start + during[0] or future.done(), timeout)
-                during_result = during[1]()
-            if cancel_after is not None:
-                start = self.t
-                self.spin_until(lambda: self.t >= start + cancel_after or future.done(), timeout)
-                if not future.done():
-                    cancel = handle.cancel_goal_async()
-                    self.spin_until(cancel.done, 10.0)
+            if self.paced:
+                self._paced_goal(future, handle, during, cancel_after, timeout)
+                during_result = self._during_result
+            else:
+                if during is not None:
+                    start = self.t
+                    self.spin_until(lambda: self.t >= start + during[0] or future.done(), timeout)
+                    during_result = during[1]()
+                if cancel_after is not None:
+                    start = self.t
+                    self.spin_until(lambda: self.t >= start + cancel_after or future.done(), timeout)
+                    if not future.done():
+                        cancel = handle.cancel_goal_async()
+                        self.spin_until(cancel.done, 10.0)
             if not self.spin_until(future.done, timeout):
                 raise SilError(f"{kind} goal not finished within {timeout:g} s{self._dead()}")
             response = future.result()
@@ -344,6 +461,37 @@ class SilGraph:
                     "accepted_t": accepted_t, "end_t": self.t, **out}
         finally:
             client.destroy()
+
+    @staticmethod
+    def _end_time(future):
+        """The graph time a finished action's result says it ended at (None: it does not say)."""
+        if not future.done():
+            return None
+        end = getattr(future.result().result, "end_time", 0.0)
+        return float(end) if end else None
+
+    def _paced_goal(self, future, handle, during, cancel_after, timeout: float) -> None:
+        """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and
+        the graph held again after its end (module docstring)."""
+        held = self.held
+        # the task controller starts its setpoint stream at the acceptance (stamped for the next sample):
+        # heard here, the position controller has it too before the graph goes on
+        self.spin_until(lambda: self.log["setpoint"] and self._stamp(self.log["setpoint"][-1]) > held + 1e-6, 5.0)
+        self._during_result = None
+        end = lambda: self._end_time(future)  # noqa: E731
+        if during is not None:
+            self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout)
+            self._during_result = during[1]()
+        if cancel_after is not None:
+            self._advance(held + cancel_after, done=future.done, end_time=end, timeout=timeout)
+            if not future.done():
+                cancel = handle.cancel_goal_async()
+                self.spin_until(cancel.done, 10.0)
+        self._advance(None, done=future.done, end_time=end, timeout=timeout)
+
+    @staticmethod
+    def _stamp(msg) -> float:
+        return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
     def _refusal_reason(self, wait: float = 2.0) -> str:
         """``": <why>"`` from the newest "goal refused: ..." line a node logged (its log files), or ""."""
@@ -378,6 +526,8 @@ class SilGraph:
             if not handle.accepted:
                 raise SilError(f"{name} refused the goal" + self._refusal_reason())
             future = handle.get_result_async()
+            if self.paced:
+                self._advance(None, done=future.done, end_time=lambda: self._end_time(future), timeout=timeout)
             if not self.spin_until(future.done, timeout):
                 raise SilError(f"{name} did not finish within {timeout:g} s{self._dead()}")
             return future.result().result

@@ -29,6 +29,16 @@ graph's timing asks the same questions, answered here:
 
   A sample that waited its limit goes on and is counted late.
 
+- **where a controller activated mid-run starts**: a node that hears the
+  vehicle's command topic (:meth:`SamplePolicy.on_vehicle_command`) knows
+  when the newest sample was already answered by the controller it
+  replaces (a switch made while the graph is held at that sample): it
+  leaves that sample alone and starts at the next one, from that sample's
+  own applied pitch -- the command actually in force -- instead of
+  answering a sample whose answer the vehicle already has (the manager
+  would drop it, and the law would have stepped once on a command never
+  applied).
+
 The caller feeds events in and asks :meth:`SamplePolicy.decide` with the wall
 time ``now`` [s, monotonic]; nothing here reads a clock, sleeps or spins, so
 every rule is unit-tested with explicit times. With ``lockstep`` false (a
@@ -146,7 +156,9 @@ class SamplePolicy:
         self.active = False                    # a node answers nothing until activated (lifecycle)
         self.applied_ns: int | None = None     # stamp of the newest applied pitch heard
         self.heard_reference = False
+        self.commanded_ns: int | None = None   # newest sample the vehicle's command topic answered
         self._start_pending = False
+        self._start_own_applied = False        # the start needs the applied pitch of its own sample
         self._start_wait: _Wait | None = None
         self._first_wait: float | None = None
         self._reference_wait: _Wait | None = None
@@ -163,6 +175,8 @@ class SamplePolicy:
 
     def on_clock(self, t_ns: int) -> int | None:
         """A ``/clock`` t_k: the sample to answer when it is the latest and not answered (handshake)."""
+        if self.clock_ns is not None and t_ns < self.clock_ns:
+            self.commanded_ns = None  # a reset: the commands heard were for the samples of before
         self.clock_ns = int(t_ns)  # the newest (one reliable topic arrives in order; a reset goes back)
         return self.pending(self.clock_ns) if self.clock_ns == self.latest_ns else None
 
@@ -183,13 +197,23 @@ class SamplePolicy:
             retry = retry or self._reference_wait is not None
         return bool(retry and self.active)
 
+    def on_vehicle_command(self, t_ns: int) -> None:
+        """The vehicle's command topic carried an answer to sample ``t_ns`` (this node's or another's)."""
+        self.commanded_ns = int(t_ns) if self.commanded_ns is None else max(self.commanded_ns, int(t_ns))
+
     def activate(self, heard_applied: bool) -> bool:
         """The node becomes active; True: start the law at once (from the applied pitch if heard,
         else its fallback); False: a sample starts it (the first one, when it has the applied pitch, or
-        the first of the window ``start_at``, with its own applied pitch)."""
+        the first of the window ``start_at``, with its own applied pitch; after a newest sample the
+        vehicle already has a command for, the next one, with its own applied pitch)."""
         self.active = True
         self._start_wait = None
-        self._start_pending = self.lockstep and (not heard_applied or self._windowed)
+        answered_elsewhere = (self.lockstep and self.latest_ns is not None and self.commanded_ns is not None
+                              and self.commanded_ns >= self.latest_ns)
+        if answered_elsewhere:
+            self.answered_ns = self.latest_ns
+        self._start_own_applied = answered_elsewhere
+        self._start_pending = self.lockstep and (not heard_applied or self._windowed or answered_elsewhere)
         return not self._start_pending
 
     @property
@@ -206,7 +230,7 @@ class SamplePolicy:
 
     def deactivate(self) -> None:
         self.active = False
-        self._start_pending = False
+        self._start_pending = self._start_own_applied = False
         self._reference_wait = self._applied_wait = self._start_wait = None
 
     def answered(self, t_ns: int) -> None:
@@ -238,12 +262,14 @@ class SamplePolicy:
             if self._start_wait is None or self._start_wait.sample_ns != t_ns:
                 self._start_wait = _Wait(t_ns, now)
             # a windowed start needs the applied pitch of its own sample; otherwise any will do
-            have = self.applied_ns is not None and (not self._windowed or self.applied_ns >= t_ns)
+            own = self._windowed or self._start_own_applied
+            have = self.applied_ns is not None and (not own or self.applied_ns >= t_ns)
             if not have and now - self._start_wait.since < s.applied_wait:
                 return Decision(WAIT, self._start_wait.since + s.applied_wait, waiting_for="applied pitch to start from")
             if not have:
                 late.append("applied")
             self._start_pending, self._start_wait, start = False, None, True
+            self._start_own_applied = False
         if not self.lockstep:
             return Decision(ANSWER, start=start)
         if not self.heard_reference and s.first_reference_wait > 0:

@@ -10,7 +10,8 @@ fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC
 """
 from __future__ import annotations
 
-__all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "APPLIED", "TRUTH_ODOMETRY", "VELOCITY", "IMU", "DEPTH",
+__all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
+           "VELOCITY", "IMU", "DEPTH",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
            "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SWITCH_CONTROLLER_SERVICE", "task_action", "typed"]
@@ -25,6 +26,9 @@ CLOCK = "/clock"
 DIAGNOSTICS = "/diagnostics"
 #: Blade pitches commanded by the active controller [rad].
 COMMAND = "/seapup/thrusters/command"
+#: The commands the controller manager forwarded to the vehicle (a copy of each, for the managed controllers:
+#: one activated while the graph is held at a sample already answered starts at the next sample).
+FORWARDED_COMMAND = "/seapup/controller_manager/forwarded"
 #: Blade pitches the thrusters really applied (limited, held) [rad].
 APPLIED = "/seapup/thrusters/applied"
 #: The simulator's true state (NED/FRD).
@@ -62,6 +66,7 @@ TOPIC_TYPES = {
     CLOCK: "rosgraph_msgs/msg/Clock",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     COMMAND: "seapup_msgs/msg/BladePitch",
+    FORWARDED_COMMAND: "seapup_msgs/msg/BladePitch",
     APPLIED: "seapup_msgs/msg/BladePitch",
     TRUTH_ODOMETRY: "nav_msgs/msg/Odometry",
     VELOCITY: "geometry_msgs/msg/TwistWithCovarianceStamped",

@@ -205,3 +205,34 @@ def test_the_stamp_gate_refuses_a_far_future_stamp_follows_resets_and_resyncs_a_
     assert "ahead of the graph's time" in StampGate().why(10**18)
     with pytest.raises(ValueError):
         StampGate(max_jump=float("nan"))
+
+
+def test_a_controller_activated_at_a_sample_the_vehicle_already_has_starts_at_the_next_from_its_applied_pitch():
+    # the graph is held at t = 1.0 s, whose answer (the outgoing controller's) was forwarded: the incoming
+    # one must not answer 1.0 s again (the manager would drop it and the law would have stepped on a command
+    # never applied), but start at 1.2 s from the pitch applied up to 1.2 s -- the outgoing one's answer
+    policy = SamplePolicy(True, WaitSettings(applied_wait=0.25))
+    policy.on_applied(1_000 * MS)
+    policy.on_sample(1_000 * MS)
+    policy.on_clock(1_000 * MS)
+    policy.on_vehicle_command(1_000 * MS)
+    assert policy.activate(heard_applied=True) is False
+    assert policy.decide(1_000 * MS, now=0.0).action == SKIP          # the held sample is not its own
+    policy.on_sample(1_200 * MS)
+    policy.on_clock(1_200 * MS)
+    d = policy.decide(1_200 * MS, now=1.0)                            # waits for 1.2 s's applied pitch
+    assert (d.action, d.wake_at) == (WAIT, pytest.approx(1.25))
+    policy.on_applied(1_200 * MS)
+    d = policy.decide(1_200 * MS, now=1.01)
+    assert (d.action, d.start, d.late) == (ANSWER, True, ())
+    # activated while the newest sample still waits for its answer: that sample is the incoming one's
+    pending = SamplePolicy(True, WaitSettings(applied_wait=0.25))
+    pending.on_applied(1_000 * MS)
+    pending.on_vehicle_command(800 * MS)
+    pending.on_sample(1_000 * MS)
+    assert pending.activate(heard_applied=True) is True               # starts at once, from what is applied
+    assert pending.decide(1_000 * MS, now=0.0).action == ANSWER
+    # a simulator reset (the clock goes back) forgets the commands heard before it
+    pending.on_clock(1_000 * MS)
+    pending.on_clock(0)
+    assert pending.commanded_ns is None

@@ -51,7 +51,7 @@ from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node,
                                     stop_requested)
-from seapup_common.topics import DIAGNOSTICS, NAMESPACE
+from seapup_common.topics import DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
 #: [s] the switch timeouts a request may give (0: the node's ``switch_timeout``): a lifecycle
@@ -80,6 +80,7 @@ class ControllerManagerNode(Node):
         self.slow_answers = 0
         self.topics = {n: p["command_topic"].format(name=n) for n in names}
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.forwarded = self.create_publisher(BladePitch, FORWARDED_COMMAND, RELIABLE_QOS)  # a copy of each
         # the first forwarded command waits for every awaited subscriber (the vehicle, a recorder): a
         # bag once lacked the first 2-8 s of commands
         self.gate = SubscriberGate([(self.publisher, int(p["wait_for_subscribers"]))])
@@ -259,6 +260,7 @@ class ControllerManagerNode(Node):
         if self.core.accept_command(name, stamp_ns):
             if self.gate.ready():
                 self.publisher.publish(msg)
+                self.forwarded.publish(msg)
             else:
                 self._held = msg  # the newest: sent once the awaited subscribers have matched
             if self.latest_sample_ns is None or stamp_ns >= self.latest_sample_ns:
@@ -267,6 +269,7 @@ class ControllerManagerNode(Node):
     def _release_held(self) -> None:
         if self._held is not None and self.gate.ready():
             self.publisher.publish(self._held)
+            self.forwarded.publish(self._held)
             self._held = None
 
     def _on_applied(self, msg: BladePitch) -> None:

@@ -27,18 +27,20 @@ else WARN with the reason -- so a graph is known ready before a goal is sent.
 from __future__ import annotations
 
 import time
+from collections import deque
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rosgraph_msgs.msg import Clock
 
 from seapup_common.contract import ContractError, StampedReferences
 from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
                                         reference_to_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, graph_time_ns,
                                     refuse_invalid_transitions, run_node)
-from seapup_common.topics import DIAGNOSTICS, NAMESPACE
+from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
 
 __all__ = ["PositionControllerNode", "main"]
@@ -81,13 +83,18 @@ class PositionControllerNode(LifecycleNode):
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
             self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),
-            self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS)]
+            self.create_subscription(Odometry, "navigation/odometry", self._on_estimate, COMMAND_QOS),
+            self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)]
+        self._clock_ns: int | None = None
         self._last_diag = 0.0
         self._estimate_wall: float | None = None
         self._estimate_ns: int | None = None
         self._idle_timer = self.create_timer(1.0, self._diagnose_idle)
         self._newest_setpoint: float | None = None   # [s] stamp of the newest stamped setpoint
-        self._waiting = None                         # (estimate, wall deadline) held for its setpoint
+        # estimates not yet tracked, in order: the first waits (until its wall deadline) for its setpoint, the
+        # rest behind it (the graph need not wait for this node's answer to one estimate before the next: its
+        # reference is for reference_delay samples later), so none is tracked with a setpoint that came late
+        self._waiting: deque = deque()               # [estimate, wall deadline]
         self._wait_timer = self.create_timer(0.01, self._check_wait)
         return TransitionCallbackReturn.SUCCESS
 
@@ -98,7 +105,7 @@ class PositionControllerNode(LifecycleNode):
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
         self.active = False
-        self._waiting = None
+        self._waiting.clear()
         return super().on_deactivate(state)
 
     def on_cleanup(self, state) -> TransitionCallbackReturn:
@@ -112,6 +119,9 @@ class PositionControllerNode(LifecycleNode):
         self.controller = None
         return TransitionCallbackReturn.SUCCESS
 
+    def _on_clock(self, msg: Clock) -> None:
+        self._clock_ns = stamp_to_ns(msg.clock)
+
     def _on_setpoint(self, msg: PoseStamped) -> None:
         try:
             position, yaw, stamp_ns = pose_setpoint_from_msg(msg)
@@ -122,10 +132,7 @@ class PositionControllerNode(LifecycleNode):
             return
         if stamp_ns:
             self._newest_setpoint = max(self._newest_setpoint or 0.0, stamp_ns * 1e-9)
-        if self._waiting is not None and self._newest_setpoint is not None \
-                and self._newest_setpoint >= self._waiting[0].t - 1e-6:
-            estimate, self._waiting = self._waiting[0], None
-            self._track(estimate)
+        self._drain()
 
     def _on_estimate(self, msg: Odometry) -> None:
         self._estimate_ns = stamp_to_ns(msg.header.stamp)  # the graph's time, for the idle status
@@ -139,25 +146,33 @@ class PositionControllerNode(LifecycleNode):
             return
         self.counts["estimates"] += 1
         self._estimate_wall = time.monotonic()
-        if self._waiting is not None:  # a newer estimate: the held one goes with what it has
-            held, self._waiting = self._waiting[0], None
-            self.counts["late_setpoints"] += 1
-            self._track(held)
-        period = self.controller.sample_period
-        streaming = self._newest_setpoint is not None and self._newest_setpoint >= estimate.t - 1.5 * period
-        wait = float(self.get_parameter("setpoint_wait").value)
-        if streaming and self._newest_setpoint < estimate.t - 1e-6 and wait > 0:
-            self._waiting = (estimate, time.monotonic() + wait)
-            return
-        self._track(estimate)
+        self._waiting.append([estimate, time.monotonic() + float(self.get_parameter("setpoint_wait").value)])
+        self._drain()
+
+    def _needs_setpoint(self, estimate) -> bool:
+        """While stamped setpoints stream (one per estimate), is the one for ``estimate`` still to come?"""
+        newest = self._newest_setpoint
+        streaming = newest is not None and newest >= estimate.t - 1.5 * self.controller.sample_period
+        return streaming and newest < estimate.t - 1e-6 and float(self.get_parameter("setpoint_wait").value) > 0
+
+    def _drain(self) -> None:
+        """Track the waiting estimates in order, each once its setpoint is here or its wait is over."""
+        while self._waiting:
+            estimate, deadline = self._waiting[0]
+            if self._needs_setpoint(estimate):
+                if time.monotonic() <= deadline:
+                    return
+                self.counts["late_setpoints"] += 1
+                self.get_logger().warn(f"no setpoint for t = {estimate.t:.3f} s within the setpoint_wait: going "
+                                       "on with the one in force", throttle_duration_sec=5.0)
+            self._waiting.popleft()
+            if self._waiting:  # the next one's wait starts now
+                self._waiting[0][1] = max(self._waiting[0][1], time.monotonic()
+                                          + float(self.get_parameter("setpoint_wait").value))
+            self._track(estimate)
 
     def _check_wait(self) -> None:
-        if self._waiting is not None and time.monotonic() > self._waiting[1]:
-            estimate, self._waiting = self._waiting[0], None
-            self.counts["late_setpoints"] += 1
-            self.get_logger().warn(f"no setpoint for t = {estimate.t:.3f} s within the setpoint_wait: going on with "
-                                   "the one in force", throttle_duration_sec=5.0)
-            self._track(estimate)
+        self._drain()
 
     def _track(self, estimate) -> None:
         """The reference for the sample after ``estimate`` (reference_delay samples ahead)."""
@@ -190,7 +205,12 @@ class PositionControllerNode(LifecycleNode):
         """Once a wall second while not tracking: can a setpoint be flown now?"""
         if time.monotonic() - self._last_diag <= 1.0:
             return
-        heard = self._estimate_wall is not None and time.monotonic() - self._estimate_wall <= 2.0
+        # the estimate is current by the graph's time when there is a /clock (a lockstep graph held at a sample
+        # by its driver stands still: the newest estimate is that sample's), else by its wall-clock age
+        heard = self._estimate_wall is not None and (
+            time.monotonic() - self._estimate_wall <= 2.0
+            or (self._clock_ns is not None and self._estimate_ns is not None
+                and self._clock_ns - self._estimate_ns <= 2_000_000_000))
         setpoint_source = self._interfaces[0].get_publisher_count() > 0
         ready = self.active and heard and setpoint_source
         level = DiagnosticStatus.OK if ready else DiagnosticStatus.WARN

@@ -152,6 +152,14 @@ class TaskControllerNode(Node):
             self.running.done.set_result(("aborted", f"preempted by a {kind} goal", {}))
         running = self.running = _Running(task, handle)
         self.get_logger().info(f"{kind} started")
+        if self.setpoint is None and self.estimate is not None:
+            # the first task: the setpoint stream starts now, holding where the vehicle is until the task's
+            # first step (the next estimate), so the position controller waits for every setpoint of the task
+            # (it waits only while setpoints stream) whether or not this process runs late on a busy machine
+            self.setpoint = task.hold(self.estimate, self.estimate.t)
+            t_ns = int(round((self.estimate.t + self.period) * 1e9))
+            self.setpoints.publish(pose_setpoint_to_msg(self.setpoint.position, self.setpoint.yaw, t_ns))
+            self.counts["setpoints"] += 1
         status, message, numbers = await running.done
         if self.running is running:
             self.running = None

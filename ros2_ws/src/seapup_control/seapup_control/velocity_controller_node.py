@@ -16,7 +16,11 @@ the MFOL-only era keep working).
 - **activate** starts it bumpless from the blade pitch the vehicle applies
   (``/seapup/thrusters/applied``; when none has been heard yet in lockstep, a
   sample waits ``applied_wait`` for it, then starts from the law's
-  ``fallback_command()`` where it has one, else zero pitch);
+  ``fallback_command()`` where it has one, else zero pitch); activated while
+  the graph is held at a sample the controller manager already forwarded an
+  answer to (``/seapup/controller_manager/forwarded``), it leaves that sample
+  to the outgoing controller and starts at the next, from the pitch applied
+  up to it;
 - every sample it reads ``/seapup/sensors/velocity``, tells the law the
   applied pitch stamped with the sample (:meth:`VelocityController.applied`),
   takes the reference in force on ``/seapup/velocity_controller/reference``
@@ -67,7 +71,7 @@ from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, comman
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
                                     refuse_invalid_transitions, run_node)
-from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
+from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
 
@@ -159,7 +163,12 @@ class VelocityControllerNode(LifecycleNode):
         self._interfaces = [
             self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
             self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
-            self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS)]
+            self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS),
+            # a controller manager's copy of what reached the vehicle: activated while the graph is held at a
+            # sample the outgoing controller answered, this one starts at the next (SamplePolicy)
+            self.create_subscription(BladePitch, FORWARDED_COMMAND,
+                                     lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)),
+                                     RELIABLE_QOS)]
         if lockstep:
             self._interfaces.append(self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS))
         else:

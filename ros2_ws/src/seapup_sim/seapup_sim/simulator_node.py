@@ -19,7 +19,12 @@ With ``end_time`` > 0 the simulator stops stepping once it has published the
 sample t_k >= end_time (in either mode): commands are still taken and counted,
 /clock stays at t_k, diagnostics say it is at its end. A recorded experiment
 then ends at exactly end_time in graph time, however late its driver stops the
-graph.
+graph. ``end_time`` can be set at run time: a later value resumes a held
+graph (in lockstep with the command for t_k if it came while held, else the
+sample waits for it as usual), so a driver can hold the whole graph at an
+exact sample, act (send a goal, switch a controller) and go on -- what it
+does then takes effect at the same sample however busy the machine is
+(:class:`seapup_bringup.sil.SilGraph` drives a hierarchy like that).
 
 After the messages of each sample the simulator publishes its manifest,
 ``sensors/sample`` (seapup_msgs/SampleManifest: the stamp t_k and the topics
@@ -140,7 +145,8 @@ class SimulatorNode(Node):
             "start_depth": _float_range(0.0, 6000.0, "initial depth [m]", **ro),
             "publish_clock": ParameterDescriptor(description="publish /clock (the simulator owns time)", **ro),
             "diagnostics_period": _float_range(0.05, 60.0, "diagnostics period [s wall]", **ro),
-            "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on", **ro),
+            "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on (settable at "
+                                               "run time: a later value resumes a held graph)"),
             "wait_for_subscribers": ParameterDescriptor(
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
@@ -184,6 +190,7 @@ class SimulatorNode(Node):
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._last_gate_log = 0.0
         self._end_ns = int(round(p["end_time"] * 1e9))  # 0: no end
+        self._answered_ns: int | None = None  # lockstep: the sample whose command has come
         if self.mode == "lockstep":
             self._start_when_ready()
             self.create_timer(0.01, self._lockstep_watch)
@@ -274,7 +281,9 @@ class SimulatorNode(Node):
                 self.get_logger().warn(f"parameter refused: {reason}")
                 return SetParametersResult(successful=False, reason=reason)
         for prm in params:
-            if prm.name == "watchdog_timeout":
+            if prm.name == "end_time":
+                self._set_end(float(prm.value))
+            elif prm.name == "watchdog_timeout":
                 self.config.watchdog_timeout = float(prm.value)
             elif prm.name == "watchdog_action":
                 self.config.watchdog_action = prm.value
@@ -312,8 +321,20 @@ class SimulatorNode(Node):
             self._warn(f"command {'rejected' if not ok else 'saturated'}: {reason if not ok else ''}".strip())
         if ok and lockstep and stamp == self.simulator.t_ns:
             self._unanswered = 0
+            self._answered_ns = stamp
             self._advance()
 
+    def _set_end(self, end_time: float) -> None:
+        """A new ``end_time`` [s]: resumes a graph held at its end when it lies beyond the held sample."""
+        held = self._at_end()
+        self._end_ns = int(round(end_time * 1e9))
+        if not held or self._at_end() or self._halted:
+            return
+        if self.mode == "lockstep" and self._started:
+            if self._answered_ns == self.simulator.t_ns:
+                self._advance()  # the command for the held sample came meanwhile
+            else:
+                self._waiting_since = time.monotonic()  # its lockstep_timeout counts from now
     def _at_end(self) -> bool:
         """The sample of ``end_time`` (or a later one) is published: step no further."""
         return 0 < self._end_ns <= self.simulator.t_ns
