@@ -194,4 +194,3 @@ def test_invalid_goals_are_rejected_with_reasons_and_cancel_hovers(controller_fi
     at = np.flatnonzero(np.abs(logs["estimate_t"] - t_hold) < 1e-6)
     assert at.size == 1 and np.linalg.norm(logs["estimate_position"][at[0]] - held) < 1e-6, (t_hold, held)
     assert t_hold >= preempting["accepted_t"] + 5.0 - 1e-6 and len(same) - first >= 40
-

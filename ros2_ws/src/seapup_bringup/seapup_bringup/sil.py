@@ -13,7 +13,7 @@ calls; every node runs in its own process, exactly as on a vehicle::
         logs = sil.logs()          # numpy arrays: truth, estimate, references, commands
         sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
 
-**Paced driving (deterministic under load).** A lockstep graph that declares
+**Paced driving.** A lockstep graph that declares
 an ``end_time`` argument for its simulator (``hierarchy.yaml`` does) is
 *held*: the simulator stops at the first sample at or after ``start_at``
 and the harness lets it run on in chunks of ``chunk`` simulated seconds,
@@ -25,7 +25,7 @@ acted on at the first chunk boundary a whole chunk after the graph's own
 end time (the result's ``end_time``), so when the harness hears it does not
 matter either. A lockstep graph whose every node is waited for then flies
 the same trajectory on a quiet and on a loaded machine
-(``tests/test_hierarchy_sil.py`` checks it under CPU stress).
+(one cause of load-dependence remains: see ``docs/hierarchy.md``).
 
 The harness leases a ``ROS_DOMAIN_ID`` of its own (machine-wide lock, so
 parallel runs never hear each other), keeps DDS on loopback, starts each
@@ -427,6 +427,8 @@ class SilGraph:
         client = ActionClient(self._node, action, topics.task_action(kind))
         try:
             goal = action.Goal(**fields)
+            if self.paced:
+                self._task_controller_at_hold()
             rejections = len(self.log["rejections"])
             handle = send_goal(self._executor, client, goal, lambda fb: self.feedback.append((kind, fb.feedback)))
             if not handle.accepted:
@@ -470,6 +472,18 @@ class SilGraph:
         end = getattr(future.result().result, "end_time", 0.0)
         return float(end) if end else None
 
+    def _task_controller_at_hold(self, wait: float = 5.0) -> None:
+        """Paced: wait until the task controller has handled the held sample's estimate (its status is stamped
+        with the newest estimate it handled). Its answer is a setpoint for the *next* sample, so the graph
+        does not wait for it before holding: a goal or cancel that overtook the estimate would act on the
+        sample before (a goal built from the older estimate)."""
+        held = self.held
+
+        def handled():
+            return any(status.name == "seapup/task_controller" and self._stamp(array) >= held - 1e-6
+                       for array in self.log["diagnostics"][-40:] for status in array.status)
+        self.spin_until(handled, wait)
+
     def _paced_goal(self, future, handle, during, cancel_after, timeout: float) -> None:
         """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and
         the graph held again after its end (module docstring)."""
@@ -477,6 +491,12 @@ class SilGraph:
         # the task controller starts its setpoint stream at the acceptance (stamped for the next sample):
         # heard here, the position controller has it too before the graph goes on
         self.spin_until(lambda: self.log["setpoint"] and self._stamp(self.log["setpoint"][-1]) > held + 1e-6, 5.0)
+        if not self.log["reference"]:
+            # the run's first velocity reference (the position controller's answer to the next estimate, for
+            # reference_delay samples later): one sample on, held until it is heard, so a velocity controller
+            # has it in time (it waits for references only once one has come)
+            self._advance(held + 1e-3, timeout=timeout)
+            self.spin_until(lambda: self.log["reference"], 5.0)
         self._during_result = None
         end = lambda: self._end_time(future)  # noqa: E731
         if during is not None:
@@ -485,6 +505,7 @@ class SilGraph:
         if cancel_after is not None:
             self._advance(held + cancel_after, done=future.done, end_time=end, timeout=timeout)
             if not future.done():
+                self._task_controller_at_hold()
                 cancel = handle.cancel_goal_async()
                 self.spin_until(cancel.done, 10.0)
         self._advance(None, done=future.done, end_time=end, timeout=timeout)
