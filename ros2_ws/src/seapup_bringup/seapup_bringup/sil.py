@@ -25,7 +25,7 @@ acted on at the first chunk boundary a whole chunk after the graph's own
 end time (the result's ``end_time``), so when the harness hears it does not
 matter either. A lockstep graph whose every node is waited for then flies
 the same trajectory on a quiet and on a loaded machine
-(one cause of load-dependence remains: see ``docs/hierarchy.md``).
+(``tests/test_hierarchy.py`` checks it with a CPU burner per core).
 
 The harness leases a ``ROS_DOMAIN_ID`` of its own (machine-wide lock, so
 parallel runs never hear each other), keeps DDS on loopback, starts each
@@ -177,6 +177,8 @@ class SilGraph:
         if self.paced:
             if self.start_at > 0:
                 self.arguments["end_time"] = repr(self.start_at)
+        if "wait_for_subscribers" in declared and "wait_for_subscribers" not in self.arguments:
+            self._count_own_listeners(declared["wait_for_subscribers"])
         specs = load_graph(graph_file, self.arguments)
         self._context = Context()
         rclpy.init(context=self._context, domain_id=domain)
@@ -225,6 +227,17 @@ class SilGraph:
             if self._settle(self.start_at, self.ready_timeout) != "held":
                 raise SilError(f"the graph was not held at its start ({self.start_at:g} s) within "
                                f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
+
+    def _count_own_listeners(self, listed: list) -> None:
+        """The graph's default ``wait_for_subscribers`` (its simulator's first sample waits for these
+        subscriptions, a topic listed k times for k) plus this harness's own: the probe's and the recorder's.
+        Counted by number, the graph's own list alone would be met by the harness's subscriptions while a
+        node of the graph had not subscribed yet -- and missed t_0. (A caller that passes the argument
+        passes the whole list, its own listeners included, as ``./seapup ident experiment`` does.)"""
+        probe = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
+        recorded = {entry.split(":")[0] for entry in self.record}
+        extra = [topic for topic in dict.fromkeys(listed or []) for own in (probe, recorded) if topic in own]
+        self.arguments["wait_for_subscribers"] = str(list(listed or []) + extra)
 
     def _wait_for_recorder(self, timeout: float = 30.0) -> None:
         """Before the graph starts: the recorder subscribes to every typed topic (``/t:pkg/msg/Type``) at
