@@ -221,7 +221,7 @@ class SilGraph:
                            f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
         if self.paced:
             from rcl_interfaces.srv import SetParameters
-            self._end_client = self._node.create_client(SetParameters, "/seapup/simulator/set_parameters")
+            self._end_client = self._node.create_client(SetParameters, topics.SIMULATOR_PARAMETERS_SERVICE)
             if not self.spin_until(self._end_client.service_is_ready, self.ready_timeout):
                 raise SilError("the simulator's set_parameters service is not available" + self._dead())
             if self._settle(self.start_at, self.ready_timeout) != "held":
@@ -235,7 +235,7 @@ class SilGraph:
         node of the graph had not subscribed yet -- and missed t_0. (A caller that passes the argument
         passes the whole list, its own listeners included, as ``./seapup ident experiment`` does.)"""
         probe = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
-        recorded = {entry.split(":")[0] for entry in self.record}
+        recorded = {entry.split(":")[0] for entry in self.record if ":" in entry}  # typed: subscribed at once
         extra = [topic for topic in dict.fromkeys(listed or []) for own in (probe, recorded) if topic in own]
         self.arguments["wait_for_subscribers"] = str(list(listed or []) + extra)
 
@@ -510,6 +510,7 @@ class SilGraph:
             # has it in time (it waits for references only once one has come)
             self._advance(held + 1e-3, timeout=timeout)
             self.spin_until(lambda: self.log["reference"], 5.0)
+            self.spin_until(lambda: False, 0.5)  # heard here: on its way to the velocity controllers too
         self._during_result = None
         end = lambda: self._end_time(future)  # noqa: E731
         if during is not None:
