@@ -309,8 +309,7 @@ class SilGraph:
         48 s, estimates at 35 s). Logs read without this would end early or disagree with each other.
         Gives up when no log has grown for ``stall`` wall seconds (the graph stopped)."""
         def last(name):
-            stamp = self.log[name][-1].header.stamp
-            return stamp.sec + 1e-9 * stamp.nanosec
+            return self._stamp(self.log[name][-1])
         live = [name for name in SAMPLED if self.log[name]]
         if not live:
             return
@@ -360,8 +359,7 @@ class SilGraph:
         previous = self.held if self.held is not None else 0.0
 
         def last(name):
-            stamp = self.log[name][-1].header.stamp
-            return stamp.sec + 1e-9 * stamp.nanosec
+            return self._stamp(self.log[name][-1])
         deadline, moved, size = time.monotonic() + timeout, time.monotonic(), len(self.log["truth"])
         while True:
             if self.t >= until - 1e-6:
