@@ -36,6 +36,7 @@ node's ``switch_timeout`` at least, whatever the request's timeout.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -59,6 +60,18 @@ from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 MIN_SWITCH_TIMEOUT, MAX_SWITCH_TIMEOUT = 0.1, 120.0
 
 __all__ = ["ControllerManagerNode", "main"]
+
+
+@dataclass(frozen=True)
+class _TransitionProblem:
+    """Why a lifecycle transition did not succeed: refused, or not answered in time (``unanswered``: the
+    controller may still have made it)."""
+
+    message: str
+    unanswered: bool
+
+    def __str__(self) -> str:
+        return self.message
 
 
 class ControllerManagerNode(Node):
@@ -134,15 +147,16 @@ class ControllerManagerNode(Node):
         self.core.controllers[name].state = label
         return label
 
-    def _transition(self, name: str, transition: int, timeout: float) -> str | None:
+    def _transition(self, name: str, transition: int, timeout: float) -> _TransitionProblem | None:
         """Run one lifecycle transition; None on success, else why not."""
         request = ChangeState.Request()
         request.transition.id = transition
         response = self._call(self.change[name], request, timeout)
         if response is None:
-            return f"{name} did not answer transition {transition} within {timeout:g} s (is it running?)"
+            return _TransitionProblem(f"{name} did not answer transition {transition} within {timeout:g} s "
+                                      "(is it running?)", unanswered=True)
         if not response.success:
-            return f"{name} refused transition {transition} (see its log)"
+            return _TransitionProblem(f"{name} refused transition {transition} (see its log)", unanswered=False)
         return None
 
     def _activate(self, name: str, timeout: float) -> str | None:
@@ -153,7 +167,7 @@ class ControllerManagerNode(Node):
                 return f"configure: {problem}"
         self.core.handover(name)  # its answer to the pending sample is the first forwarded
         problem = self._transition(name, Transition.TRANSITION_ACTIVATE, timeout)
-        if problem and "did not answer" in problem and self._state(name, timeout) == "active":
+        if problem and problem.unanswered and self._state(name, timeout) == "active":
             problem = None  # the answer came late (a loaded machine): it is active, and already forwarded
         if problem:
             self.core.handover(None)
@@ -161,7 +175,7 @@ class ControllerManagerNode(Node):
         self.core.set_state(name, "active")
         return None
 
-    def _deactivate(self, name: str, timeout: float) -> str | None:
+    def _deactivate(self, name: str, timeout: float) -> _TransitionProblem | None:
         self.core.handover(None)  # from now on nothing of it is forwarded
         problem = self._transition(name, Transition.TRANSITION_DEACTIVATE, timeout)
         self.core.set_state(name, "inactive" if problem is None else "unknown")

@@ -116,12 +116,12 @@ class NavigatorNode(Node):
         sample's reading arriving first must not replace it)."""
         if self._processed_ns is not None and t_ns <= self._processed_ns:
             return  # late: its sample was processed without it
-        check = MeasurementCollector()
-        if check.add(msg):
+        try:
+            MeasurementCollector.readings(msg)  # checked now, kept by the collector when its sample is processed
             self._held.setdefault(t_ns, {})[name] = msg
-        else:
+        except (ContractError, ValueError) as exc:
             self.rejected += 1
-            self.get_logger().warn(f"{name} reading rejected: {check.last_error}", throttle_duration_sec=2.0)
+            self.get_logger().warn(f"{name} reading rejected: {exc}", throttle_duration_sec=2.0)
         self._arrived.setdefault(t_ns, set()).add(name)   # a rejected reading came too: no waiting for it
         self._complete()
 
