@@ -384,3 +384,57 @@ def test_lockstep_at_20_hz(ros_context, node_process, spin):
     stamps = sorted({c.clock.sec * 10**9 + c.clock.nanosec for c in clocks})
     assert set(np.diff(stamps)) == {50_000_000}  # every 50 ms sample, none skipped
     probe.close()
+
+
+def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_meanwhile(ros_context, node_process,
+                                                                                     spin):
+    """end_time set at run time (SilGraph's paced driving): the lockstep simulator holds at the first sample
+    at or after it, publishing nothing more (no lockstep time-out while held); a later end_time resumes it.
+    A node that joined while it was held (a controller configured there) hears the held sample again, the
+    same bytes, and a command for the held sample that came while held is the one applied."""
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    probe.record("/seapup/sensors/velocity", TwistWithCovarianceStamped)
+    probe.record("/seapup/thrusters/applied", BladePitch)
+    start_simulator(node_process, "mode:=lockstep", "lockstep_timeout:=0.05", "end_time:=1.0",
+                    "wait_for_subscribers:=['sensors/velocity', 'thrusters/applied']")
+    velocity, applied = probe.msgs["/seapup/sensors/velocity"], probe.msgs["/seapup/thrusters/applied"]
+
+    def stamps(msgs):
+        return [round(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, 6) for m in msgs]
+
+    def holding(at=1.0):
+        return any(st.name == "seapup/simulator" and f"at end_time {at:g} s (holding)" in st.message
+                   for d in probe.msgs["/diagnostics"][-3:] for st in d.status)
+    assert probe.spin(holding, 20.0)
+    probe.spin(lambda: False, 1.0)  # held: nothing more, and no time-out while held
+    assert stamps(velocity) == [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
+    assert int(probe.counters()["lockstep_timeouts"]) == 5  # nobody answers: 0 to 0.8 s went on without
+    late = []
+    joined = probe.node.create_subscription(TwistWithCovarianceStamped, "/seapup/sensors/velocity", late.append, QOS)
+    client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
+
+    def set_end(value):
+        assert probe.spin(client.service_is_ready, 10.0)
+        future = client.call_async(SetParameters.Request(parameters=[param("end_time", value)]))
+        assert probe.spin(future.done, 10.0) and future.result().results[0].successful
+    assert probe.spin(lambda: joined.get_publisher_count() > 0, 10.0)
+    set_end(1.4)
+    assert probe.spin(lambda: len(late) >= 3, 10.0), stamps(late)
+    assert stamps(late) == [1.0, 1.2, 1.4]
+    assert serialize_message(late[0]) == serialize_message(velocity[5])  # the same reading, said again
+    assert stamps(velocity)[5:] == [1.0, 1.0, 1.2, 1.4]
+    # a command for the held sample, sent while held, is applied when the graph goes on (no time-out)
+    assert probe.spin(lambda: holding(1.4), 10.0)
+    timeouts = int(probe.counters()["lockstep_timeouts"])
+    assert timeouts == 7  # 1.0 (said again) and 1.2 went on without
+    probe.cmd.publish(command([0.2, 0.1, -0.1, 0.05], int(1.4e9)))
+    assert probe.spin(lambda: int(probe.counters().get("accepted", 0)) == 1, 5.0)
+    set_end(1.6)
+    assert probe.spin(lambda: applied and stamps(applied)[-1] == 1.6, 10.0)
+    wanted = np.array([0.2, 0.1, -0.1, 0.05])  # reached through the blade-pitch servos' lag
+    held = applied[stamps(applied).index(1.4)].pitch
+    assert np.abs(held - wanted).max() > 0.05 and np.allclose(applied[-1].pitch, wanted, atol=0.02)
+    assert stamps(velocity).count(1.4) == 1
+    assert int(probe.counters()["lockstep_timeouts"]) == timeouts
+    probe.close()

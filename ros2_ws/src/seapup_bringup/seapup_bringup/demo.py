@@ -151,7 +151,7 @@ def fly_mission(out: Path, config: dict, text) -> dict:
     total = sum(leg.get("expected", 60.0) for leg in plan)
     done = 0.0
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
-    logs, bag = {}, out / "bag"
+    logs, bag, held = {}, out / "bag", None
     try:
         with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0) as sil:
             print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
@@ -179,7 +179,7 @@ def fly_mission(out: Path, config: dict, text) -> dict:
             if stopped is None:
                 progress("mission", 1.0)
             logs = sil.logs()
-            bag = sil.bag
+            bag, held = sil.bag, sil.held
     except BaseException as exc:  # interrupted while the graph started or stopped: nothing (more) flown
         if stopped is not None or not stopped_by_signal(exc):
             raise
@@ -189,7 +189,8 @@ def fly_mission(out: Path, config: dict, text) -> dict:
         leg.update(_truth_numbers(logs, leg, seabed))
     if swap and swap["leg"] < len(legs):
         legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
-    return {"legs": legs, "bag": str(bag), "logs": logs, "stopped": stopped}
+    # held: the sample [s] the paced graph was held at when it stopped (every node had answered it)
+    return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
 
 
 def _fly_leg(sil, leg: dict, swap: dict) -> dict:

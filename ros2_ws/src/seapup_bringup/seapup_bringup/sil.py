@@ -74,6 +74,20 @@ INSTRUMENTS = ("velocity", "imu", "depth", "position")
 SAMPLED = ("truth", "estimate", "reference", "setpoint", "command", "applied")
 
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
+#: The logged topics the simulator publishes: a sample it publishes again (to a node that joined while the
+#: graph was held) is logged once.
+_SIMULATOR_TOPICS = ("truth", "applied", "altitude", "velocity", "imu", "depth", "position")
+
+
+def _once_per_stamp(msgs: list) -> list:
+    """The messages without repeats of the one before's stamp."""
+    out, last = [], None
+    for msg in msgs:
+        stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if stamp != last:
+            out.append(msg)
+        last = stamp
+    return out
 
 
 class SilError(RuntimeError):
@@ -104,7 +118,8 @@ class SilGraph:
         Wall seconds for the first navigation estimate.
     start_at, chunk : float
         Paced driving (module docstring) [s simulated]: the first hold, and the run between holds.
-        ``start_at`` 0: the first sample, for a graph in which nobody answers a sample before the
+        ``start_at`` 0: the first sample (held there by the graph's ``start_held`` argument), for a graph
+        in which nobody answers a sample before the
         harness acts (the demo's: its first leg, the self-test, answers t_0).
         Used when the graph declares an ``end_time`` argument and runs in lockstep (``paced`` says
         whether it is); pass ``end_time`` in ``arguments`` to drive the graph unpaced.
@@ -177,6 +192,8 @@ class SilGraph:
         if self.paced:
             if self.start_at > 0:
                 self.arguments["end_time"] = repr(self.start_at)
+            elif "start_held" in declared:  # held at t_0 itself (end_time 0 means "run on")
+                self.arguments["start_held"] = "true"
         if "wait_for_subscribers" in declared and "wait_for_subscribers" not in self.arguments:
             self._count_own_listeners(declared["wait_for_subscribers"])
         specs = load_graph(graph_file, self.arguments)
@@ -207,18 +224,28 @@ class SilGraph:
             return all(int(kv.value) >= self._node.count_subscribers(kv.key.split(":", 1)[1])
                        for kv in status.values if kv.key.startswith("subscribers:"))
 
-        def ready():
-            latest = {}
+        def latest():
+            found = {}
             for array in self.log["diagnostics"][-40:]:
                 for status in array.status:
-                    latest[status.name] = status
-            return all(name in latest and latest[name].level in (0, b"\x00") and matched_all(latest[name])
+                    found[status.name] = status
+            return found
+
+        def ready():
+            found = latest()
+            return all(name in found and found[name].level in (0, b"\x00") and matched_all(found[name])
                        for name in names)
         navigation = self.ready_status is not None
         if not self.spin_until(lambda: self.log["truth"] and (not navigation or self.log["estimate"])
                                and (not self.ready_status or ready()), self.ready_timeout):
-            raise SilError(f"no navigation estimate or no OK {self.ready_status!r} within "
-                           f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
+            found = latest()
+            seen = "; ".join(f"{name}: " + (f"{found[name].message!r} (matched readers: "
+                                            f"{[kv.value for kv in found[name].values if kv.key.startswith('subscribers:')]}"
+                                            f" of {[self._node.count_subscribers(kv.key.split(':', 1)[1]) for kv in found[name].values if kv.key.startswith('subscribers:')]})"
+                                            if name in found else "no status") for name in names)
+            raise SilError(f"no navigation estimate ({len(self.log['estimate'])} heard, {len(self.log['truth'])} "
+                           f"samples) or no OK {self.ready_status!r} within {self.ready_timeout:g} s [{seen}]; "
+                           f"node logs in {self.out_dir}" + self._dead())
         if self.paced:
             from rcl_interfaces.srv import SetParameters
             self._end_client = self._node.create_client(SetParameters, topics.SIMULATOR_PARAMETERS_SERVICE)
@@ -407,6 +434,9 @@ class SilGraph:
                 nxt = self.held + self.chunk
             self._set_end(nxt)
             if self._settle(nxt, max(1.0, deadline - time.monotonic()), done) == "blocked":
+                # held right here (no lockstep time-out), however long the driver takes to act: a controller
+                # activated now answers this very sample on a quiet and on a loaded machine alike
+                self._set_end(self.held)
                 return "blocked"
 
     def run_for(self, seconds: float, timeout: float | None = None) -> None:
@@ -611,9 +641,10 @@ class SilGraph:
 
         def quat(q):
             return frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
+        log = {name: _once_per_stamp(msgs) if name in _SIMULATOR_TOPICS else msgs for name, msgs in self.log.items()}
         out = {}
         for name in ("truth", "estimate"):
-            msgs = self.log[name]
+            msgs = log[name]
             out[f"{name}_t"] = np.array([stamp(m) for m in msgs])
             out[f"{name}_position"] = np.array([xyz(m.pose.pose.position) for m in msgs]).reshape(-1, 3)
             out[f"{name}_attitude"] = np.array([quat(m.pose.pose.orientation) for m in msgs]).reshape(-1, 3)
@@ -621,26 +652,26 @@ class SilGraph:
                                                 for m in msgs]).reshape(-1, 6)
         # the navigator's stated horizontal uncertainty [m]: the larger of its x, y standard deviations
         out["estimate_horizontal_std"] = np.array([math.sqrt(max(m.pose.covariance[0], m.pose.covariance[7], 0.0))
-                                                   for m in self.log["estimate"]])
-        out["reference_t"] = np.array([stamp(m) for m in self.log["reference"]])
-        out["reference"] = np.array([xyz(m.twist.linear) + [m.twist.angular.z] for m in self.log["reference"]]
+                                                   for m in log["estimate"]])
+        out["reference_t"] = np.array([stamp(m) for m in log["reference"]])
+        out["reference"] = np.array([xyz(m.twist.linear) + [m.twist.angular.z] for m in log["reference"]]
                                     ).reshape(-1, 4)
         for name in ("command", "applied"):
-            out[f"{name}_t"] = np.array([stamp(m) for m in self.log[name]])
-            out[name] = np.array([list(m.pitch) for m in self.log[name]]).reshape(-1, 4)
-        out["setpoint_t"] = np.array([stamp(m) for m in self.log["setpoint"]])
+            out[f"{name}_t"] = np.array([stamp(m) for m in log[name]])
+            out[name] = np.array([list(m.pitch) for m in log[name]]).reshape(-1, 4)
+        out["setpoint_t"] = np.array([stamp(m) for m in log["setpoint"]])
         out["setpoint"] = np.array([xyz(m.pose.position) + [quat(m.pose.orientation)[2]]
-                                    for m in self.log["setpoint"]]).reshape(-1, 4)
-        out["velocity_t"] = np.array([stamp(m) for m in self.log["velocity"]])
+                                    for m in log["setpoint"]]).reshape(-1, 4)
+        out["velocity_t"] = np.array([stamp(m) for m in log["velocity"]])
         out["velocity"] = np.array([xyz(m.twist.twist.linear) + xyz(m.twist.twist.angular)
-                                    for m in self.log["velocity"]]).reshape(-1, 6)
-        out["imu_t"] = np.array([stamp(m) for m in self.log["imu"]])
-        out["attitude"] = np.array([quat(m.orientation) for m in self.log["imu"]]).reshape(-1, 3)
-        out["depth_t"] = np.array([stamp(m) for m in self.log["depth"]])
-        out["depth"] = np.array([m.depth for m in self.log["depth"]])
-        out["position_t"] = np.array([stamp(m) for m in self.log["position"]])
-        out["position"] = np.array([xyz(m.pose.pose.position) for m in self.log["position"]]).reshape(-1, 3)
-        out["altitude_t"] = np.array([stamp(m) for m in self.log["altitude"]])
+                                    for m in log["velocity"]]).reshape(-1, 6)
+        out["imu_t"] = np.array([stamp(m) for m in log["imu"]])
+        out["attitude"] = np.array([quat(m.orientation) for m in log["imu"]]).reshape(-1, 3)
+        out["depth_t"] = np.array([stamp(m) for m in log["depth"]])
+        out["depth"] = np.array([m.depth for m in log["depth"]])
+        out["position_t"] = np.array([stamp(m) for m in log["position"]])
+        out["position"] = np.array([xyz(m.pose.pose.position) for m in log["position"]]).reshape(-1, 3)
+        out["altitude_t"] = np.array([stamp(m) for m in log["altitude"]])
         out["altitude"] = np.array([m.range if m.min_range <= m.range <= m.max_range else math.nan
-                                    for m in self.log["altitude"]])
+                                    for m in log["altitude"]])
         return out

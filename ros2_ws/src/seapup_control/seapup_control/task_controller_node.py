@@ -12,6 +12,13 @@ limits of ``config/task_controller.yaml``, no navigation, the altimeter
 seeing no seabed, another task running without ``preempt`` -- is rejected;
 the reason is logged and published on ``task/rejections``
 (std_msgs/String), since an action's goal response has no field for it.
+
+Seabed following steps at estimate t_k with the altimeter's reading of t_k. While the altimeter
+streams one reading per sample (the simulator sends every sample, +inf when it hears no echo),
+the node waits up to ``altitude_wait`` wall seconds for that reading before it steps: the
+altitude and the estimate arrive on different topics, and which comes first must not depend on
+how busy the machine is (a lockstep run would otherwise differ under load). A reading that does
+not come in time is counted (``late_altitudes``) and the newest earlier one used.
 """
 from __future__ import annotations
 
@@ -24,6 +31,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -74,7 +82,7 @@ class TaskControllerNode(Node):
             "limits.default_yaw_tolerance": (1e-4, 3.1416), "limits.settle_time": (0.0, 3600.0),
             "limits.timeout_margin": (0.0, 1e6), "limits.altitude_timeout": (0.01, 3600.0),
             "limits.seabed_filter_time": (0.0, 3600.0), "limits.max_estimate_std": (0.0, 1e4),
-            "limits.max_lead": (0.0, 3600.0)})
+            "limits.max_lead": (0.0, 3600.0), "altitude_wait": (0.0, 600.0)})
         self.limits = TaskLimits.from_mapping({k.removeprefix("limits."): v for k, v in p.items()
                                                if k.startswith("limits.")})
         self.period = float(p["sample_period"])
@@ -84,9 +92,13 @@ class TaskControllerNode(Node):
         self._clock_ns: int | None = None  # the graph's /clock, when there is one
         self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._altitudes = collections.deque(maxlen=100)  # valid altimeter readings, oldest first
+        self._newest_altitude: float | None = None  # [s] stamp of the newest altimeter message, valid or not
+        # an estimate waiting for its sample's altitude reading (seabed following), with its wall deadline
+        self._parked: tuple | None = None
+        self.create_timer(0.01, self._check_parked, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         self.running: _Running | None = None
         self.setpoint = None
-        self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0}
+        self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0}
         self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
@@ -113,7 +125,7 @@ class TaskControllerNode(Node):
         if kind == "goto":
             return GotoTask(self.limits, estimate, (goal.x, goal.y, goal.z), goal.yaw, speed=goal.speed,
                             tolerance=goal.tolerance, yaw_tolerance=goal.yaw_tolerance, timeout=goal.timeout)
-        altitude = self._altitudes[-1] if self._altitudes else None
+        altitude = self._altitude_at(estimate.t) if estimate is not None else None
         return FollowSeabedTask(self.limits, estimate, altitude, height=goal.altitude, yaw=goal.yaw,
                                 speed=goal.speed, duration=goal.duration)
 
@@ -177,8 +189,12 @@ class TaskControllerNode(Node):
             reading = altitude_from_msg(msg)
         except (ContractError, ValueError):
             return
+        stamp = stamp_to_ns(msg.header.stamp) * 1e-9
+        self._newest_altitude = stamp if self._newest_altitude is None else max(self._newest_altitude, stamp)
         if reading.valid:
             self._altitudes.append(reading)
+        if self._parked is not None and stamp >= self._parked[0].t - 1e-9:
+            self._unpark()
 
     def _altitude_at(self, t: float):
         """The latest altimeter reading taken at or before ``t`` and at most 1 s older (the topics are
@@ -208,6 +224,36 @@ class TaskControllerNode(Node):
             self.counts["rejected_estimates"] += 1
             self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
             return
+        if self._parked is not None:  # the next estimate overtook the reading the parked one waits for
+            self._unpark(late=True)
+        if self._needs_altitude(estimate):
+            self._parked = (estimate, time.monotonic() + float(self.get_parameter("altitude_wait").value))
+            return
+        self._handle(estimate)
+
+    def _needs_altitude(self, estimate) -> bool:
+        """Is seabed following running, the altimeter streaming one reading per sample (the newest came
+        at most a sample before this estimate) and this sample's reading still to come?"""
+        running, newest = self.running, self._newest_altitude
+        return (running is not None and not running.done.done() and running.task.kind == "follow_seabed"
+                and newest is not None and estimate.t - 1.5 * self.period <= newest < estimate.t - 1e-9
+                and float(self.get_parameter("altitude_wait").value) > 0)
+
+    def _unpark(self, late: bool = False) -> None:
+        estimate, _ = self._parked
+        self._parked = None
+        if late:
+            self.counts["late_altitudes"] += 1
+            self.get_logger().warn(f"no altitude reading for t = {estimate.t:.3f} s within altitude_wait: "
+                                   "going on with the newest earlier one", throttle_duration_sec=5.0)
+        self._handle(estimate)
+
+    def _check_parked(self) -> None:
+        if self._parked is not None and time.monotonic() > self._parked[1]:
+            self._unpark(late=True)
+
+    def _handle(self, estimate) -> None:
+        """Step the running task at ``estimate`` and send the setpoint for the next sample."""
         self.estimate, self._estimate_wall = estimate, time.monotonic()
         running = self.running
         if running is not None and not running.done.done():

@@ -19,9 +19,11 @@ With ``end_time`` > 0 the simulator stops stepping once it has published the
 sample t_k >= end_time (in either mode): commands are still taken and counted,
 /clock stays at t_k, diagnostics say it is at its end. A recorded experiment
 then ends at exactly end_time in graph time, however late its driver stops the
-graph. ``end_time`` can be set at run time: a later value resumes a held
+graph. With ``start_held`` it holds so at its first sample t_0 until ``end_time``
+is set. ``end_time`` can be set at run time: a later value resumes a held
 graph (in lockstep with the command for t_k if it came while held, else the
-sample waits for it as usual), so a driver can hold the whole graph at an
+sample is published again, the same messages, for a node that joined while
+the graph was held, and waits for its command as usual), so a driver can hold the whole graph at an
 exact sample, act (send a goal, switch a controller) and go on -- what it
 does then takes effect at the same sample however busy the machine is
 (:class:`seapup_bringup.sil.SilGraph` drives a hierarchy like that).
@@ -147,6 +149,8 @@ class SimulatorNode(Node):
             "diagnostics_period": _float_range(0.05, 60.0, "diagnostics period [s wall]", **ro),
             "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on (settable at "
                                                "run time: a later value resumes a held graph)"),
+            "start_held": ParameterDescriptor(description="hold at the first sample t_0 until end_time is set "
+                                                          "beyond it", **ro),
             "wait_for_subscribers": ParameterDescriptor(
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
@@ -190,7 +194,9 @@ class SimulatorNode(Node):
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._last_gate_log = 0.0
         self._end_ns = int(round(p["end_time"] * 1e9))  # 0: no end
+        self._held_at_start = bool(p["start_held"])  # until end_time is set at run time
         self._answered_ns: int | None = None  # lockstep: the sample whose command has come
+        self._sent: list = []  # the current sample's (publisher, message) pairs, for a republish
         if self.mode == "lockstep":
             self._start_when_ready()
             self.create_timer(0.01, self._lockstep_watch)
@@ -328,16 +334,21 @@ class SimulatorNode(Node):
         """A new ``end_time`` [s]: resumes a graph held at its end when it lies beyond the held sample."""
         held = self._at_end()
         self._end_ns = int(round(end_time * 1e9))
+        self._held_at_start = False
         if not held or self._at_end() or self._halted:
             return
         if self.mode == "lockstep" and self._started:
             if self._answered_ns == self.simulator.t_ns:
                 self._advance()  # the command for the held sample came meanwhile
             else:
+                # a node that joined while the graph was held (a controller configured and activated
+                # there) never heard the sample it is to answer: say it again, every topic, same bytes
+                self._republish()
                 self._waiting_since = time.monotonic()  # its lockstep_timeout counts from now
     def _at_end(self) -> bool:
-        """The sample of ``end_time`` (or a later one) is published: step no further."""
-        return 0 < self._end_ns <= self.simulator.t_ns
+        """The sample of ``end_time`` (or a later one) is published, or t_0 with ``start_held``: step no
+        further."""
+        return 0 < self._end_ns <= self.simulator.t_ns or self._held_at_start
 
     def _advance(self) -> None:
         if self._halted or self._at_end():
@@ -391,19 +402,26 @@ class SimulatorNode(Node):
             (self.pub_imu, conv.imu_to_msg(m.attitude, m.rates, sample.specific_force, t_ns)),
             *([(self.pub_position, conv.position_to_msg(m.position, t_ns))] if m.position.valid else []),
             (self.pub_depth, conv.depth_to_msg(m.depth, t_ns)),
-            *([(self.pub_altitude, conv.altitude_to_msg(
+            (self.pub_altitude, conv.altitude_to_msg(  # every sample: +inf when invalid (REP-117)
                 m.altitude, t_ns, field_of_view=prof.altimeter_field_of_view, min_range=prof.altimeter_min_range,
-                max_range=prof.altimeter_max_range))] if m.altitude.valid else []),
+                max_range=prof.altimeter_max_range)),
             (self.pub_truth, conv.odometry_ned(sample.state, t_ns)),
             (self.pub_odom, conv.odometry_enu(sample.state, t_ns)),
             (self.pub_current, conv.vector3_stamped(sample.current_ned, t_ns, NED)),
             (self.pub_wrench, conv.wrench_stamped(sample.umbilical_body, t_ns, FRD))]
-        for publisher, msg in messages:
-            publisher.publish(msg)
-        # last: what this sample holds (the acoustic fix and the altimeter come only at some samples)
+        # last: what this sample holds (the acoustic fix comes only at some samples)
         manifest = SampleManifest(topics=[publisher.topic_name for publisher, _ in messages])
         manifest.header.stamp = conv.ns_to_stamp(t_ns)
-        self.pub_manifest.publish(manifest)
+        self._sent = messages + [(self.pub_manifest, manifest)]
+        for publisher, msg in self._sent:
+            publisher.publish(msg)
+
+    def _republish(self) -> None:
+        """The current sample's messages once more, unchanged (a reader takes a sample once)."""
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=conv.ns_to_stamp(self.simulator.t_ns)))
+        for publisher, msg in self._sent:
+            publisher.publish(msg)
 
     def _publish_diagnostics(self) -> None:
         c = self.simulator.counters
@@ -418,7 +436,9 @@ class SimulatorNode(Node):
             level, message = DiagnosticStatus.WARN, message + ", " + "; ".join(problems)
         elif self.simulator.watchdog_active:
             level, message = DiagnosticStatus.WARN, message + ", watchdog active (no valid command)"
-        if self._at_end():
+        if self._held_at_start:
+            message += ", held at its start (start_held)"
+        elif self._at_end():
             message += f", at end_time {self._end_ns * 1e-9:g} s (holding)"
         elif rejected:
             level, message = DiagnosticStatus.WARN, message + f", last rejection: {self.simulator.last_error}"

@@ -176,11 +176,17 @@ def depth_from_msg(msg: Depth) -> Reading:
 
 def altitude_to_msg(altitude: Reading, t_ns: int, *, field_of_view: float, min_range: float,
                     max_range: float) -> Range:
-    """An altimeter range along body z (sensor_msgs/Range, ultrasound)."""
+    """An altimeter range along body z (sensor_msgs/Range, ultrasound). An invalid reading (no echo: the
+    seabed beyond ``max_range``, out of the beam, or inside the transducer's blanking distance ``min_range``,
+    where an acoustic altimeter hears nothing either) is sent as range +inf, REP-117's "no object detected",
+    so a reader knows the sample had no altitude rather than waiting for one."""
     msg = _header(Range(), t_ns, frames.FRAME_FRD)
     msg.radiation_type = Range.ULTRASOUND
     msg.field_of_view, msg.min_range, msg.max_range = float(field_of_view), float(min_range), float(max_range)
-    msg.range, msg.variance = float(altitude.value), float(altitude.variance)
+    if altitude.valid:
+        msg.range, msg.variance = float(altitude.value), float(altitude.variance)
+    else:
+        msg.range, msg.variance = math.inf, 0.0
     return msg
 
 
@@ -345,27 +351,33 @@ class MeasurementCollector:
         if reading.valid:
             self.latest[name] = reading
 
+    @staticmethod
+    def readings(msg) -> list[tuple[str, Reading]]:
+        """The readings one sensor message carries, by measurement field; raises ContractError or
+        ValueError if it is unusable (nothing is kept: a validity check)."""
+        if isinstance(msg, TwistWithCovarianceStamped):
+            velocity, rates = velocity_from_msg(msg)
+            return [("velocity", velocity), ("rates", rates)]
+        if isinstance(msg, Imu):
+            return [("attitude", attitude_from_imu(msg))]
+        if isinstance(msg, PoseWithCovarianceStamped):
+            return [("position", position_from_msg(msg))]
+        if isinstance(msg, Depth):
+            return [("depth", depth_from_msg(msg))]
+        if isinstance(msg, Range):
+            return [("altitude", altitude_from_msg(msg))]
+        raise ContractError(f"not a sensor message: {type(msg).__name__}")
+
     def add(self, msg) -> bool:
         """Take one sensor message; return False (and count it) if it is unusable."""
         try:
-            if isinstance(msg, TwistWithCovarianceStamped):
-                velocity, rates = velocity_from_msg(msg)
-                self._keep("velocity", velocity)
-                self._keep("rates", rates)
-            elif isinstance(msg, Imu):
-                self._keep("attitude", attitude_from_imu(msg))
-            elif isinstance(msg, PoseWithCovarianceStamped):
-                self._keep("position", position_from_msg(msg))
-            elif isinstance(msg, Depth):
-                self._keep("depth", depth_from_msg(msg))
-            elif isinstance(msg, Range):
-                self._keep("altitude", altitude_from_msg(msg))
-            else:
-                raise ContractError(f"not a sensor message: {type(msg).__name__}")
+            readings = self.readings(msg)
         except (ContractError, ValueError) as exc:
             self.rejected += 1
             self.last_error = str(exc)
             return False
+        for name, reading in readings:
+            self._keep(name, reading)
         return True
 
     def measurement(self, t: float) -> Measurement:

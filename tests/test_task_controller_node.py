@@ -1,0 +1,101 @@
+"""The task controller follows the seabed at the estimate t_k with the altimeter's reading of t_k, even when
+that reading arrives after the estimate (a loaded machine), so its setpoints do not depend on delivery order.
+
+Truth: the same readings and estimates delivered altitude-first (as on a quiet machine); the node's
+callbacks are called directly in a chosen order, so the test decides the interleaving. The simulator sends
+an altitude every sample, +inf (REP-117, no echo) when the altimeter hears nothing: such a sample does not
+wait either.
+"""
+import math
+import time
+
+import numpy as np
+import pytest
+
+from seapup_common.contract import Measurement, NavigationEstimate, Reading
+from seapup_common.ros import messages as conv
+
+T = 0.2
+
+
+def _estimate(k):
+    t = k * T
+    return conv.estimate_to_odometry(NavigationEstimate(t, np.array([0.05 * k, 0.0, 30.0 + 0.01 * k]),
+                                                        0.01 * np.eye(3), np.zeros(3), np.zeros(3)), round(t * 1e9))
+
+
+def _altitude(k, valid=True):
+    """A reading that changes from sample to sample (the seabed under a moving vehicle, with noise)."""
+    reading = Measurement.build(k * T, altitude=10.0 + 0.4 * math.sin(1.7 * k)).altitude if valid else Reading.invalid()
+    return conv.altitude_to_msg(reading, round(k * T * 1e9), field_of_view=0.17, min_range=0.3, max_range=200.0)
+
+
+class _Handle:
+    is_cancel_requested = False
+
+    def publish_feedback(self, feedback):
+        pass
+
+
+def _node(ros_context, altitude_wait):
+    from rclpy.parameter import Parameter
+    from seapup_control.task_controller_node import TaskControllerNode, _Running
+    from seapup_control.tasks import FollowSeabed
+    node = TaskControllerNode(context=ros_context)
+    node.set_parameters([Parameter("altitude_wait", value=altitude_wait)])
+    setpoints = []
+    node.setpoints.publish = lambda msg: setpoints.append(
+        (conv.stamp_to_ns(msg.header.stamp), msg.pose.position.x, msg.pose.position.z))
+    node._on_altitude(_altitude(0))
+    start = conv.estimate_from_odometry(_estimate(0))
+    task = FollowSeabed(node.limits, start, conv.altitude_from_msg(_altitude(0)), height=8.0, yaw=0.0, speed=0.2,
+                        duration=100.0)
+    node.running = _Running(task, _Handle())
+    return node, setpoints
+
+
+def _run(ros_context, deliveries, altitude_wait=2.0):
+    node, setpoints = _node(ros_context, altitude_wait)
+    for kind, msg in deliveries:
+        (node._on_altitude if kind == "altitude" else node._on_estimate)(msg)
+    late = node.counts["late_altitudes"]
+    node.destroy_node()
+    return setpoints, late
+
+
+def _readings(k):
+    return _altitude(k, valid=k % 7 != 3)  # now and then no echo: +inf on the wire
+
+
+@pytest.mark.graph
+def test_seabed_following_waits_for_its_samples_altitude(ros_context):
+    in_order = [d for k in range(1, 30) for d in (("altitude", _readings(k)), ("estimate", _estimate(k)))]
+    behind = [d for k in range(1, 30) for d in (("estimate", _estimate(k)), ("altitude", _readings(k)))]
+    reference, late = _run(ros_context, in_order)
+    waited, waited_late = _run(ros_context, behind)
+    assert len(reference) == 29 and late == 0
+    assert math.isinf(_readings(3).range) and _readings(3).range > 0
+    assert waited == reference and waited_late == 0
+    # without the wait each sample uses the previous sample's reading: the rule really matters
+    unwaited, _ = _run(ros_context, behind, altitude_wait=0.0)
+    assert len(unwaited) == 29 and unwaited != reference
+
+
+@pytest.mark.graph
+def test_an_altitude_that_never_comes_is_waited_for_only_altitude_wait(ros_context):
+    """The altimeter stops (its driver died): the estimate goes on with the newest reading after
+    altitude_wait wall seconds, counted late; the next estimate does not wait again."""
+    node, setpoints = _node(ros_context, 0.3)
+    for k in range(1, 5):
+        node._on_altitude(_readings(k))
+        node._on_estimate(_estimate(k))
+    node._on_estimate(_estimate(5))  # its reading never comes
+    assert len(setpoints) == 4
+    start = time.monotonic()
+    while len(setpoints) < 5 and time.monotonic() - start < 5.0:
+        node._check_parked()
+        time.sleep(0.01)
+    assert len(setpoints) == 5 and 0.25 < time.monotonic() - start < 2.0 and node.counts["late_altitudes"] == 1
+    node._on_estimate(_estimate(6))  # not streaming any more: at once
+    assert len(setpoints) == 6 and node.counts["late_altitudes"] == 1
+    node.destroy_node()
