@@ -99,3 +99,20 @@ def test_an_altitude_that_never_comes_is_waited_for_only_altitude_wait(ros_conte
     node._on_estimate(_estimate(6))  # not streaming any more: at once
     assert len(setpoints) == 6 and node.counts["late_altitudes"] == 1
     node.destroy_node()
+
+
+@pytest.mark.graph
+def test_an_altitude_stamped_far_ahead_is_refused_and_changes_nothing(ros_context):
+    """Issue 28 5(c): one reading stamped 10^6 s ahead must neither be used nor end the per-sample wait."""
+    hostile = _readings(1)
+    hostile.header.stamp.sec += 10**6
+    deliveries = [("altitude", hostile)] + [d for k in range(1, 30)
+                                             for d in (("estimate", _estimate(k)), ("altitude", _readings(k)))]
+    node, setpoints = _node(ros_context, 2.0)
+    for kind, msg in deliveries:
+        (node._on_altitude if kind == "altitude" else node._on_estimate)(msg)
+    assert node.counts["rejected_altitudes"] == 1 and node.counts["late_altitudes"] == 0
+    reference, _ = _run(ros_context, [d for k in range(1, 30) for d in (("altitude", _readings(k)),
+                                                                        ("estimate", _estimate(k)))])
+    assert setpoints == reference
+    node.destroy_node()

@@ -41,6 +41,7 @@ from seapup_msgs.action import FollowSeabed, Goto, Hover
 from std_msgs.msg import String
 
 from seapup_common.contract import ContractError
+from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, graph_time_ns,
@@ -93,12 +94,14 @@ class TaskControllerNode(Node):
         self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._altitudes = collections.deque(maxlen=100)  # valid altimeter readings, oldest first
         self._newest_altitude: float | None = None  # [s] stamp of the newest altimeter message, valid or not
+        self._altitude_stamps = StampGate()
         # an estimate waiting for its sample's altitude reading (seabed following), with its wall deadline
         self._parked: tuple | None = None
         self.create_timer(0.01, self._check_parked, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         self.running: _Running | None = None
         self.setpoint = None
-        self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0}
+        self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0,
+                       "rejected_altitudes": 0}
         self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
@@ -189,7 +192,13 @@ class TaskControllerNode(Node):
             reading = altitude_from_msg(msg)
         except (ContractError, ValueError):
             return
-        stamp = stamp_to_ns(msg.header.stamp) * 1e-9
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if not self._altitude_stamps.accept(stamp_ns):  # far from the graph's time: never used, never waited on
+            self.counts["rejected_altitudes"] += 1
+            self.get_logger().warn(f"altitude rejected: {self._altitude_stamps.why(stamp_ns)}",
+                                   throttle_duration_sec=2.0)
+            return
+        stamp = stamp_ns * 1e-9
         self._newest_altitude = stamp if self._newest_altitude is None else max(self._newest_altitude, stamp)
         if reading.valid:
             self._altitudes.append(reading)
