@@ -116,3 +116,17 @@ def test_an_altitude_stamped_far_ahead_is_refused_and_changes_nothing(ros_contex
                                                                         ("estimate", _estimate(k)))])
     assert setpoints == reference
     node.destroy_node()
+
+
+@pytest.mark.graph
+def test_an_altimeter_slower_than_the_samples_is_not_waited_for(ros_context):
+    """A vehicle's 1 Hz altimeter (one reading every 5 samples): no estimate waits for a reading that is not
+    coming, so every setpoint goes out with its estimate and none is counted late."""
+    node, setpoints = _node(ros_context, 2.0)
+    for k in range(1, 30):
+        node._on_estimate(_estimate(k))
+        assert len(setpoints) == k, k  # at once
+        if k % 5 == 0:
+            node._on_altitude(_readings(k))
+    assert node.counts["late_altitudes"] == 0 and node._parked is None
+    node.destroy_node()

@@ -189,7 +189,7 @@ def fly_mission(out: Path, config: dict, text) -> dict:
         leg.update(_truth_numbers(logs, leg, seabed))
     if swap and swap["leg"] < len(legs):
         legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
-    # held: the sample [s] the paced graph was held at when it stopped (every node had answered it)
+    # held: the sample [s] the paced graph was held at when it stopped
     return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
 
 

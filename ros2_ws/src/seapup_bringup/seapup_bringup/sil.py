@@ -80,13 +80,15 @@ _SIMULATOR_TOPICS = ("truth", "applied", "altitude", "velocity", "imu", "depth",
 
 
 def _once_per_stamp(msgs: list) -> list:
-    """The messages without repeats of the one before's stamp."""
-    out, last = [], None
+    """The messages without repeats of the next one's stamp (the last kept: after a simulator reset, t_0
+    is a new sample)."""
+    out = []
     for msg in msgs:
-        stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
-        if stamp != last:
+        if out and (out[-1].header.stamp.sec, out[-1].header.stamp.nanosec) == (msg.header.stamp.sec,
+                                                                                msg.header.stamp.nanosec):
+            out[-1] = msg
+        else:
             out.append(msg)
-        last = stamp
     return out
 
 
@@ -235,7 +237,9 @@ class SilGraph:
             found = latest()
             return all(name in found and found[name].level in (0, b"\x00") and matched_all(found[name])
                        for name in names)
-        navigation = self.ready_status is not None
+        # an estimate first, unless held at t_0: the navigator's first comes with its first acoustic fix,
+        # which t_0 may lack (a dropout), and the graph goes on only once the harness acts
+        navigation = self.ready_status is not None and not (self.paced and self.start_at == 0)
         if not self.spin_until(lambda: self.log["truth"] and (not navigation or self.log["estimate"])
                                and (not self.ready_status or ready()), self.ready_timeout):
             found = latest()
@@ -435,8 +439,10 @@ class SilGraph:
             self._set_end(nxt)
             if self._settle(nxt, max(1.0, deadline - time.monotonic()), done) == "blocked":
                 # held right here (no lockstep time-out), however long the driver takes to act: a controller
-                # activated now answers this very sample on a quiet and on a loaded machine alike
-                self._set_end(self.held)
+                # activated now answers this very sample on a quiet and on a loaded machine alike (not at t_0,
+                # where end_time 0 would mean "run on")
+                if self.held > 0:
+                    self._set_end(self.held)
                 return "blocked"
 
     def run_for(self, seconds: float, timeout: float | None = None) -> None:

@@ -31,6 +31,7 @@ from pathlib import Path
 import yaml
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
@@ -95,6 +96,7 @@ class SelfTestNode(Node):
         if self.lockstep:
             self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._timer = None
+        self._retry_timer = None  # a sample to decide again once the subscriber gate opens
         self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
                                    goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT,
                                    goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
@@ -192,8 +194,11 @@ class SelfTestNode(Node):
         if test is None or self.policy.pending(t_ns) is None or (test.finished and not self.hover_after):
             return
         if not self.gate.ready():
-            self.get_logger().info(f"waiting for subscribers: {', '.join(self.gate.missing())}",
+            # the first command waits until every awaited subscriber has matched (and stayed matched for the
+            # gate's grace): decided again shortly, since in lockstep no new sample comes meanwhile
+            self.get_logger().info(f"waiting for subscribers: {', '.join(self.gate.missing()) or '(settling)'}",
                                    throttle_duration_sec=5.0)
+            self._retry(t_ns)
             return
         if test.finished and test.controller is None:
             return  # nothing better than what the plant does by itself
@@ -216,6 +221,18 @@ class SelfTestNode(Node):
                 test.cancel("cancelled by the client")
             if test.finished and not self._done.done():
                 self._done.set_result(True)
+
+    def _retry(self, t_ns: int, after: float = 0.05) -> None:
+        """Answer sample ``t_ns`` again ``after`` wall seconds from now (a steady timer: a held or waiting
+        lockstep graph's time stands still)."""
+        if self._retry_timer is not None:
+            return
+
+        def fire():
+            self.destroy_timer(self._retry_timer)
+            self._retry_timer = None
+            self._answer(t_ns)
+        self._retry_timer = self.create_timer(after, fire, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
 
     def _sample_msgs(self, test: SelfTest, t_ns: int) -> list[SelfTestSample]:
         """What this sample was used for, with the velocities used: one message per step test it was

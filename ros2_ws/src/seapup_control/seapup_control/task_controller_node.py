@@ -94,6 +94,7 @@ class TaskControllerNode(Node):
         self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
         self._altitudes = collections.deque(maxlen=100)  # valid altimeter readings, oldest first
         self._newest_altitude: float | None = None  # [s] stamp of the newest altimeter message, valid or not
+        self._previous_altitude: float | None = None  # [s] and of the one before it
         self._altitude_stamps = StampGate()
         # an estimate waiting for its sample's altitude reading (seabed following), with its wall deadline
         self._parked: tuple | None = None
@@ -198,8 +199,9 @@ class TaskControllerNode(Node):
             self.get_logger().warn(f"altitude rejected: {self._altitude_stamps.why(stamp_ns)}",
                                    throttle_duration_sec=2.0)
             return
-        stamp = stamp_ns * 1e-9
-        self._newest_altitude = stamp if self._newest_altitude is None else max(self._newest_altitude, stamp)
+        stamp, newest = stamp_ns * 1e-9, self._newest_altitude
+        if newest is None or stamp > newest or stamp < newest - 1.0:  # newer, or time went back (a reset)
+            self._previous_altitude, self._newest_altitude = newest, stamp
         if reading.valid:
             self._altitudes.append(reading)
         if self._parked is not None and stamp >= self._parked[0].t - 1e-9:
@@ -233,6 +235,7 @@ class TaskControllerNode(Node):
             self.counts["rejected_estimates"] += 1
             self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
             return
+        self._altitude_stamps.accept(round(estimate.t * 1e9))  # the graph's time, for the altitude's stamp gate
         if self._parked is not None:  # the next estimate overtook the reading the parked one waits for
             self._unpark(late=True)
         if self._needs_altitude(estimate):
@@ -241,12 +244,14 @@ class TaskControllerNode(Node):
         self._handle(estimate)
 
     def _needs_altitude(self, estimate) -> bool:
-        """Is seabed following running, the altimeter streaming one reading per sample (the newest came
-        at most a sample before this estimate) and this sample's reading still to come?"""
-        running, newest = self.running, self._newest_altitude
-        return (running is not None and not running.done.done() and running.task.kind == "follow_seabed"
-                and newest is not None and estimate.t - 1.5 * self.period <= newest < estimate.t - 1e-9
-                and float(self.get_parameter("altitude_wait").value) > 0)
+        """Is seabed following running, the altimeter streaming one reading per sample (its newest two a
+        sample apart, the newest a sample before this estimate: a slower altimeter is not waited for) and
+        this sample's reading still to come?"""
+        running, newest, previous = self.running, self._newest_altitude, self._previous_altitude
+        per_sample = (newest is not None and previous is not None and newest - previous <= 1.5 * self.period
+                      and estimate.t - 1.5 * self.period <= newest < estimate.t - 1e-9)
+        return (per_sample and running is not None and not running.done.done()
+                and running.task.kind == "follow_seabed" and float(self.get_parameter("altitude_wait").value) > 0)
 
     def _unpark(self, late: bool = False) -> None:
         estimate, _ = self._parked

@@ -30,8 +30,7 @@ does then takes effect at the same sample however busy the machine is
 
 After the messages of each sample the simulator publishes its manifest,
 ``sensors/sample`` (seapup_msgs/SampleManifest: the stamp t_k and the topics
-published for it -- the acoustic fix and the altimeter only at some
-samples), so a node that needs a sample's readings together knows which to
+published for it -- the acoustic fix only at some samples), so a node that needs a sample's readings together knows which to
 wait for whatever order they arrive in (the navigator).
 
 Every environment setting is a read-only parameter ``environment.<section>.<key>``
@@ -150,7 +149,7 @@ class SimulatorNode(Node):
             "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on (settable at "
                                                "run time: a later value resumes a held graph)"),
             "start_held": ParameterDescriptor(description="hold at the first sample t_0 until end_time is set "
-                                                          "beyond it", **ro),
+                                                          "at run time (to a later sample; 0: run on)", **ro),
             "wait_for_subscribers": ParameterDescriptor(
                 type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
                 description="published topics that need a matched subscriber (e.g. a recorder's) before "
@@ -197,6 +196,8 @@ class SimulatorNode(Node):
         self._held_at_start = bool(p["start_held"])  # until end_time is set at run time
         self._answered_ns: int | None = None  # lockstep: the sample whose command has come
         self._sent: list = []  # the current sample's (publisher, message) pairs, for a republish
+        self._catch_up = False  # resumed at an unanswered sample: republish it to readers that match late
+        self._readers: list[int] = []  # matched readers per publisher of _sent at its last (re)publish
         if self.mode == "lockstep":
             self._start_when_ready()
             self.create_timer(0.01, self._lockstep_watch)
@@ -342,7 +343,9 @@ class SimulatorNode(Node):
                 self._advance()  # the command for the held sample came meanwhile
             else:
                 # a node that joined while the graph was held (a controller configured and activated
-                # there) never heard the sample it is to answer: say it again, every topic, same bytes
+                # there) never heard the sample it is to answer: say it again, every topic, same messages,
+                # and again whenever a reader matches later (discovery may lag) until it is answered
+                self._catch_up = True
                 self._republish()
                 self._waiting_since = time.monotonic()  # its lockstep_timeout counts from now
     def _at_end(self) -> bool:
@@ -361,11 +364,16 @@ class SimulatorNode(Node):
             self.get_logger().error(f"simulation halted: {exc}; call ~/reset to continue")
             return
         self._waiting_since = time.monotonic()
+        self._catch_up = False
 
     def _lockstep_watch(self) -> None:
         if self._halted or not self._start_when_ready() or self._at_end():
             return
         now = time.monotonic()
+        if self._catch_up and now - self._last_republish > 0.05:
+            self._last_republish = now
+            if any(n > seen for n, seen in zip(self._reader_counts(), self._readers)):
+                self._republish()
         if self._handshake:
             if self.simulator.counters["accepted"]:
                 self._handshake = False
@@ -422,6 +430,10 @@ class SimulatorNode(Node):
             self.pub_clock.publish(Clock(clock=conv.ns_to_stamp(self.simulator.t_ns)))
         for publisher, msg in self._sent:
             publisher.publish(msg)
+        self._readers = self._reader_counts()
+
+    def _reader_counts(self) -> list[int]:
+        return [publisher.get_subscription_count() for publisher, _ in self._sent]
 
     def _publish_diagnostics(self) -> None:
         c = self.simulator.counters
@@ -436,8 +448,8 @@ class SimulatorNode(Node):
             level, message = DiagnosticStatus.WARN, message + ", " + "; ".join(problems)
         elif self.simulator.watchdog_active:
             level, message = DiagnosticStatus.WARN, message + ", watchdog active (no valid command)"
-        if self._held_at_start:
-            message += ", held at its start (start_held)"
+        if self._held_at_start and self._started:
+            message += ", held at t_0 (start_held)"
         elif self._at_end():
             message += f", at end_time {self._end_ns * 1e-9:g} s (holding)"
         elif rejected:
@@ -492,6 +504,7 @@ class SimulatorNode(Node):
             state = np.array(request.state, float) if request.use_state else self.start_state
             self.simulator.reset(request.seed, state)  # validated against environment/limits.yaml, atomic
             self._halted = ""
+            self._answered_ns, self._unanswered, self._catch_up = None, 0, False  # the commands were for before
             self._publish_outputs()
             self._waiting_since = time.monotonic()
         return self._answer(response, act, lambda: f"reset: t = 0, seed {request.seed}")
