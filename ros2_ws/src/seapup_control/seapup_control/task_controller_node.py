@@ -98,7 +98,7 @@ class TaskControllerNode(Node):
         self._altitude_stamps = StampGate()
         # an estimate waiting for its sample's altitude reading (seabed following), with its wall deadline
         self._parked: tuple | None = None
-        self.create_timer(0.01, self._check_parked, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
+        self._park_timer = None  # fires at the parked estimate's deadline (steady: a held graph's time stands still)
         self.running: _Running | None = None
         self.setpoint = None
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0,
@@ -239,7 +239,10 @@ class TaskControllerNode(Node):
         if self._parked is not None:  # the next estimate overtook the reading the parked one waits for
             self._unpark(late=True)
         if self._needs_altitude(estimate):
-            self._parked = (estimate, time.monotonic() + float(self.get_parameter("altitude_wait").value))
+            wait = float(self.get_parameter("altitude_wait").value)
+            self._parked = (estimate, time.monotonic() + wait)
+            self._park_timer = self.create_timer(wait + 1e-3, self._check_parked,
+                                                 clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
             return
         self._handle(estimate)
 
@@ -256,6 +259,9 @@ class TaskControllerNode(Node):
     def _unpark(self, late: bool = False) -> None:
         estimate, _ = self._parked
         self._parked = None
+        if self._park_timer is not None:
+            self.destroy_timer(self._park_timer)
+            self._park_timer = None
         if late:
             self.counts["late_altitudes"] += 1
             self.get_logger().warn(f"no altitude reading for t = {estimate.t:.3f} s within altitude_wait: "
