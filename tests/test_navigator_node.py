@@ -6,6 +6,8 @@ simulator core (baseline sensors: acoustic fixes at some samples only, noise), b
 exactly as the simulator node builds them; they are handed to the node's callbacks in a chosen order,
 so the test decides the interleaving a loaded machine would otherwise decide.
 """
+import time
+
 import numpy as np
 import pytest
 
@@ -113,3 +115,46 @@ def test_a_reading_that_never_comes_holds_its_sample_only_for_a_while(ros_contex
     stamps = [s for s, _ in estimates]
     assert stamps == sorted(stamps) and 20 * 200_000_000 in stamps and len(estimates) == len(reference)
     assert estimates[:stamps.index(20 * 200_000_000)] == reference[:stamps.index(20 * 200_000_000)]
+
+
+@pytest.mark.graph
+def test_a_reader_that_matches_late_gets_the_newest_estimate(ros_context):
+    """Issue 28: a lockstep graph held at a sample sends no newer estimate, so a reader whose subscription
+    matched the navigator after the estimates were sent (discovery lags on a loaded machine) would wait for
+    ever. Truth: the estimate the navigator computed for the held sample, heard by a reader that subscribed
+    only afterwards -- once, bit for bit -- and a readers' count in /diagnostics that includes it."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from nav_msgs.msg import Odometry
+    from seapup_control.navigator_node import NavigatorNode
+
+    samples = _samples()[:20]
+    node = NavigatorNode(context=ros_context)
+    sent = []
+    publish = node.publisher.publish
+    node.publisher.publish = lambda msg: (sent.append(msg), publish(msg))
+    for _, name, msg in _in_order(samples, manifests=False):   # nobody listens yet
+        node._on_reading(name, msg)
+    assert sent and node.publisher.get_subscription_count() == 0
+    newest = sent[-1]
+    heard = []
+    reader = rclpy.create_node("late_reader", context=ros_context)
+    reader.create_subscription(Odometry, "/seapup/navigation/odometry", heard.append, 10)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.add_node(reader)
+    deadline = time.monotonic() + 20.0
+    while not heard and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    for _ in range(20):  # nothing more comes: one repeat for one new reader
+        executor.spin_once(timeout_sec=0.02)
+    assert len(heard) == 1 and node.repeated == 1
+    assert conv.stamp_to_ns(heard[0].header.stamp) == conv.stamp_to_ns(newest.header.stamp) == max(
+        conv.stamp_to_ns(m.header.stamp) for r, _ in samples for _, m in r)
+    assert heard[0].pose == newest.pose and heard[0].twist == newest.twist
+    diagnostics = []
+    node.diagnostics.publish = diagnostics.append
+    node._diagnose()
+    values = {kv.key: kv.value for kv in diagnostics[0].status[0].values}
+    assert values["subscribers:/seapup/navigation/odometry"] == "1" and values["repeated_estimates"] == "1"
+    executor.shutdown()

@@ -81,3 +81,21 @@ def test_a_setpoint_that_never_comes_is_waited_for_only_setpoint_wait(ros_contex
     node._on_estimate(_estimate(7))
     assert len(references) == 7 and node.counts["late_setpoints"] == 1
     node.destroy_node()
+
+
+@pytest.mark.graph
+def test_an_estimate_said_again_is_tracked_once(ros_context):
+    """The navigator says its newest estimate again when a reader matches late (issue 28): the readers
+    that had it must not step the law twice. Truth: the references of every estimate delivered once."""
+    from seapup_control.position_controller_node import PositionControllerNode
+    in_order = [d for k in range(1, 20) for d in (("setpoint", _setpoint(k)), ("estimate", _estimate(k)))]
+    twice = [d for k in range(1, 20) for d in (("setpoint", _setpoint(k)), ("estimate", _estimate(k)),
+                                                ("estimate", _estimate(k)))]
+    reference, _ = _run(ros_context, in_order)
+    repeated, _ = _run(ros_context, twice)
+    assert len(reference) == 19 and repeated == reference
+    node = PositionControllerNode(context=ros_context)
+    node._on_estimate(_estimate(1))
+    node._on_estimate(_estimate(1))
+    node._on_estimate(_estimate(2))
+    assert node.counts["repeated_estimates"] == 1 and node.counts["estimates"] == 2

@@ -130,3 +130,17 @@ def test_an_altimeter_slower_than_the_samples_is_not_waited_for(ros_context):
             node._on_altitude(_readings(k))
     assert node.counts["late_altitudes"] == 0 and node._parked is None
     node.destroy_node()
+
+
+@pytest.mark.graph
+def test_an_estimate_said_again_steps_the_task_once(ros_context):
+    """The navigator says its newest estimate again when a reader matches late (issue 28): a task steps
+    once per sample. Truth: the setpoints of every estimate delivered once."""
+    in_order = [d for k in range(1, 20) for d in (("altitude", _readings(k)), ("estimate", _estimate(k)))]
+    twice = [d for k in range(1, 20) for d in (("altitude", _readings(k)), ("estimate", _estimate(k)),
+                                                ("estimate", _estimate(k)))]
+    reference, _ = _run(ros_context, in_order)
+    node, setpoints = _node(ros_context, 2.0)
+    for kind, msg in twice:
+        (node._on_altitude if kind == "altitude" else node._on_estimate)(msg)
+    assert len(reference) == 19 and setpoints == reference and node.counts["repeated_estimates"] == 19

@@ -76,7 +76,9 @@ SAMPLED = ("truth", "estimate", "reference", "setpoint", "command", "applied")
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 #: The logged topics the simulator publishes: a sample it publishes again (to a node that joined while the
 #: graph was held) is logged once.
-_SIMULATOR_TOPICS = ("truth", "applied", "altitude", "velocity", "imu", "depth", "position")
+# topics whose publisher may say a sample again, to a reader that matched late: the simulator (resumed at an
+# unanswered sample) and the navigator (its newest estimate)
+_SAID_AGAIN = ("truth", "applied", "altitude", "velocity", "imu", "depth", "position", "estimate")
 
 
 def _once_per_stamp(msgs: list) -> list:
@@ -137,7 +139,10 @@ class SilGraph:
         of its topic this probe sees. The simulator starts once *its* subscribers are
         there; the rest of the graph discovers itself meanwhile (in lockstep tens of simulated
         seconds can pass). "" waits only for the first estimate, None only for the first truth
-        sample (a graph without a navigator).
+        sample (a graph without a navigator). With a navigator, also until its newest estimate
+        has reached every reader of ``navigation/odometry`` this probe sees (its ``/diagnostics``
+        count; it says that estimate again to a reader that matches late), so no reader -- the
+        recorder, a controller, the probe -- lacks the estimate of the sample the graph is held at.
     """
 
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
@@ -219,6 +224,11 @@ class SilGraph:
             self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
                                                      self.out_dir / f"{spec.label}.log", spec.label).start()
         names = (self.ready_status,) if isinstance(self.ready_status, str) else tuple(self.ready_status or ())
+        names = tuple(name for name in names if name)
+        # a graph with a navigator: its estimate has reached every reader this probe sees (whatever its level:
+        # t_0 may lack an acoustic fix), so a reader that matched late -- the recorder, a controller, this
+        # probe -- has the estimate of the sample the graph is held at (the navigator says its newest again)
+        matched_only = () if self.ready_status is None else ("seapup/navigator",)
 
         def matched_all(status) -> bool:
             # a status may report its publishers' matched readers ("subscribers:<topic>": n, the writer's
@@ -235,18 +245,19 @@ class SilGraph:
 
         def ready():
             found = latest()
-            return all(name in found and found[name].level in (0, b"\x00") and matched_all(found[name])
-                       for name in names)
+            return (all(name in found and found[name].level in (0, b"\x00") and matched_all(found[name])
+                        for name in names)
+                    and all(name in found and matched_all(found[name]) for name in matched_only))
         # an estimate first, unless held at t_0: the navigator's first comes with its first acoustic fix,
         # which t_0 may lack (a dropout), and the graph goes on only once the harness acts
         navigation = self.ready_status is not None and not (self.paced and self.start_at == 0)
         if not self.spin_until(lambda: self.log["truth"] and (not navigation or self.log["estimate"])
-                               and (not self.ready_status or ready()), self.ready_timeout):
+                               and (self.ready_status is None or ready()), self.ready_timeout):
             found = latest()
             seen = "; ".join(f"{name}: " + (f"{found[name].message!r} (matched readers: "
                                             f"{[kv.value for kv in found[name].values if kv.key.startswith('subscribers:')]}"
                                             f" of {[self._node.count_subscribers(kv.key.split(':', 1)[1]) for kv in found[name].values if kv.key.startswith('subscribers:')]})"
-                                            if name in found else "no status") for name in names)
+                                            if name in found else "no status") for name in names + matched_only)
             raise SilError(f"no navigation estimate ({len(self.log['estimate'])} heard, {len(self.log['truth'])} "
                            f"samples) or no OK {self.ready_status!r} within {self.ready_timeout:g} s [{seen}]; "
                            f"node logs in {self.out_dir}" + self._dead())
@@ -647,7 +658,7 @@ class SilGraph:
 
         def quat(q):
             return frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
-        log = {name: _once_per_stamp(msgs) if name in _SIMULATOR_TOPICS else msgs for name, msgs in self.log.items()}
+        log = {name: _once_per_stamp(msgs) if name in _SAID_AGAIN else msgs for name, msgs in self.log.items()}
         out = {}
         for name in ("truth", "estimate"):
             msgs = log[name]

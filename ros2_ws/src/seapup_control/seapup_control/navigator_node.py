@@ -18,7 +18,16 @@ instruments): when the readings of ``sample_topics`` stamped t_k have all
 arrived, or when a later velocity reading comes first. Non-finite or
 malformed readings are rejected and counted, never fused (a rejected reading
 has arrived, for completeness); ``/diagnostics`` (``seapup/navigator``)
-carries the counts and the estimate's standard deviation.
+carries the counts, the estimate's standard deviation and the estimate publisher's
+matched readers (``subscribers:/seapup/navigation/odometry``).
+
+A reader that matches late (discovery lags on a loaded machine) would miss the
+estimates sent before -- and in a lockstep graph held at a sample by its driver
+no newer one comes: the position controller would wait for ever. So whenever
+the publisher's matched readers grow, the newest estimate is published again,
+unchanged (its consumers take an estimate stamp once: a repeat is ignored).
+The matched-reader count in ``/diagnostics`` is the one the newest estimate has
+reached, so a driver that waits for it knows every reader has that estimate.
 """
 from __future__ import annotations
 
@@ -74,11 +83,15 @@ class NavigatorNode(Node):
         self._topic_names = {self.resolve_topic_name(topic): name for name, (topic, _) in _TOPICS.items()}
         self.stamps = StampGate()
         self.publisher = self.create_publisher(Odometry, "navigation/odometry", RELIABLE_QOS)
+        self._newest: Odometry | None = None   # the newest estimate sent, for readers that match late
+        self._readers = 0                       # the publisher's matched readers when it was last sent
+        self.repeated = 0                       # estimates sent again to readers that matched late
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         for name, (topic, kind) in _TOPICS.items():
             self.create_subscription(kind, topic, lambda msg, name=name: self._on_reading(name, msg), COMMAND_QOS)
         self.create_subscription(SampleManifest, "sensors/sample", self._on_manifest, COMMAND_QOS)
         self.create_timer(1.0, self._diagnose)
+        self.create_timer(0.05, self._check_readers)
 
     def _on_reading(self, name: str, msg) -> None:
         stamp = stamp_to_ns(msg.header.stamp)
@@ -169,12 +182,24 @@ class NavigatorNode(Node):
             self.get_logger().warn(f"sample rejected: {exc}", throttle_duration_sec=2.0)
             return
         if estimate is not None:
-            self.publisher.publish(estimate_to_odometry(estimate, t_ns))
+            self._check_readers()  # a reader that matched since the newest was sent gets that one first
+            self._newest = estimate_to_odometry(estimate, t_ns)
+            self.publisher.publish(self._newest)
+
+    def _check_readers(self) -> None:
+        """The newest estimate again if readers matched since it was sent (see the module docstring)."""
+        readers = self.publisher.get_subscription_count()
+        if readers > self._readers and self._newest is not None:
+            self.publisher.publish(self._newest)
+            self.repeated += 1
+        self._readers = readers
 
     def _diagnose(self) -> None:
+        self._check_readers()  # the count reported is the one the newest estimate has reached
         estimate = self.navigator.estimate()
         values = {**self.navigator.counts, "rejected_readings": self.rejected, "forced_samples": self.forced_samples,
-                  "samples_by": "manifest" if self._manifested else "sample_topics",
+                  "samples_by": "manifest" if self._manifested else "sample_topics", "repeated_estimates": self.repeated,
+                  f"subscribers:{self.publisher.topic_name}": self._readers,
                   "horizontal_std": estimate.horizontal_std if estimate else math.nan,
                   "depth_std": math.sqrt(estimate.position_cov[2, 2]) if estimate else math.nan}
         level = DiagnosticStatus.OK if estimate is not None else DiagnosticStatus.WARN

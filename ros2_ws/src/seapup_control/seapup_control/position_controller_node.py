@@ -17,6 +17,9 @@ used (then goes on with the one in force, counted as ``late_setpoints``):
 on a loaded machine the task controller can fall a sample behind, and the
 reference must not depend on that. Non-finite or wrong-frame
 setpoints are rejected, counted and logged. Inactive, it publishes nothing.
+An estimate stamped as the one before it (the navigator says its newest
+again to readers that match late) is ignored and counted
+(``repeated_estimates``): tracking it twice would step the law twice.
 
 ``/diagnostics`` (``seapup/position_controller``): while tracking, the setpoint,
 the reference and the limits once a wall second; otherwise once a wall second
@@ -63,7 +66,8 @@ class PositionControllerNode(LifecycleNode):
         self.controller: PositionController | None = None
         self.active = False
         self.counts = {"estimates": 0, "references": 0, "rejected_setpoints": 0, "rejected_estimates": 0,
-                       "limited_samples": 0, "late_setpoints": 0}
+                       "limited_samples": 0, "late_setpoints": 0,
+                       "repeated_estimates": 0}
         self._interfaces = []
         refuse_invalid_transitions(self)
         if self.p["autostart"]:
@@ -135,7 +139,12 @@ class PositionControllerNode(LifecycleNode):
         self._drain()
 
     def _on_estimate(self, msg: Odometry) -> None:
-        self._estimate_ns = stamp_to_ns(msg.header.stamp)  # the graph's time, for the idle status
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if stamp_ns == self._estimate_ns:  # the navigator's newest again, for a reader that matched late
+            self.counts["repeated_estimates"] += 1
+            return
+        self._estimate_ns = stamp_ns  # the graph's time, for the idle status
+        self._estimate_wall = time.monotonic()  # heard (an estimate before activation counts)
         if not self.active:
             return
         try:
@@ -145,7 +154,6 @@ class PositionControllerNode(LifecycleNode):
             self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
             return
         self.counts["estimates"] += 1
-        self._estimate_wall = time.monotonic()
         self._waiting.append([estimate, time.monotonic() + float(self.get_parameter("setpoint_wait").value)])
         self._drain()
 

@@ -19,6 +19,8 @@ the node waits up to ``altitude_wait`` wall seconds for that reading before it s
 altitude and the estimate arrive on different topics, and which comes first must not depend on
 how busy the machine is (a lockstep run would otherwise differ under load). A reading that does
 not come in time is counted (``late_altitudes``) and the newest earlier one used.
+An estimate stamped as the one before it (the navigator says its newest again to readers that
+match late) is ignored and counted (``repeated_estimates``): a task steps once per sample.
 """
 from __future__ import annotations
 
@@ -89,6 +91,7 @@ class TaskControllerNode(Node):
         self.period = float(p["sample_period"])
         self.navigation_timeout = float(p["navigation_timeout"])
         self.estimate = None
+        self._heard_ns: int | None = None  # the newest estimate's stamp heard
         self._estimate_wall = -math.inf
         self._clock_ns: int | None = None  # the graph's /clock, when there is one
         self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
@@ -102,7 +105,7 @@ class TaskControllerNode(Node):
         self.running: _Running | None = None
         self.setpoint = None
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0,
-                       "rejected_altitudes": 0}
+                       "rejected_altitudes": 0, "repeated_estimates": 0}
         self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
@@ -235,7 +238,12 @@ class TaskControllerNode(Node):
             self.counts["rejected_estimates"] += 1
             self.get_logger().warn(f"estimate rejected: {exc}", throttle_duration_sec=2.0)
             return
-        self._altitude_stamps.accept(round(estimate.t * 1e9))  # the graph's time, for the altitude's stamp gate
+        t_ns = round(estimate.t * 1e9)
+        if t_ns == self._heard_ns:  # the navigator's newest again, for a reader that matched late
+            self.counts["repeated_estimates"] += 1
+            return
+        self._heard_ns = t_ns
+        self._altitude_stamps.accept(t_ns)  # the graph's time, for the altitude's stamp gate
         if self._parked is not None:  # the next estimate overtook the reading the parked one waits for
             self._unpark(late=True)
         if self._needs_altitude(estimate):
