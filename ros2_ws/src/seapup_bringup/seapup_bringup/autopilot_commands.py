@@ -23,6 +23,7 @@ from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, SELF_TEST
                                   TRUTH_ODOMETRY, VELOCITY, typed)
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_runs.self_test import fly_self_test
+from seapup_runs.targets import thesis_value
 from seapup_control.closed_loop import closed_loop
 from seapup_control.self_test import SelfTestConfig
 from seapup_sim.analysis import TrimError, linearise, output_matrix, trim
@@ -35,18 +36,18 @@ __all__ = ["selftest", "closed_loop_command", "analyse", "MODES", "SelfTestFaile
 class SelfTestFailed(RuntimeError):
     """A self-test or closed-loop analysis that cannot go on: the reason says why (and where the logs are)."""
 
-#: Eq. 5.3a/b and 5.7a/b (the thesis's velocity log, human observer), thesis units (m/s and deg/s per deg).
-THESIS = {0.0: {"B0inv": [[.0026, .0026, .000125, .000125], [-.0001, .0001, -.0004265, .0004265],
-                          [.0000625, .0000625, .000525, .000525], [.2629, -.2629, .001588, -.001588]],
-                "B1inv": [[.0246, .0246, .00064, .00064], [-.00409, .00409, -.00766, .00766],
-                          [-.0006, -.0006, .004875, .004875], [1.9612, -1.9612, -.04990, .04990]],
-                "u0_deg": [-3.383, -3.383, -13.098, -13.098]},
-          0.7: {"B0inv": [[.00325, .00325, -.001125, -.001125], [-.00025, .00025, -.0013, .0013],
-                          [.000375, .000375, .012, .012], [.361725, -.361725, -.009825, .009825]],
-                "B1inv": [[.01514, .01514, -.00565, -.00565], [-.007, .007, -.0049, .0049],
-                          [-.0006, -.0006, .00209, .00209], [1.3419, -1.3419, -.131, .131]],
-                "u0_deg": [14.589, 14.589, -5.929, -5.929]}}
-# eq. 5.3b prints +1.9612 for r / main starboard; mirror symmetry (5.3a, 5.7b) says -1.9612 (README).
+def _thesis_point(surge: float, mode: str, rate: float, config: str) -> dict | None:
+    """The thesis's self-test result at an operating point (Tables 5.1, 5.2: the column of ``mode``'s
+    quiescence, 5 Hz, the baseline vehicle) and its u0 (eq. 5.2; sec. 3.7's trim at 0.7 m/s), from the
+    thesis targets file; None where the thesis reports none."""
+    table = {0.0: "ch5.table5_1", 0.7: "ch5.table5_2"}.get(round(surge, 3))
+    if table is None or rate != 5.0 or config != "baseline":
+        return None
+    u0 = (thesis_value("ch5.eq5_2.hover") if round(surge, 3) == 0.0 else
+          [thesis_value("ch3.trim_0_7.mains")] * 2 + [thesis_value("ch3.trim_0_7.vectored")] * 2)
+    return {"B0inv": thesis_value(f"{table}.{mode}.B0inv"), "B1inv": thesis_value(f"{table}.{mode}.B1inv"),
+            "u0_deg": list(u0), "where": f"Table 5.{1 if table.endswith('1') else 2}, {mode} quiescence"}
+
 
 #: State groups that name a closed-loop mode (figs 5.4-5.9): states 0-11 of the vehicle, 12-15 the
 #: controller's integrators of the u, v, w, r loops.
@@ -197,24 +198,26 @@ def _selftest(argv: list[str]) -> int:
         if not np.allclose(live, [p.model.B1inv for p in points], rtol=1e-12, atol=1e-15):
             raise SelfTestFailed("the bag's refit differs from the live result (a sample was lost?)")
         print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
-    rows = _print_points(points, text)
+    rows = _print_points(points, text, args)
+    space_0, space_07 = thesis_value("ch5.self_test.space_0"), thesis_value("ch5.self_test.space_0_7")
     print(f"\ntime {duration:.1f} s, space {space[0]:.1f} x {space[1]:.1f} x {space[2]:.1f} m (X x Y x Z); "
-          "thesis: 119.2 s and 9.4 x 5.2 x 5.7 m at 0 m/s, +60.2 s and 33.4 x 33.0 x 12.0 m with 0.7 m/s "
+          f"thesis: {thesis_value('ch5.self_test.time_0'):g} s and {' x '.join(f'{v:g}' for v in space_0)} m at 0 m/s, "
+          f"+{thesis_value('ch5.self_test.time_0_7'):g} s and {' x '.join(f'{v:g}' for v in space_07)} m with 0.7 m/s "
           "(sec. 5.3.3)", file=text)
     emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "operating_points": rows,
                      "duration_s": duration, "space_m": space, "bag": str(bag) if bag else None})
     return 0
 
 
-def _print_points(points, text) -> list[dict]:
+def _print_points(points, text, args) -> list[dict]:
     rows = []
     for point in points:
         b0, b1 = point.model.in_thesis_units()
         rows.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
                      "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle})
-        thesis = THESIS.get(round(point.surge, 3))
+        thesis = _thesis_point(point.surge, args.mode, args.rate, args.config)
         print(f"\noperating point {point.surge:g} m/s (outputs u, v, w [m/s], r [deg/s] per degree of pitch;"
-              + (f" thesis eq. 5.{3 if point.surge == 0 else 7} in brackets)" if thesis else ")"), file=text)
+              + (f" thesis {thesis['where']} in brackets)" if thesis else ")"), file=text)
         for name, key, ours in (("B0^-1", "B0inv", b0), ("B1^-1", "B1inv", b1)):
             print(f"  {name}", file=text)
             for i, row in enumerate(ours):

@@ -22,10 +22,10 @@ from seapup_bringup.output import add_json_argument, emit_json, progress, text_s
 from seapup_sim.environment_config import load_environment
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.model_check import check_model as run_model_check
+from seapup_runs.targets import verify_rows, verify_summary
 from seapup_sim.report import format_rows, write_plots
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
-from seapup_sim.verification import check_targets, summary
 from seapup_sim.verification import verify as run_verify
 
 __all__ = ["verify", "check_model", "bench"]
@@ -56,8 +56,9 @@ def verify(argv: list[str]) -> int:
     t0 = time.perf_counter()
     res, hist = run_verify(model)
     res["verify_seconds"] = time.perf_counter() - t0
-    rows = check_targets(res, model.config_name)
-    table = format_rows(rows, f"seapup verify: configuration '{model.config_name}' ({res['verify_seconds']:.1f} s)")
+    rows = verify_rows(res, model.config_name)
+    table = format_rows(rows, f"seapup verify: configuration '{model.config_name}' ({res['verify_seconds']:.1f} s)",
+                        verify_summary(rows))
     *body, summary_line = table.splitlines()
     print("\n".join(body), file=out)
     b1 = np.array(res["step_gains_5hz"]["B1inv"])
@@ -72,7 +73,7 @@ def verify(argv: list[str]) -> int:
     print("\neigenvalues at hover [1/s]: " + ", ".join(
         f"{re:.4f}{im:+.4f}j" if abs(im) > 1e-9 else f"{re:.4f}" for re, im in ev), file=out)
     res["checks"] = rows
-    res["summary"] = summary(rows)
+    res["summary"] = verify_summary(rows)
     emit_json(args, res)
     if args.plots:
         for p in write_plots(res, hist, args.plots):

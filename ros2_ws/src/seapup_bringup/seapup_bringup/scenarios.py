@@ -24,6 +24,7 @@ from seapup_bringup.sil import SilError
 from seapup_runs.result import RunResult
 from seapup_runs.runner import DesignFailed, run
 from seapup_runs.scenarios import scenario_spec, scenarios
+from seapup_runs.targets import thesis_by_metric
 from seapup_runs.spec import RunSpecError
 from seapup_sim.vehicle_config import ConfigError, available_configs
 
@@ -33,8 +34,10 @@ __all__ = ["scenario_command", "print_scenario", "plot_scenario"]
 def print_scenario(result: RunResult, text) -> None:
     """The case's figures of merit, the thesis's in brackets where it reports one."""
     spec, metrics = result.spec, result.metrics
-    thesis = scenarios()[spec.name].get("thesis", {})
     scheduled = any(c.parameters.get("schedule") for _, c in spec.controller_timeline() if c.type == "mfol")
+    # the thesis's numbers (metric path -> value) are for the baseline vehicle with fixed gains
+    thesis = thesis_by_metric(f"scenario:{spec.name}:{1.0 / spec.control_period:g}") \
+        if spec.vehicle == "baseline" and not scheduled else {}
     print(f"\nscenario {spec.name}: {spec.vehicle}, {1.0 / spec.control_period:g} Hz, "
           f"{'scheduled' if scheduled else 'fixed'} gains, {result.transport} (thesis in brackets where it reports "
           "one)", file=text)
@@ -43,7 +46,7 @@ def print_scenario(result: RunResult, text) -> None:
     for key, o in metrics["outputs"].items():
         def cell(name, width, fmt):
             value = o.get(name)
-            ref = thesis.get(name, {}).get(key) if isinstance(thesis.get(name), dict) else None
+            ref = thesis.get(f"outputs.{key}.{name}")
             body = "-" if value is None else (fmt.format(value) if math.isfinite(value) else "never")
             return f"{body + (f' ({ref:g})' if ref is not None else ''):>{width}}"
         print(f"{key:>6} {o['reference']:10.3f} {cell('final', 9, '{:.3f}')} {cell('rise95_s', 14, '{:.2f}')} "
@@ -58,18 +61,19 @@ def print_scenario(result: RunResult, text) -> None:
     lc = metrics["limit_cycle"]
     pitch = metrics["pitch_deg"]
     print(f"pitch peak {pitch['peak']:.1f} deg"
-          + (f" ({thesis['pitch_peak_deg']:g})" if "pitch_peak_deg" in thesis else "")
+          + (f" ({thesis['pitch_deg.peak']:g})" if "pitch_deg.peak" in thesis else "")
           + f", final {pitch['final']:.1f} deg"
-          + (f" ({thesis['pitch_final_deg']:g})" if "pitch_final_deg" in thesis else "")
+          + (f" ({thesis['pitch_deg.final']:g})" if "pitch_deg.final" in thesis else "")
           + ("" if pitch["settled"] else f" (not settled: {pitch['range'][0]:.1f} to {pitch['range'][1]:.1f} deg "
                                          f"over the last {pitch['window_s']:g} s)")
           + f"; roll peak {metrics['roll_deg']['peak']:.1f} deg; sway limit cycle: "
           + (f"period {lc['period_s']:.1f} s, {lc['amplitude']:.3f} m/s peak to peak" if lc["detected"] else "none")
-          + (f" ({thesis['limit_cycle_period_s']:g} s)" if "limit_cycle_period_s" in thesis else ""), file=text)
+          + (f" ({thesis['limit_cycle.period_s']:g} s)" if "limit_cycle.period_s" in thesis else ""), file=text)
     if "station_keep" in metrics:
-        sk, ref = metrics["station_keep"], thesis.get("station_keep", {})
+        sk = metrics["station_keep"]
         print("station keeping after the controller is on: "
-              + ", ".join(f"{k} {v:.2f}" + (f" ({ref[k]:g})" if k in ref else "") for k, v in sk.items()), file=text)
+              + ", ".join(f"{k} {v:.2f}" + (f" ({thesis[f'station_keep.{k}']:g})" if f"station_keep.{k}" in thesis else "")
+                          for k, v in sk.items()), file=text)
     if "u_peak_after_current" in metrics:
         print(f"current step: u peak {metrics['u_peak_after_current']:.4f} m/s"
               + (f" ({thesis['u_peak_after_current']:g})" if "u_peak_after_current" in thesis else "")

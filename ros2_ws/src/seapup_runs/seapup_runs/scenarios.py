@@ -22,7 +22,7 @@ from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError, Se
 __all__ = ["scenarios", "scenario_spec", "CASE_KEYS"]
 
 #: Keys a case may have (anything else is refused: a misspelled key must not be silently ignored).
-CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds", "thesis")
+CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds")
 
 
 def scenarios() -> dict:

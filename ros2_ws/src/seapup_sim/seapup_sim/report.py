@@ -1,8 +1,9 @@
 """Tables and plots of a verification run, from the same results dict.
 
-The table rows come from :func:`seapup_sim.verification.check_targets` and the
-plots from the time histories returned with those results, so the printed
-numbers and the pictures cannot disagree.
+The table rows are the scored thesis targets of the verification run (the run
+layer's ``seapup_runs.targets.verify_rows``) and the plots come from the time
+histories returned with those results, so the printed numbers and the pictures
+cannot disagree.
 """
 from __future__ import annotations
 
@@ -21,12 +22,12 @@ def _fmt(v) -> str:
     return f"{v:.4g}"
 
 
-def format_rows(rows: list[dict], title: str) -> str:
-    """A fixed-width table: target, simulated, thesis, accepted range, PASS/FAIL/DEV, then a summary.
+def format_rows(rows: list[dict], title: str, totals: dict) -> str:
+    """A fixed-width table: target, simulated, thesis, accepted range, PASS/FAIL/DEV, then the summary line
+    of ``totals`` (primary/secondary counts, deviations, ok).
 
     Tags: P primary, s secondary, D documented deviation (its reason on the next line).
     """
-    from seapup_sim.verification import summary
     lines = [title, f"{'':2}{'quantity':<42}{'simulated':>11}{'thesis':>10}  {'accepted':<21}{'':6}source"]
     for r in rows:
         rng = f"[{_fmt(r['low'])}, {_fmt(r['high'])}]"
@@ -36,7 +37,7 @@ def format_rows(rows: list[dict], title: str) -> str:
                      f"{rng:<21}{status:<6}{r['source']}")
         if r.get("deviation") and not r["pass"]:
             lines.append(f"{'':4}deviation: {r['deviation']}")
-    s = summary(rows)
+    s = totals
     lines.append(f"summary: primary {s['primary_passed']}/{s['primary']} PASS, secondary "
                  f"{s['secondary_passed']}/{s['secondary']} PASS, {s['deviations']} documented deviation(s) "
                  f"(P = primary, s = secondary, D = documented deviation) -> "

@@ -1,55 +1,21 @@
 """The calibrated model against the thesis (Table 3.2 tests and linear analyses).
 
-The targets and tolerances are the thesis's numbers (seapup_sim.verification.
-TARGETS, from issue #3); this test fails whenever a primary target is missed.
+The measurements themselves (symmetry, the umbilical table's trend, the step gains' signs, the
+crossover computed independently). Scoring against the thesis's targets (seapup_runs/data/
+thesis_targets.yaml) is tested in seapup_runs/test/test_thesis_targets.py.
 """
 import math
-import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
-from seapup_sim.verification import CAMERA_NMP_DEVIATION, UMBILICAL_FZ_DEVIATION, check_targets, summary, verify
-
-ROOT = Path(__file__).resolve().parents[4]   # ros2_ws/src/seapup_sim/test -> the repository
-
+from seapup_sim.verification import verify
 
 @pytest.fixture(scope="module")
 def baseline_results():
     return verify(VehicleModel(load_vehicle_config("baseline")))
-
-
-def test_every_primary_target_passes(baseline_results):
-    res, _ = baseline_results
-    rows = check_targets(res, "baseline")
-    failed = [(r["label"], r["value"], r["thesis"]) for r in rows if r["primary"] and not r["pass"]]
-    assert failed == [] and summary(rows)["ok"]
-
-
-def test_the_umbilical_f_z_rows_are_documented_deviations(baseline_results):
-    """Issue 11 decided: the exact cable solution stays; sec. 3.8's F_z is shown as DEV with its reason,
-    and only the F_z rows are deviations (top speeds and F_x stay primary)."""
-    res, _ = baseline_results
-    rows = check_targets(res, "baseline")
-    dev = [r for r in rows if r["deviation"]]
-    assert {r["label"] for r in dev} == {f"umbilical {d} m: F_z [N]" for d in (50, 100, 200)}
-    assert all(r["status"] == "DEV" and not r["primary"] and r["deviation"] == UMBILICAL_FZ_DEVIATION for r in dev)
-    assert all(r["value"] < 0 for r in dev)  # still measured and reported: the cable pulls up
-    assert summary(rows)["deviations"] == 3
-    assert all(r["primary"] for r in rows if r["key"].startswith("umbilical.") and not r["key"].endswith("Fz"))
-
-
-@pytest.mark.parametrize("deviation", [UMBILICAL_FZ_DEVIATION, CAMERA_NMP_DEVIATION])
-def test_each_deviation_points_at_its_entry_in_the_deviation_register(deviation):
-    """The one-line reason names the page and anchor that explain it (docs/decisions.md#...)."""
-    match = re.search(r"(docs/[\w/.-]+\.md)#([\w-]+)", deviation)
-    assert match, f"no docs/<page>.md#<anchor> in {deviation!r}"
-    page = ROOT / match.group(1)
-    assert page.is_file(), f"{match.group(1)} does not exist"
-    assert f'id="{match.group(2)}"' in page.read_text(), f"{match.group(1)} has no anchor {match.group(2)!r}"
 
 
 def test_umbilical_speed_and_drag_force_match_the_table(baseline_results):
@@ -60,12 +26,6 @@ def test_umbilical_speed_and_drag_force_match_the_table(baseline_results):
     # deeper means more cable, more drag, lower speed (the thesis's trend)
     speeds = [res["umbilical"][d]["max_u"] for d in ("50", "100", "200")]
     assert speeds[0] > speeds[1] > speeds[2]
-
-
-def test_current_section(baseline_results):
-    res, _ = baseline_results
-    rows = [r for r in check_targets(res, "baseline") if r["key"].startswith("current.")]
-    assert len(rows) == 7 and all(r["pass"] for r in rows), rows
 
 
 def test_sway_tests_are_exact_mirror_images(baseline_results):
@@ -95,20 +55,7 @@ def test_step_gains_have_the_thesis_signs_and_mirror_structure(baseline_results)
 
 def test_camera_rest_trim():
     res, _ = verify(VehicleModel(load_vehicle_config("camera")), loci_speeds=[0.0, 0.5])
-    rows = {r["label"]: r for r in check_targets(res, "camera")}
-    assert rows["rest trim [deg]"]["pass"], rows["rest trim [deg]"]
     assert math.isclose(res["rest_trim_deg"], -6.3, abs_tol=1.0)
-
-
-def test_only_a_failing_primary_decides_the_outcome(baseline_results):
-    res, _ = baseline_results
-    rows = check_targets(res, "baseline")
-    worse = {**res, "umbilical": {**res["umbilical"], "50": {**res["umbilical"]["50"], "Fz": 0.0}}}
-    assert summary(check_targets(worse, "baseline"))["ok"]          # a deviation further off: still ok
-    worse = {**res, "surge": {**res["surge"], "max_u": 0.5}}
-    bad = check_targets(worse, "baseline")
-    assert not summary(bad)["ok"] and summary(bad)["primary_passed"] == summary(rows)["primary_passed"] - 1
-    assert [r["status"] for r in bad if r["key"] == "surge.max_u"] == ["FAIL"]
 
 
 def _largest_zero_real_part(model, speed):

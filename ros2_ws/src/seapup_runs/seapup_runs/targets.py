@@ -1,0 +1,387 @@
+"""The thesis's numbers as data (``data/thesis_targets.yaml``) and how ours are scored against them.
+
+One file holds every reproducible result of Goheen's thesis that a seapup run can be asked for: its place
+in the thesis, the value and unit, a tolerance with a one-line reason, the run that produces ours and the
+metric (a dotted path into that run's result) that extracts it, and, where it applies, a documented
+deviation or a thesis typo we read around. :func:`load_targets` reads and checks it (unknown keys,
+units, runs, tolerances, duplicate ids: :class:`TargetsError`, one line); a matrix or vector ``value``
+expands into one target per entry (``id[i,j]``, metric ``path.i.j``).
+
+:func:`score` decides one target: ``reproduced`` (ours within the tolerance), ``deviation`` (missed, with
+a documented deviation), ``failed`` (missed, or the run produced no finite value) or ``not_run`` (its run
+was not run). A deviation never counts as reproduced. :func:`summarise` counts per chapter and pooled.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+__all__ = ["Target", "Tolerance", "Score", "TargetsError", "STATUSES", "CHAPTERS", "TARGETS_FILE",
+           "load_targets", "load_document", "runs_of", "score", "score_all", "summarise", "lookup",
+           "targets_for_run", "verify_rows", "verify_summary", "thesis_value", "thesis_by_metric"]
+
+TARGETS_FILE = Path(__file__).resolve().parent / "data" / "thesis_targets.yaml"
+STATUSES = ("reproduced", "deviation", "failed", "not_run")
+CHAPTERS = ("3", "4", "5", "6", "7", "A")
+_TARGET_KEYS = {"id", "chapter", "where", "quantity", "value", "unit", "tolerance", "run", "metric", "primary",
+                "deviation", "typo"}
+_REQUIRED = _TARGET_KEYS - {"primary", "deviation", "typo"}
+_TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
+_DEVIATION_KEYS = {"decision", "reason", "doc"}
+_TYPO_KEYS = {"read", "why"}
+_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode"}
+
+
+class TargetsError(ValueError):
+    """The targets file is malformed: the message names the target and the key."""
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How close counts: ``abs`` and/or ``rel`` (the larger band), ``range`` [lo, hi], ``range_factor`` k
+    (within a factor k of the value, same sign), ``at_most`` / ``at_least`` a bound; with none of them
+    (``abs: 0``) ours must equal the thesis's. ``reason`` is the one line shown beside it."""
+
+    reason: str
+    abs: float | None = None
+    rel: float | None = None
+    range: tuple[float, float] | None = None
+    range_factor: float | None = None
+    at_most: float | None = None
+    at_least: float | None = None
+    name: str = ""
+
+    def bounds(self, value) -> tuple[float, float]:
+        """The accepted interval [low, high] for a thesis value."""
+        if isinstance(value, bool):
+            return float(value), float(value)
+        value = float(value)
+        if self.range is not None:
+            return float(self.range[0]), float(self.range[1])
+        if self.at_most is not None or self.at_least is not None:
+            return (-math.inf if self.at_least is None else self.at_least,
+                    math.inf if self.at_most is None else self.at_most)
+        if self.range_factor is not None:
+            low, high = sorted((value / self.range_factor, value * self.range_factor))
+            return low, high
+        band = max(self.abs or 0.0, (self.rel or 0.0) * abs(value))
+        return value - band, value + band
+
+    def text(self) -> str:
+        """The tolerance in a few characters, for a table cell."""
+        if self.range is not None:
+            return f"[{self.range[0]:g}, {self.range[1]:g}]"
+        if self.at_most is not None:
+            return f"<= {self.at_most:g}"
+        if self.at_least is not None:
+            return f">= {self.at_least:g}"
+        if self.range_factor is not None:
+            return f"x/÷ {self.range_factor:g}"
+        parts = ([f"±{self.rel * 100:g} %"] if self.rel else []) + ([f"±{self.abs:g}"] if self.abs else [])
+        return " or ".join(parts) if parts else "exact"
+
+
+@dataclass(frozen=True)
+class Target:
+    """One thesis number (or statement) and how ours is found and judged."""
+
+    id: str
+    chapter: str
+    where: str
+    quantity: str
+    value: float | bool
+    unit: str
+    tolerance: Tolerance
+    run: str
+    metric: str
+    primary: bool = True
+    deviation: dict = field(default_factory=dict)
+    typo: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        unit = "" if self.unit in ("1", "bool", "count") else f" [{self.unit}]"
+        return f"{self.quantity}{unit}"
+
+
+@dataclass(frozen=True)
+class Score:
+    """A target judged: ours, the accepted interval and the status (one of :data:`STATUSES`)."""
+
+    target: Target
+    ours: float | bool | None
+    low: float
+    high: float
+    status: str
+
+    def row(self) -> dict:
+        """The JSON row of ``report.json``'s ``targets``."""
+        t = self.target
+        ours = self.ours
+        difference = (None if ours is None or isinstance(t.value, bool) or isinstance(ours, bool)
+                      else float(ours) - float(t.value))
+        return {"id": t.id, "chapter": t.chapter, "where": t.where, "quantity": t.quantity, "thesis": t.value,
+                "ours": ours, "difference": difference, "unit": t.unit, "tolerance": t.tolerance.text(),
+                "low": _finite_or_none(self.low), "high": _finite_or_none(self.high),
+                "reason": t.tolerance.reason, "status": self.status, "run": t.run, "metric": t.metric,
+                "primary": t.primary, "deviation": t.deviation or None, "typo": t.typo or None}
+
+
+def _finite_or_none(v: float):
+    return float(v) if math.isfinite(v) else None
+
+
+def _fail(where: str, message: str):
+    raise TargetsError(f"{TARGETS_FILE.name}: {where}: {message}")
+
+
+def _tolerance(spec, named: dict, where: str) -> Tolerance:
+    if isinstance(spec, str):
+        if spec not in named:
+            _fail(where, f"unknown tolerance {spec!r} (known: {', '.join(sorted(named))})")
+        return named[spec]
+    if not isinstance(spec, dict):
+        _fail(where, f"tolerance must be a name or a mapping, got {spec!r}")
+    unknown = set(spec) - _TOLERANCE_KEYS
+    if unknown:
+        _fail(where, f"unknown tolerance key(s) {sorted(unknown)}")
+    reason = spec.get("reason")
+    if not isinstance(reason, str) or not reason.strip():
+        _fail(where, "a tolerance needs its one-line reason")
+    numbers = {k: spec[k] for k in ("abs", "rel", "abs_row", "range_factor", "at_most", "at_least") if k in spec}
+    for key, v in numbers.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (
+                key in ("abs", "rel", "abs_row", "range_factor") and v < 0):
+            _fail(where, f"tolerance {key} must be a finite number >= 0, got {v!r}")
+    if "range_factor" in spec and spec["range_factor"] < 1:
+        _fail(where, "range_factor must be >= 1")
+    rng = spec.get("range")
+    if rng is not None and (not isinstance(rng, list) or len(rng) != 2 or not rng[0] <= rng[1]):
+        _fail(where, f"range must be [low, high] with low <= high, got {rng!r}")
+    kinds = [k for k in ("range", "range_factor", "at_most", "at_least") if k in spec]
+    if len(kinds) > 1 + ("at_most" in kinds and "at_least" in kinds) or (kinds and ({"abs", "rel"} & set(spec))):
+        _fail(where, f"a tolerance is abs/rel, range, range_factor or at_most/at_least, not {sorted(spec)}")
+    return Tolerance(reason=reason.strip(), abs=numbers.get("abs"), rel=numbers.get("rel"),
+                     range=tuple(rng) if rng is not None else None, range_factor=numbers.get("range_factor"),
+                     at_most=numbers.get("at_most"), at_least=numbers.get("at_least"))
+
+
+def load_document(path: str | Path | None = None) -> dict:
+    """The targets file as parsed YAML (``units``, ``runs``, ``tolerances``, ``targets``)."""
+    path = Path(path) if path is not None else TARGETS_FILE
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise TargetsError(f"{path}: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("schema") != 1:
+        raise TargetsError(f"{path}: not a thesis targets file (schema: 1)")
+    unknown = set(doc) - {"schema", "units", "runs", "tolerances", "targets"}
+    if unknown:
+        raise TargetsError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
+    return doc
+
+
+def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
+    """A scalar target, or one per entry of a vector or matrix value (abs_row: a band per matrix row)."""
+    value = entry["value"]
+    base = dict(chapter=str(entry["chapter"]), where=str(entry["where"]), unit=str(entry["unit"]),
+                run=str(entry["run"]), primary=bool(entry.get("primary", True)),
+                deviation=dict(entry.get("deviation") or {}), typo=dict(entry.get("typo") or {}))
+    if not isinstance(value, list):
+        if spec.get("abs_row") is not None:
+            _fail(entry["id"], "abs_row is for a matrix value")
+        return [Target(id=entry["id"], quantity=str(entry["quantity"]), value=value, tolerance=tolerance,
+                       metric=str(entry["metric"]), **base)]
+    array = np.asarray(value, dtype=float)
+    if array.ndim not in (1, 2) or not np.all(np.isfinite(array)):
+        _fail(entry["id"], "a list value must be a finite vector or matrix")
+    out = []
+    for index in np.ndindex(array.shape):
+        tol = tolerance
+        if spec.get("abs_row") is not None:
+            if array.ndim != 2:
+                _fail(entry["id"], "abs_row is for a matrix value")
+            tol = Tolerance(reason=tolerance.reason, rel=tolerance.rel, name=tolerance.name,
+                            abs=float(spec["abs_row"]) * float(np.abs(array[index[0]]).max()))
+        suffix = ",".join(str(i) for i in index)
+        out.append(Target(id=f"{entry['id']}[{suffix}]", quantity=f"{entry['quantity']} [{suffix}]",
+                          value=float(array[index]), tolerance=tol,
+                          metric=".".join([str(entry["metric"]), *(str(i) for i in index)]), **base))
+    return out
+
+
+@lru_cache(maxsize=4)
+def _load(path: str) -> tuple[tuple[Target, ...], dict]:
+    doc = load_document(path)
+    units = doc.get("units") or {}
+    runs = doc.get("runs") or {}
+    for name, run in runs.items():
+        if not isinstance(run, dict) or "kind" not in run or set(run) - _RUN_KEYS:
+            raise TargetsError(f"{TARGETS_FILE.name}: run {name!r}: a mapping with kind and only "
+                               f"{', '.join(sorted(_RUN_KEYS))}")
+    raw_tolerances = doc.get("tolerances") or {}
+    named = {}
+    for name, spec in raw_tolerances.items():
+        named[name] = replace(_tolerance(spec, {}, f"tolerance {name!r}"), name=name)
+    targets, seen = [], set()
+    for k, entry in enumerate(doc.get("targets") or []):
+        where = f"target {k} ({entry.get('id', '?') if isinstance(entry, dict) else '?'})"
+        if not isinstance(entry, dict):
+            _fail(where, "a target is a mapping")
+        missing, unknown = _REQUIRED - set(entry), set(entry) - _TARGET_KEYS
+        if missing or unknown:
+            _fail(where, f"missing {sorted(missing)}" if missing else f"unknown key(s) {sorted(unknown)}")
+        if str(entry["chapter"]) not in CHAPTERS:
+            _fail(where, f"chapter must be one of {', '.join(CHAPTERS)}, got {entry['chapter']!r}")
+        if str(entry["unit"]) not in units:
+            _fail(where, f"unknown unit {entry['unit']!r} (known: {', '.join(map(str, units))})")
+        if entry["run"] not in runs:
+            _fail(where, f"unknown run {entry['run']!r}")
+        if isinstance(entry["value"], bool) != (entry["unit"] == "bool"):
+            _fail(where, "a yes/no statement has unit bool and a true/false value, and only it")
+        if not isinstance(entry["value"], (bool, int, float, list)):
+            _fail(where, f"value must be a number, true/false or a list, got {entry['value']!r}")
+        if not isinstance(entry["metric"], str) or not entry["metric"]:
+            _fail(where, "metric must be a dotted path")
+        for key, allowed in (("deviation", _DEVIATION_KEYS), ("typo", _TYPO_KEYS)):
+            if key in entry and (not isinstance(entry[key], dict) or set(entry[key]) != allowed
+                                 or not all(isinstance(v, str) and v.strip() for v in entry[key].values())):
+                _fail(where, f"{key} needs exactly {', '.join(sorted(allowed))} (each a line of text)")
+        spec = entry["tolerance"] if isinstance(entry["tolerance"], dict) else raw_tolerances.get(entry["tolerance"], {})
+        tolerance = _tolerance(entry["tolerance"], named, where)
+        for target in _expand(entry, tolerance, spec):
+            if target.id in seen:
+                _fail(where, f"duplicate id {target.id!r}")
+            seen.add(target.id)
+            targets.append(target)
+    return tuple(targets), {"units": units, "runs": runs, "tolerances": named}
+
+
+def load_targets(path: str | Path | None = None) -> list[Target]:
+    """Every target of the file (matrices expanded), checked; :class:`TargetsError` names what is wrong."""
+    return list(_load(str(Path(path) if path is not None else TARGETS_FILE))[0])
+
+
+def runs_of(path: str | Path | None = None) -> dict:
+    """The file's ``runs``: name -> its description (``kind`` and the kind's settings)."""
+    return dict(_load(str(Path(path) if path is not None else TARGETS_FILE))[1]["runs"])
+
+
+def targets_for_run(run: str, path: str | Path | None = None) -> list[Target]:
+    """The targets a run answers."""
+    return [t for t in load_targets(path) if t.run == run]
+
+
+def lookup(result, path: str):
+    """The value at a dotted ``path`` in a run's result (mappings by key, lists by index); None if absent."""
+    node = result
+    for part in path.split("."):
+        if isinstance(node, dict):
+            node = node.get(part)
+        elif isinstance(node, (list, tuple, np.ndarray)):
+            try:
+                node = node[int(part)]
+            except (ValueError, IndexError):
+                return None
+        else:
+            return None
+        if node is None:
+            return None
+    if isinstance(node, np.generic):
+        node = node.item()
+    return node
+
+
+def score(target: Target, result) -> Score:
+    """Judge ``target`` against its run's ``result`` (None: the run was not run)."""
+    low, high = target.tolerance.bounds(target.value)
+    if result is None:
+        return Score(target, None, low, high, "not_run")
+    ours = lookup(result, target.metric)
+    if isinstance(target.value, bool):
+        if isinstance(ours, (bool, int, float, np.bool_)) and not (isinstance(ours, float) and math.isnan(ours)):
+            ours = bool(ours)
+            return Score(target, ours, low, high, "reproduced" if ours == target.value else _missed(target))
+        return Score(target, None, low, high, "failed")
+    if isinstance(ours, bool) or not isinstance(ours, (int, float)) or not math.isfinite(float(ours)):
+        return Score(target, None, low, high, "failed")
+    ours = float(ours)
+    return Score(target, ours, low, high, "reproduced" if low <= ours <= high else _missed(target))
+
+
+def _missed(target: Target) -> str:
+    return "deviation" if target.deviation else "failed"
+
+
+def score_all(targets: list[Target], results: dict) -> list[Score]:
+    """Every target judged against ``results`` (run name -> result; a missing run: not run)."""
+    return [score(t, results.get(t.run)) for t in targets]
+
+
+def summarise(scores: list[Score]) -> dict:
+    """``{"chapters": {ch: counts}, "pooled": counts}``; counts: asked, reproduced, deviations, failed,
+    not_run, misses (the ids not reproduced). Pooled over every chapter scored."""
+    def counts(rows):
+        return {"asked": len(rows), "reproduced": sum(s.status == "reproduced" for s in rows),
+                "deviations": sum(s.status == "deviation" for s in rows),
+                "failed": sum(s.status == "failed" for s in rows),
+                "not_run": sum(s.status == "not_run" for s in rows),
+                "misses": [s.target.id for s in rows if s.status in ("failed", "deviation")]}
+    chapters = {ch: counts([s for s in scores if s.target.chapter == ch]) for ch in CHAPTERS
+                if any(s.target.chapter == ch for s in scores)}
+    return {"chapters": chapters, "pooled": counts(scores)}
+
+
+# -- ./seapup verify's view: the targets of run verify:<config> as PASS / FAIL / DEV rows ----------------
+_VERIFY_STATUS = {"reproduced": "PASS", "failed": "FAIL", "deviation": "DEV", "not_run": "FAIL"}
+
+
+def verify_rows(result: dict, config: str) -> list[dict]:
+    """Rows for ``./seapup verify`` of ``config``: ``status`` PASS, FAIL or DEV (a documented deviation that
+    is missed; ``deviation`` says why and where). ``primary`` is false for a target with a deviation: only
+    primary rows decide the command's exit status."""
+    rows = []
+    for s in score_all(targets_for_run(f"verify:{config}"), {f"verify:{config}": result}):
+        t = s.target
+        deviation = f"{t.deviation['reason']}; {t.deviation['doc']}" if t.deviation else ""
+        rows.append({"id": t.id, "label": t.label, "key": t.metric, "value": s.ours, "thesis": t.value,
+                     "low": s.low, "high": s.high, "primary": t.primary and not t.deviation,
+                     "pass": s.status == "reproduced", "status": _VERIFY_STATUS[s.status], "deviation": deviation,
+                     "source": t.where, "tolerance": t.tolerance.text(), "reason": t.tolerance.reason})
+    return rows
+
+
+def verify_summary(rows: list[dict]) -> dict:
+    """Counts of what passed: primaries, secondaries, documented deviations; ``ok`` iff every primary passed."""
+    primary = [r for r in rows if r["primary"]]
+    secondary = [r for r in rows if not r["primary"] and not r["deviation"]]
+    deviations = [r for r in rows if r["deviation"]]
+    return {"primary_passed": sum(r["pass"] for r in primary), "primary": len(primary),
+            "secondary_passed": sum(r["pass"] for r in secondary), "secondary": len(secondary),
+            "deviations": sum(not r["pass"] for r in deviations),
+            "ok": all(r["pass"] for r in primary)}
+
+
+def thesis_value(target_id: str, path: str | Path | None = None):
+    """The thesis's value of a target by its id in the file: a number or true/false, or an array for a
+    vector or matrix target (its expanded entries put back together); KeyError if there is none."""
+    found = [t for t in load_targets(path) if t.id == target_id or t.id.startswith(f"{target_id}[")]
+    if not found:
+        raise KeyError(target_id)
+    if len(found) == 1 and found[0].id == target_id:
+        return found[0].value
+    index = [tuple(int(i) for i in t.id[len(target_id) + 1:-1].split(",")) for t in found]
+    out = np.zeros(tuple(max(i[d] for i in index) + 1 for d in range(len(index[0]))))
+    for i, t in zip(index, found):
+        out[i] = t.value
+    return out
+
+
+def thesis_by_metric(run: str, path: str | Path | None = None) -> dict:
+    """The thesis's values of a run's scalar targets, by metric path (for a command's "thesis in brackets")."""
+    return {t.metric: t.value for t in targets_for_run(run, path)}

@@ -1,0 +1,245 @@
+"""The thesis's targets file (schema, units, runs, reasons) and how ours are scored against it.
+
+Truth: the thesis's printed numbers (spot-checked here against the text of the thesis), the tolerance
+arithmetic at its edges, and the open-loop verification of the baseline model, whose primary targets
+must all be reproduced (issue 3) with the documented deviations shown as such, never as passes.
+"""
+import math
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from seapup_runs import targets as tg
+
+ROOT = Path(__file__).resolve().parents[4]   # ros2_ws/src/seapup_runs/test -> the repository
+
+
+def _write(tmp_path, doc) -> Path:
+    path = tmp_path / "targets.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def _doc(**target):
+    entry = {"id": "x", "chapter": 3, "where": "sec. 3.5", "quantity": "top speed", "value": 1.0, "unit": "m/s",
+             "tolerance": "ten", "run": "r", "metric": "a.b"}
+    entry.update(target)
+    return {"schema": 1, "units": {"m/s": "", "bool": "", "1": ""}, "runs": {"r": {"kind": "verify"}},
+            "tolerances": {"ten": {"rel": 0.1, "reason": "ten per cent"}}, "targets": [entry]}
+
+
+# -- the file itself ---------------------------------------------------------------------------------------
+@pytest.mark.unit
+def test_every_target_is_complete_and_its_run_unit_and_reason_known():
+    doc = tg.load_document()
+    targets = tg.load_targets()
+    assert len(targets) >= 150 and len({t.id for t in targets}) == len(targets)
+    for t in targets:
+        assert t.run in doc["runs"] and t.unit in doc["units"], t.id
+        assert t.tolerance.reason and len(t.tolerance.reason.splitlines()) == 1, t.id
+        assert t.metric and all(part for part in t.metric.split(".")), t.id
+        assert re.search(r"(sec|eq|fig|Table|App)\.? ?[A\d]", t.where), (t.id, t.where)
+        low, high = t.tolerance.bounds(t.value)
+        assert low <= (float(t.value) if not isinstance(t.value, bool) else t.value) <= high or \
+            t.tolerance.at_most is not None, t.id   # the thesis's own value is accepted
+    assert {t.chapter for t in targets} >= {"3", "5", "A"}
+
+
+@pytest.mark.unit
+def test_every_deviation_points_at_its_entry_in_the_deviation_register():
+    for t in tg.load_targets():
+        for text in ([t.deviation["doc"]] if t.deviation else []) + ([t.typo["why"]] if t.typo else []):
+            match = re.search(r"(docs/[\w/.-]+\.md)#([\w-]+)", text)
+            assert match, f"{t.id}: no docs/<page>.md#<anchor> in {text!r}"
+            page = ROOT / match.group(1)
+            assert page.is_file(), f"{t.id}: {match.group(1)} does not exist"
+            assert f'id="{match.group(2)}"' in page.read_text(), f"{t.id}: no anchor {match.group(2)!r}"
+
+
+# The thesis's own lines (goheen_rov_thesis.txt, copied verbatim): the data file must say what they say, but
+# where a typo is documented, and there exactly.
+_PRINTED = {
+    "ch5.eq5_3a.B0inv": r"\begin{bmatrix} .0026 & .0026 & .000125 & .000125 \\ -.0001 & .0001 & -.0004265 & .0004265 \\ "
+                        r".0000625 & .0000625 & .000525 & .000525 \\ .2629 & -.2629 & .001588 & -.001588 \end{bmatrix}",
+    "ch5.eq5_3b.B1inv": r"\begin{bmatrix} .0246 & .0246 & .00064 & .00064 \\ -.00409 & .00409 & -.00766 & .00766 \\ "
+                        r"-.0006 & -.0006 & .004875 & .004875 \\ 1.9612 & 1.9612 & -.04990 & .04990 \end{bmatrix}",
+    "ch5.eq5_7a.B0inv": r"\begin{bmatrix} .00325 & .00325 & -.001125 & -.001125 \\ -.00025 & .00025 & -.001300 & .001300 \\ "
+                        r".000375 & .000375 & .01200 & .01200 \\ .361725 & .361725 & -.009825 & .009825 \end{bmatrix}",
+    "ch5.eq5_7b.B1inv": r"\begin{bmatrix} .01514 & .01514 & -.00565 & -.00565 \\ -.00700 & .00700 & -.00490 & .00490 \\ "
+                        r"-.00060 & -.00060 & .00209 & .00209 \\ 1.3419 & -1.3419 & -.13100 & .13100 \end{bmatrix}",
+}
+#: the entries a documented typo reads differently from the print
+_TYPO_ENTRIES = {"ch5.eq5_3b.B1inv": {(3, 1)}, "ch5.eq5_7a.B0inv": {(3, 1), (2, 2), (2, 3)}}
+
+
+def _matrix(latex: str):
+    body = latex.split(r"\begin{bmatrix}")[1].split(r"\end{bmatrix}")[0]
+    return [[float(v) for v in row.split("&")] for row in body.split(r"\\")]
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("target_id", sorted(_PRINTED))
+def test_the_matrices_are_the_thesis_s_but_for_documented_typos(target_id):
+    import numpy as np
+    printed = np.array(_matrix(_PRINTED[target_id]))
+    ours = tg.thesis_value(target_id)
+    differs = {tuple(int(i) for i in ix) for ix in zip(*np.nonzero(~np.isclose(ours, printed, rtol=0, atol=1e-12)))}
+    assert differs == _TYPO_ENTRIES.get(target_id, set())
+    typo = next(t.typo for t in tg.load_targets() if t.id.startswith(target_id + "["))
+    assert typo or not differs   # a typo note may also say where two printings disagree (eq. 5.3a)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("change, message", [
+    ({"unit": "furlongs"}, "unknown unit"),
+    ({"run": "nowhere"}, "unknown run"),
+    ({"tolerance": "twenty"}, "unknown tolerance"),
+    ({"tolerance": {"rel": 0.1}}, "one-line reason"),
+    ({"tolerance": {"rel": -0.1, "reason": "r"}}, "finite number >= 0"),
+    ({"colour": "red"}, "unknown key"),
+    ({"chapter": 9}, "chapter must be"),
+    ({"value": True}, "yes/no statement"),
+    ({"deviation": {"reason": "because"}}, "deviation needs"),
+])
+def test_a_malformed_target_is_refused_with_one_line(tmp_path, change, message):
+    with pytest.raises(tg.TargetsError, match=message) as caught:
+        tg.load_targets(_write(tmp_path, _doc(**change)))
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.unit
+def test_a_duplicate_id_and_a_missing_field_are_refused(tmp_path):
+    doc = _doc()
+    doc["targets"].append(dict(doc["targets"][0]))
+    with pytest.raises(tg.TargetsError, match="duplicate id"):
+        tg.load_targets(_write(tmp_path, doc))
+    doc = _doc()
+    del doc["targets"][0]["metric"]
+    with pytest.raises(tg.TargetsError, match="missing"):
+        tg.load_targets(_write(tmp_path, doc))
+
+
+@pytest.mark.unit
+def test_a_matrix_expands_into_one_target_per_entry_with_its_row_scale(tmp_path):
+    doc = _doc(value=[[2.0, 0.01], [-0.5, 0.0]], metric="m", tolerance="rows")
+    doc["tolerances"]["rows"] = {"rel": 0.5, "abs_row": 0.1, "reason": "half, or a tenth of the row"}
+    expanded = {t.id: t for t in tg.load_targets(_write(tmp_path, doc))}
+    assert sorted(expanded) == ["x[0,0]", "x[0,1]", "x[1,0]", "x[1,1]"]
+    assert expanded["x[1,0]"].metric == "m.1.0" and expanded["x[1,0]"].value == -0.5
+    assert expanded["x[0,0]"].tolerance.bounds(2.0) == (1.0, 3.0)                 # 50 % beats 0.2
+    assert expanded["x[0,1]"].tolerance.bounds(0.01) == pytest.approx((-0.19, 0.21))  # a tenth of row 0's 2.0
+    assert expanded["x[1,1]"].tolerance.bounds(0.0) == pytest.approx((-0.05, 0.05))   # a tenth of row 1's 0.5
+
+
+# -- scoring ---------------------------------------------------------------------------------------------------
+def _target(value=1.0, deviation=None, **tolerance):
+    return tg.Target(id="t", chapter="3", where="sec. 3.5", quantity="q", value=value,
+                     unit="bool" if isinstance(value, bool) else "m/s",
+                     tolerance=tg.Tolerance(reason="r", **tolerance), run="r", metric="v",
+                     deviation=deviation or {})
+
+
+@pytest.mark.unit
+def test_a_value_on_the_tolerance_edge_is_reproduced_and_one_beyond_is_not():
+    rel = _target(2.0, rel=0.25)
+    assert tg.score(rel, {"v": 2.5}).status == "reproduced" and tg.score(rel, {"v": 1.5}).status == "reproduced"
+    assert tg.score(rel, {"v": math.nextafter(2.5, 3)}).status == "failed"
+    both = _target(0.01, rel=0.5, abs=0.1)                       # the larger band
+    assert tg.score(both, {"v": 0.11}).status == "reproduced" and tg.score(both, {"v": 0.1101}).status == "failed"
+    factor = _target(-0.2, range_factor=2.0)
+    assert tg.score(factor, {"v": -0.4}).status == "reproduced" and tg.score(factor, {"v": -0.1}).status == "reproduced"
+    assert tg.score(factor, {"v": 0.05}).status == "failed"       # the wrong sign is never within a factor
+    bound = _target(0.0, at_most=1e-9)
+    assert tg.score(bound, {"v": -5.0}).status == "reproduced" and tg.score(bound, {"v": 1e-6}).status == "failed"
+    exact = _target(4, abs=0.0)
+    assert tg.score(exact, {"v": 4}).status == "reproduced" and tg.score(exact, {"v": 3}).status == "failed"
+
+
+@pytest.mark.unit
+def test_a_missing_non_finite_or_unrun_value_is_never_reproduced():
+    t = _target(1.0, rel=0.5)
+    assert tg.score(t, None).status == "not_run"
+    for result in ({}, {"v": None}, {"v": math.nan}, {"v": math.inf}, {"v": "1.0"}, {"v": True}):
+        s = tg.score(t, result)
+        assert s.status == "failed" and s.ours is None, result
+
+
+@pytest.mark.unit
+def test_a_deviation_is_shown_as_one_and_never_counts_as_reproduced():
+    t = _target(1.0, rel=0.1, deviation={"decision": "d", "reason": "r", "doc": "docs/decisions.md#x"})
+    missed, met = tg.score(t, {"v": 2.0}), tg.score(t, {"v": 1.05})
+    assert missed.status == "deviation" and met.status == "reproduced"
+    totals = tg.summarise([missed, met, tg.score(_target(1.0, rel=0.1), {"v": 3.0}), tg.score(t, None)])
+    assert totals["pooled"] == {"asked": 4, "reproduced": 1, "deviations": 1, "failed": 1, "not_run": 1,
+                                "misses": ["t", "t"]}
+
+
+@pytest.mark.unit
+def test_a_statement_is_decided_by_a_yes_or_no():
+    t = _target(True, abs=0.0)
+    assert tg.score(t, {"v": True}).status == "reproduced" and tg.score(t, {"v": 1}).status == "reproduced"
+    assert tg.score(t, {"v": False}).status == "failed" and tg.score(t, {"v": None}).status == "failed"
+
+
+@pytest.mark.unit
+def test_a_metric_path_reads_mappings_and_lists():
+    result = {"points": [{"B": [[1.0, 2.0], [3.0, 4.0]]}], "x": None}
+    assert tg.lookup(result, "points.0.B.1.0") == 3.0
+    assert tg.lookup(result, "points.1.B") is None and tg.lookup(result, "points.zero") is None
+    assert tg.lookup(result, "x.y") is None and tg.lookup(result, "points.0.B.0.0.0") is None
+
+
+# -- ./seapup verify's rows: the open-loop verification of the baseline ------------------------------------------
+@pytest.fixture(scope="module")
+def baseline_results():
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    from seapup_sim.verification import verify
+    return verify(VehicleModel(load_vehicle_config("baseline")))[0]
+
+
+def test_every_primary_target_of_the_baseline_is_reproduced(baseline_results):
+    rows = tg.verify_rows(baseline_results, "baseline")
+    failed = [(r["label"], r["value"], r["thesis"]) for r in rows if r["primary"] and not r["pass"]]
+    assert len(rows) == len(tg.targets_for_run("verify:baseline")) >= 50
+    assert failed == [] and tg.verify_summary(rows)["ok"]
+    assert all(r["value"] is not None for r in rows), [r["label"] for r in rows if r["value"] is None]
+
+
+def test_the_umbilical_f_z_rows_are_documented_deviations(baseline_results):
+    """Issue 11 decided: the exact cable solution stays; sec. 3.8's F_z is shown as DEV with its reason;
+    top speeds and F_x stay primary."""
+    rows = tg.verify_rows(baseline_results, "baseline")
+    fz = [r for r in rows if r["key"].startswith("umbilical.") and r["key"].endswith("Fz")]
+    assert len(fz) == 3 and all(r["status"] == "DEV" and not r["primary"] and "umbilical-fz" in r["deviation"]
+                                for r in fz)
+    assert all(r["value"] < 0 for r in fz)  # still measured and reported: the cable pulls up
+    assert all(r["primary"] for r in rows if r["key"].startswith("umbilical.") and not r["key"].endswith("Fz"))
+
+
+def test_the_current_rows_reproduce_eq_3_13_and_3_14(baseline_results):
+    rows = [r for r in tg.verify_rows(baseline_results, "baseline") if r["key"].startswith("current.")]
+    assert len(rows) == 7 and all(r["pass"] for r in rows), rows
+
+
+def test_only_a_failing_primary_decides_the_outcome(baseline_results):
+    res = baseline_results
+    rows = tg.verify_rows(res, "baseline")
+    worse = {**res, "umbilical": {**res["umbilical"], "50": {**res["umbilical"]["50"], "Fz": 0.0}}}
+    assert tg.verify_summary(tg.verify_rows(worse, "baseline"))["ok"]          # a deviation further off: still ok
+    worse = {**res, "surge": {**res["surge"], "max_u": 0.5}}
+    bad = tg.verify_rows(worse, "baseline")
+    assert not tg.verify_summary(bad)["ok"]
+    assert tg.verify_summary(bad)["primary_passed"] == tg.verify_summary(rows)["primary_passed"] - 1
+    assert [r["status"] for r in bad if r["key"] == "surge.max_u"] == ["FAIL"]
+
+
+def test_a_broken_metric_turns_its_rows_red(baseline_results):
+    """Acceptance of issue 23: a deliberately broken metric (here the umbilical's F_x taken with the wrong
+    sign, as a metric that reads the cable's pull instead of its drag would) fails its rows."""
+    res = baseline_results
+    broken = {**res, "umbilical": {d: {**v, "Fx": -v["Fx"]} for d, v in res["umbilical"].items()}}
+    rows = [r for r in tg.verify_rows(broken, "baseline") if r["key"].endswith(".Fx")]
+    assert len(rows) == 3 and all(r["status"] == "FAIL" for r in rows)
