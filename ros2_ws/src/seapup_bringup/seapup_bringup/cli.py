@@ -120,13 +120,21 @@ def _verify(argv: list[str]) -> int:
     return verify(argv)
 
 
+@command("report", "the thesis's targets scored against fresh runs: report.json and one HTML page (chapters, "
+         "figures, deviation register)", "[--out DIR] [--chapters 3,5,A] [--jobs N] [--no-cache] [--json [F]]")
+def _report(argv: list[str]) -> int:
+    from seapup_bringup.report import report_command
+    return report_command(argv)
+
+
 @command("check-model", "model checker (symmetry, damping, stability)", "[--config C] [--json [F]]")
 def _check_model(argv: list[str]) -> int:
     from seapup_bringup.commands import check_model
     return check_model(argv)
 
 
-@command("bench", "benchmarks (model, umbilical, verify, ROS graph)", "[--json [F]] [--no-graph] [--recording-minutes M]")
+@command("bench", "benchmarks (model, umbilical, verify, report, ROS graph)",
+         "[--json [F]] [--no-graph] [--no-report] [--recording-minutes M]")
 def _bench(argv: list[str]) -> int:
     from seapup_bringup.commands import bench
     return bench(argv)

@@ -1,0 +1,347 @@
+"""``./seapup report``: the thesis's targets scored against fresh runs -- ``report.json`` and one HTML page.
+
+Every target of the targets file (:mod:`seapup_runs.targets`, optionally only some chapters) is scored
+against the run that produces ours (:mod:`seapup_bringup.reproduction`: each run cached by its
+description and the code version, several in parallel with ``--jobs``). ``report.json`` holds the
+commit, the counts per chapter and pooled, every target's row and how the page was made;
+``report.html`` is drawn from that same document -- a summary per chapter with the largest misses, per
+chapter the thesis's numbers beside ours (difference, tolerance and its reason, status in colour) and
+our analogues of the thesis's figures, the deviation register and the typos we read around, and how
+the page was made -- self-contained (inline CSS, PNG figures embedded; nothing fetched).
+"""
+from __future__ import annotations
+
+import argparse
+import base64
+import datetime
+import html
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+
+__all__ = ["report_command", "build_document", "write_page", "readme_block", "update_readme", "CHAPTER_TITLES"]
+
+CHAPTER_TITLES = {"3": "The open-loop model (ch. 3)", "4": "Self-test identification (ch. 4)",
+                  "5": "The self-test and the closed loop (ch. 5)", "6": "Identification (ch. 6)",
+                  "7": "Adaptive autopilots (ch. 7)", "A": "Trials of the vehicle (App. A)"}
+_STATUS_TEXT = {"reproduced": "reproduced", "deviation": "deviation", "failed": "failed", "not_run": "not run"}
+
+
+def _commit() -> str:
+    root = Path(__file__).resolve()
+    for parent in root.parents:  # the source tree, or the install's origin (colcon symlinks into it)
+        if (parent / ".git").exists():
+            try:
+                out = subprocess.run(["git", "-C", str(parent), "describe", "--always", "--dirty"],
+                                     capture_output=True, text=True, timeout=10)
+                if out.returncode == 0:
+                    return out.stdout.strip()
+            except (OSError, subprocess.SubprocessError):
+                pass
+    return os.environ.get("SEAPUP_COMMIT", "unknown")
+
+
+def _misses_by_size(rows: list[dict]) -> list[dict]:
+    """The missed targets, largest first: how many tolerance half-widths ours lies from the thesis."""
+    out = []
+    for row in rows:
+        if row["status"] not in ("failed", "deviation"):
+            continue
+        size = math.inf
+        if isinstance(row["ours"], (int, float)) and not isinstance(row["ours"], bool) and row["low"] is not None \
+                and row["high"] is not None:
+            half = max((row["high"] - row["low"]) / 2.0, 1e-12 * max(abs(row["thesis"]), 1.0))
+            size = abs(row["ours"] - row["thesis"]) / half
+        out.append({"id": row["id"], "where": row["where"], "quantity": row["quantity"], "status": row["status"],
+                    "tolerances_away": size if math.isfinite(size) else None})
+    return sorted(out, key=lambda m: -(m["tolerances_away"] if m["tolerances_away"] is not None else math.inf))
+
+
+def build_document(scores, totals: dict, payloads: dict, descriptions: dict, made: dict) -> dict:
+    """``report.json``: commit, counts per chapter and pooled, the targets' rows, the runs, how it was made."""
+    rows = [s.row() for s in scores]
+    def counts(c):
+        return {k: c[k] for k in ("asked", "reproduced", "deviations", "failed", "not_run")}
+    return {"commit": made["commit"], "date": made["date"],
+            "chapters": {ch: {**counts(c), "misses": c["misses"]} for ch, c in totals["chapters"].items()},
+            "pooled": {**counts(totals["pooled"]), "misses": totals["pooled"]["misses"]},
+            "largest_misses": _misses_by_size(rows)[:10],
+            "targets": rows,
+            "runs": [{"name": name, "kind": descriptions[name]["kind"], "doc": descriptions[name].get("doc", ""),
+                      "directory": p["directory"], "cached": p.get("cached", False), "wall_s": p.get("wall_s"), "cpu_s": p.get("cpu_s"),
+                      "error": p.get("error"), "figures": [{**f, "path": str(Path(p["directory"]) / f["file"])}
+                                                           for f in p.get("figures", [])]}
+                     for name, p in payloads.items()],
+            "made": made}
+
+
+# -- the page ---------------------------------------------------------------------------------------------------
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",sans-serif;margin:0 auto;max-width:1200px;padding:1em 2em;
+color:#1d2329;line-height:1.4}
+h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #d0d7de;padding-bottom:.2em;margin-top:2em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.86em;width:100%}
+th,td{border:1px solid #d0d7de;padding:.25em .45em;text-align:left;vertical-align:top}
+th{background:#f3f5f7}td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
+tr.row-reproduced td.status{background:#cdebd0;color:#14532d}
+tr.row-deviation td.status{background:#fbe7b5;color:#713f12}
+tr.row-failed td.status{background:#f8c9c9;color:#7f1d1d;font-weight:600}
+tr.row-not_run td.status{background:#e5e7eb;color:#374151}
+.reason{color:#57606a;font-size:.9em}.muted{color:#57606a}
+figure{display:inline-block;margin:.6em .8em .6em 0;max-width:48%;vertical-align:top}
+figure img{max-width:100%;border:1px solid #d0d7de}figcaption{font-size:.85em;color:#57606a}
+.bar{display:inline-block;height:.8em;background:#2da44e;vertical-align:middle}
+.bar.dev{background:#d4a72c}.bar.fail{background:#cf222e}.bar.nr{background:#afb8c1}
+code{font-size:.92em}
+"""
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    value = float(value)
+    if value == 0:
+        return "0"
+    if abs(value) >= 1e4 or abs(value) < 1e-3:
+        return f"{value:.3e}"
+    return f"{value:.4g}"
+
+
+def _e(text) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def _bar(c: dict) -> str:
+    asked = max(c["asked"], 1)
+    parts = [("", c["reproduced"]), ("dev", c["deviations"]), ("fail", c["failed"]), ("nr", c["not_run"])]
+    return "".join(f'<span class="bar {cls}" style="width:{160 * n / asked:.1f}px"></span>' for cls, n in parts if n)
+
+
+def _summary_rows(document: dict) -> str:
+    out = []
+    for ch, c in list(document["chapters"].items()) + [("pooled", document["pooled"])]:
+        title = CHAPTER_TITLES.get(ch, ch) if ch != "pooled" else "pooled"
+        link = f'<a href="#chapter-{_e(ch)}">{_e(title)}</a>' if ch != "pooled" else "<b>pooled</b>"
+        share = 100.0 * c["reproduced"] / c["asked"] if c["asked"] else 0.0
+        out.append(f"<tr><td>{link}</td><td class=num>{c['asked']}</td><td class=num>{c['reproduced']}</td>"
+                   f"<td class=num>{share:.0f} %</td><td class=num>{c['deviations']}</td><td class=num>{c['failed']}</td>"
+                   f"<td class=num>{c['not_run']}</td><td>{_bar(c)}</td></tr>")
+    return "".join(out)
+
+
+def _target_rows(rows: list[dict]) -> str:
+    out = []
+    for r in rows:
+        notes = []
+        if r["deviation"]:
+            notes.append(f'deviation: {_e(r["deviation"]["reason"])} (<code>{_e(r["deviation"]["doc"])}</code>)')
+        if r["typo"]:
+            notes.append(f'read: {_e(r["typo"]["read"])}')
+        out.append(
+            f'<tr class="row-{_e(r["status"])}" id="t-{_e(r["id"])}" data-status="{_e(r["status"])}">'
+            f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
+            f'<td>{_e(r["quantity"])}{"<div class=reason>" + "<br>".join(notes) + "</div>" if notes else ""}</td>'
+            f'<td class=num>{_fmt(r["thesis"])}</td><td class=num>{_fmt(r["ours"])}</td>'
+            f'<td class=num>{_fmt(r["difference"])}</td><td>{_e(r["unit"])}</td>'
+            f'<td>{_e(r["tolerance"])}<div class=reason>{_e(r["reason"])}</div></td>'
+            f'<td class=status>{_STATUS_TEXT[r["status"]]}</td></tr>')
+    return "".join(out)
+
+
+def _figure(path: str, caption: str) -> str:
+    try:
+        data = base64.b64encode(Path(path).read_bytes()).decode()
+    except OSError:
+        return f"<p class=muted>figure {_e(Path(path).name)} missing</p>"
+    return (f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{_e(caption)}</figcaption></figure>")
+
+
+def write_page(document: dict, path: Path) -> Path:
+    """``report.html`` from ``report.json``'s document (figures read from the runs' directories)."""
+    rows, runs = document["targets"], {r["name"]: r for r in document["runs"]}
+    chapters = []
+    for ch, counts in document["chapters"].items():
+        mine = [r for r in rows if r["chapter"] == ch]
+        run_names = list(dict.fromkeys(r["run"] for r in mine))
+        figures = "".join(_figure(f["path"], f["caption"]) for name in run_names for f in runs[name]["figures"])
+        errors = "".join(f"<p class=muted>run <code>{_e(n)}</code> failed: {_e(runs[n]['error'])}</p>"
+                         for n in run_names if runs[n].get("error"))
+        chapters.append(
+            f'<section class="chapter" id="chapter-{_e(ch)}"><h2>{_e(CHAPTER_TITLES.get(ch, ch))}</h2>'
+            f'<p>{counts["reproduced"]} of {counts["asked"]} reproduced, {counts["deviations"]} documented '
+            f'deviations, {counts["failed"]} failed, {counts["not_run"]} not run. Runs: '
+            + ", ".join(f'<code>{_e(n)}</code>' for n in run_names) + f".</p>{errors}"
+            f"<table><thead><tr><th>id</th><th>where</th><th>quantity</th><th>thesis</th><th>ours</th>"
+            f"<th>difference</th><th>unit</th><th>tolerance (why)</th><th>status</th></tr></thead>"
+            f"<tbody>{_target_rows(mine)}</tbody></table>"
+            + (f"<h3>Our analogues of the thesis's figures</h3>{figures}" if figures else "") + "</section>")
+    deviations = {}
+    for r in rows:
+        if r["deviation"]:
+            deviations.setdefault((r["deviation"]["doc"], r["deviation"]["decision"], r["deviation"]["reason"]),
+                                  []).append(r)
+    def link(target_id):
+        return f'<a href="#t-{_e(target_id)}">{_e(target_id)}</a>'
+    register = "".join(
+        f"<tr><td>{', '.join(link(r['id']) for r in group)}</td>"
+        f"<td>{_e(decision)}</td><td>{_e(reason)}</td><td><code>{_e(doc)}</code></td>"
+        f"<td>{sum(r['status'] == 'deviation' for r in group)} of {len(group)} missed</td></tr>"
+        for (doc, decision, reason), group in deviations.items())
+    typos = "".join(f"<tr><td>{link(r['id'])}</td><td>{_e(r['where'])}</td>"
+                    f"<td>{_e(r['typo']['read'])}</td><td>{_e(r['typo']['why'])}</td></tr>"
+                    for r in rows if r["typo"] and (r["id"].endswith("[0,0]") or "[" not in r["id"]))
+    largest = "".join(
+        f"<li>{link(m['id'])} ({_e(m['where'])}, {_e(m['quantity'])}): {_STATUS_TEXT[m['status']]}, "
+        + (f"{m['tolerances_away']:.1f} tolerances away" if m["tolerances_away"] is not None else "no value")
+        + "</li>" for m in document["largest_misses"])
+    made = document["made"]
+    run_rows = "".join(
+        f"<tr><td><code>{_e(r['name'])}</code></td><td>{_e(r['doc'])}</td><td>{'cache' if r['cached'] else 'run'}</td>"
+        f"<td class=num>{_fmt(r['wall_s'])}</td><td class=num>{_fmt(r['cpu_s'])}</td>"
+        f"<td>{_e(r['error'] or '')}</td></tr>" for r in document["runs"])
+    page = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>seapup: reproduction of Goheen's thesis ({_e(document['commit'])})</title><style>{_CSS}</style></head>
+<body>
+<h1>seapup: the thesis against ours</h1>
+<p class=muted>K. R. Goheen, <i>The Modelling and Control of Remotely Operated Underwater Vehicles</i>: every
+result the targets file asks for, scored against fresh runs of commit <code>{_e(document['commit'])}</code> on
+{_e(document['date'])}. A target is <b>reproduced</b> when ours lies within its tolerance (each with its reason),
+a <b>deviation</b> when it is missed for a documented, decided reason (never counted as reproduced),
+<b>failed</b> when missed otherwise.</p>
+<section id="summary"><h2>Summary</h2>
+<table><thead><tr><th>chapter</th><th>asked</th><th>reproduced</th><th>share</th><th>deviations</th><th>failed</th>
+<th>not run</th><th></th></tr></thead><tbody>{_summary_rows(document)}</tbody></table>
+<h3>The largest misses</h3><ol>{largest or '<li>none</li>'}</ol></section>
+{''.join(chapters)}
+<section id="deviations"><h2>Deviation register</h2>
+<p>Each documented difference, its decision and reason; the full entry is in the named page of the docs.</p>
+<table><thead><tr><th>targets</th><th>decision</th><th>reason</th><th>entry</th><th>now</th></tr></thead>
+<tbody>{register or '<tr><td colspan=5>none</td></tr>'}</tbody></table>
+<h3>Thesis typos we read around</h3>
+<table><thead><tr><th>target</th><th>where</th><th>we read</th><th>why</th></tr></thead>
+<tbody>{typos or '<tr><td colspan=4>none</td></tr>'}</tbody></table></section>
+<section id="made"><h2>How this page was made</h2>
+<p><code>./seapup report {_e(' '.join(made['argv']))}</code> at commit <code>{_e(document['commit'])}</code>
+(code version <code>{_e(made['code_version'])}</code>), {_e(document['date'])}, on {_e(made['machine'])};
+{made['wall_s']:.1f} s wall, {made['cpu_s']:.1f} s CPU in this process, {made['jobs']} parallel run(s).
+Seeds: every run uses its random streams' seed 0 (verify's current statistics: seed 1). Targets:
+<code>{_e(made['targets_file'])}</code>.</p>
+<table><thead><tr><th>run</th><th>what</th><th>from</th><th>wall [s]</th><th>CPU [s]</th><th>error</th></tr></thead>
+<tbody>{run_rows}</tbody></table></section>
+</body></html>
+"""
+    path.write_text(page)
+    return path
+
+
+# -- the README's block --------------------------------------------------------------------------------------------
+README_BEGIN = "<!-- generated by ./seapup report --readme README.md; do not edit by hand -->"
+README_END = "<!-- end of the generated block -->"
+
+
+def readme_block(document: dict) -> str:
+    """The README's score table (markdown) from a report's document, between its two marker lines."""
+    lines = [README_BEGIN, "", "| chapter | reproduced | documented deviations | failed |", "|---|---|---|---|"]
+    for ch, c in list(document["chapters"].items()) + [("pooled", document["pooled"])]:
+        name = CHAPTER_TITLES.get(ch, ch) if ch != "pooled" else "**pooled**"
+        share = 100.0 * c["reproduced"] / c["asked"] if c["asked"] else 0.0
+        lines.append(f"| {name} | {c['reproduced']} of {c['asked']} ({share:.0f} %) | {c['deviations']} | {c['failed']} |")
+    missing = [CHAPTER_TITLES[ch] for ch in CHAPTER_TITLES if ch not in document["chapters"]]
+    if missing:
+        lines += ["", "Not yet in the targets file: " + "; ".join(missing) + "."]
+    return "\n".join(lines + ["", README_END])
+
+
+def update_readme(path: Path, document: dict) -> bool:
+    """Replace the generated block of ``path``; True if it changed. ValueError without the markers."""
+    text = path.read_text()
+    if README_BEGIN not in text or README_END not in text:
+        raise ValueError(f"{path} has no generated block ({README_BEGIN!r} ... {README_END!r})")
+    head, rest = text.split(README_BEGIN, 1)
+    new = head + readme_block(document) + rest.split(README_END, 1)[1]
+    path.write_text(new)
+    return new != text
+
+
+# -- the command ------------------------------------------------------------------------------------------------
+def report_command(argv: list[str]) -> int:
+    """``./seapup report``: score every thesis target against fresh (or cached) runs; write the page."""
+    parser = argparse.ArgumentParser(prog="./seapup report", description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("runs") / "report", help="output directory (default runs/report)")
+    parser.add_argument("--chapters", help="only these chapters, comma separated (3, 4, 5, 6, 7, A)")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="runs in parallel processes")
+    parser.add_argument("--cache", type=Path, help="run cache directory (default $SEAPUP_CACHE or ~/.cache/seapup/runs)")
+    parser.add_argument("--no-cache", action="store_true", help="rerun everything (the cache is refreshed)")
+    parser.add_argument("--targets", type=Path, help="a targets file other than the product's (to check an edit)")
+    parser.add_argument("--readme", type=Path, help="rewrite this README's generated score table (whole report only)")
+    add_json_argument(parser)
+    args = parser.parse_args(argv)
+    text = text_stream(args)
+    from seapup_bringup.reproduction import code_version, default_cache, run_all
+    from seapup_runs.targets import CHAPTERS, TargetsError, load_targets, runs_of, score_all, summarise
+    if args.jobs < 1:
+        parser.error("--jobs must be at least 1")
+    chapters = None
+    if args.chapters:
+        chapters = [c.strip() for c in args.chapters.split(",") if c.strip()]
+        unknown = [c for c in chapters if c not in CHAPTERS]
+        if unknown or not chapters:
+            parser.error(f"--chapters: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(CHAPTERS)}")
+    try:
+        targets = load_targets(args.targets)
+        descriptions = runs_of(args.targets)
+    except TargetsError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    if chapters is not None:
+        targets = [t for t in targets if t.chapter in chapters]
+    if not targets:
+        print("seapup: error: no targets in the chapters asked for", file=sys.stderr)
+        return 1
+    if args.readme is not None and (chapters is not None or args.targets is not None):
+        parser.error("--readme takes the whole report of the product's targets (no --chapters, no --targets)")
+    needed = {name: descriptions[name] for name in dict.fromkeys(t.run for t in targets)}
+    wall, cpu = time.perf_counter(), time.process_time()
+    print(f"report: {len(targets)} targets, {len(needed)} runs, {args.jobs} parallel", file=text, flush=True)
+    payloads = run_all(needed, args.cache or default_cache(), jobs=args.jobs, use_cache=not args.no_cache,
+                       progress=lambda f: progress("report", f))
+    results = {name: (p["result"] if p["result"] is not None else {}) for name, p in payloads.items()}
+    scores = score_all(targets, results)
+    made = {"argv": list(argv), "commit": _commit(), "date": datetime.datetime.now(datetime.timezone.utc)
+            .strftime("%Y-%m-%d %H:%M UTC"), "code_version": code_version(), "jobs": args.jobs,
+            "machine": f"{platform.node()}, {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}",
+            "wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu,
+            "targets_file": str(args.targets or "seapup_runs/data/thesis_targets.yaml")}
+    document = build_document(scores, summarise(scores), payloads, needed, made)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "report.json").write_text(json.dumps(document, indent=1))
+    page = write_page(document, args.out / "report.html")
+    for ch, c in list(document["chapters"].items()) + [("pooled", document["pooled"])]:
+        print(f"  {('ch. ' + ch) if ch != 'pooled' else 'pooled':8} {c['reproduced']:4d} of {c['asked']:4d} reproduced, "
+              f"{c['deviations']} deviations, {c['failed']} failed, {c['not_run']} not run", file=text)
+    for run in document["runs"]:
+        if run["error"]:
+            print(f"  run {run['name']} failed: {run['error']}", file=text)
+    print(f"wrote {page} and {args.out / 'report.json'} ({made['wall_s']:.1f} s)", file=text)
+    if args.readme is not None:
+        try:
+            changed = update_readme(args.readme, document)
+        except (OSError, ValueError) as exc:
+            print(f"seapup: error: {exc}", file=sys.stderr)
+            return 1
+        print(f"{args.readme}: score table {'updated' if changed else 'unchanged'}", file=text)
+    emit_json(args, document)
+    return 0

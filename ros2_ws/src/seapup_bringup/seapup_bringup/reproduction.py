@@ -1,0 +1,213 @@
+"""The runs the thesis's targets need, each cached by its description and the code version.
+
+The targets file (:mod:`seapup_runs.targets`) names the runs that produce ours (``runs:``): a
+``verify`` of a vehicle configuration (:func:`seapup_sim.verification.verify`: Table 3.2's trials, the
+linear analyses, the open-loop step gains of eq. 5.3 and 5.7, the current and the umbilical), a
+``selftest`` flown in process (:func:`seapup_runs.self_test.fly_self_test`, sec. 5.3) and a
+``scenario`` of sec. 5.4 (:func:`seapup_runs.scenarios.scenario_spec` flown by the in-process runner).
+:func:`execute` runs one and returns its result (JSON-ready: the document the targets' metric paths
+read) with the figures it drew; :func:`run_all` runs several in parallel processes and keeps each
+in a cache directory named by the hash of the run's description and of the code that computes it
+(every source file of the product's packages), so a second report reruns nothing that could have
+changed.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+from seapup_common.jsondata import jsonable
+
+__all__ = ["code_version", "run_key", "execute", "run_all", "default_cache", "ReproductionError"]
+
+#: The product's packages: a change to any of their files is a new code version.
+PACKAGES = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident", "seapup_runs", "seapup_bringup")
+
+
+class ReproductionError(RuntimeError):
+    """A run of the targets file that cannot be run (an unknown kind, a bad description)."""
+
+
+def code_version() -> str:
+    """A hash of every source and data file of the product's packages as imported (sorted by path)."""
+    digest = hashlib.sha256()
+    for name in PACKAGES:
+        root = Path(__import__(name).__file__).resolve().parent
+        for path in sorted(p for p in root.rglob("*") if p.is_file() and p.suffix in (".py", ".yaml", ".yml", ".json")
+                           and "__pycache__" not in p.parts):
+            digest.update(f"{name}/{path.relative_to(root).as_posix()}\0".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def run_key(name: str, description: dict, version: str) -> str:
+    """The cache key of a run: its name and description and the code version."""
+    text = json.dumps({"name": name, "description": description, "code": version}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def default_cache() -> Path:
+    """``$SEAPUP_CACHE`` or ``$XDG_CACHE_HOME/seapup/runs`` (``~/.cache/seapup/runs``)."""
+    if os.environ.get("SEAPUP_CACHE"):
+        return Path(os.environ["SEAPUP_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "seapup" / "runs"
+
+
+# -- one run --------------------------------------------------------------------------------------------------
+def _verify(description: dict, out: Path) -> tuple[dict, list]:
+    from seapup_sim.report import write_plots
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    from seapup_sim.verification import verify
+    result, histories = verify(VehicleModel(load_vehicle_config(description["config"])))
+    figures = [(path.name, _caption(path.stem, description["config"])) for path in write_plots(result, histories, out)]
+    return result, figures
+
+
+def _caption(stem: str, config: str) -> str:
+    """``fig3_8_3_10_loci`` -> ``figs 3.8, 3.10 analogue (baseline): loci``."""
+    import re
+    match = re.fullmatch(r"fig((?:\d+_\d+_?)+?)_?([a-z][\w]*)", stem)
+    if not match:
+        return f"{stem} ({config})"
+    numbers = match.group(1).strip("_").split("_")
+    figures = [f"{a}.{b}" for a, b in zip(numbers[::2], numbers[1::2])]
+    return f"fig{'s' if len(figures) > 1 else ''}. {', '.join(figures)} analogue ({config}): {match.group(2).replace('_', ' ')}"
+
+
+def _self_test(description: dict, out: Path) -> tuple[dict, list]:
+    """The self-test's points in the thesis's units (eq. 5.3, Tables 5.1-5.2) with the time and box of water
+    each operating point took (sec. 5.3.3), and a figure of the test."""
+    from seapup_runs.self_test import fly_self_test
+    rate = float(description.get("rate_hz", 5.0))
+    run = fly_self_test(description["config"], {"sample_period": 1.0 / rate,
+                                                "operating_points": list(description.get("speeds", [0.0])),
+                                                "mode": description.get("mode", "realistic")})
+    test = run.test
+    if test.phase.value != "done":
+        raise ReproductionError(f"the self-test did not finish: {test.phase.value}")
+    period = 1.0 / rate
+    start = test.start_time or 0.0
+    points, previous_end = [], start
+    for point in test.points:
+        b0, b1 = point.model.in_thesis_units()
+        steps = [s for s in test.tests if abs(s.surge - point.surge) < 1e-9]
+        end = max(s.start_time + (len(s.outputs) - 1) * period for s in steps) if steps else previous_end
+        within = run.truth[run.truth[:, 0] <= end + 1e-9, 1:4]
+        points.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
+                       "cycle": point.cycle, "duration_s": end - previous_end,
+                       "space_m": within.max(axis=0) - within.min(axis=0)})
+        previous_end = end
+    result = {"points": points, "duration_s": test.duration, "space_m": run.space,
+              "depth_range_m": list(run.depth_range), "steps": len(test.tests)}
+    return result, [(_plot_self_test(run, description, out), "the self-test's speeds and blade pitches (sec. 5.3)")]
+
+
+def _plot_self_test(run, description: dict, out: Path) -> str:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t, state = run.truth[:, 0], run.truth[:, 1:]
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    for index, label in ((6, "u [m/s]"), (7, "v [m/s]"), (8, "w [m/s]")):
+        axes[0].plot(t, state[:, index], label=label)
+    axes[1].plot(t, np.degrees(state[:, 11]), label="r [deg/s]")
+    for step in run.test.tests:
+        axes[1].axvline(step.start_time, color="0.8", lw=0.6)
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"self-test, {description['config']}, {description.get('mode', 'realistic')} quiescence, "
+                      f"{description.get('rate_hz', 5):g} Hz (grey: steps)")
+    name = f"selftest_{description['config']}_{description.get('mode', 'realistic')}.png"
+    fig.tight_layout()
+    fig.savefig(out / name, dpi=90)
+    plt.close(fig)
+    return name
+
+
+def _scenario(description: dict, out: Path) -> tuple[dict, list]:
+    from seapup_bringup.scenarios import plot_scenario
+    from seapup_runs.runner import run
+    from seapup_runs.scenarios import scenario_spec
+    spec = scenario_spec(description["name"], description.get("config", "baseline"),
+                         float(description.get("rate_hz", 5.0)), None, 0)
+    result = run(spec)
+    figure = plot_scenario(result, out)
+    return dict(result.metrics), [(figure.name, f"{description['name']} at {description.get('rate_hz', 5):g} Hz "
+                                                f"(the analogue of sec. 5.4's figures)")]
+
+
+_KINDS = {"verify": _verify, "selftest": _self_test, "scenario": _scenario}
+
+
+def execute(name: str, description: dict, out: Path) -> dict:
+    """Run ``name`` (a ``runs:`` entry of the targets file) into directory ``out``: ``{"result", "figures":
+    [{"file", "caption"}], "wall_s", "cpu_s"}``, figures as PNG files in ``out``."""
+    kind = description.get("kind")
+    if kind not in _KINDS:
+        raise ReproductionError(f"run {name!r}: unknown kind {kind!r} (known: {', '.join(_KINDS)})")
+    out.mkdir(parents=True, exist_ok=True)
+    wall, cpu = time.perf_counter(), time.process_time()
+    result, figures = _KINDS[kind](description, out)
+    return {"name": name, "result": jsonable(result), "figures": [{"file": f, "caption": c} for f, c in figures],
+            "wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu}
+
+
+def _cached_execute(name: str, description: dict, directory: str) -> dict:
+    """In a worker: run into a fresh directory, then move it into place (a reader never sees half a run)."""
+    final = Path(directory)
+    partial = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    try:
+        payload = execute(name, description, partial)
+        (partial / "run.json").write_text(json.dumps(payload))
+        if final.exists():
+            shutil.rmtree(final)
+        partial.rename(final)
+    finally:
+        if partial.exists():
+            shutil.rmtree(partial, ignore_errors=True)
+    return payload
+
+
+def run_all(runs: dict, cache: Path, jobs: int = 1, use_cache: bool = True, progress=None) -> dict:
+    """Run every ``name: description`` of ``runs`` (or take it from ``cache``): name -> payload (see
+    :func:`execute`, plus ``directory``, ``cached`` and, on failure, ``error`` with ``result`` None)."""
+    cache = Path(cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    version = code_version()
+    out, todo = {}, {}
+    for name, description in runs.items():
+        directory = cache / run_key(name, description, version)
+        if use_cache and (directory / "run.json").is_file():
+            out[name] = {**json.loads((directory / "run.json").read_text()), "directory": str(directory),
+                         "cached": True}
+        else:
+            todo[name] = (description, directory)
+    done = len(out)
+    if progress is not None:
+        progress(done / max(len(runs), 1))
+    if todo:
+        with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(todo)))) as pool:
+            futures = {pool.submit(_cached_execute, name, description, str(directory)): (name, directory)
+                       for name, (description, directory) in todo.items()}
+            for future in as_completed(futures):
+                name, directory = futures[future]
+                try:
+                    out[name] = {**future.result(), "directory": str(directory), "cached": False}
+                except Exception as exc:  # one failed run is a row of failed targets, not a lost report
+                    out[name] = {"name": name, "result": None, "figures": [], "error": f"{type(exc).__name__}: {exc}",
+                                 "directory": str(directory), "cached": False, "wall_s": None, "cpu_s": None}
+                done += 1
+                if progress is not None:
+                    progress(done / len(runs))
+    return {name: out[name] for name in runs}

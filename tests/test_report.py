@@ -1,0 +1,165 @@
+"""``./seapup report``: the thesis's targets scored against fresh runs, ``report.json`` and one HTML page
+rendered in a real browser (headless Chromium, Debian's package).
+
+Truth: the targets file (every target has its row, with the status the scoring gives for the run's own
+result), what a reader of the page sees in Chromium (every chapter's section, every target's row with
+its status, every figure decoded to a non-zero size, no console error), a cache that reruns nothing
+while the code is unchanged, and a deliberately broken metric that turns its rows red.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = os.environ.get("SEAPUP_CHROMIUM", "chromium")
+
+# Injected at the top of a copy of the page: console errors and uncaught errors are collected; at load the
+# facts a reader sees are written into the DOM, which Chromium dumps.
+_PROBE_HEAD = """<script>window.__errors=[];window.addEventListener('error',e=>{__errors.push(String(e.message||
+(e.target&&e.target.src&&'failed to load '+e.target.src.slice(0,40))||e.type))},true);(function(){const ce=
+console.error;console.error=function(...a){__errors.push(a.map(String).join(' '));ce.apply(console,a)}})();</script>"""
+_PROBE_TAIL = """<script>window.addEventListener('load',()=>{const rows=[...document.querySelectorAll('tr[data-status]')]
+.map(r=>{const s=r.querySelector('td.status');return [r.id.slice(2),r.dataset.status,s.textContent,
+getComputedStyle(s).backgroundColor,r.offsetHeight>0]});const imgs=[...document.images].map(i=>[i.alt,i.complete,
+i.naturalWidth,i.naturalHeight]);const sections=[...document.querySelectorAll('section')].map(s=>s.id);
+const p=document.createElement('pre');p.id='__probe';p.textContent=JSON.stringify({rows,imgs,sections,
+title:document.title,errors:window.__errors});document.body.appendChild(p)})</script>"""
+
+
+def _seapup(*args, timeout=1200):
+    run = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", *args], capture_output=True, text=True,
+                         timeout=timeout, cwd=ROOT)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return run
+
+
+def _render(page: Path, out: Path) -> dict:
+    """Open ``page`` in headless Chromium: what the probe saw, and a screenshot kept beside it."""
+    html = page.read_text()
+    probed = out / "probed.html"
+    probed.write_text(html.replace("<head>", "<head>" + _PROBE_HEAD, 1).replace("</body>", _PROBE_TAIL + "</body>", 1))
+    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={out / 'chromium'}", "--virtual-time-budget=10000"]
+    dom = subprocess.run(flags + ["--dump-dom", probed.as_uri()], capture_output=True, text=True, timeout=180)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    start = dom.stdout.index('<pre id="__probe">') + len('<pre id="__probe">')
+    import html as html_module
+    probe = json.loads(html_module.unescape(dom.stdout[start:dom.stdout.index("</pre>", start)]))
+    shot = out / "report.png"
+    subprocess.run(flags + ["--hide-scrollbars", "--window-size=1300,2200", f"--screenshot={shot}", page.as_uri()],
+                   capture_output=True, timeout=180)
+    probe["screenshot"] = shot
+    return probe
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    if shutil.which(CHROMIUM) is None:
+        pytest.fail(f"{CHROMIUM} not found: apt-get install chromium (the bootstrap checks for it)")
+    base = tmp_path_factory.mktemp("report")
+    first = _seapup("report", "--out", str(base / "out"), "--cache", str(base / "cache"), "--jobs", "2",
+                    "--json", str(base / "first.json"))
+    return base, json.loads((base / "first.json").read_text()), first
+
+
+def test_every_target_is_scored_from_its_run(report):
+    from seapup_runs import targets as tg
+    base, document, _ = report
+    expected = tg.load_targets()
+    rows = {r["id"]: r for r in document["targets"]}
+    assert sorted(rows) == sorted(t.id for t in expected)
+    assert set(document) >= {"commit", "chapters", "pooled", "targets"}
+    assert all(r["status"] != "not_run" for r in rows.values())
+    for name in {t.run for t in expected}:  # each run's own result decides its rows (re-scored here)
+        payload = json.loads(next(Path(r["directory"], "run.json").read_text()
+                                  for r in document["runs"] if r["name"] == name))
+        for t in tg.targets_for_run(name):
+            assert rows[t.id]["status"] == tg.score(t, payload["result"]).status, t.id
+    pooled = document["pooled"]
+    assert pooled["asked"] == len(expected) == sum(c["asked"] for c in document["chapters"].values())
+    assert pooled["reproduced"] + pooled["deviations"] + pooled["failed"] + pooled["not_run"] == pooled["asked"]
+    assert set(document["chapters"]) == {t.chapter for t in expected}
+    assert 0 < len(document["largest_misses"]) <= 10
+
+
+def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, tmp_path):
+    base, document, _ = report
+    seen = _render(base / "out" / "report.html", tmp_path)
+    assert seen["errors"] == []
+    assert {f"chapter-{ch}" for ch in document["chapters"]} | {"summary", "deviations", "made"} <= set(seen["sections"])
+    rows = {r[0]: r for r in seen["rows"]}
+    assert sorted(rows) == sorted(r["id"] for r in document["targets"])
+    colours = {}
+    for r in document["targets"]:
+        _, status, text, colour, visible = rows[r["id"]]
+        assert status == r["status"] and text.replace(" ", "_") == r["status"] and visible, r["id"]
+        colours.setdefault(status, set()).add(colour)
+    assert all(len(c) == 1 for c in colours.values()) and len({c.pop() for c in colours.values()}) == len(colours)
+    runs_with_figures = [r for r in document["runs"] if r["figures"]]
+    assert len(seen["imgs"]) >= len(runs_with_figures) >= 3
+    assert all(complete and width > 0 and height > 0 for _, complete, width, height in seen["imgs"]), seen["imgs"]
+    assert seen["screenshot"].stat().st_size > 10_000   # kept: the test's tmp folder holds report.png
+
+
+def test_a_second_report_takes_every_run_from_the_cache(report):
+    base, document, _ = report
+    _seapup("report", "--out", str(base / "again"), "--cache", str(base / "cache"), "--json", str(base / "second.json"))
+    second = json.loads((base / "second.json").read_text())
+    assert all(r["cached"] for r in second["runs"]) and not any(r["cached"] for r in document["runs"])
+    assert [(r["id"], r["ours"], r["status"]) for r in second["targets"]] == \
+        [(r["id"], r["ours"], r["status"]) for r in document["targets"]]
+
+
+def test_a_broken_metric_turns_its_rows_red(report, tmp_path):
+    """Acceptance: the surge trials' metric pointed at the wrong test (sway's top speed read as surge's)
+    fails those rows, and the page shows them red; nothing else changes."""
+    from seapup_runs.targets import TARGETS_FILE
+    base, document, _ = report
+    doc = yaml.safe_load(TARGETS_FILE.read_text())
+    broken = [t["id"] for t in doc["targets"] if t.get("metric") == "surge.max_u"]
+    for t in doc["targets"]:
+        if t["id"] in broken:
+            t["metric"] = "sway_4a.max_v"
+    changed = tmp_path / "broken.yaml"
+    changed.write_text(yaml.safe_dump(doc, sort_keys=False))
+    _seapup("report", "--targets", str(changed), "--chapters", "3", "--out", str(tmp_path / "out"),
+            "--cache", str(base / "cache"), "--json", str(tmp_path / "broken.json"))
+    rows = {r["id"]: r for r in json.loads((tmp_path / "broken.json").read_text())["targets"]}
+    before = {r["id"]: r for r in document["targets"]}
+    assert sorted(broken) == ["ch3.camera.surge.max_u", "ch3.surge.max_u"]
+    assert before["ch3.surge.max_u"]["status"] == "reproduced" and rows["ch3.surge.max_u"]["status"] == "failed"
+    assert rows["ch3.camera.surge.max_u"]["status"] in ("failed", "deviation")
+    assert all(rows[i]["status"] == before[i]["status"] for i in rows if i not in broken)
+    seen = _render(tmp_path / "out" / "report.html", tmp_path)
+    red = {r[0]: r[3] for r in seen["rows"]}
+    assert red["ch3.surge.max_u"] == next(r[3] for r in seen["rows"] if r[1] == "failed")
+    assert red["ch3.surge.max_u"] != next(r[3] for r in seen["rows"] if r[1] == "reproduced")
+
+
+def test_bad_arguments_are_one_line_and_change_nothing(tmp_path):
+    for args, message in ((["--chapters", "9"], "unknown 9"), (["--jobs", "0"], "at least 1")):
+        run = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "report", "--out", str(tmp_path / "o"), *args],
+                             capture_output=True, text=True, timeout=120, cwd=ROOT)
+        assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema: 1\ntargets: [{id: x}]\n")
+    run = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "report", "--targets", str(bad), "--out",
+                          str(tmp_path / "o")], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert run.returncode == 1 and "missing" in run.stderr and len(run.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_readme_shows_this_commits_scores(report):
+    """The README's score table is generated (``./seapup report --readme README.md``), never typed: it must be
+    the table of a fresh report of this code."""
+    from seapup_bringup.report import readme_block
+    _, document, _ = report
+    assert readme_block(document) in (ROOT / "README.md").read_text(), \
+        "README's score table is stale: run ./seapup report --readme README.md"
