@@ -14,7 +14,10 @@ ROS isolation rules, applied to every test:
 """
 from __future__ import annotations
 
+import html
+import json
 import os
+import subprocess
 import time
 from pathlib import Path
 
@@ -139,3 +142,50 @@ def spin_until(executor, predicate, timeout: float, step: float = 0.05) -> bool:
 def spin():
     """``spin(executor, predicate, timeout)``: wait on graph state or data, never sleep blindly."""
     return spin_until
+
+
+# -- pages in a real browser -------------------------------------------------------------------------------------
+# Render a page of ours in headless Chromium (Debian's package) and report what a reader sees: a copy of the
+# page gets a probe -- console errors and uncaught errors (a broken image included) are collected from the
+# start, and at load the rows with a ``data-status``, the images (decoded size), the sections and the errors
+# are written into the DOM, which Chromium dumps. A screenshot of the page itself is kept beside the copy.
+_CHROMIUM = os.environ.get("SEAPUP_CHROMIUM", "chromium")
+_HEAD = """<script>window.__errors=[];window.addEventListener('error',e=>{__errors.push(String(e.message||
+(e.target&&e.target.src&&'failed to load '+e.target.src.slice(0,40))||e.type))},true);(function(){const ce=
+console.error;console.error=function(...a){__errors.push(a.map(String).join(' '));ce.apply(console,a)}})();</script>"""
+_TAIL = """<script>window.addEventListener('load',()=>{const rows=[...document.querySelectorAll('tr[data-status]')]
+.map(r=>{const s=r.querySelector('td.status');return [r.id?r.id.slice(2):r.dataset.leg,r.dataset.status,
+s.firstChild.textContent,getComputedStyle(s).backgroundColor,r.offsetHeight>0]});const imgs=[...document.images]
+.map(i=>[i.alt,i.complete,i.naturalWidth,i.naturalHeight]);const sections=[...document.querySelectorAll('section')]
+.map(s=>s.id);const p=document.createElement('pre');p.id='__probe';p.textContent=JSON.stringify({rows,imgs,sections,
+title:document.title,errors:window.__errors});document.body.appendChild(p)})</script>"""
+
+
+def _render_page(page: Path, out: Path) -> dict:
+    """Open ``page`` in headless Chromium: ``rows`` ([id or leg, status, status text, background colour,
+    visible]), ``imgs`` ([alt, complete, natural width, height]), ``sections``, ``title``, ``errors`` and
+    ``screenshot`` (a PNG of the page, kept in ``out``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    probed = out / f"probed_{page.stem}.html"
+    probed.write_text(page.read_text().replace("<head>", "<head>" + _HEAD, 1).replace("</body>", _TAIL + "</body>", 1))
+    flags = [_CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={out / 'chromium'}", "--virtual-time-budget=10000"]
+    dom = subprocess.run(flags + ["--dump-dom", probed.as_uri()], capture_output=True, text=True, timeout=180)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    start = dom.stdout.index('<pre id="__probe">') + len('<pre id="__probe">')
+    probe = json.loads(html.unescape(dom.stdout[start:dom.stdout.index("</pre>", start)]))
+    shot = out / f"{page.stem}.png"
+    subprocess.run(flags + ["--hide-scrollbars", "--window-size=1300,2200", f"--screenshot={shot}", page.as_uri()],
+                   capture_output=True, timeout=180)
+    probe["screenshot"] = shot
+    return probe
+
+
+@pytest.fixture
+def browser():
+    """``render(page, out)``: what a reader of ``page`` sees in headless Chromium (see :func:`_render_page`)."""
+    import shutil
+    if shutil.which(_CHROMIUM) is None:
+        pytest.fail(f"{_CHROMIUM} not found: apt-get install chromium (the bootstrap checks for it)")
+    return _render_page

@@ -194,3 +194,24 @@ def test_a_leg_the_truth_contradicts_is_marked_whatever_the_task_said():
     assert "from the target in truth" in missed["truth_verdict"]
     reached = _navigation_check(_logs((0.3, 0.0), 0.1), dict(goto, target=[0.6, 0.0, 30.0]), 10.0, truth_end)
     assert reached["truth_verdict"] == ""
+
+
+@pytest.mark.graph
+def test_the_demo_folder_has_a_page_a_person_can_look_at(quiet_demo, browser, tmp_path):
+    """Issue 23: the demo's output folder gets index.html -- the legs (units, pass criteria, verdicts), the
+    plots, the seed and configuration -- rendered in headless Chromium with every leg's row showing the
+    verdict the summary's numbers give, every plot decoded and no console error."""
+    from seapup_bringup.demo import PASS_CRITERIA, _passed
+    _, summary, out = quiet_demo
+    page = out / "index.html"
+    seen = browser(page, tmp_path)
+    assert seen["errors"] == [] and {"legs", "plots", "configuration"} <= set(seen["sections"])
+    rows = {r[0]: r for r in seen["rows"]}
+    assert list(rows) == [leg["name"] for leg in summary["legs"]]
+    for leg in summary["legs"]:
+        verdict = "passed" if _passed(leg) else "failed"
+        assert rows[leg["name"]][1] == verdict and rows[leg["name"]][2] == verdict and rows[leg["name"]][4]
+    assert len(seen["imgs"]) == len(summary["plots"]) == 3
+    assert all(complete and width > 0 and height > 0 for _, complete, width, height in seen["imgs"])
+    text = page.read_text()
+    assert PASS_CRITERIA in text.replace("&#x27;", "'") and "seed" in text and "[m]" in text and "[s]" in text

@@ -7,8 +7,6 @@ its status, every figure decoded to a non-zero size, no console error), a cache 
 while the code is unchanged, and a deliberately broken metric that turns its rows red.
 """
 import json
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,21 +14,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+
 ROOT = Path(__file__).resolve().parents[1]
-CHROMIUM = os.environ.get("SEAPUP_CHROMIUM", "chromium")
-
-# Injected at the top of a copy of the page: console errors and uncaught errors are collected; at load the
-# facts a reader sees are written into the DOM, which Chromium dumps.
-_PROBE_HEAD = """<script>window.__errors=[];window.addEventListener('error',e=>{__errors.push(String(e.message||
-(e.target&&e.target.src&&'failed to load '+e.target.src.slice(0,40))||e.type))},true);(function(){const ce=
-console.error;console.error=function(...a){__errors.push(a.map(String).join(' '));ce.apply(console,a)}})();</script>"""
-_PROBE_TAIL = """<script>window.addEventListener('load',()=>{const rows=[...document.querySelectorAll('tr[data-status]')]
-.map(r=>{const s=r.querySelector('td.status');return [r.id.slice(2),r.dataset.status,s.textContent,
-getComputedStyle(s).backgroundColor,r.offsetHeight>0]});const imgs=[...document.images].map(i=>[i.alt,i.complete,
-i.naturalWidth,i.naturalHeight]);const sections=[...document.querySelectorAll('section')].map(s=>s.id);
-const p=document.createElement('pre');p.id='__probe';p.textContent=JSON.stringify({rows,imgs,sections,
-title:document.title,errors:window.__errors});document.body.appendChild(p)})</script>"""
-
 
 def _seapup(*args, timeout=1200):
     run = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", *args], capture_output=True, text=True,
@@ -39,30 +24,8 @@ def _seapup(*args, timeout=1200):
     return run
 
 
-def _render(page: Path, out: Path) -> dict:
-    """Open ``page`` in headless Chromium: what the probe saw, and a screenshot kept beside it."""
-    html = page.read_text()
-    probed = out / "probed.html"
-    probed.write_text(html.replace("<head>", "<head>" + _PROBE_HEAD, 1).replace("</body>", _PROBE_TAIL + "</body>", 1))
-    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             f"--user-data-dir={out / 'chromium'}", "--virtual-time-budget=10000"]
-    dom = subprocess.run(flags + ["--dump-dom", probed.as_uri()], capture_output=True, text=True, timeout=180)
-    assert dom.returncode == 0, dom.stderr[-2000:]
-    start = dom.stdout.index('<pre id="__probe">') + len('<pre id="__probe">')
-    import html as html_module
-    probe = json.loads(html_module.unescape(dom.stdout[start:dom.stdout.index("</pre>", start)]))
-    shot = out / "report.png"
-    subprocess.run(flags + ["--hide-scrollbars", "--window-size=1300,2200", f"--screenshot={shot}", page.as_uri()],
-                   capture_output=True, timeout=180)
-    probe["screenshot"] = shot
-    return probe
-
-
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    if shutil.which(CHROMIUM) is None:
-        pytest.fail(f"{CHROMIUM} not found: apt-get install chromium (the bootstrap checks for it)")
     base = tmp_path_factory.mktemp("report")
     first = _seapup("report", "--out", str(base / "out"), "--cache", str(base / "cache"), "--jobs", "2",
                     "--json", str(base / "first.json"))
@@ -89,9 +52,9 @@ def test_every_target_is_scored_from_its_run(report):
     assert 0 < len(document["largest_misses"]) <= 10
 
 
-def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, tmp_path):
+def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, browser, tmp_path):
     base, document, _ = report
-    seen = _render(base / "out" / "report.html", tmp_path)
+    seen = browser(base / "out" / "report.html", tmp_path)
     assert seen["errors"] == []
     assert {f"chapter-{ch}" for ch in document["chapters"]} | {"summary", "deviations", "made"} <= set(seen["sections"])
     rows = {r[0]: r for r in seen["rows"]}
@@ -117,7 +80,7 @@ def test_a_second_report_takes_every_run_from_the_cache(report):
         [(r["id"], r["ours"], r["status"]) for r in document["targets"]]
 
 
-def test_a_broken_metric_turns_its_rows_red(report, tmp_path):
+def test_a_broken_metric_turns_its_rows_red(report, browser, tmp_path):
     """Acceptance: the surge trials' metric pointed at the wrong test (sway's top speed read as surge's)
     fails those rows, and the page shows them red; nothing else changes."""
     from seapup_runs.targets import TARGETS_FILE
@@ -137,7 +100,7 @@ def test_a_broken_metric_turns_its_rows_red(report, tmp_path):
     assert before["ch3.surge.max_u"]["status"] == "reproduced" and rows["ch3.surge.max_u"]["status"] == "failed"
     assert rows["ch3.camera.surge.max_u"]["status"] in ("failed", "deviation")
     assert all(rows[i]["status"] == before[i]["status"] for i in rows if i not in broken)
-    seen = _render(tmp_path / "out" / "report.html", tmp_path)
+    seen = browser(tmp_path / "out" / "report.html", tmp_path)
     red = {r[0]: r[3] for r in seen["rows"]}
     assert red["ch3.surge.max_u"] == next(r[3] for r in seen["rows"] if r[1] == "failed")
     assert red["ch3.surge.max_u"] != next(r[3] for r in seen["rows"] if r[1] == "reproduced")

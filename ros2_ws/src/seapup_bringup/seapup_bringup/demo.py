@@ -17,7 +17,8 @@ faster than real time, every node its own process, plus the recorder) with
 Everything is recorded to an MCAP bag (``<out>/bag``); the demo prints a table
 per leg (duration, tracking errors, position-hold RMS and max from the truth,
 thruster saturation, the swap's command step), writes PNG plots next to the
-bag and the numbers as JSON (``--json``).
+bag, the numbers as JSON (``summary.json``, ``--json``) and ``index.html``: one page with the legs
+(units, pass criteria and verdicts), the plots, the seed and the configuration flown.
 """
 from __future__ import annotations
 
@@ -338,6 +339,66 @@ def _plots(result: dict, out: Path) -> list[str]:
     return [str(p) for p in paths]
 
 
+#: What a leg must do to pass (the index page says it beside each leg).
+PASS_CRITERIA = (f"the task succeeded by its own (navigation) measure, and in truth: the estimate within "
+                 f"{NAVIGATION_SIGMAS:g} x its stated standard deviation of the vehicle at the leg's end, and a leg "
+                 f"with a target ended within its tolerance + that")
+
+
+def _passed(leg: dict) -> bool:
+    return leg.get("status") == "succeeded" and not leg.get("truth_verdict")
+
+
+def index_page(summary: dict, config: dict, out: Path) -> Path:
+    """``out/index.html``: the legs (units, pass criteria, verdicts), the plots, the seed and configuration."""
+    from seapup_bringup.pages import CSS, esc, figure, fmt
+    rows = []
+    for leg in summary["legs"]:
+        swap = leg.get("switch_step_deg")
+        passed = _passed(leg)
+        rows.append(
+            f'<tr class="row-{"passed" if passed else "failed"}" data-leg="{esc(leg["name"])}" '
+            f'data-status="{"passed" if passed else "failed"}">'
+            f'<td>{esc(leg["name"])}</td><td>{esc(leg["kind"])}</td><td>{esc(leg.get("status", ""))}</td>'
+            f'<td class=num>{fmt(leg.get("duration"))}</td><td class=num>{fmt(leg.get("wall_s"))}</td>'
+            f'<td>{esc(_task_error(leg))}</td><td>{esc(_truth_error(leg))}</td>'
+            f'<td class=num>{fmt(leg.get("nav_error"))} ({fmt(leg.get("nav_std"))})</td>'
+            f'<td class=num>{fmt(leg.get("saturation_pct"))}</td>'
+            f'<td class=num>{"" if swap is None or swap != swap else fmt(swap) + " (" + fmt(leg.get("normal_step_deg")) + ")"}</td>'
+            f'<td class=status>{"passed" if passed else "failed"}'
+            f'{"<div class=reason>" + esc(leg["truth_verdict"]) + "</div>" if leg.get("truth_verdict") else ""}</td></tr>')
+    plots = "".join(figure(path, caption, wide=True) for path, caption in zip(
+        summary.get("plots", []), ("top view and depth: truth, navigation estimate, setpoint; legs marked",
+                                   "body velocities: truth and the velocity controller's reference",
+                                   "blade-pitch commands of the four thrusters")))
+    graph = "".join(f"<tr><td><code>{esc(k)}</code></td><td>{esc(v)}</td></tr>" for k, v in config["graph"].items())
+    page = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>seapup demo: the mission</title><style>{CSS}</style></head>
+<body><h1>seapup demo: the Seapup flies a mission through the supervisory hierarchy</h1>
+<p class=muted>Self-tested through ROS, then flown leg by leg in lockstep (thesis sec. 4.2, fig. 4.3); seed
+{esc(config["graph"].get("seed", 0))}; held at {fmt(summary.get("held"))} s simulated after
+{fmt(summary.get("wall_s"))} s wall; bag <code>{esc(summary.get("bag", ""))}</code>.</p>
+<section id="legs"><h2>The legs</h2>
+<p>A leg passes when {esc(PASS_CRITERIA)}.</p>
+<table><thead><tr><th>leg</th><th>kind</th><th>task verdict</th><th>simulated [s]</th><th>wall [s]</th>
+<th>task error (navigation) [m]</th><th>truth error [m]</th><th>navigation error (stated std) [m]</th>
+<th>saturated [% of samples]</th><th>swap step (largest before) [deg]</th><th>passed</th></tr></thead>
+<tbody>{"".join(rows)}</tbody></table>
+<p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
+reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
+the largest one-sample change in the 15 s before it.</p></section>
+<section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
+<section id="configuration"><h2>Configuration</h2>
+<p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.yaml</code>, from
+<code>seapup_bringup/config/mission.yaml</code>):</p><table><tbody>{graph}</tbody></table>
+<p>The mission:</p><pre>{esc(yaml.safe_dump(config["mission"], sort_keys=False))}</pre></section>
+</body></html>
+"""
+    path = out / "index.html"
+    path.write_text(page)
+    return path
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
     parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
@@ -369,6 +430,7 @@ def main(argv=None) -> int:
     summary = {k: v for k, v in result.items() if k != "logs"}
     summary["interrupted"] = stopped is not None
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    print(f"seapup demo: see {index_page(summary, config, out)}", file=text)
     emit_json(args, summary)
     if stopped is not None:
         raise stopped  # ./seapup: "interrupted", exit 128 + the signal

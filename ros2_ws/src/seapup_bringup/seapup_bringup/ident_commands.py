@@ -425,6 +425,7 @@ def _experiment(args, text) -> dict:
                                             + [TRUTH_ODOMETRY, APPLIED])
     record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
                    *([VELOCITY_REFERENCE] if args.closed_loop else []))
+    arguments["command_subscribers"] = 3  # the first command waits for the simulator, the recorder and the probe
     with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
         print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
               f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)

@@ -12,9 +12,7 @@ the page was made -- self-contained (inline CSS, PNG figures embedded; nothing f
 from __future__ import annotations
 
 import argparse
-import base64
 import datetime
-import html
 import json
 import math
 import os
@@ -25,6 +23,7 @@ import time
 from pathlib import Path
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.pages import CSS as _CSS, esc as _e, figure as _figure, fmt as _fmt
 
 __all__ = ["report_command", "build_document", "write_page", "readme_block", "update_readme", "CHAPTER_TITLES"]
 
@@ -83,45 +82,6 @@ def build_document(scores, totals: dict, payloads: dict, descriptions: dict, mad
 
 
 # -- the page ---------------------------------------------------------------------------------------------------
-_CSS = """
-body{font-family:system-ui,-apple-system,"Segoe UI",sans-serif;margin:0 auto;max-width:1200px;padding:1em 2em;
-color:#1d2329;line-height:1.4}
-h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #d0d7de;padding-bottom:.2em;margin-top:2em}
-table{border-collapse:collapse;margin:.6em 0;font-size:.86em;width:100%}
-th,td{border:1px solid #d0d7de;padding:.25em .45em;text-align:left;vertical-align:top}
-th{background:#f3f5f7}td.num{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
-tr.row-reproduced td.status{background:#cdebd0;color:#14532d}
-tr.row-deviation td.status{background:#fbe7b5;color:#713f12}
-tr.row-failed td.status{background:#f8c9c9;color:#7f1d1d;font-weight:600}
-tr.row-not_run td.status{background:#e5e7eb;color:#374151}
-.reason{color:#57606a;font-size:.9em}.muted{color:#57606a}
-figure{display:inline-block;margin:.6em .8em .6em 0;max-width:48%;vertical-align:top}
-figure img{max-width:100%;border:1px solid #d0d7de}figcaption{font-size:.85em;color:#57606a}
-.bar{display:inline-block;height:.8em;background:#2da44e;vertical-align:middle}
-.bar.dev{background:#d4a72c}.bar.fail{background:#cf222e}.bar.nr{background:#afb8c1}
-code{font-size:.92em}
-"""
-
-
-def _fmt(value) -> str:
-    if value is None:
-        return "—"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, int):
-        return str(value)
-    value = float(value)
-    if value == 0:
-        return "0"
-    if abs(value) >= 1e4 or abs(value) < 1e-3:
-        return f"{value:.3e}"
-    return f"{value:.4g}"
-
-
-def _e(text) -> str:
-    return html.escape(str(text), quote=True)
-
-
 def _bar(c: dict) -> str:
     asked = max(c["asked"], 1)
     parts = [("", c["reproduced"]), ("dev", c["deviations"]), ("fail", c["failed"]), ("nr", c["not_run"])]
@@ -157,15 +117,6 @@ def _target_rows(rows: list[dict]) -> str:
             f'<td>{_e(r["tolerance"])}<div class=reason>{_e(r["reason"])}</div></td>'
             f'<td class=status>{_STATUS_TEXT[r["status"]]}</td></tr>')
     return "".join(out)
-
-
-def _figure(path: str, caption: str) -> str:
-    try:
-        data = base64.b64encode(Path(path).read_bytes()).decode()
-    except OSError:
-        return f"<p class=muted>figure {_e(Path(path).name)} missing</p>"
-    return (f'<figure><img alt="{_e(caption)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{_e(caption)}</figcaption></figure>")
 
 
 def write_page(document: dict, path: Path) -> Path:
