@@ -8,8 +8,8 @@ units, runs, tolerances, duplicate ids: :class:`TargetsError`, one line); a matr
 expands into one target per entry (``id[i,j]``, metric ``path.i.j``).
 
 :func:`score` decides one target: ``reproduced`` (ours within the tolerance), ``deviation`` (missed, with
-a documented deviation), ``failed`` (missed, or the run produced no finite value) or ``not_run`` (its run
-was not run). A deviation never counts as reproduced. :func:`summarise` counts per chapter and pooled.
+a documented deviation; also when the run produced no value for it), ``failed`` (missed, or the run produced no
+finite value) or ``not_run`` (its run was not run). A deviation never counts as reproduced. :func:`summarise` counts per chapter and pooled.
 """
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ _REQUIRED = _TARGET_KEYS - {"primary", "deviation", "typo"}
 _TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
 _DEVIATION_KEYS = {"decision", "reason", "doc"}
 _TYPO_KEYS = {"read", "why"}
-_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode"}
+_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed"}
 
 
 class TargetsError(ValueError):
@@ -307,9 +307,9 @@ def score(target: Target, result) -> Score:
         if isinstance(ours, (bool, int, float, np.bool_)) and not (isinstance(ours, float) and math.isnan(ours)):
             ours = bool(ours)
             return Score(target, ours, low, high, "reproduced" if ours == target.value else _missed(target))
-        return Score(target, None, low, high, "failed")
+        return Score(target, None, low, high, _missed(target))
     if isinstance(ours, bool) or not isinstance(ours, (int, float)) or not math.isfinite(float(ours)):
-        return Score(target, None, low, high, "failed")
+        return Score(target, None, low, high, _missed(target))  # no value: missed (a limit cycle that never came)
     ours = float(ours)
     return Score(target, ours, low, high, "reproduced" if low <= ours <= high else _missed(target))
 

@@ -171,6 +171,7 @@ def test_a_deviation_is_shown_as_one_and_never_counts_as_reproduced():
     t = _target(1.0, rel=0.1, deviation={"decision": "d", "reason": "r", "doc": "docs/decisions.md#x"})
     missed, met = tg.score(t, {"v": 2.0}), tg.score(t, {"v": 1.05})
     assert missed.status == "deviation" and met.status == "reproduced"
+    assert tg.score(t, {"v": None}).status == "deviation" and tg.score(t, {"v": None}).ours is None
     totals = tg.summarise([missed, met, tg.score(_target(1.0, rel=0.1), {"v": 3.0}), tg.score(t, None)])
     assert totals["pooled"] == {"asked": 4, "reproduced": 1, "deviations": 1, "failed": 1, "not_run": 1,
                                 "misses": ["t", "t"]}
