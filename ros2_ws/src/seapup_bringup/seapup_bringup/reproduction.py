@@ -156,32 +156,20 @@ def _batch_identification(description: dict, out: Path) -> tuple[dict, list]:
     sampled at 5 Hz, white noise of each power on the measured output; per method, sample count and noise
     power the mean and standard deviation of y_0 and tau_c over the realisations that did not fail, and
     the fraction that failed."""
-    from seapup_control.step_identification import IdentificationError, fit_first_order, fit_prony_step
+    from seapup_control.step_identification import step_fits
     period, count = 0.2, int(description.get("realisations", 400))
     rng = np.random.default_rng(int(description.get("seed", 41)))
     result = {}
     for method in ("prony", "bls"):
         for n in (50, 100):
             for power in (0.0, 0.001, 0.005, 0.01):
-                fits, failures = [], 0
-                clean = 1.0 - np.exp(-np.arange(n) * period)
-                for _ in range(count if power else 1):
-                    y = clean + (rng.normal(0.0, np.sqrt(power), n) if power else 0.0)
-                    try:
-                        if method == "bls":
-                            lag = fit_first_order(y, np.ones(n), period)
-                            fits.append((lag.steady_state_gain, lag.time_constant))
-                        else:
-                            fit = fit_prony_step(y, period)
-                            fits.append((fit.final_value, fit.time_constant))
-                    except IdentificationError:
-                        failures += 1
-                fits = np.array(fits).reshape(-1, 2)
+                runs = count if power else 1  # without noise every realisation is the same
+                fits, failed = step_fits(method, n, power, runs, rng, period)
                 ok = len(fits) > 0
                 result.setdefault(method, {}).setdefault(str(n), {})[_POWER_KEYS[power]] = {
                     "y0_mean": fits[:, 0].mean() if ok else None, "y0_std": fits[:, 0].std(ddof=1) if len(fits) > 1 else 0.0,
                     "tau_mean": fits[:, 1].mean() if ok else None, "tau_std": fits[:, 1].std(ddof=1) if len(fits) > 1 else 0.0,
-                    "failed_fraction": failures / (count if power else 1), "realisations": count if power else 1}
+                    "failed_fraction": failed, "realisations": runs}
     return result, []
 
 

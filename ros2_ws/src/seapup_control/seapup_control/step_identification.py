@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg
 
 __all__ = ["IdentificationError", "FirstOrderLag", "fit_first_order", "fit_arx", "PronyStep", "fit_prony_step",
-           "NO_RESPONSE"]
+           "step_fits", "NO_RESPONSE"]
 
 #: An output whose deviations never exceed this times the input's did not
 #: respond (rounding of an exactly decoupled channel): a zero-gain lag.
@@ -252,3 +252,34 @@ def fit_prony_step(y, sample_period: float) -> PronyStep:
     shape = 1.0 - mu ** np.arange(y.size)
     final = float(shape @ (y - y[0]) / (shape @ shape)) + float(y[0])
     return PronyStep(final, math.log(mu) / sample_period)
+
+
+def step_fits(method: str, samples: int, noise_power: float, realisations: int, rng,
+              sample_period: float = 0.2) -> tuple[np.ndarray, float]:
+    """Table 4.1's experiment: fit ``realisations`` noisy unit-step responses of dy/dt = -y + u (y(0) = 0,
+    y_0 = 1, tau_c = -1 s), white noise of power ``noise_power`` on the measured output, with ``method``
+    ``"bls"`` (:func:`fit_first_order`) or ``"prony"`` (:func:`fit_prony_step`).
+
+    Returns
+    -------
+    fits : ndarray, shape (k, 2)
+        (y_0, tau_c) of every realisation that did not fail.
+    failed : float
+        The share of realisations that failed.
+    """
+    if method not in ("bls", "prony"):
+        raise ValueError(f"method must be 'bls' or 'prony', got {method!r}")
+    clean = 1.0 - np.exp(-np.arange(samples) * sample_period)
+    fits, failures = [], 0
+    for _ in range(realisations):
+        y = clean + (rng.normal(0.0, math.sqrt(noise_power), samples) if noise_power else 0.0)
+        try:
+            if method == "bls":
+                lag = fit_first_order(y, np.ones(samples), sample_period)
+                fits.append((lag.steady_state_gain, lag.time_constant))
+            else:
+                fit = fit_prony_step(y, sample_period)
+                fits.append((fit.final_value, fit.time_constant))
+        except IdentificationError:
+            failures += 1
+    return np.array(fits, dtype=float).reshape(-1, 2), failures / realisations

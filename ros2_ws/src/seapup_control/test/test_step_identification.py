@@ -9,32 +9,13 @@ import numpy as np
 import pytest
 
 from seapup_control.step_identification import (IdentificationError, fit_arx, fit_first_order,
-                                                fit_prony_step)
+                                                fit_prony_step, step_fits)
 
 T = 0.2
 
 
-def response(n, power, rng):
-    k = np.arange(n)
-    clean = 1.0 - np.exp(-k * T)
-    return clean + (rng.normal(0.0, np.sqrt(power), n) if power else 0.0)
-
-
 def realisations(method, n, power, count=400, seed=41):
-    rng = np.random.default_rng(seed)
-    results, failures = [], 0
-    for _ in range(count):
-        y = response(n, power, rng)
-        try:
-            if method == "bls":
-                lag = fit_first_order(y, np.ones(n), T)
-                results.append((lag.steady_state_gain, lag.time_constant))
-            else:
-                fit = fit_prony_step(y, T)
-                results.append((fit.final_value, fit.time_constant))
-        except IdentificationError:
-            failures += 1
-    return np.array(results).reshape(-1, 2), failures / count
+    return step_fits(method, n, power, count, np.random.default_rng(seed), T)
 
 
 @pytest.mark.parametrize("n", [50, 100])
