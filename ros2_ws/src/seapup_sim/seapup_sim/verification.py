@@ -121,7 +121,7 @@ def _release_test(model, index: int, angle_deg: float, duration: float = 40.0):
     ev = oscillatory_mode(a, index)
     tail = np.abs(x[t >= duration - 10.0, index]).max()
     stable = bool(tail < 0.2 * D(angle_deg) and np.all(np.isfinite(x)))
-    return {"stable": stable, "eigenvalue": [ev.real, ev.imag],
+    return {"stable": stable, "eigenvalue": [ev.real, ev.imag], "natural_frequency": abs(ev),
             "final_deg": float(np.degrees(x[-1, index]))}, (t, x)
 
 
