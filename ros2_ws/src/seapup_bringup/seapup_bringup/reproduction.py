@@ -173,7 +173,55 @@ def _batch_identification(description: dict, out: Path) -> tuple[dict, list]:
     return result, []
 
 
-_KINDS = {"verify": _verify, "selftest": _self_test, "scenario": _scenario, "batch_identification": _batch_identification}
+def _ident_command(argv: list) -> dict:
+    """``./seapup ident ARGV --json F`` in this process, quietly; its JSON document."""
+    import contextlib
+    import io
+    from seapup_bringup.ident_commands import main as ident_main
+    with tempfile.TemporaryDirectory() as tmp:
+        document = Path(tmp) / "out.json"
+        text = io.StringIO()
+        with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
+            code = ident_main([*map(str, argv), "--json", str(document)])
+        if code != 0 or not document.is_file():
+            raise ReproductionError(f"./seapup ident {' '.join(map(str, argv))} failed: {text.getvalue()[-400:]}")
+        return json.loads(document.read_text())
+
+
+def _identification(description: dict, out: Path) -> tuple[dict, list]:
+    """Sec. 6.5: an identification experiment in SIL (``./seapup ident experiment``: 60 s of PRBS on the linearised
+    or nonlinear model, with or without current, or the closed loop) and on its record the order table
+    (Tables 6.1, 6.2, 6.6: V_N, AIC and F per output for n = 1..3) and LS, ELS and RPEM at order 2 over 300 and
+    2000 points (Tables 6.3-6.5, 6.7), with the statements the thesis draws from them."""
+    experiment = ["experiment", "--out", out / "experiment", "--dynamics", description.get("dynamics", "nonlinear")]
+    experiment += ["--current"] if description.get("current") else []
+    experiment += ["--closed-loop"] if description.get("closed_loop") else []
+    bag = _ident_command(experiment)["bag"]
+    orders = _ident_command(["orders", bag])
+    names = orders["outputs"]
+    result = {"orders": {name: {str(row["order"]): {"loss": row["loss"][i], "aic": row["aic"][i]} for row in orders["rows"]}
+                         for i, name in enumerate(names)},
+              # F from order n to n + 1 (the thesis's F_{N -> N+1} on row N) and whether that increase is significant
+              "f": {name: {f"{row['order'] - 1}_{row['order']}": row["f"][i] for row in orders["rows"] if "f" in row}
+                    for i, name in enumerate(names)},
+              "f_significant": {name: {f"{row['order'] - 1}_{row['order']}": row["significant"][i]
+                                       for row in orders["rows"] if "f" in row} for i, name in enumerate(names)},
+              "aic_order": dict(zip(names, orders["aic_order"])), "f_order": dict(zip(names, orders["f_order"])),
+              "system_order": orders["system_order"]}
+    for points in (300, 2000):
+        compared = _ident_command(["compare", bag, "--rpem-k0", "0.1", *(["--points", points] if points > 300 else [])])
+        aic = {method: dict(zip(names, values["aic"])) for method, values in compared["methods"].items()}
+        entry = {**aic}
+        if "els" in aic and "ls" in aic:
+            entry["els_better_than_ls_on_most"] = sum(aic["els"][n] < aic["ls"][n] for n in names) > len(names) / 2
+        if "rpem" in aic and "els" in aic:
+            entry["rpem_worse_than_els_on_most"] = sum(aic["rpem"][n] > aic["els"][n] for n in names) > len(names) / 2
+        result[f"compare_{points}"] = entry
+    return result, []
+
+
+_KINDS = {"verify": _verify, "selftest": _self_test, "scenario": _scenario, "batch_identification": _batch_identification,
+          "identification": _identification}
 
 
 def execute(name: str, description: dict, out: Path) -> dict:
