@@ -208,8 +208,17 @@ def _identification(description: dict, out: Path) -> tuple[dict, list]:
                                        for row in orders["rows"] if "f" in row} for i, name in enumerate(names)},
               "aic_order": dict(zip(names, orders["aic_order"])), "f_order": dict(zip(names, orders["f_order"])),
               "system_order": orders["system_order"]}
+    figures = []
     for points in (300, 2000):
-        compared = _ident_command(["compare", bag, "--rpem-k0", "0.1", *(["--points", points] if points > 300 else [])])
+        plots = ["--plots", out] if points == 2000 else []  # the data against the adapting and the final model
+        compared = _ident_command(["compare", bag, "--rpem-k0", "0.1", *(["--points", points] if points > 300 else []),
+                                   *plots])
+        for path, method in zip(compared.get("plots", []), compared["methods"]):
+            figures.append((Path(path).name, f"{method.upper()}(2, 2{', 2' if method != 'ls' else ''}) on the "
+                                             f"{description.get('dynamics', 'nonlinear')} record"
+                                             f"{' in current' if description.get('current') else ''}"
+                                             f"{' (closed loop)' if description.get('closed_loop') else ''}: adapting "
+                                             f"and after 2000 points (figs 6.3, 6.5-6.11, 6.13-6.14 analogue)"))
         aic = {method: dict(zip(names, values["aic"])) for method, values in compared["methods"].items()}
         entry = {**aic}
         if "els" in aic and "ls" in aic:
@@ -217,11 +226,50 @@ def _identification(description: dict, out: Path) -> tuple[dict, list]:
         if "rpem" in aic and "els" in aic:
             entry["rpem_worse_than_els_on_most"] = sum(aic["rpem"][n] > aic["els"][n] for n in names) > len(names) / 2
         result[f"compare_{points}"] = entry
-    return result, []
+    return result, figures
+
+
+def _closed_loop(description: dict, out: Path) -> tuple[dict, list]:
+    """Sec. 5.4.1 and 5.5.1: the closed-loop poles (eq. 5.8-5.15) about the trim at 0, 0.1, ..., 1 m/s of the
+    plant ``config`` under the controller the self-test designs on the baseline (5 Hz, realistic, operating
+    points 0 and 0.7 m/s; fixed gains or ``scheduled``), labelled by mode, with the figures of the loci
+    (figs 5.4-5.9, 5.25-5.30) and the statements the thesis makes of them."""
+    from seapup_bringup.autopilot_commands import MODES, analyse, plot_loci
+    from seapup_runs.self_test import fly_self_test
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    rate = float(description.get("rate_hz", 5.0))
+    run = fly_self_test("baseline", {"sample_period": 1.0 / rate, "operating_points": [0.0, 0.7], "mode": "realistic"})
+    if run.test.phase.value != "done":
+        raise ReproductionError(f"the self-test did not finish: {run.test.phase.value}")
+    scheduled = bool(description.get("scheduled", False))
+    rows = analyse(VehicleModel(load_vehicle_config(description["config"])), run.test.schedule(),
+                   [round(0.1 * k, 1) for k in range(11)], scheduled)
+    flown = [r for r in rows if "error" not in r]
+
+    def least_damped(row, mode):
+        poles = row["modes"].get(mode, [])
+        return max(p[0] for p in poles) if poles else None
+
+    modes = [m for m in MODES if m != "position"]
+    result = {"speeds": rows, "eigenvalues_at_rest": len(flown[0]["z_poles"]) if flown else None,
+              "integrations_at_rest": sum(1 for z in flown[0]["z_poles"] if abs(complex(*z) - 1) < 1e-6) if flown else None,
+              "stable_at_every_speed": all(r["stable"] for r in flown) and len(flown) == len(rows),
+              "unstable_above_0_8": {mode: any((least_damped(r, mode) or -1.0) > 0.0 for r in flown if r["surge"] > 0.8 + 1e-9)
+                                     for mode in modes},
+              "stable_at_every_speed_by_mode": {mode: all((least_damped(r, mode) or -1.0) < 0.0 for r in flown)
+                                                for mode in modes}}
+    document = {"config": description["config"], "rate_hz": rate, "scheduled": scheduled,
+                "designed_s": [[float(v.real), float(v.imag)] for v in run.test.config.poles.continuous()[0]],
+                "speeds": rows}
+    figures = [(path.name, f"closed-loop loci of the {path.stem.split('_')[2]} mode, {description['config']}, "
+                           f"{rate:g} Hz, {'scheduled' if scheduled else 'fixed'} gains (figs 5.4-5.9, 5.25-5.30 analogue)")
+               for path in plot_loci(document, out)]
+    return result, figures
 
 
 _KINDS = {"verify": _verify, "selftest": _self_test, "scenario": _scenario, "batch_identification": _batch_identification,
-          "identification": _identification}
+          "identification": _identification, "closed_loop": _closed_loop}
 
 
 def execute(name: str, description: dict, out: Path) -> dict:

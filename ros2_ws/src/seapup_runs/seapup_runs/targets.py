@@ -34,7 +34,7 @@ _REQUIRED = _TARGET_KEYS - {"primary", "deviation", "typo"}
 _TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
 _DEVIATION_KEYS = {"decision", "reason", "doc"}
 _TYPO_KEYS = {"read", "why"}
-_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop"}
+_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled"}
 
 
 class TargetsError(ValueError):
