@@ -48,19 +48,20 @@ def _commit() -> str:
 
 
 def _misses_by_size(rows: list[dict]) -> list[dict]:
-    """The missed targets, largest first: how many tolerance half-widths ours lies from the thesis."""
+    """The missed targets, largest first: how many tolerance half-widths ours lies from the thesis (statements and
+    targets with no value of ours after the numbers)."""
     out = []
     for row in rows:
         if row["status"] not in ("failed", "deviation"):
             continue
         size = math.inf
         if isinstance(row["ours"], (int, float)) and not isinstance(row["ours"], bool) and row["low"] is not None \
-                and row["high"] is not None:
-            half = max((row["high"] - row["low"]) / 2.0, 1e-12 * max(abs(row["thesis"]), 1.0))
-            size = abs(row["ours"] - row["thesis"]) / half
+                and row["high"] is not None and row["high"] > row["low"]:  # an exact target has no band to count in
+            size = abs(row["ours"] - row["thesis"]) / ((row["high"] - row["low"]) / 2.0)
         out.append({"id": row["id"], "where": row["where"], "quantity": row["quantity"], "status": row["status"],
                     "tolerances_away": size if math.isfinite(size) else None})
-    return sorted(out, key=lambda m: -(m["tolerances_away"] if m["tolerances_away"] is not None else math.inf))
+    # numbers first, furthest first; then the statements and targets without a value (no distance to rank by)
+    return sorted(out, key=lambda m: (m["tolerances_away"] is None, -(m["tolerances_away"] or 0.0)))
 
 
 def build_document(scores, totals: dict, payloads: dict, descriptions: dict, made: dict) -> dict:
