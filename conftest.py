@@ -14,6 +14,7 @@ ROS isolation rules, applied to every test:
 """
 from __future__ import annotations
 
+import gc
 import html
 import json
 import os
@@ -87,6 +88,10 @@ def ros_context(ros_domain, monkeypatch):
             node.destroy_node()
         except Exception:  # noqa: BLE001 - already destroyed by the test
             pass
+    # the test's cyclic garbage that holds rclpy handles (a publisher whose monkeypatched publish refers back
+    # to it, say) goes now, while its context lives: collected later, after the context is destroyed, it
+    # crashed the test process in the garbage collector (a stressed full run, SIGSEGV in an unrelated test)
+    gc.collect()
     context.try_shutdown()
     context.destroy()
 
