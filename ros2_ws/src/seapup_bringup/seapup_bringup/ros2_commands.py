@@ -610,6 +610,8 @@ def action(argv: list[str]) -> int:
             print("Goal canceled.")
             raise
         answer = future.result()
+        # feedback sent before the result travels on its own topic and may arrive just after it: take it too
+        probe.spin_until(lambda: False, 0.3)
         status = _STATUS.get(answer.status, str(answer.status))
         print("Result:\n" + to_yaml(answer.result) + f"\n\nGoal finished with status: {status}")
         args.result = {"action": args.action_name, "accepted": True, "status": status.lower(),
