@@ -83,8 +83,10 @@ def ros_context(ros_domain, monkeypatch):
             nodes.append(self)
     monkeypatch.setattr(Node, "__init__", tracked)
     yield context
+    from seapup_common.ros.node import destroy_actions
     for node in nodes:
         try:
+            destroy_actions(node)  # a test's own action servers too (they crash the collector otherwise)
             node.destroy_node()
         except Exception:  # noqa: BLE001 - already destroyed by the test
             pass

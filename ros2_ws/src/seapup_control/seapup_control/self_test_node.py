@@ -43,7 +43,8 @@ from seapup_common.contract import ContractError
 from seapup_common.lockstep import SamplePolicy
 from seapup_common.ros.messages import MeasurementCollector, SampleFeed, command_to_msg, ns_to_stamp
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, destroy_actions,
+                                    run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
@@ -102,6 +103,10 @@ class SelfTestNode(Node):
                                    goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
                                    cancel_service_qos_profile=SERVICE_QOS)  # a request storm gets every answer
         self.get_logger().info(f"self-test action server ready ({'lockstep' if self.lockstep else 'timer'})")
+
+    def destroy_node(self):
+        destroy_actions(self)  # before the node's clock goes: see destroy_actions
+        return super().destroy_node()
 
     # -- the action ------------------------------------------------------------------
     def _accept(self, goal) -> GoalResponse:

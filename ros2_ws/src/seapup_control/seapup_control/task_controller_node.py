@@ -46,8 +46,8 @@ from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg, stamp_to_ns)
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, graph_time_ns,
-                                    run_node)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, destroy_actions,
+                                    graph_time_ns, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -122,6 +122,10 @@ class TaskControllerNode(Node):
                                      cancel_service_qos_profile=SERVICE_QOS)
                         for kind, action in _ACTIONS.items()]
         self._starting: tuple[str, float] | None = None  # a goal accepted, not yet executing (kind, wall time)
+
+    def destroy_node(self):
+        destroy_actions(self)  # before the node's clock goes: see destroy_actions
+        return super().destroy_node()
 
     # -- goals -------------------------------------------------------------------------------
     def _build(self, kind: str, goal):
