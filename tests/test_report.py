@@ -126,3 +126,25 @@ def test_the_readme_shows_this_commits_scores(report):
     _, document, _ = report
     assert readme_block(document) in (ROOT / "README.md").read_text(), \
         "README's score table is stale: run ./seapup report --readme README.md"
+
+
+def test_the_wrong_sign_surge_gains_of_fig_5_19_are_decided_from_the_gain_matrices():
+    """Sec. 5.4.2: the thesis's 0.7 m/s gains from the surge error and its integral to both mains were
+    negative. Truth: gain matrices made by eq. 4.11's design from a model whose main-thruster surge
+    responses have the sign flipped, and from the same model unflipped."""
+    import numpy as np
+
+    from seapup_bringup.reproduction import _surge_gains
+    from seapup_control.mfol import THESIS_POLES_5HZ, MFOLModel, design
+    b0 = np.array([[.0026, .0026, .000125, .000125], [-.0001, .0001, -.0004265, .0004265],  # eq. 5.3a
+                   [.0000625, .0000625, .000525, .000525], [.2629, -.2629, .001588, -.001588]])
+    b1 = 10.0 * b0  # a lag: the steady response ten times the first sample's
+    right = _surge_gains(design(MFOLModel(b0, b1, 0.2), THESIS_POLES_5HZ))
+    assert not right["main_surge_gains_negative"]
+    assert min(right["main_surge_gains"]["K_int"] + right["main_surge_gains"]["K_err"]) > 0
+    wrong_b0, wrong_b1 = b0.copy(), b1.copy()
+    wrong_b0[0, :2] *= -1.0  # identified: more main thrust, less surge speed
+    wrong_b1[0, :2] *= -1.0
+    wrong = _surge_gains(design(MFOLModel(wrong_b0, wrong_b1, 0.2), THESIS_POLES_5HZ))
+    assert wrong["main_surge_gains_negative"]
+    assert max(wrong["main_surge_gains"]["K_int"] + wrong["main_surge_gains"]["K_err"]) < 0

@@ -104,11 +104,21 @@ def _self_test(description: dict, out: Path) -> tuple[dict, list]:
         within = run.truth[run.truth[:, 0] <= end + 1e-9, 1:4]
         points.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
                        "cycle": point.cycle, "duration_s": end - previous_end,
-                       "space_m": within.max(axis=0) - within.min(axis=0)})
+                       "space_m": within.max(axis=0) - within.min(axis=0), **_surge_gains(point.gains)})
         previous_end = end
     result = {"points": points, "duration_s": test.duration, "space_m": run.space,
               "depth_range_m": list(run.depth_range), "steps": len(test.tests)}
     return result, [(_plot_self_test(run, description, out), "the self-test's speeds and blade pitches (sec. 5.3)")]
+
+
+def _surge_gains(gains) -> dict:
+    """The terms of eq. 5.6's gain matrices from the surge error and its integral to the two main thrusters'
+    blade pitch (rows main port, main stbd; column u), and whether all four are negative: the thesis's
+    0.7 m/s self-test gave such wrong-sign gains, the cause of fig. 5.19's steady-state error (sec. 5.4.2,
+    5.6) -- more forward speed then asks for less main thrust."""
+    terms = [float(gains.K_int[0, 0]), float(gains.K_int[1, 0]), float(gains.K_err[0, 0]), float(gains.K_err[1, 0])]
+    return {"main_surge_gains": {"K_int": terms[:2], "K_err": terms[2:]},
+            "main_surge_gains_negative": bool(all(g < 0 for g in terms))}
 
 
 def _plot_self_test(run, description: dict, out: Path) -> str:
@@ -140,7 +150,7 @@ def _scenario(description: dict, out: Path) -> tuple[dict, list]:
     from seapup_runs.runner import run
     from seapup_runs.scenarios import scenario_spec
     spec = scenario_spec(description["name"], description.get("config", "baseline"),
-                         float(description.get("rate_hz", 5.0)), None, 0)
+                         float(description.get("rate_hz", 5.0)), description.get("scheduled"), 0)
     result = run(spec)
     figure = plot_scenario(result, out)
     return dict(result.metrics), [(figure.name, f"{description['name']} at {description.get('rate_hz', 5):g} Hz "

@@ -100,9 +100,10 @@ def plot_scenario(result: RunResult, out_dir: Path) -> Path:
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
     rate = 1.0 / spec.control_period
-    axes[0].set_title(f"{spec.name} ({spec.vehicle}, {rate:g} Hz)")
+    scheduled = bool(spec.controller_timeline()[-1][1].parameters.get("schedule", False))
+    axes[0].set_title(f"{spec.name} ({spec.vehicle}, {rate:g} Hz{', gain-scheduled' if scheduled else ''})")
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"scenario_{spec.name}_{spec.vehicle}_{int(round(rate))}hz.png"
+    path = out_dir / f"scenario_{spec.name}_{spec.vehicle}_{int(round(rate))}hz{'_scheduled' if scheduled else ''}.png"
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
