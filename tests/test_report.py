@@ -148,3 +148,14 @@ def test_the_wrong_sign_surge_gains_of_fig_5_19_are_decided_from_the_gain_matric
     wrong = _surge_gains(design(MFOLModel(wrong_b0, wrong_b1, 0.2), THESIS_POLES_5HZ))
     assert wrong["main_surge_gains_negative"]
     assert max(wrong["main_surge_gains"]["K_int"] + wrong["main_surge_gains"]["K_err"]) < 0
+
+
+def test_whiteness_is_decided_in_the_thesis_form():
+    """Sec. 6.3: residuals are white when 95 % of their autocorrelations at lags > 0 fall within 2 sigma; with
+    20 lags one outside still passes, two do not."""
+    from seapup_bringup.reproduction import _whiteness
+    table = {"outputs": ["u", "v", "w"], "inside": [0.95, 0.90, 1.0], "white": [False, False, True]}
+    verdict = _whiteness(table)
+    assert verdict["white"] == {"u": True, "v": False, "w": True} and verdict["white_on_most"]
+    assert verdict["ljung_box_white"] == {"u": False, "v": False, "w": True}
+    assert not _whiteness({**table, "inside": [0.95, 0.9, 0.85]})["white_on_most"]

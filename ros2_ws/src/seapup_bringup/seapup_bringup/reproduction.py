@@ -76,6 +76,8 @@ def _caption(stem: str, config: str) -> str:
     """``fig3_8_3_10_loci`` -> ``figs 3.8, 3.10 analogue (baseline): loci``."""
     import re
     match = re.fullmatch(r"fig((?:\d+_\d+_?)+?)_?([a-z][\w]*)", stem)
+    if stem.startswith("appA_"):
+        return f"App. A.3 trial analogue ({config}): {stem[5:].replace('_', ' ')}"
     if not match:
         return f"{stem} ({config})"
     numbers = match.group(1).strip("_").split("_")
@@ -236,7 +238,26 @@ def _identification(description: dict, out: Path) -> tuple[dict, list]:
         if "rpem" in aic and "els" in aic:
             entry["rpem_worse_than_els_on_most"] = sum(aic["rpem"][n] > aic["els"][n] for n in names) > len(names) / 2
         result[f"compare_{points}"] = entry
+    if not description.get("closed_loop") and not description.get("current"):  # figs 6.2 and 6.4
+        residuals = _ident_command(["residuals", bag, "--points", 2000, "--plots", out])
+        result["residuals"] = _whiteness(residuals)
+        figures += [(Path(path).name, f"correlation functions of the LS(2, 2) residuals, "
+                                      f"{description.get('dynamics', 'nonlinear')} record "
+                                      f"(fig. {'6.2' if description.get('dynamics') == 'linearised' else '6.4'} analogue)")
+                    for path in residuals.get("plots", [])]
     return result, figures
+
+
+def _whiteness(table: dict) -> dict:
+    """Sec. 6.3's residual test in the thesis's own form: an output's residuals are white when at least 95 %
+    of their autocorrelations at lags > 0 lie inside +-1.96/sqrt(N); with the fraction per output and the
+    Ljung-Box verdict beside it. ``white_on_most``: more than half the outputs (fig. 6.2: "close to white
+    noise"; fig. 6.4: "probably not white ... but weakly correlated")."""
+    names = table["outputs"]
+    white = [inside >= 0.95 - 1e-12 for inside in table["inside"]]
+    return {"inside": dict(zip(names, table["inside"])), "white": dict(zip(names, white)),
+            "ljung_box_white": dict(zip(names, table["white"])),
+            "white_on_most": sum(white) > len(names) / 2}
 
 
 def _closed_loop(description: dict, out: Path) -> tuple[dict, list]:

@@ -52,13 +52,15 @@ def test_cli_writes_the_documented_json(tmp_path, capsys):
         assert key in data, key
     assert set(data["surge"]) >= {"max_u", "steady_pitch_deg", "max_pitch_deg", "max_pitch_rate_dps", "rise95_s"}
     assert set(data["sway_4a"]) == {"max_v", "max_roll_deg", "max_roll_rate_dps"}
+    assert set(data["climb"]) == {"max_pitch_deg", "max_u", "max_rise_w"}
+    assert set(data["fast_turn"]) == {"max_r_dps", "max_u", "max_roll_deg"}
     assert set(data["roll_release"]) >= {"stable", "eigenvalue"}
     assert np.array(data["step_gains_5hz"]["B0inv"]).shape == (4, 4)
     assert len(data["hover_blade_pitch_deg"]) == 4 and len(data["eigenvalues_quiescent"]) == 12
     assert {p.name for p in (tmp_path / "p").glob("*.png")} == {
         "fig3_2_roll_release.png", "fig3_3_pitch_release.png", "fig3_4_surge.png",
         "fig3_11_umbilical.png", "fig3_12_current.png", "fig3_5_heave.png", "fig3_6_sway.png",
-        "fig3_8_3_10_loci.png"}
+        "fig3_8_3_10_loci.png", "appA_climb.png", "appA_fast_turn.png"}
     assert set(data["current"]) == {"a_c", "b", "d", "E_wc2", "w_alpha_per_w_c", "sample_mean", "sample_std"}
     assert set(data["umbilical"]) == {"50", "100", "200"}
     assert set(data["umbilical"]["50"]) == {"max_u", "Fx", "Fz"}

@@ -46,7 +46,8 @@ def format_rows(rows: list[dict], title: str, totals: dict) -> str:
 
 
 def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Path]:
-    """PNG plots like thesis figs 3.2-3.6 and 3.8/3.10; returns the paths."""
+    """PNG plots like thesis figs 3.2-3.6 and 3.8/3.10 and of App. A.3's climb and high-speed turn; returns the
+    paths."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -91,6 +92,16 @@ def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Pat
     panel("fig3_6_sway", "Sway test (no. 4a)",
           [("sway v [m/s]", t, x[:, 7]), ("roll [deg]", t, np.degrees(x[:, 3])),
            ("roll rate [deg/s]", t, np.degrees(x[:, 9]))])
+
+    if "climb" in histories:  # App. A.3's trials 2 and 5 (Table A.1 rows 1 and 5)
+        t, x = histories["climb"]
+        panel("appA_climb", "Climb: full surge and full upward heave (App. A.3 trial 2, Table A.1 row 1)",
+              [("pitch [deg]", t, np.degrees(x[:, 4])), ("surge u [m/s]", t, x[:, 6]),
+               ("rise -w [m/s]", t, -x[:, 8])])
+        t, x = histories["fast_turn"]
+        panel("appA_fast_turn", "High-speed turn: full surge and full yaw (App. A.3 trial 5, Table A.1 row 5)",
+              [("yaw rate [deg/s]", t, np.degrees(x[:, 11])), ("surge u [m/s]", t, x[:, 6]),
+               ("roll [deg]", t, np.degrees(x[:, 3]))])
 
     shapes = histories.get("umbilical") or {}
     if any(v is not None for v in shapes.values()):

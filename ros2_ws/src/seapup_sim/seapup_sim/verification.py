@@ -160,6 +160,18 @@ def verify(model: VehicleModel, duration: float = 30.0, loci_speeds=None) -> tup
         res[name] = {"max_r_dps": float(np.degrees((sign * x[:, 11]).max())),
                      "max_roll_deg": float(np.degrees(np.abs(x[:, 3]).max())),
                      "max_pitch_rate_dps": float(np.degrees(np.abs(x[:, 10]).max()))}
+    # App. A.3's trial 2, the 'climb': full surge and full negative (upward) heave input (Table A.1 row 1)
+    t, x, _ = run_open_loop(model, np.array([lim, lim, -lim, -lim]), duration)
+    hist["climb"] = (t, x)
+    res["climb"] = {"max_pitch_deg": float(np.degrees(x[:, 4].max())), "max_u": float(x[:, 6].max()),
+                    "max_rise_w": float((-x[:, 8]).max())}
+    # trial 5, the 'high speed turn': full surge and full yaw input (Table A.1 row 5). The thesis does not say
+    # how the two demands share the mains; mixed as port = surge + yaw, starboard = surge - yaw, each clipped to
+    # the blade limit, the port main runs full ahead and the starboard one stops: a turn to starboard
+    t, x, _ = run_open_loop(model, np.array([lim, 0.0, 0.0, 0.0]), duration)
+    hist["fast_turn"] = (t, x)
+    res["fast_turn"] = {"max_r_dps": float(np.degrees(x[:, 11].max())), "max_u": float(x[:, 6].max()),
+                        "max_roll_deg": float(np.degrees(np.abs(x[:, 3]).max()))}
     for name, cmd, sign in (("heave_down", [0.0, 0.0, lim, lim], 1.0),
                             ("heave_up", [0.0, 0.0, -lim, -lim], -1.0)):
         t, x, _ = run_open_loop(model, np.array(cmd), duration)

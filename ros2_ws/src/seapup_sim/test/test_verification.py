@@ -90,3 +90,14 @@ def test_full_yaw_input_turns_at_the_vehicles_measured_rate():
         _, x, _ = run_open_loop(model, np.array(command), 30.0)
         peak = math.degrees(x[np.argmax(np.abs(x[:, 11])), 11])
         assert peak == pytest.approx(measured, rel=0.15), (command, peak)
+
+
+def test_the_climb_and_the_high_speed_turn_of_app_a_3(baseline_results):
+    """Table A.1 rows 1 and 5 as the thesis orders them in both its trials and its simulation: the climb
+    (full surge, full upward heave) pitches further bow-up than the impulsive start (c: 35.4 > 32.5 deg,
+    a: 48 > 22) and rises; the full-speed turn on one main turns to starboard, slower than the zero-radius
+    push-pull (b: 31.0 < 50.0-53.3, c: 25.9 < 45.0 deg/s), while going ahead."""
+    res, _ = baseline_results
+    climb, turn = res["climb"], res["fast_turn"]
+    assert climb["max_pitch_deg"] > res["surge"]["max_pitch_deg"] and climb["max_rise_w"] > 0.05
+    assert 0.0 < turn["max_r_dps"] < res["yaw_starboard"]["max_r_dps"] and turn["max_u"] > 0.1
