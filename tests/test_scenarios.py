@@ -166,7 +166,7 @@ def test_band_after_the_rise_of_known_responses():
 
 
 def test_a_good_response_needs_every_criterion():
-    from seapup_runs.metrics import INTERACTION_LIMITS, _good_response
+    from seapup_runs.metrics import _good_response, interaction_limits
     good = {"u": {"reference": 0.2, "final": 0.201, "steady_error": -0.001, "rise95_s": 1.5},
             "v": {"reference": 0.1, "final": 0.1, "steady_error": 0.0, "rise95_s": 1.5},
             "w": {"reference": 0.0, "final": 0.005, "steady_error": -0.005},
@@ -175,7 +175,7 @@ def test_a_good_response_needs_every_criterion():
                                           "little_interaction": True}
     slow = {**good, "v": {**good["v"], "rise95_s": 5.5}}
     off = {**good, "u": {**good["u"], "final": 0.21, "steady_error": -0.0101}}      # 5.05 % off
-    coupled = {**good, "r": {**good["r"], "final": INTERACTION_LIMITS[3] * 1.01}}
+    coupled = {**good, "r": {**good["r"], "final": interaction_limits()[3] * 1.01}}
     never = {**good, "v": {**good["v"], "rise95_s": math.nan}}
     for case, failed in ((slow, "fast_rise"), (off, "no_steady_error"), (coupled, "little_interaction"),
                          (never, "fast_rise")):

@@ -75,9 +75,9 @@ def _verify(description: dict, out: Path) -> tuple[dict, list]:
 def _caption(stem: str, config: str) -> str:
     """``fig3_8_3_10_loci`` -> ``figs 3.8, 3.10 analogue (baseline): loci``."""
     import re
-    match = re.fullmatch(r"fig((?:\d+_\d+_?)+?)_?([a-z][\w]*)", stem)
     if stem.startswith("appA_"):
         return f"App. A.3 trial analogue ({config}): {stem[5:].replace('_', ' ')}"
+    match = re.fullmatch(r"fig((?:\d+_\d+_?)+?)_?([a-z][\w]*)", stem)
     if not match:
         return f"{stem} ({config})"
     numbers = match.group(1).strip("_").split("_")
