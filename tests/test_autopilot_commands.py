@@ -34,7 +34,36 @@ def test_closed_loop_json_has_sixteen_poles_per_speed_four_of_them_the_position_
         assert len(row["modes"]["position"]) == 4
         assert row["stable"] and row["max_re_s"] < 0
         np.testing.assert_allclose([math.hypot(*p) for p in row["modes"]["position"]], 0.0, atol=1e-6)
+        # eq. 5.15's structure: two eigenvalues per mode at every speed (a loop's pole and its integrator's,
+        # an attitude's angle and rate), as each of figs 5.4-5.9 draws them
+        assert {m: len(p) for m, p in row["modes"].items() if m != "position"} == dict.fromkeys(
+            ("surge", "sway", "heave", "yaw", "roll", "pitch"), 2)
     assert len(list((tmp_path / "plots").glob("fig5_*.png"))) == 6
+
+
+def test_modes_are_labelled_two_each_where_the_largest_component_would_crowd_one():
+    """A constructed spectrum: six modes' eigenvectors, one of pitch's leaning more on surge (1.0) than on
+    pitch (0.9). The largest component gives surge three eigenvalues and pitch one; the two-per-mode
+    assignment gives the leaning one to pitch and keeps the pure integrations as position."""
+    from seapup_bringup.autopilot_commands import _label_modes, _mode_of
+    states = {"surge": 6, "sway": 7, "heave": 8, "yaw": 11, "roll": 3, "pitch": 4}
+    vectors, s_values = np.zeros((16, 16)), np.zeros(16, dtype=complex)
+    for k, idx in enumerate((0, 1, 2, 5)):      # the four pure integrations (s = 0)
+        vectors[idx, k] = 1.0
+    k = 4
+    for mode, idx in states.items():
+        for _ in range(2):
+            vectors[idx, k] = 1.0
+            vectors[12 + k % 4, k] = 0.1
+            s_values[k] = -0.5 - 0.1 * k
+            k += 1
+    leaning = [j for j in range(16) if vectors[4, j] == 1.0][1]
+    vectors[4, leaning], vectors[6, leaning] = 0.9, 1.0
+    crowded = [_mode_of(vectors[:, j], s_values[j]) for j in range(16)]
+    assert crowded.count("surge") == 3 and crowded.count("pitch") == 1
+    labels = _label_modes(vectors, s_values)
+    assert labels[leaning] == "pitch" and labels[:4] == ["position"] * 4
+    assert {m: labels.count(m) for m in states} == dict.fromkeys(states, 2)
 
 
 @pytest.mark.graph

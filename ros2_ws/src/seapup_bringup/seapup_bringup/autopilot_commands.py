@@ -243,6 +243,33 @@ def _mode_of(vector: np.ndarray, s: complex) -> str:
     return max(weight, key=weight.get)
 
 
+#: The vehicle's own states of each non-position mode (no integrator: its size grows as the sample period
+#: shrinks, so it would make the labels depend on the rate)
+_MODE_STATES = {"surge": [6], "sway": [7], "heave": [8], "yaw": [11], "roll": [3, 9], "pitch": [4, 10]}
+
+
+def _label_modes(vectors: np.ndarray, s_values: np.ndarray) -> list[str]:
+    """Each closed-loop eigenvalue's mode, two per mode (eq. 5.15: per velocity loop its own pole and its
+    integrator's, per attitude its angle and rate; plus the four pure integrations to position).
+
+    The two-per-mode assignment maximises the summed share of each eigenvector on its mode's vehicle states
+    (an optimal assignment, :func:`scipy.optimize.linear_sum_assignment`), so every mode keeps its two
+    eigenvalues at every speed and rate, as in figs 5.4-5.9. With other than 12 non-position eigenvalues it
+    falls back to each eigenvector's largest component (:func:`_mode_of`)."""
+    from scipy.optimize import linear_sum_assignment
+    labels = ["position" if abs(s) < 1e-6 else "" for s in s_values]
+    rest = [k for k, label in enumerate(labels) if not label]
+    names = list(_MODE_STATES)
+    if len(rest) != 2 * len(names):
+        return [label or _mode_of(vectors[:, k], s_values[k]) for k, label in enumerate(labels)]
+    share = np.array([[float(np.abs(vectors[idx, k]).max()) for idx in _MODE_STATES.values()] for k in rest])
+    share /= np.maximum(share.max(axis=1, keepdims=True), 1e-300)
+    rows, cols = linear_sum_assignment(-np.repeat(share, 2, axis=1))
+    for r, c in zip(rows, cols):
+        labels[rest[r]] = names[c // 2]
+    return labels
+
+
 def analyse(model: VehicleModel, schedule, speeds, scheduled: bool) -> list[dict]:
     """Closed-loop poles about the trim at each surge speed (eq. 5.8-5.15), labelled by mode.
 
@@ -263,8 +290,8 @@ def analyse(model: VehicleModel, schedule, speeds, scheduled: bool) -> list[dict
         with np.errstate(divide="ignore"):
             s_values = np.log(values.astype(complex)) / schedule.sample_period  # eq. 5.1
         modes = {}
-        for k, s in enumerate(s_values):
-            modes.setdefault(_mode_of(vectors[:, k], s), []).append([float(s.real), float(s.imag)])
+        for s, label in zip(s_values, _label_modes(vectors, s_values)):
+            modes.setdefault(label, []).append([float(s.real), float(s.imag)])
         dynamic = [p[0] for name, poles in modes.items() if name != "position" for p in poles]
         # stable: every mode but the four pure integrations to position decays
         rows.append({"surge": speed, "stable": max(dynamic) < 0.0, "max_re_s": max(dynamic),
