@@ -40,11 +40,11 @@ def test_every_target_is_scored_from_its_run(report):
     assert sorted(rows) == sorted(t.id for t in expected)
     assert set(document) >= {"commit", "chapters", "pooled", "targets"}
     assert all(r["status"] != "not_run" for r in rows.values())
-    for name in {t.run for t in expected}:  # each run's own result decides its rows (re-scored here)
-        payload = json.loads(next(Path(r["directory"], "run.json").read_text()
-                                  for r in document["runs"] if r["name"] == name))
-        for t in tg.targets_for_run(name):
-            assert rows[t.id]["status"] == tg.score(t, payload["result"]).status, t.id
+    results = {r["name"]: json.loads(Path(r["directory"], "run.json").read_text())["result"] for r in document["runs"]}
+    for t in expected:  # each run's own result decides its rows (re-scored here; a comparison from both runs)
+        again = tg.score(t, results[t.run], results[t.versus["run"]] if t.versus else None)
+        assert rows[t.id]["status"] == again.status and rows[t.id]["ratio"] == again.ratio, t.id
+    assert any(t.versus for t in expected)
     pooled = document["pooled"]
     assert pooled["asked"] == len(expected) == sum(c["asked"] for c in document["chapters"].values())
     assert pooled["reproduced"] + pooled["deviations"] + pooled["failed"] + pooled["not_run"] == pooled["asked"]
@@ -159,3 +159,13 @@ def test_whiteness_is_decided_in_the_thesis_form():
     assert verdict["white"] == {"u": True, "v": False, "w": True} and verdict["white_on_most"]
     assert verdict["ljung_box_white"] == {"u": False, "v": False, "w": True}
     assert not _whiteness({**table, "inside": [0.95, 0.9, 0.85]})["white_on_most"]
+
+
+def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
+    """``seeds: N`` (a statement about a random current decided over realisations): the mean of each finite
+    number at the same place in every result; statements, lists and values some results lack are left out."""
+    from seapup_bringup.reproduction import _mean_leaves
+    results = [{"station_keep": {"x": 1.0, "y": 2.0}, "limit_cycle": {"detected": True, "period_s": 4.0}, "t": [1, 2]},
+               {"station_keep": {"x": 3.0, "y": float("nan")}, "limit_cycle": {"detected": False, "period_s": 6.0}},
+               {"station_keep": {"x": 5.0, "y": 1.0}, "limit_cycle": {"detected": True, "period_s": 5.0}, "t": [3]}]
+    assert _mean_leaves(results) == {"station_keep": {"x": 3.0}, "limit_cycle": {"period_s": 5.0}}

@@ -109,6 +109,11 @@ def _target_rows(rows: list[dict]) -> str:
             notes.append(f'deviation: {_e(r["deviation"]["reason"])} (<code>{_e(r["deviation"]["doc"])}</code>)')
         if r["typo"]:
             notes.append(f'read: {_e(r["typo"]["read"])}')
+        if r.get("versus"):
+            v = r["versus"]
+            said = {"below": "below", "above": "above", "near": "within a factor of"}.get(v.get("holds"), "")
+            notes.append(f'ours in <code>{_e(r["run"])}</code> / ours in <code>{_e(v["run"])}</code> = '
+                         f'{_fmt(r["ratio"])}' + (f' (holds if {said} {_fmt(v.get("factor", 1.0))})' if said else ""))
         out.append(
             f'<tr class="row-{_e(r["status"])}" id="t-{_e(r["id"])}" data-status="{_e(r["status"])}">'
             f'<td><code>{_e(r["id"])}</code></td><td>{_e(r["where"])}</td>'
@@ -265,7 +270,7 @@ def report_command(argv: list[str]) -> int:
         return 1
     if args.readme is not None and (chapters is not None or args.targets is not None):
         parser.error("--readme takes the whole report of the product's targets (no --chapters, no --targets)")
-    needed = {name: descriptions[name] for name in dict.fromkeys(t.run for t in targets)}
+    needed = {name: descriptions[name] for name in dict.fromkeys(run for t in targets for run in t.runs)}
     wall, cpu = time.perf_counter(), time.process_time()
     print(f"report: {len(targets)} targets, {len(needed)} runs, {args.jobs} parallel", file=text, flush=True)
     payloads = run_all(needed, args.cache or default_cache(), jobs=args.jobs, use_cache=not args.no_cache,

@@ -5,7 +5,10 @@ in the thesis, the value and unit, a tolerance with a one-line reason, the run t
 metric (a dotted path into that run's result) that extracts it, and, where it applies, a documented
 deviation or a thesis typo we read around. :func:`load_targets` reads and checks it (unknown keys,
 units, runs, tolerances, duplicate ids: :class:`TargetsError`, one line); a matrix or vector ``value``
-expands into one target per entry (``id[i,j]``, metric ``path.i.j``).
+expands into one target per entry (``id[i,j]``, metric ``path.i.j``). A target with ``versus`` compares
+two runs (the thesis's "at 20 Hz the rise time has decreased"): ours is the ratio of the metric in its run
+to the metric in the ``versus`` run, judged by the tolerance (a number) or by ``holds`` (a statement:
+``below`` / ``above`` a factor, or ``near`` 1 within a factor).
 
 :func:`score` decides one target: ``reproduced`` (ours within the tolerance), ``deviation`` (missed, with
 a documented deviation; also when the run produced no value for it), ``failed`` (missed, or the run produced no
@@ -29,12 +32,14 @@ TARGETS_FILE = Path(__file__).resolve().parent / "data" / "thesis_targets.yaml"
 STATUSES = ("reproduced", "deviation", "failed", "not_run")
 CHAPTERS = ("3", "4", "5", "6", "7", "A")
 _TARGET_KEYS = {"id", "chapter", "where", "quantity", "value", "unit", "tolerance", "run", "metric", "primary",
-                "deviation", "typo"}
-_REQUIRED = _TARGET_KEYS - {"primary", "deviation", "typo"}
+                "deviation", "typo", "versus"}
+_REQUIRED = _TARGET_KEYS - {"primary", "deviation", "typo", "versus"}
+_VERSUS_KEYS = {"run", "metric", "holds", "factor"}
+_HOLDS = ("below", "above", "near")
 _TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
 _DEVIATION_KEYS = {"decision", "reason", "doc"}
 _TYPO_KEYS = {"read", "why"}
-_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled"}
+_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled", "seeds"}
 
 
 class TargetsError(ValueError):
@@ -102,6 +107,22 @@ class Target:
     primary: bool = True
     deviation: dict = field(default_factory=dict)
     typo: dict = field(default_factory=dict)
+    versus: dict = field(default_factory=dict)
+
+    @property
+    def runs(self) -> tuple[str, ...]:
+        """The runs whose results decide it: its own, and the one it is compared with."""
+        return (self.run, self.versus["run"]) if self.versus else (self.run,)
+
+    def holds(self, ratio: float) -> bool:
+        """Whether a comparison statement holds for ``ratio`` (ours in :attr:`run` / ours in the versus run)."""
+        factor = float(self.versus.get("factor", 1.0))
+        kind = self.versus["holds"]
+        if kind == "below":
+            return ratio < factor
+        if kind == "above":
+            return ratio > factor
+        return 1.0 / factor <= ratio <= factor
 
     @property
     def label(self) -> str:
@@ -118,6 +139,7 @@ class Score:
     low: float
     high: float
     status: str
+    ratio: float | None = None
 
     def row(self) -> dict:
         """The JSON row of ``report.json``'s ``targets``."""
@@ -129,7 +151,8 @@ class Score:
                 "ours": ours, "difference": difference, "unit": t.unit, "tolerance": t.tolerance.text(),
                 "low": _finite_or_none(self.low), "high": _finite_or_none(self.high),
                 "reason": t.tolerance.reason, "status": self.status, "run": t.run, "metric": t.metric,
-                "primary": t.primary, "deviation": t.deviation or None, "typo": t.typo or None}
+                "primary": t.primary, "deviation": t.deviation or None, "typo": t.typo or None,
+                "versus": dict(t.versus) or None, "ratio": self.ratio}
 
 
 def _finite_or_none(v: float):
@@ -191,7 +214,8 @@ def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
     value = entry["value"]
     base = dict(chapter=str(entry["chapter"]), where=str(entry["where"]), unit=str(entry["unit"]),
                 run=str(entry["run"]), primary=bool(entry.get("primary", True)),
-                deviation=dict(entry.get("deviation") or {}), typo=dict(entry.get("typo") or {}))
+                deviation=dict(entry.get("deviation") or {}), typo=dict(entry.get("typo") or {}),
+                versus=dict(entry.get("versus") or {}))
     if not isinstance(value, list):
         if spec.get("abs_row") is not None:
             _fail(entry["id"], "abs_row is for a matrix value")
@@ -213,6 +237,33 @@ def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
                           value=float(array[index]), tolerance=tol,
                           metric=".".join([str(entry["metric"]), *(str(i) for i in index)]), **base))
     return out
+
+
+def _check_versus(entry: dict, runs: dict, where: str) -> None:
+    versus = entry["versus"]
+    if not isinstance(versus, dict) or set(versus) - _VERSUS_KEYS or "run" not in versus:
+        _fail(where, f"versus is a mapping with run and optionally {', '.join(sorted(_VERSUS_KEYS - {'run'}))}")
+    if versus["run"] not in runs:
+        _fail(where, f"unknown versus run {versus['run']!r}")
+    if versus["run"] == entry["run"] and versus.get("metric", entry["metric"]) == entry["metric"]:
+        _fail(where, "versus compares a metric with itself")
+    if "metric" in versus and (not isinstance(versus["metric"], str) or not versus["metric"]):
+        _fail(where, "versus metric must be a dotted path")
+    if isinstance(entry["value"], list):
+        _fail(where, "a comparison (versus) is for a number or a statement, not a matrix")
+    statement = isinstance(entry["value"], bool)
+    if statement != ("holds" in versus):
+        _fail(where, "a compared statement says how it holds (versus holds: below, above or near), "
+                     "and a compared number has no holds (its tolerance judges the ratio)")
+    if statement and versus["holds"] not in _HOLDS:
+        _fail(where, f"versus holds must be one of {', '.join(_HOLDS)}, got {versus['holds']!r}")
+    factor = versus.get("factor", 1.0)
+    if "factor" in versus and (not statement or isinstance(factor, bool) or not isinstance(factor, (int, float))
+                               or not math.isfinite(factor) or factor <= 0
+                               or (versus["holds"] == "near" and factor < 1)):
+        _fail(where, f"versus factor must be a finite number > 0 (>= 1 for near) with holds, got {factor!r}")
+    if statement and versus["holds"] == "near" and "factor" not in versus:
+        _fail(where, "versus holds near needs its factor")
 
 
 @lru_cache(maxsize=4)
@@ -252,6 +303,8 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
             if key in entry and (not isinstance(entry[key], dict) or set(entry[key]) != allowed
                                  or not all(isinstance(v, str) and v.strip() for v in entry[key].values())):
                 _fail(where, f"{key} needs exactly {', '.join(sorted(allowed))} (each a line of text)")
+        if "versus" in entry:
+            _check_versus(entry, runs, where)
         spec = entry["tolerance"] if isinstance(entry["tolerance"], dict) else raw_tolerances.get(entry["tolerance"], {})
         tolerance = _tolerance(entry["tolerance"], named, where)
         for target in _expand(entry, tolerance, spec):
@@ -273,8 +326,8 @@ def runs_of(path: str | Path | None = None) -> dict:
 
 
 def targets_for_run(run: str, path: str | Path | None = None) -> list[Target]:
-    """The targets a run answers."""
-    return [t for t in load_targets(path) if t.run == run]
+    """The targets a run answers alone (comparisons with another run are left to :func:`score_all`)."""
+    return [t for t in load_targets(path) if t.run == run and not t.versus]
 
 
 def lookup(result, path: str):
@@ -297,11 +350,28 @@ def lookup(result, path: str):
     return node
 
 
-def score(target: Target, result) -> Score:
-    """Judge ``target`` against its run's ``result`` (None: the run was not run)."""
+def _number(value) -> float | None:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+        return None
+    return float(value)
+
+
+def score(target: Target, result, versus_result=None) -> Score:
+    """Judge ``target`` against its run's ``result`` (None: the run was not run); a comparison also against
+    its versus run's ``versus_result``."""
     low, high = target.tolerance.bounds(target.value)
-    if result is None:
+    if result is None or (target.versus and versus_result is None):
         return Score(target, None, low, high, "not_run")
+    if target.versus:
+        mine = _number(lookup(result, target.metric))
+        theirs = _number(lookup(versus_result, target.versus.get("metric", target.metric)))
+        if mine is None or theirs is None or theirs == 0.0:
+            return Score(target, None, low, high, _missed(target))
+        ratio = mine / theirs
+        if isinstance(target.value, bool):
+            ours = target.holds(ratio)
+            return Score(target, ours, low, high, "reproduced" if ours == target.value else _missed(target), ratio)
+        return Score(target, ratio, low, high, "reproduced" if low <= ratio <= high else _missed(target), ratio)
     ours = lookup(result, target.metric)
     if isinstance(target.value, bool):
         if isinstance(ours, (bool, int, float, np.bool_)) and not (isinstance(ours, float) and math.isnan(ours)):
@@ -320,7 +390,7 @@ def _missed(target: Target) -> str:
 
 def score_all(targets: list[Target], results: dict) -> list[Score]:
     """Every target judged against ``results`` (run name -> result; a missing run: not run)."""
-    return [score(t, results.get(t.run)) for t in targets]
+    return [score(t, results.get(t.run), results.get(t.versus["run"]) if t.versus else None) for t in targets]
 
 
 def summarise(scores: list[Score]) -> dict:

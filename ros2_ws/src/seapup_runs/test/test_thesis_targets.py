@@ -185,6 +185,53 @@ def test_a_statement_is_decided_by_a_yes_or_no():
 
 
 @pytest.mark.unit
+def test_a_comparison_of_two_runs_is_decided_by_their_ratio(tmp_path):
+    doc = _doc(value=True, unit="bool", tolerance={"abs": 0, "reason": "a comparison"}, metric="rise",
+               versus={"run": "slow", "holds": "below", "factor": 1.0})
+    doc["runs"]["slow"] = {"kind": "scenario"}
+    doc["targets"].append({**doc["targets"][0], "id": "same", "versus": {"run": "slow", "holds": "near", "factor": 1.5}})
+    doc["targets"].append({**doc["targets"][0], "id": "ratio", "value": 0.5, "unit": "1", "tolerance": "ten",
+                           "versus": {"run": "slow"}})
+    loaded = {t.id: t for t in tg.load_targets(_write(tmp_path, doc))}
+    shorter, same, ratio = loaded["x"], loaded["same"], loaded["ratio"]
+    assert shorter.runs == ("r", "slow") and tg.targets_for_run("r", _write(tmp_path, doc)) == []
+    s = tg.score(shorter, {"rise": 1.0}, {"rise": 2.0})
+    assert (s.status, s.ours, s.ratio) == ("reproduced", True, 0.5)
+    assert tg.score(shorter, {"rise": 2.0}, {"rise": 2.0}).status == "failed"        # equal is not shorter
+    assert tg.score(same, {"rise": 3.0}, {"rise": 2.0}).status == "reproduced"       # 1.5: on the edge
+    assert tg.score(same, {"rise": 1.0}, {"rise": 2.0}).status == "failed"           # 0.5 < 1/1.5
+    assert tg.score(ratio, {"rise": 1.1}, {"rise": 2.0}).ours == pytest.approx(0.55)
+    assert tg.score(ratio, {"rise": 1.1}, {"rise": 2.0}).status == "reproduced"
+    assert tg.score(ratio, {"rise": 1.2}, {"rise": 2.0}).status == "failed"
+    assert tg.score(shorter, {"rise": 1.0}, None).status == "not_run"                # the other run is needed too
+    for mine, theirs in (({"rise": 1.0}, {"rise": 0.0}), ({"rise": math.nan}, {"rise": 1.0}), ({}, {"rise": 1.0})):
+        missed = tg.score(shorter, mine, theirs)
+        assert missed.status == "failed" and missed.ours is None
+    scores = tg.score_all([shorter], {"r": {"rise": 1.0}, "slow": {"rise": 4.0}})
+    assert scores[0].row()["ratio"] == 0.25 and scores[0].row()["versus"]["run"] == "slow"
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("versus, value, message", [
+    ({"run": "nowhere", "holds": "below"}, True, "unknown versus run"),
+    ({"run": "r", "holds": "below"}, True, "with itself"),
+    ({"run": "slow"}, True, "says how it holds"),
+    ({"run": "slow", "holds": "below"}, 1.0, "says how it holds"),
+    ({"run": "slow", "holds": "sideways"}, True, "holds must be one of"),
+    ({"run": "slow", "holds": "near", "factor": 0.5}, True, "factor must be"),
+    ({"run": "slow", "holds": "near"}, True, "needs its factor"),
+    ({"run": "slow", "colour": "red"}, 1.0, "versus is a mapping"),
+    ({"run": "slow"}, [1.0, 2.0], "not a matrix"),
+])
+def test_a_malformed_comparison_is_refused_with_one_line(tmp_path, versus, value, message):
+    doc = _doc(value=value, unit="bool" if isinstance(value, bool) else "m/s", versus=versus)
+    doc["runs"]["slow"] = {"kind": "scenario"}
+    with pytest.raises(tg.TargetsError, match=message) as caught:
+        tg.load_targets(_write(tmp_path, doc))
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.unit
 def test_a_metric_path_reads_mappings_and_lists():
     result = {"points": [{"B": [[1.0, 2.0], [3.0, 4.0]]}], "x": None}
     assert tg.lookup(result, "points.0.B.1.0") == 3.0
