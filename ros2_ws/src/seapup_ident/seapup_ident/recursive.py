@@ -22,6 +22,10 @@ search direction eta (Ljung and Soderstrom 1983, the thesis's ref. [55]):
 Estimation can be "jacketed" (sec. 7.3) for adaptive control: no update inside a dead zone of
 the prediction error, and no forgetting while trace P exceeds a limit (no covariance wind-up).
 Bad data (NaN, inf, wrong length) raise :class:`DataError` and change nothing.
+
+A sample is :meth:`RecursiveArmax.step` (y(t) and the input u(t) applied after it), or its two halves for a
+controller that chooses u(t) after the estimate has seen y(t): :meth:`RecursiveArmax.observe` then
+:meth:`RecursiveArmax.input`.
 """
 from __future__ import annotations
 
@@ -211,6 +215,7 @@ class RecursiveArmax:
         else:
             self._U, self._D = np.eye(n), np.full(n, self.p0)               # one P shared by the outputs
         self.t = 0
+        self._pending = None
         self.residual = np.zeros(o.ny)   # the last sample's a posteriori residual y - Theta(t)^T phi(t)
         self.counts = {"samples": 0, "updates": 0, "dead_zone": 0, "trace_limited": 0, "projections": 0,
                        "rejected": 0}
@@ -222,6 +227,7 @@ class RecursiveArmax:
         The next samples fill the regressor again; until they do its lagged entries are zero.
         """
         self.regressor.reset()
+        self._pending = None
         if self.method == "rpem":
             self._psi[:] = 0.0
 
@@ -245,16 +251,15 @@ class RecursiveArmax:
         return ArmaxModel.from_theta(self.orders, self.theta)
 
     # -- one sample ------------------------------------------------------------------------
-    def _check(self, y, u) -> tuple[np.ndarray, np.ndarray]:
-        o = self.orders
-        y, u = np.asarray(y, dtype=float).ravel(), np.asarray(u, dtype=float).ravel()
-        if y.shape != (o.ny,) or u.shape != (o.nu,):
+    def _check(self, value, size: int, what: str) -> np.ndarray:
+        value = np.asarray(value, dtype=float).ravel()
+        if value.shape != (size,):
             self.counts["rejected"] += 1
-            raise DataError(f"sample needs {o.ny} outputs and {o.nu} inputs, got {y.size} and {u.size}")
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(u))):
+            raise DataError(f"sample needs {size} {what}, got {value.size}")
+        if not np.all(np.isfinite(value)):
             self.counts["rejected"] += 1
-            raise DataError(f"non-finite sample y={y.tolist()}, u={u.tolist()}: not used")
-        return y, u
+            raise DataError(f"non-finite {what} {value.tolist()}: not used")
+        return value
 
     def step(self, y, u, update: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Take sample t: output y(t) and the input u(t) applied after it; return (Theta(t), y_hat(t)).
@@ -262,14 +267,26 @@ class RecursiveArmax:
         y_hat(t) = Theta(t-1)^T phi(t) is the one-step prediction made before y(t) was seen.
         The regressor for t+1 then holds y(t), u(t) and the residual of t. ``update=False`` only
         fills the regressor (after :meth:`restart`, while its lags still reach before the data).
+        The same as :meth:`observe` then :meth:`input` (both checked before either changes anything).
         """
-        y, u = self._check(y, u)
+        o = self.orders
+        y, u = self._check(y, o.ny, "outputs"), self._check(u, o.nu, "inputs")
+        out = self.observe(y, update)
+        self.input(u)
+        return out
+
+    def observe(self, y, update: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The first half of :meth:`step`, for a controller that chooses u(t) after seeing y(t) with
+        the estimate updated by it (an explicit self-tuner, sec. 7.3): update Theta with y(t);
+        return (Theta(t), y_hat(t)). :meth:`input` must follow before the next :meth:`observe`."""
+        if getattr(self, "_pending", None) is not None:
+            raise DataError("observe() twice: give the input of the last sample first (input(u))")
+        y = self._check(y, self.orders.ny, "outputs")
         phi = self.regressor.phi()
         y_hat = self.theta.T @ phi
         error = y - y_hat
         if not update:
-            self.residual = error
-            self.regressor.push(y, u, error)
+            self._pending = (y, error)
             return self.theta.copy(), y_hat
         lam = self.forgetting.next()
         trace = self.trace
@@ -286,8 +303,7 @@ class RecursiveArmax:
             self.theta += np.outer(gain, error)
         self.counts["updates"] += int(updated)
         residual = y - self.theta.T @ phi   # a posteriori: the noise estimate e(t) for ELS/RPEM
-        self.residual = residual
-        self.regressor.push(y, u, residual)
+        self._pending = (y, residual)
         self.t += 1
         self.counts["samples"] += 1
         if self.keep_history:
@@ -295,6 +311,17 @@ class RecursiveArmax:
                                ("error", error)):
                 self.history[key].append(value)
         return self.theta.copy(), y_hat
+
+    def input(self, u) -> None:
+        """The second half of :meth:`step`: the input u(t) applied after the last observed y(t) joins the
+        regressor (with y(t) and its residual) for the next sample."""
+        if getattr(self, "_pending", None) is None:
+            raise DataError("input() without an observed output: observe(y) first")
+        u = self._check(u, self.orders.nu, "inputs")
+        y, residual = self._pending
+        self._pending = None
+        self.residual = residual
+        self.regressor.push(y, u, residual)
 
     def _rpem_update(self, phi: np.ndarray, error: np.ndarray, lam: float, trace: np.ndarray) -> None:
         o = self.orders

@@ -186,3 +186,29 @@ def test_jacket_dead_zone_and_trace_limit():
     run(free, np.zeros_like(y)[:200], still[:200])
     run(limited, np.zeros_like(y)[:200], still[:200])
     assert free.trace[0] > 1e6 and limited.trace[0] <= 100.0 / 0.9 + 1e-9
+
+
+def test_observe_then_input_is_step_for_a_controller_that_chooses_u_after_seeing_y():
+    """An explicit self-tuner (sec. 7.3) updates Theta with y(t) before it chooses u(t): observe(y) then
+    input(u) must be exactly step(y, u); out of order is refused and changes nothing."""
+    o, _, u, y = mimo_arx()
+    whole, halves = RecursiveArmax(o, "els" if o.nc else "ls", p0=10.0), RecursiveArmax(o, "els" if o.nc else "ls", p0=10.0)
+    for k in range(150):
+        theta, y_hat = whole.step(y[k], u[k], update=k % 7 != 3)
+        theta2, y_hat2 = halves.observe(y[k], update=k % 7 != 3)
+        halves.input(u[k])
+        np.testing.assert_array_equal(theta, theta2)
+        np.testing.assert_array_equal(y_hat, y_hat2)
+    np.testing.assert_array_equal(whole.covariance, halves.covariance)
+    before = halves.theta.copy()
+    with pytest.raises(DataError, match="observe"):
+        halves.input(u[0])
+    halves.observe(y[150])
+    with pytest.raises(DataError, match="input"):
+        halves.observe(y[151])
+    with pytest.raises(DataError, match="non-finite"):
+        halves.input([np.nan] * o.nu)
+    halves.input(u[150])
+    whole.step(y[150], u[150])
+    np.testing.assert_array_equal(whole.theta, halves.theta)
+    assert not np.array_equal(before, halves.theta)
