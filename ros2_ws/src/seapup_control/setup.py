@@ -35,6 +35,8 @@ setup(
         # control laws by name (seapup_common.controllers)
         "seapup.velocity_controllers": [
             "mfol = seapup_control.mfol_controller:MFOL_TYPE",
+            "explicit = seapup_control.explicit:EXPLICIT_TYPE",
+            "gmv = seapup_control.gmv:GMV_TYPE",
             "open_loop = seapup_control.profiles:OPEN_LOOP_TYPE",
         ],
     },

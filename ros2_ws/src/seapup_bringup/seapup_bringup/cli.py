@@ -155,8 +155,9 @@ def _closed_loop(argv: list[str]) -> int:
     return closed_loop_command(argv)
 
 
-@command("scenario", "a closed-loop case of the thesis (sec. 5.4) flown with the self-tested controller",
-         "NAME [--rate 5|20] [--config C] [--schedule] [--graph] [--plots DIR] [--json [F]] | --list")
+@command("scenario", "a closed-loop case of the thesis (sec. 5.4, 7.4) flown by a registered controller (default the self-tested one)",
+         "NAME [--controller mfol|explicit|gmv] [--param K=V ...] [--sensors S] [--rate 5|20] [--config C] "
+         "[--schedule] [--graph] [--plots DIR] [--json [F]] | --list")
 def _scenario(argv: list[str]) -> int:
     from seapup_bringup.scenarios import scenario_command
     return scenario_command(argv)

@@ -1,8 +1,11 @@
-"""``./seapup scenario NAME``: a closed-loop case of the thesis (sec. 5.4.2-5.4.3, figs 5.10-5.24).
+"""``./seapup scenario NAME``: a closed-loop case of the thesis (sec. 5.4.2-5.4.3, figs 5.10-5.24; sec. 7.4,
+7.6, figs 7.3-7.25).
 
 The case (``seapup_runs/data/scenarios.yaml``) becomes a run spec
-(:func:`seapup_runs.scenarios.scenario_spec`: the self-tested Owens-Chotai
-controller designed on the baseline vehicle, sec. 5.5) flown in this process
+(:func:`seapup_runs.scenarios.scenario_spec`: a registered velocity controller
+-- ``--controller mfol|explicit|gmv``, settings by ``--param key=value`` --
+designed or commissioned by the self-test on the baseline vehicle, sec. 5.5)
+flown in this process
 (:func:`seapup_runs.runner.run`) or through the ROS graph in lockstep
 (:func:`seapup_bringup.graph_runner.run_on_graph`); both give the same
 :class:`~seapup_runs.result.RunResult`, printed beside the thesis's numbers,
@@ -35,12 +38,13 @@ def print_scenario(result: RunResult, text) -> None:
     """The case's figures of merit, the thesis's in brackets where it reports one."""
     spec, metrics = result.spec, result.metrics
     scheduled = any(c.parameters.get("schedule") for _, c in spec.controller_timeline() if c.type == "mfol")
+    kind = spec.controller_timeline()[-1][1].type
     # the thesis's numbers (metric path -> value) are for the baseline vehicle with fixed gains
     thesis = thesis_by_metric(f"scenario:{spec.name}:{1.0 / spec.control_period:g}") \
-        if spec.vehicle == "baseline" and not scheduled else {}
+        if spec.vehicle == "baseline" and not scheduled and kind in ("mfol", "hold") else {}
+    law = ("scheduled" if scheduled else "fixed") + " gains" if kind == "mfol" else f"the {kind} controller"
     print(f"\nscenario {spec.name}: {spec.vehicle}, {1.0 / spec.control_period:g} Hz, "
-          f"{'scheduled' if scheduled else 'fixed'} gains, {result.transport} (thesis in brackets where it reports "
-          "one)", file=text)
+          f"{law}, {result.transport} (thesis in brackets where it reports one)", file=text)
     print(f"{'output':>6} {'reference':>10} {'final':>9} {'rise95 [s]':>14} {'overshoot [%]':>16} "
           f"{'max interaction':>16}", file=text)
     for key, o in metrics["outputs"].items():
@@ -74,6 +78,11 @@ def print_scenario(result: RunResult, text) -> None:
         print("station keeping after the controller is on: "
               + ", ".join(f"{k} {v:.2f}" + (f" ({thesis[f'station_keep.{k}']:g})" if f"station_keep.{k}" in thesis else "")
                           for k, v in sk.items()), file=text)
+    if "jacket" in metrics:
+        j = metrics["jacket"]
+        print(f"self-tuner: {j.get('adaptive', 0)} samples adaptive, {j.get('fallback', 0)} on the fixed gains "
+              f"({j.get('engagements', 0)} fallbacks), estimation frozen {j.get('frozen_at_set_point', 0)} samples "
+              f"at the set point and {j.get('frozen_no_excitation', 0)} without excitation", file=text)
     if "u_peak_after_current" in metrics:
         print(f"current step: u peak {metrics['u_peak_after_current']:.4f} m/s"
               + (f" ({thesis['u_peak_after_current']:g})" if "u_peak_after_current" in thesis else "")
@@ -87,7 +96,8 @@ def plot_scenario(result: RunResult, out_dir: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     spec, series = result.spec, result.series
-    fig, axes = plt.subplots(4, 1, figsize=(7, 9), sharex=True)
+    estimate = series.estimate
+    fig, axes = plt.subplots(6 if estimate else 4, 1, figsize=(7, 13 if estimate else 9), sharex=True)
     for key, unit in (("u", "m/s"), ("v", "m/s"), ("w", "m/s")):
         axes[0].plot(series.t, series.truth[key], label=f"{key} [{unit}]")
     axes[1].plot(series.t, np.degrees(series.truth["r"]), label="r [deg/s]")
@@ -95,15 +105,25 @@ def plot_scenario(result: RunResult, out_dir: Path) -> Path:
     axes[2].plot(series.t, np.degrees(series.truth["pitch"]), label="pitch [deg]")
     for j, key in enumerate(("main port", "main stbd", "vect stbd", "vect port")):
         axes[3].plot(series.t, np.degrees(series.applied[:, j]), label=key)
-    axes[3].set_xlabel("time [s]")
+    if estimate:  # the self-tuner's parameter traces (figs 7.10, 7.17, 7.19, 7.25)
+        for j, name in enumerate(estimate["names"]):
+            if name == "trace_P":
+                continue
+            panel = axes[4] if name.startswith(("a_", "f0_")) else axes[5]
+            panel.plot(series.t, estimate["values"][:, j], label=name)
+    axes[-1].set_xlabel("time [s]")
     for ax in axes:
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
     rate = 1.0 / spec.control_period
-    scheduled = bool(spec.controller_timeline()[-1][1].parameters.get("schedule", False))
-    axes[0].set_title(f"{spec.name} ({spec.vehicle}, {rate:g} Hz{', gain-scheduled' if scheduled else ''})")
+    last = spec.controller_timeline()[-1][1]
+    scheduled = bool(last.parameters.get("schedule", False))
+    tuner = "" if last.type in ("mfol", "hold") else last.type
+    axes[0].set_title(f"{spec.name} ({spec.vehicle}, {rate:g} Hz{', gain-scheduled' if scheduled else ''}"
+                      f"{', ' + tuner if tuner else ''})")
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"scenario_{spec.name}_{spec.vehicle}_{int(round(rate))}hz{'_scheduled' if scheduled else ''}.png"
+    path = out_dir / (f"scenario_{spec.name}_{spec.vehicle}_{int(round(rate))}hz{'_scheduled' if scheduled else ''}"
+                      f"{'_' + tuner if tuner else ''}.png")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -119,6 +139,11 @@ def scenario_command(argv: list[str]) -> int:
     parser.add_argument("--config", default="baseline", help=f"vehicle flown ({', '.join(available_configs())})")
     parser.add_argument("--schedule", action="store_true", default=None, help="gain-scheduled controller")
     parser.add_argument("--seed", type=int, default=0, help="seed of the run's random streams")
+    parser.add_argument("--controller", default="mfol",
+                        help="velocity controller by registered name (./seapup controllers lists them; default mfol)")
+    parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                        help="a controller setting, e.g. forgetting=0.95, lambda=0.1, order=1 (repeatable)")
+    parser.add_argument("--sensors", help="sensor profile instead of the case's (baseline, haslar, ideal)")
     parser.add_argument("--plots", type=Path, help="write a figure like figs 5.10-5.24 into this directory")
     parser.add_argument("--graph", action="store_true",
                         help="fly it through the ROS graph in lockstep (simulator and controller nodes)")
@@ -130,13 +155,14 @@ def scenario_command(argv: list[str]) -> int:
             print(f"{name:14} {case['duration']:5.0f} s  reference {case['reference']}", file=text)
         return 0 if args.list else 2
     try:
-        spec = scenario_spec(args.name, args.config, args.rate, args.schedule, args.seed)
+        spec = scenario_spec(args.name, args.config, args.rate, args.schedule, args.seed, args.controller,
+                             _parameters(args.param), args.sensors)
         if args.graph:
             from seapup_bringup.graph_runner import run_on_graph
             result = run_on_graph(spec, progress=lambda f: progress(args.name, f))
         else:
             result = run(spec, progress=lambda f: progress(args.name, f))
-    except (KeyError, ConfigError, RunSpecError, ControllerRegistryError, DesignFailed, SilError) as exc:
+    except (KeyError, ValueError, ConfigError, RunSpecError, ControllerRegistryError, DesignFailed, SilError) as exc:
         print(f"seapup: error: {str(exc).strip(chr(39))}", file=sys.stderr)
         return 1
     print_scenario(result, text)
@@ -144,3 +170,19 @@ def scenario_command(argv: list[str]) -> int:
         print(f"wrote {plot_scenario(result, args.plots)}", file=text)
     emit_json(args, result.to_dict())
     return 0
+
+
+def _parameters(items: list[str]) -> dict:
+    """``--param key=value`` as a mapping, each value read as YAML (0.95, true, [1, 2]); the controller type
+    checks names and types when the run is made."""
+    import yaml
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--param needs KEY=VALUE, got {item!r}")
+        try:
+            out[key.strip()] = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise ValueError(f"--param {key.strip()}: cannot read {value!r}") from None
+    return out

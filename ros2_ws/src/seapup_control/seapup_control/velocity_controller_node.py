@@ -331,9 +331,10 @@ class VelocityControllerNode(LifecycleNode):
                   "references_waiting": self.references.waiting}
         rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
         saturated = any(law.get("saturated", ()))
-        level = DiagnosticStatus.WARN if (rejected or saturated) else DiagnosticStatus.OK
-        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
-                                                  "saturated" if saturated else "tracking", values, t_ns))
+        fallen_back = law.get("mode") == "fallback"   # a self-tuner's jacket refused its estimate (ch. 7)
+        level = DiagnosticStatus.WARN if (rejected or saturated or fallen_back) else DiagnosticStatus.OK
+        message = (f"fallback: {law.get('reason', '')}" if fallen_back else "saturated" if saturated else "tracking")
+        self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level, message, values, t_ns))
 
 
 def main(args=None) -> int:

@@ -36,7 +36,7 @@ import numpy as np
 
 from seapup_ident.armax import ArmaxModel, ArmaxOrders, Regressor, is_stable
 
-__all__ = ["DataError", "Forgetting", "Jacket", "ud_update", "RecursiveArmax", "METHODS"]
+__all__ = ["DataError", "Forgetting", "Jacket", "ud_update", "RecursiveArmax", "RecursiveRegression", "METHODS"]
 
 METHODS = ("ls", "els", "rpem")
 
@@ -353,3 +353,73 @@ class RecursiveArmax:
         else:
             candidate = self.theta
         self.theta = candidate
+
+
+class RecursiveRegression:
+    """Square-root (UD) recursive least squares for a multivariable linear regression z(t) = Theta^T x(t) + e(t)
+    with one P shared by the outputs (eq. 6.12, 6.17), for a regression that is not an ARMAX model -- the
+    implicit self-tuner's predictor of a generalised output (sec. 7.5, eq. 7.3).
+
+    Parameters
+    ----------
+    n_params, n_outputs : int
+        Sizes of x and z.
+    forgetting : float
+        lambda in (0, 1] (eq. 6.13).
+    p0 : float
+        P(0) = p0 I (eq. 6.16).
+
+    Examples
+    --------
+    >>> est = RecursiveRegression(2, 1, p0=1e6)
+    >>> rng = np.random.default_rng(1)
+    >>> for x in rng.normal(size=(50, 2)):
+    ...     _ = est.update(x, [3.0 * x[0] - 2.0 * x[1]])
+    >>> np.round(est.theta[:, 0], 4)
+    array([ 3., -2.])
+    """
+
+    def __init__(self, n_params: int, n_outputs: int, forgetting: float = 1.0, p0: float = 1e3):
+        if int(n_params) < 1 or int(n_outputs) < 1:
+            raise ValueError(f"a regression needs n_params >= 1 and n_outputs >= 1, got {n_params}, {n_outputs}")
+        if not (math.isfinite(forgetting) and 0.0 < forgetting <= 1.0):
+            raise ValueError(f"forgetting must be in (0, 1], got {forgetting!r}")
+        if not (math.isfinite(p0) and p0 > 0):
+            raise ValueError(f"p0 must be finite and > 0, got {p0!r}")
+        self.n_params, self.n_outputs = int(n_params), int(n_outputs)
+        self.forgetting, self.p0 = float(forgetting), float(p0)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to Theta = 0 and P = p0 I."""
+        self.theta = np.zeros((self.n_params, self.n_outputs))
+        self._U, self._D = np.eye(self.n_params), np.full(self.n_params, self.p0)
+        self.updates = 0
+
+    @property
+    def trace(self) -> float:
+        """trace P."""
+        return float(np.sum(self._D * np.sum(self._U ** 2, axis=0)))
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return (self._U * self._D) @ self._U.T
+
+    def predict(self, x) -> np.ndarray:
+        """Theta^T x."""
+        return self.theta.T @ np.asarray(x, dtype=float)
+
+    def update(self, x, z) -> np.ndarray:
+        """One sample (x(t), z(t)); returns the prediction error made before it. Non-finite or wrong-length
+        data raise :class:`DataError` and change nothing."""
+        x, z = np.asarray(x, dtype=float).ravel(), np.asarray(z, dtype=float).ravel()
+        if x.shape != (self.n_params,) or z.shape != (self.n_outputs,):
+            raise DataError(f"a sample needs {self.n_params} regressors and {self.n_outputs} outputs, "
+                            f"got {x.size} and {z.size}")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(z))):
+            raise DataError("non-finite sample: not used")
+        error = z - self.theta.T @ x
+        gain = ud_update(self._U, self._D, x, self.forgetting)
+        self.theta += np.outer(gain, error)
+        self.updates += 1
+        return error

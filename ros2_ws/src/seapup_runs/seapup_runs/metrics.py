@@ -114,7 +114,7 @@ def step_response(result: RunResult) -> dict:
         else:
             entry["steady_error_pct"] = 100.0 * entry["steady_error"] / abs(entry["reference"])
             entry["steady_error_seen"] = bool(abs(entry["steady_error_pct"]) > STEADY_ERROR_PCT)
-        if "rise95_s" in entry:
+        if "rise95_s" in entry and final_ref[j] != 0.0:   # a band in per cent of a non-zero reference
             entry["band_pct"] = _band_after_rise(t[sel], y[sel, j], final_ref[j], entry["rise95_s"])
         outputs[key] = entry
     half = t >= t[-1] / 2

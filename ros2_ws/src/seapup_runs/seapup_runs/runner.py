@@ -10,6 +10,9 @@ what the simulator node publishes on ``thrusters/applied``), sees the
 measurement and the reference in force and returns the command held until
 t_k+1. A controller taking over at a ``controller`` event starts bumpless
 from the applied pitch at that sample, as the graph's lifecycle node does.
+An estimating controller's ``named_estimate()`` (the self-tuners of ch. 7)
+is logged each sample as the series' ``estimate``; its mode changes (jacketing) become
+``controller_mode`` events and its counts ``metrics.jacket``.
 
 :func:`design` first fills the design documents the spec leaves to its
 :class:`~seapup_runs.spec.SelfTestDesign` (the self-test flown in this
@@ -137,6 +140,8 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
                                                           "x", "y", "z", "depth", "altitude")}
     events = [{"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]} for e in spec.plant_events()]
     controller, next_switch = None, 0
+    estimates: dict[str, np.ndarray] = {}
+    used = []
     for k in range(n + 1):
         sample = simulation.sample()
         t[k], states[k], applied[k] = sample.t, sample.state, simulation.plant.pitch
@@ -145,6 +150,7 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
             break
         while next_switch < len(timeline) and timeline[next_switch][0] <= sample.t + 1e-9:
             controller = create_controller(timeline[next_switch][1], spec.control_period)
+            used.append(controller)
             controller.reset(Command(simulation.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
             if next_switch > 0:
                 events.append({"time": sample.t, "kind": "controller",
@@ -154,13 +160,38 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
         ref = spec.reference.at(sample.t)
         out = controller.update(sample.t, sample.measurement, ref)
         reference[k], command[k] = ref.velocity, out.blade_pitch
+        named = getattr(controller, "named_estimate", None)   # an estimating controller's parameters
+        if named is not None:
+            for name, value in named().items():
+                estimates.setdefault(name, np.full(n + 1, np.nan))[k] = value
         simulation.advance(out.blade_pitch)
         if progress is not None and (k % 25 == 0 or k == n - 1):
             progress((k + 1) / n)
-    series = Series.from_states(t, states, measured, reference, command, applied, sorted(events, key=lambda e: e["time"]))
+    estimate = ({"names": list(estimates), "values": np.column_stack(list(estimates.values()))}
+                if estimates else None)
+    jacket = _jacket(used, events)
+    series = Series.from_states(t, states, measured, reference, command, applied, sorted(events, key=lambda e: e["time"]),
+                                estimate)
     result = RunResult(spec, series)
     result.metrics = compute(result)
+    if jacket:
+        result.metrics["jacket"] = jacket
     return result
+
+
+def _jacket(controllers: list, events: list) -> dict:
+    """A self-tuner's mode changes (commissioning, adaptive, fallback with the jacket rule's reason) as
+    ``controller_mode`` events, and its counts summed over the run (``metrics.jacket``)."""
+    counts: dict[str, int] = {}
+    for controller in controllers:
+        if not isinstance(getattr(controller, "counts", None), dict) or not hasattr(controller, "events"):
+            continue
+        for event in controller.events:
+            events.append({"time": event["t"], "kind": "controller_mode",
+                           "detail": {"mode": event["mode"], "reason": event["reason"]}})
+        for key, value in controller.counts.items():
+            counts[key] = counts.get(key, 0) + int(value)
+    return counts
 
 
 _MEASURED = {"velocity": ("u", "v", "w"), "rates": ("p", "q", "r"), "attitude": ("roll", "pitch", "yaw"),

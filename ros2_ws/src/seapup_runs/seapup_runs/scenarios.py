@@ -1,13 +1,17 @@
-"""The thesis's closed-loop cases (sec. 5.4.2-5.4.3, figs 5.10-5.24) as run specifications.
+"""The thesis's closed-loop cases (sec. 5.4.2-5.4.3, figs 5.10-5.24; sec. 7.4, 7.6, figs 7.3-7.25) as run
+specifications.
 
 The cases are package data (``seapup_runs/data/scenarios.yaml``): a duration,
 reference steps, optionally a current (from the start or switched on later),
-the time a controller is connected after drifting, gain scheduling and the
-self-test's operating points. :func:`scenario_spec` turns one into a
-:class:`~seapup_runs.spec.RunSpec`: the self-tested Owens-Chotai controller
-(``mfol``) designed on the baseline vehicle -- the thesis designs once and then
-changes the vehicle (sec. 5.5) -- flying the chosen vehicle from rest at the
-hover setting 50 m deep with noise-free sensors, measured by the
+the time a controller is connected after drifting, gain scheduling, the
+self-test's operating points, the sensors and the simulator's scheduled changes
+(a configuration or a thruster's efficiency). :func:`scenario_spec` turns one
+into a :class:`~seapup_runs.spec.RunSpec`: a velocity controller by registered
+name (default the self-tested Owens-Chotai ``mfol``; ``explicit`` and ``gmv``
+the self-tuners of ch. 7, commissioned by the same self-test) designed on the
+baseline vehicle -- the thesis designs once and then changes the vehicle (sec.
+5.5) -- flying the chosen vehicle from rest at the hover setting 50 m deep with
+the case's sensors (noise-free unless it says), measured by the
 ``step_response`` metrics.
 """
 from __future__ import annotations
@@ -22,7 +26,7 @@ from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError, Se
 __all__ = ["scenarios", "scenario_spec", "CASE_KEYS"]
 
 #: Keys a case may have (anything else is refused: a misspelled key must not be silently ignored).
-CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds")
+CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds", "sensors", "events")
 
 
 def scenarios() -> dict:
@@ -36,8 +40,12 @@ def scenarios() -> dict:
 
 
 def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
-                  seed: int = 0) -> RunSpec:
+                  seed: int = 0, controller: str = "mfol", parameters: dict | None = None,
+                  sensors: str | None = None) -> RunSpec:
     """The run of case ``name`` at ``rate`` [Hz] on ``vehicle`` (see the module docstring).
+
+    ``controller`` names a registered velocity controller and ``parameters`` its settings (checked when
+    the run is made); ``schedule`` is the ``mfol`` controller's. ``sensors`` overrides the case's profile.
 
     Raises
     ------
@@ -50,8 +58,8 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
     case = cases[name]
     scheduled = bool(case.get("schedule", False)) if schedule is None else bool(schedule)
     period = 1.0 / float(rate)
-    environment: dict = {"sensors": "ideal"}
-    events = []
+    environment: dict = {"sensors": sensors or case.get("sensors", "ideal")}
+    events = [RunEvent(float(e["time"]), e["kind"], e.get("detail")) for e in case.get("events") or ()]
     current = case.get("current")
     if current is not None:
         current = dict(current)
@@ -60,7 +68,12 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
             events.append(RunEvent(at, "current", current))
         else:
             environment["current"] = {"enabled": True, **current}
-    mfol = ControllerSpec("mfol", {"schedule": scheduled})
+    if controller == "mfol":
+        mfol = ControllerSpec("mfol", {"schedule": scheduled, **(parameters or {})})
+    else:
+        if schedule:
+            raise RunSpecError(f"gain scheduling is the mfol controller's; {controller!r} has no schedule")
+        mfol = ControllerSpec(controller, dict(parameters or {}))
     t_on = float(case.get("controller_on", 0.0))
     if t_on > 0:  # drifting at the hover setting (the start's) until the controller is connected (fig. 5.23)
         controller = ControllerSpec("hold")
