@@ -154,7 +154,9 @@ def _scenario(description: dict, out: Path) -> tuple[dict, list]:
     from seapup_runs.scenarios import scenario_spec
     def spec(seed):
         return scenario_spec(description["name"], description.get("config", "baseline"),
-                             float(description.get("rate_hz", 5.0)), description.get("scheduled"), seed)
+                             float(description.get("rate_hz", 5.0)), description.get("scheduled"), seed,
+                             description.get("controller", "mfol"), description.get("params"),
+                             description.get("sensors"))
     result = run(spec(0))
     figure = plot_scenario(result, out)
     metrics = dict(result.metrics)
@@ -162,8 +164,12 @@ def _scenario(description: dict, out: Path) -> tuple[dict, list]:
     if seeds > 1:  # a statement about a random disturbance, decided over realisations, not one
         metrics["over_seeds"] = {"seeds": seeds, "mean": _mean_leaves(
             [metrics] + [dict(run(spec(seed)).metrics) for seed in range(1, seeds)])}
-    return metrics, [(figure.name, f"{description['name']} at {description.get('rate_hz', 5):g} Hz "
-                                   f"(the analogue of sec. 5.4's figures)")]
+    controller = description.get("controller", "mfol")
+    said = "sec. 5.4's figures" if controller == "mfol" else "ch. 7's figures"
+    settings = ", ".join(f"{k} {v}" for k, v in (description.get("params") or {}).items())
+    return metrics, [(figure.name, f"{description['name']} at {description.get('rate_hz', 5):g} Hz"
+                                   f"{'' if controller == 'mfol' else ', ' + controller}"
+                                   f"{' (' + settings + ')' if settings else ''} (the analogue of {said})")]
 
 
 def _mean_leaves(results: list):

@@ -148,9 +148,9 @@ class GMVSelfTuner(SelfTuner):
         if self.samples < self.commissioning_samples or x is None:
             self._switch(t, "commissioning", "commissioning: the fixed gains fly while the estimator watches")
             return None
-        if self.estimator.trace > self.jacket.max_trace:
-            self._switch(t, "fallback", f"trace P {self.estimator.trace:.3g} > {self.jacket.max_trace:g}",
-                         "fallback_trace")
+        wound_up = self._wound_up(self.estimator.trace)
+        if wound_up:
+            self._switch(t, "fallback", wound_up, "fallback_trace")
             return None
         command = -self.G0_inv @ (self.estimator.theta.T @ x) / THESIS_SCALE_U
         if not np.all(np.isfinite(command)):

@@ -9,8 +9,9 @@ bookkeeping (:class:`SelfTuner`; the laws are :mod:`seapup_control.explicit` and
 - estimation is frozen (no update, no forgetting) while every output is within ``set_point_band`` of its
   reference, or while the input does not excite (every blade pitch moved less than ``excitation`` since
   the last sample) -- sec. 7.3's "estimator going to sleep" and bursting (eq. 6.12);
-- the law falls back to the fixed gains while trace P exceeds ``max_trace`` (the estimate still updates,
-  as sec. 7.3 says) or while the estimate fails the law's own sanity rules;
+- the law falls back to the fixed gains while trace P exceeds ``max_trace_growth`` times its starting value
+  p0 n (covariance wind-up; the estimate still updates, as sec. 7.3 says) or while the estimate fails the
+  law's own sanity rules;
 - every change of mode is logged with its reason and counted (:meth:`SelfTuner.diagnostics`).
 
 **The fixed-gain law** both fly while commissioning and fallen back is eq. 4.11 in its incremental
@@ -45,32 +46,32 @@ class TunerJacket:
 
     set_point_band: tuple = (0.005, 0.005, 0.005, 0.005)   # |e| [m/s, m/s, m/s, rad/s] counted "at the set point"
     excitation: float = math.radians(0.05)                  # a blade pitch moving less than this does not excite
-    max_trace: float = 1e5                                  # trace P above it: fall back (inf: never)
+    max_trace_growth: float = 10.0                          # trace P above this times trace P(0): fall back (inf: never)
     min_rcond: float = 1e-4                                 # a matrix the law inverts below it: fall back
-    max_pole: float = 1.0                                   # an estimated open-loop pole |z| at or beyond: fall back
+    max_pole: float = 1.1                                   # an estimated open-loop pole |z| at or beyond: fall back
 
     def __post_init__(self):
         band = np.asarray(self.set_point_band, dtype=float)
         if band.shape != (4,) or not np.all(np.isfinite(band)) or np.any(band < 0):
             raise DesignError(f"set_point_band needs four finite values >= 0, got {self.set_point_band!r}")
-        for name in ("excitation", "max_trace", "min_rcond", "max_pole"):
+        for name in ("excitation", "max_trace_growth", "min_rcond", "max_pole"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not math.isnan(value) and value >= 0
-                    and (math.isfinite(value) or name == "max_trace")):
-                raise DesignError(f"jacket {name} must be a finite number >= 0 (max_trace may be inf: never), "
+                    and (math.isfinite(value) or name == "max_trace_growth")):
+                raise DesignError(f"jacket {name} must be a finite number >= 0 (max_trace_growth may be inf: never), "
                                   f"got {value!r}")
 
 
 #: The settings every self-tuner's registered type takes (SI, radians but the excitation in degrees).
 TUNER_PARAMETERS = {"forgetting": 0.999, "p0": 1e4, "commissioning_samples": 5,
-                    "set_point_band": [0.005, 0.005, 0.005, 0.005], "excitation_deg": 0.05, "max_trace": 1e5,
+                    "set_point_band": [0.005, 0.005, 0.005, 0.005], "excitation_deg": 0.05, "max_trace_growth": 10.0,
                     "min_rcond": 1e-4, "blade_pitch_limit": BLADE_PITCH_LIMIT}
 
 
 def jacket_from(parameters: dict) -> TunerJacket:
     """The jacket of a registered type's complete parameters."""
     return TunerJacket(tuple(parameters["set_point_band"]), math.radians(parameters["excitation_deg"]),
-                       parameters["max_trace"], parameters["min_rcond"], parameters.get("max_pole", 1.0))
+                       parameters["max_trace_growth"], parameters["min_rcond"], parameters.get("max_pole", 1.1))
 
 
 class SelfTuner:
@@ -130,6 +131,7 @@ class SelfTuner:
         self.events: list[dict] = []
         self.last: dict = {}
         self._restart()
+        self._trace0 = float(np.max(self.estimator.trace))   # trace P(0) = p0 n
 
     def _restart(self) -> None:
         """The law's estimator and history back to their start."""
@@ -151,6 +153,12 @@ class SelfTuner:
             self.applied_prev = pitch.copy()
 
     # -- jacketing ------------------------------------------------------------------------------------
+    def _wound_up(self, trace: float) -> str:
+        """The trace rule's reason if trace P has grown beyond ``max_trace_growth`` times trace P(0), else ''."""
+        limit = self.jacket.max_trace_growth * self._trace0
+        return f"trace P {trace:.3g} > {self.jacket.max_trace_growth:g} x its start {self._trace0:.3g}" \
+            if trace > limit else ""
+
     def _freeze(self, error: np.ndarray, moved: float) -> bool:
         """Whether estimation sleeps this sample (at the set point, or the input moved less than the
         excitation threshold [rad]); counted. Returns True to estimate."""

@@ -109,7 +109,7 @@ def test_a_bumpless_start_from_the_applied_setting():
 def test_a_covariance_wound_up_at_rest_falls_back_to_the_fixed_gains_without_a_bump_and_still_tracks():
     """No excitation (at rest, estimation forced on by a jacket without freezing), lambda = 0.95: trace P
     grows as 0.95^-t until the trace rule engages; then a step, flown on the fixed gains."""
-    jacket = TunerJacket(set_point_band=(0.0, 0.0, 0.0, 0.0), excitation=0.0, max_trace=1e6)
+    jacket = TunerJacket(set_point_band=(0.0, 0.0, 0.0, 0.0), excitation=0.0, max_trace_growth=10.0)
     tuner = ExplicitSelfTuner(_fixed_gains(), THESIS_POLES_5HZ, forgetting=0.95, jacket=jacket)
     rest, step = np.zeros((400, 4)), np.tile([0.1, 0.0, 0.05, 0.0], (150, 1))
     log = _fly(tuner, np.vstack([_squares(150), rest, step]))

@@ -27,7 +27,7 @@ B = np.array([[0.80, 0.80, 0.08, 0.08],          # SI per rad; about the Seapup'
               [-0.08, -0.08, 0.60, -0.60],
               [2.40, -2.40, 1.20, -1.40]])
 D = np.array([0.001, -0.0005, 0.002, 0.0])
-NO_JACKET = TunerJacket(set_point_band=(0.0, 0.0, 0.0, 0.0), excitation=0.0, max_trace=np.inf)
+NO_JACKET = TunerJacket(set_point_band=(0.0, 0.0, 0.0, 0.0), excitation=0.0, max_trace_growth=np.inf)
 
 
 def _fixed():
@@ -123,7 +123,7 @@ def test_the_second_order_law_also_converges_on_a_first_order_plant():
 
 def test_commissioning_then_the_law_and_a_wound_up_covariance_falls_back():
     tuner = GMVSelfTuner(_fixed(), B, weighting=0.001, order=1, forgetting=0.95,
-                         jacket=TunerJacket(set_point_band=(0, 0, 0, 0), excitation=0.0, max_trace=1e6))
+                         jacket=TunerJacket(set_point_band=(0, 0, 0, 0), excitation=0.0, max_trace_growth=10.0))
     ys, us = _fly(tuner, np.vstack([_squares(150), np.zeros((500, 4))]))
     assert tuner.counts["commissioning"] == 5 and tuner.events[0]["mode"] == "commissioning"
     assert tuner.counts["fallback_trace"] > 0 and tuner.mode == "fallback"

@@ -29,6 +29,7 @@ import numpy as np
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_control.response_metrics import (MetricError, limit_cycle, overshoot_percent, rise_time, saturation_time,
                                              settle)
+from seapup_runs.adaptive_metrics import adaptive
 from seapup_runs.result import REFERENCE_NAMES, RunResult
 
 __all__ = ["METRICS", "compute", "step_response", "MetricError", "settled_window", "settle_floors", "STEADY_ERROR_PCT",
@@ -169,7 +170,7 @@ def _good_response(outputs: dict, span: float) -> dict:
 
 
 #: Metric extractors by name: ``name(result) -> dict``.
-METRICS: dict[str, Callable[[RunResult], dict]] = {"step_response": step_response}
+METRICS: dict[str, Callable[[RunResult], dict]] = {"step_response": step_response, "adaptive": adaptive}
 
 
 def compute(result: RunResult) -> dict:

@@ -26,7 +26,8 @@ from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError, Se
 __all__ = ["scenarios", "scenario_spec", "CASE_KEYS"]
 
 #: Keys a case may have (anything else is refused: a misspelled key must not be silently ignored).
-CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds", "sensors", "events")
+CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "speeds", "sensors", "events",
+             "metrics")
 
 
 def scenarios() -> dict:
@@ -84,4 +85,4 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
                    duration=float(case["duration"]), start_depth=50.0, controller=controller,
                    design=SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7)))),
                    reference=ReferenceSteps.from_list(case["reference"]), events=tuple(events), seed=seed,
-                   metrics=("step_response",))
+                   metrics=tuple(case.get("metrics", ("step_response",))))

@@ -39,7 +39,8 @@ _HOLDS = ("below", "above", "near")
 _TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
 _DEVIATION_KEYS = {"decision", "reason", "doc"}
 _TYPO_KEYS = {"read", "why"}
-_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled", "seeds"}
+_RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled", "seeds",
+             "controller", "params", "sensors"}
 
 
 class TargetsError(ValueError):
