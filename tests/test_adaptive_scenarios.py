@@ -91,3 +91,15 @@ def test_a_self_tuner_through_the_ros_graph_flies_the_same_run(name, controller,
     for key in ("u", "v", "w", "r", "roll", "pitch"):
         np.testing.assert_allclose(graph.series.truth[key], local.series.truth[key], rtol=0, atol=1e-9, err_msg=key)
     assert graph.metrics["outputs"] == local.metrics["outputs"]
+
+
+def test_the_computing_cost_benchmark_times_every_law_on_the_same_flight():
+    """Sec. 7.7's comparison as ./seapup bench makes it (no time asserted: a benchmark, not a timed test): each
+    law flies the 60 s inspection square wave and only its own calls are counted, one per control step."""
+    from seapup_bringup.graph_bench import THESIS_EXTRA_S, law_step_costs
+    costs = law_step_costs(repeats=1)
+    assert set(costs) == {"fixed", "scheduled", "explicit", "gmv"}
+    assert all(c["steps"] == 300 and c["cpu_us"] > 0 and c["wall_us"] > 0 for c in costs.values())
+    assert costs["fixed"]["cpu_ratio_to_fixed"] == 1.0
+    assert costs["explicit"]["thesis_ratio_to_fixed"] == pytest.approx(88.0 / 35.0)
+    assert costs["gmv"]["thesis_ratio_to_fixed"] == pytest.approx(THESIS_EXTRA_S["gmv"] / 35.0)

@@ -133,7 +133,7 @@ def _check_model(argv: list[str]) -> int:
     return check_model(argv)
 
 
-@command("bench", "benchmarks (model, umbilical, verify, report, ROS graph)",
+@command("bench", "benchmarks (model, umbilical, verify, report, control laws, ROS graph)",
          "[--json [F]] [--no-graph] [--no-report] [--recording-minutes M]")
 def _bench(argv: list[str]) -> int:
     from seapup_bringup.commands import bench

@@ -149,6 +149,9 @@ def bench(argv: list[str]) -> int:
     from seapup_bringup.graph_bench import mfol_step_us
     out["mfol_law"] = mfol_step_us()
     out["estimator"] = _estimator_step_us()
+    from seapup_bringup.graph_bench import law_step_costs
+    print("control laws: each flown on square-inspection, its own calls timed (sec. 7.7)...", file=out_text, flush=True)
+    out["control_laws"] = law_step_costs()
     if not args.no_report:
         print("report: every run of the thesis targets from a cold cache, then again warm...", file=out_text, flush=True)
         out["report"] = _report_times()
@@ -165,7 +168,11 @@ def bench(argv: list[str]) -> int:
         print("graph: simulator + mfol_velocity_controller in lockstep...", file=out_text, flush=True)
         out["graph_mfol_lockstep_5hz"] = graph_bench.mfol_lockstep_rate(0.2, sim_seconds=120.0)
         out["graph_mfol_lockstep_20hz"] = graph_bench.mfol_lockstep_rate(0.05, sim_seconds=30.0)
-        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz", "graph_mfol_lockstep_5hz", "graph_mfol_lockstep_20hz"):
+        for law in ("explicit", "gmv"):
+            print(f"graph: simulator + velocity_controller ({law}) in lockstep...", file=out_text, flush=True)
+            out[f"graph_{law}_lockstep_5hz"] = graph_bench.law_lockstep_rate(law, 0.2, sim_seconds=60.0)
+        for key in ("graph_lockstep_5hz", "graph_lockstep_20hz", "graph_mfol_lockstep_5hz", "graph_mfol_lockstep_20hz",
+                    "graph_explicit_lockstep_5hz", "graph_gmv_lockstep_5hz"):
             g = out[key]
             print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
                   f"{g['us_per_step']:.0f} us per step)", file=out_text)
@@ -189,6 +196,11 @@ def bench(argv: list[str]) -> int:
     for method, value in out["estimator"].items():
         print(f"estimator {method} (4 outputs, 4 inputs, orders {value['orders']}, offset; ch. 7): "
               f"{value['step_us']:.1f} us per step (target <= 100 us for ls)", file=out_text)
+    for name, value in out["control_laws"].items():
+        thesis = value.get("thesis_ratio_to_fixed")
+        print(f"control law {name}: {value['cpu_us']:.0f} us CPU ({value['wall_us']:.0f} us wall) per step, "
+              f"{value['cpu_ratio_to_fixed']:.1f}x the fixed-gain law"
+              + (f" (thesis, PDP-11/73: {thesis:.1f}x)" if thesis is not None else ""), file=out_text)
     emit_json(args, out)
     return 0
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -244,4 +245,82 @@ def mfol_lockstep_rate(control_period: float, sim_seconds: float, log_dir="/tmp"
         path = _controller_file(Path(tmp), control_period)
         command = [str(find_executable("seapup_control", "mfol_velocity_controller")), "--ros-args",
                    "-p", f"controller_file:={path}", "-p", "autostart:=true"]
+        return lockstep_rate(control_period, sim_seconds, log_dir, controller=command)
+
+
+#: Sec. 7.7: the extra PDP-11/73 time per 60 s simulated, fixed-gain : explicit : implicit [s]
+THESIS_EXTRA_S = {"fixed": 35.0, "explicit": 88.0, "gmv": 133.0}
+
+
+def _law_specs(document: dict) -> dict:
+    from seapup_common.controllers import ControllerSpec
+    return {"fixed": ControllerSpec("mfol", {"schedule": False}, document=document),
+            "scheduled": ControllerSpec("mfol", {"schedule": True}, document=document),
+            "explicit": ControllerSpec("explicit", {}, document=document),
+            "gmv": ControllerSpec("gmv", {}, document=document)}
+
+
+def law_step_costs(repeats: int = 10) -> dict:
+    """Sec. 7.7's computing cost: each law's wall and CPU microseconds per control step, and their ratios to the
+    fixed-gain law beside the thesis's 35 : 88 : 133.
+
+    Each law is flown in closed loop on the ``square-inspection`` case (5 Hz, Kallstrom's instruments), so an
+    adaptive law estimates and redesigns as it does in flight; only its own calls (``applied`` and
+    ``update``) are timed, ``repeats`` runs each."""
+    from seapup_runs import runner
+    from seapup_runs.scenarios import scenario_spec
+
+    spec = runner.design(scenario_spec("square-inspection"))
+    out = {}
+    for name, law in _law_specs(spec.controller.document).items():
+        timer = _CallTimer()
+        for _ in range(repeats):
+            runner.run(replace(spec, controller=law), wrap=timer.wrap)
+        out[name] = {"wall_us": 1e6 * timer.wall / timer.steps, "cpu_us": 1e6 * timer.cpu / timer.steps,
+                     "steps": timer.steps}
+    base = out["fixed"]["cpu_us"]
+    for name, value in out.items():
+        value["cpu_ratio_to_fixed"] = value["cpu_us"] / base
+        if name in THESIS_EXTRA_S:
+            value["thesis_ratio_to_fixed"] = THESIS_EXTRA_S[name] / THESIS_EXTRA_S["fixed"]
+    return out
+
+
+class _CallTimer:
+    """Wraps a controller so that its ``applied`` and ``update`` calls are timed (wall and CPU)."""
+
+    def __init__(self):
+        self.wall = self.cpu = 0.0
+        self.steps = 0
+
+    def wrap(self, controller):
+        timer = self
+
+        class Timed:
+            def __getattr__(self, name):
+                return getattr(controller, name)
+
+            def applied(self, t, command):
+                w, c = time.perf_counter(), time.process_time()
+                controller.applied(t, command)
+                timer.wall += time.perf_counter() - w
+                timer.cpu += time.process_time() - c
+
+            def update(self, t, measurement, reference):
+                w, c = time.perf_counter(), time.process_time()
+                command = controller.update(t, measurement, reference)
+                timer.wall += time.perf_counter() - w
+                timer.cpu += time.process_time() - c
+                timer.steps += 1
+                return command
+        return Timed()
+
+
+def law_lockstep_rate(law: str, control_period: float = 0.2, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+    """SimulatorCore + the generic velocity_controller flying ``law`` (self-tested gains, autostart) in lockstep."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        path = _controller_file(Path(tmp), control_period)
+        command = [str(find_executable("seapup_control", "velocity_controller")), "--ros-args",
+                   "-p", f"controller_type:={law}", "-p", f"controller_file:={path}", "-p", "autostart:=true"]
         return lockstep_rate(control_period, sim_seconds, log_dir, controller=command)

@@ -112,7 +112,7 @@ def start_pitch(spec: RunSpec) -> np.ndarray:
     return hover_blade_pitch(vehicle_model(load_vehicle_config(spec.vehicle), "nonlinear"))
 
 
-def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunResult:
+def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Callable | None = None) -> RunResult:
     """Fly ``spec`` in this process (see the module docstring).
 
     Parameters
@@ -120,6 +120,9 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
     spec : RunSpec
     progress : callable, optional
         Called with the fraction done (the self-test's, then the run's).
+    wrap : callable, optional
+        ``wrap(controller) -> controller``: each controller made is flown through it (to time or probe the
+        law's calls; the benchmark of sec. 7.7's computing cost).
 
     Returns
     -------
@@ -151,6 +154,8 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None) -> RunRe
         while next_switch < len(timeline) and timeline[next_switch][0] <= sample.t + 1e-9:
             controller = create_controller(timeline[next_switch][1], spec.control_period)
             used.append(controller)
+            if wrap is not None:
+                controller = wrap(controller)
             controller.reset(Command(simulation.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
             if next_switch > 0:
                 events.append({"time": sample.t, "kind": "controller",
