@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,7 +75,7 @@ def jacket_from(parameters: dict) -> TunerJacket:
                        parameters["max_trace_growth"], parameters["min_rcond"], parameters.get("max_pole", 1.1))
 
 
-class SelfTuner:
+class SelfTuner(ABC):
     """The shared part of the self-tuners (see the module docstring); a law overrides :meth:`_law`.
 
     Parameters
@@ -133,9 +134,9 @@ class SelfTuner:
         self._restart()
         self._trace0 = float(np.max(self.estimator.trace))   # trace P(0) = p0 n
 
+    @abstractmethod
     def _restart(self) -> None:
         """The law's estimator and history back to their start."""
-        raise NotImplementedError
 
     def reset(self, applied: Command) -> None:
         """Bumpless start from the applied setting; the estimator starts again from Theta = 0 and the
@@ -183,10 +184,10 @@ class SelfTuner:
         self.mode, self.reason = mode, reason
 
     # -- one sample ----------------------------------------------------------------------------------
+    @abstractmethod
     def _law(self, t: float, y: np.ndarray, r: np.ndarray, error: np.ndarray, u_held: np.ndarray):
         """Estimate and return the adaptive command [rad], or None with the mode already switched to
         commissioning or fallback (then the fixed gains fly)."""
-        raise NotImplementedError
 
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
         """One sample: the law's estimate and command, or the fixed gains (commissioning, fallback).
@@ -218,9 +219,9 @@ class SelfTuner:
                      "saturated": [bool(s) for s in np.abs(raw) > self.limit]}
         return Command(command, stamp=t)
 
+    @abstractmethod
     def named_estimate(self) -> dict:
         """The estimate's named traces for a run's ``series.estimate``."""
-        raise NotImplementedError
 
     def _diagnostics(self) -> dict:
         """The law's own entries of :meth:`diagnostics`."""
