@@ -379,9 +379,9 @@ def score(target: Target, result, versus_result=None) -> Score:
             ours = bool(ours)
             return Score(target, ours, low, high, "reproduced" if ours == target.value else _missed(target))
         return Score(target, None, low, high, _missed(target))
-    if isinstance(ours, bool) or not isinstance(ours, (int, float)) or not math.isfinite(float(ours)):
+    ours = _number(ours)
+    if ours is None:
         return Score(target, None, low, high, _missed(target))  # no value: missed (a limit cycle that never came)
-    ours = float(ours)
     return Score(target, ours, low, high, "reproduced" if low <= ours <= high else _missed(target))
 
 
