@@ -1,6 +1,6 @@
 """SIL tests of the supervisory hierarchy through ROS, every node in its own process (issue 13).
 
-Graph: ``seapup_bringup/launch/hierarchy.yaml`` in lockstep (simulator, navigator, two
+Graph: ``seapup_bringup/launch/hierarchy.yaml`` in lockstep (simulator, navigator, four
 velocity controllers under the controller manager, position and task controllers).
 """
 import numpy as np
@@ -104,6 +104,70 @@ def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  
     # one command per sample throughout: nothing doubled, nothing missing
     stamps = np.round(logs["command_t"] / 0.2).astype(int)
     assert len(set(stamps)) == len(stamps)
+
+
+#: The manager's four velocity controllers (hierarchy.yaml): the self-tested MFOL fixed and scheduled, and
+#: the self-tuners of ch. 7.
+FOUR = {"mfol_fixed": "mfol", "mfol_scheduled": "mfol", "explicit": "explicit", "gmv": "gmv"}
+
+
+def test_the_manager_swaps_among_all_four_laws_mid_manoeuvre_without_a_bump(controller_file, tmp_path):  # noqa: F811
+    """Issue 24: the manager lists the four controllers and swaps fixed -> explicit -> gmv -> scheduled -> fixed,
+    each switch 8 s into a 6 m manoeuvre (every one succeeds), and no switch moves a blade more in one sample
+    than the controllers had in the 15 s before it. The self-tuners publish their estimate every sample they
+    fly (``seapup_msgs/ControllerEstimate``), commissioned on the fixed gains for their first five."""
+    from rclpy.serialization import deserialize_message
+    from seapup_bringup.sil import SilGraph
+    from seapup_common.bag import read_bag
+    from seapup_common.topics import CONTROLLER_ESTIMATE_TYPE, controller_estimate
+    from seapup_msgs.msg import ControllerEstimate
+    estimates = [controller_estimate(name) for name in ("explicit", "gmv")]
+    order = [("mfol_fixed", "explicit"), ("explicit", "gmv"), ("gmv", "mfol_scheduled"), ("mfol_scheduled", "mfol_fixed")]
+    switches, results = [], []
+    with SilGraph(arguments={"controller_file": controller_file, "command_subscribers": 2}, out_dir=tmp_path,
+                  record=[f"{topic}:{CONTROLLER_ESTIMATE_TYPE}" for topic in estimates]) as sil:
+        listed = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        _, start, _ = sil.estimate()
+        for k, (outgoing, incoming) in enumerate(order):
+            def switch(outgoing=outgoing, incoming=incoming):
+                switches.append((sil.t, outgoing, incoming))
+                return sil.switch(activate=[incoming], deactivate=[outgoing])
+            north = start[0] + (6.0 if k % 2 == 0 else 0.0)
+            results.append(sil.goal("goto", x=north, y=start[1] + 1.0 * k, z=start[2], yaw=0.4 * (k % 2),
+                                    during=(8.0, switch)))
+        final = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
+        logs = sil.logs()
+        bag = sil.bag
+    assert {c.name: c.type for c in listed.controller}.keys() == FOUR.keys() and listed.active == "mfol_fixed"
+    assert final.active == "mfol_fixed"
+    for result, (t, outgoing, incoming) in zip(results, switches):
+        assert result["status"] == "succeeded", (incoming, result["status"], result.get("message"))
+        assert result["during"].ok, (incoming, result["during"].message)
+        times, steps = _step_sizes(logs, t - 15.0, t + 15.0)
+        at_switch = steps[times > t + 1e-6][0]
+        normal = steps[times <= t + 1e-6].max()
+        print(f"{outgoing} -> {incoming} at {t:.1f} s: {np.degrees(at_switch):.3f} deg into the incoming "
+              f"controller, largest in the 15 s before {np.degrees(normal):.3f} deg")
+        assert at_switch <= normal, (outgoing, incoming)
+    stamps = np.round(logs["command_t"] / 0.2).astype(int)
+    assert len(set(stamps)) == len(stamps)   # one command per sample throughout
+    # each self-tuner's estimate: one per sample it flew, from its switch-in to its switch-out
+    heard = {topic: [deserialize_message(m.cdr, ControllerEstimate) for m in read_bag(bag, [topic])]
+             for topic in estimates}
+    for name, topic in zip(("explicit", "gmv"), estimates):
+        t_in = next(t for t, _, incoming in switches if incoming == name)
+        t_out = next(t for t, outgoing, _ in switches if outgoing == name)
+        msgs = heard[topic]
+        stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in msgs])
+        assert len(msgs) == round((t_out - t_in) / 0.2), (name, len(msgs), t_in, t_out)
+        assert stamps[0] == pytest.approx(t_in + 0.2) and stamps[-1] == pytest.approx(t_out)
+        assert [m.mode for m in msgs[:5]] == ["commissioning"] * 5 and msgs[-1].mode in ("adaptive", "fallback")
+        last = msgs[-1]
+        assert last.controller == name and last.type == FOUR[name] and len(last.theta) == last.rows * last.cols
+        assert last.cols == 4 and np.all(np.isfinite(last.theta)) and np.any(np.asarray(last.theta) != 0.0)
+        counts = dict(zip(last.counters, last.counts))
+        assert counts["samples"] == len(msgs) and counts["commissioning"] == 5
+        assert "trace_P" in last.names and len(last.values) == len(last.names)
 
 
 def test_killing_the_active_controller_fails_over_and_keeps_station(controller_file, tmp_path):  # noqa: F811

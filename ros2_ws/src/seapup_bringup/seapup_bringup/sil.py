@@ -275,10 +275,14 @@ class SilGraph:
         subscriptions, a topic listed k times for k) plus this harness's own: the probe's and the recorder's.
         Counted by number, the graph's own list alone would be met by the harness's subscriptions while a
         node of the graph had not subscribed yet -- and missed t_0. (A caller that passes the argument
-        passes the whole list, its own listeners included, as ``./seapup ident experiment`` does.)"""
+        passes the whole list, its own listeners included, as ``./seapup ident experiment`` does.) The truth
+        odometry, which every simulator publishes and no node of a graph hears, is awaited for the harness
+        too: its first sample is said once, and a recorder whose subscription the simulator had not yet
+        matched lost it (a bag that began at 0.2 s)."""
         probe = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
         recorded = {entry.split(":")[0] for entry in self.record if ":" in entry}  # typed: subscribed at once
-        extra = [topic for topic in dict.fromkeys(listed or []) for own in (probe, recorded) if topic in own]
+        extra = [topic for topic in dict.fromkeys([*(listed or []), topics.TRUTH_ODOMETRY])
+                 for own in (probe, recorded) if topic in own]
         self.arguments["wait_for_subscribers"] = str(list(listed or []) + extra)
 
     def _wait_for_recorder(self, timeout: float = 30.0) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 __all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
            "VELOCITY", "IMU", "DEPTH",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
-           "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
+           "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
            "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SIMULATOR_PARAMETERS_SERVICE", "SWITCH_CONTROLLER_SERVICE",
            "task_action", "typed"]
 
@@ -104,6 +104,22 @@ def task_action(kind: str) -> str:
     '/seapup/task/goto'
     """
     return f"{NAMESPACE}/task/{kind}"
+
+
+def controller_estimate(name: str) -> str:
+    """A self-tuning velocity controller node's estimate topic (``seapup_msgs/msg/ControllerEstimate``,
+    its ``~/estimate``).
+
+    Examples
+    --------
+    >>> controller_estimate("gmv")
+    '/seapup/gmv/estimate'
+    """
+    return f"{NAMESPACE}/{name}/estimate"
+
+
+#: The type of :func:`controller_estimate`'s topics.
+CONTROLLER_ESTIMATE_TYPE = "seapup_msgs/msg/ControllerEstimate"
 
 
 def typed(*topics: str) -> list[str]:

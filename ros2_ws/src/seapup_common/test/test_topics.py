@@ -4,9 +4,10 @@ import pytest
 from seapup_common import topics
 from seapup_common.ros.introspection import interface_class
 
-#: The names of topics among the module's public constants (the rest are the namespace, services and actions).
+#: The names of topics among the module's public constants (the rest are the namespace, services, actions and
+#: the type of a family of topics named by a function).
 TOPIC_NAMES = [n for n in topics.__all__ if n.isupper() and isinstance(getattr(topics, n), str)
-               and n != "NAMESPACE" and not n.endswith(("_SERVICE", "_ACTION"))]
+               and n != "NAMESPACE" and not n.endswith(("_SERVICE", "_ACTION", "_TYPE"))]
 
 
 def test_every_named_topic_is_in_the_table_once_and_nothing_else_is():
@@ -37,3 +38,8 @@ def test_services_and_actions_are_in_the_namespace():
 def test_typed_refuses_a_topic_without_a_type():
     with pytest.raises(KeyError, match="/seapup/nowhere"):
         topics.typed(topics.COMMAND, "/seapup/nowhere")
+
+
+def test_a_controller_s_estimate_topic_is_in_its_node_s_namespace_with_an_installed_type():
+    assert topics.controller_estimate("explicit") == topics.NAMESPACE + "/explicit/estimate"
+    assert interface_class(topics.CONTROLLER_ESTIMATE_TYPE).__name__ == "ControllerEstimate"

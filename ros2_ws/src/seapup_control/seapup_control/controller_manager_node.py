@@ -50,8 +50,8 @@ from seapup_msgs.srv import ListControllers, SwitchController
 
 from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, run_node,
-                                    stop_requested)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
+                                    run_node, stop_requested)
 from seapup_common.topics import DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
@@ -92,7 +92,7 @@ class ControllerManagerNode(Node):
         self.liveness_timeout = float(p["liveness_timeout"])
         self.slow_answers = 0
         self.topics = {n: p["command_topic"].format(name=n) for n in names}
-        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS)
         self.forwarded = self.create_publisher(BladePitch, FORWARDED_COMMAND, RELIABLE_QOS)  # a copy of each
         # the first forwarded command waits for every awaited subscriber (the vehicle, a recorder): a
         # bag once lacked the first 2-8 s of commands

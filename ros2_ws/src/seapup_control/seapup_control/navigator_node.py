@@ -43,7 +43,7 @@ from seapup_msgs.msg import Depth, SampleManifest
 from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
 
@@ -82,7 +82,7 @@ class NavigatorNode(Node):
         self.forced_samples = 0                 # processed before a listed reading came (manifest_patience)
         self._topic_names = {self.resolve_topic_name(topic): name for name, (topic, _) in _TOPICS.items()}
         self.stamps = StampGate()
-        self.publisher = self.create_publisher(Odometry, "navigation/odometry", RELIABLE_QOS)
+        self.publisher = self.create_publisher(Odometry, "navigation/odometry", STREAM_QOS)
         self._newest: Odometry | None = None   # the newest estimate sent, for readers that match late
         self._readers = 0                       # the publisher's matched readers when it was last sent
         self.repeated = 0                       # estimates sent again to readers that matched late

@@ -17,7 +17,7 @@ from seapup_msgs.msg import BladePitch
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Measurement, Reference
 from seapup_common.ros.messages import command_to_msg
-from seapup_common.ros.node import RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher
 from seapup_control.profiles import OpenLoop, PitchProfile
@@ -42,7 +42,7 @@ class OpenLoopNode(Node):
                     "wait_for_subscribers": (0, 100)})
         self.schedule = PitchProfile(p["times"], p["pitches"], p["blade_pitch_limit"])
         self.controller = OpenLoop(self.schedule, p["sample_period"])
-        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS)
         # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start
         self.sampler = SamplePublisher(self, self.publisher, self._command, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],

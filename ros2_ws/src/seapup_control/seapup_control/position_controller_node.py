@@ -41,7 +41,7 @@ from rosgraph_msgs.msg import Clock
 from seapup_common.contract import ContractError, StampedReferences
 from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
                                         reference_to_msg, stamp_to_ns)
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, graph_time_ns,
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, graph_time_ns,
                                     refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
@@ -83,7 +83,7 @@ class PositionControllerNode(LifecycleNode):
             return TransitionCallbackReturn.FAILURE
         self.setpoints = StampedReferences(initial=None)
         self.delay = int(self.get_parameter("reference_delay").value) * self.controller.sample_period
-        self.publisher = self.create_lifecycle_publisher(TwistStamped, "velocity_controller/reference", RELIABLE_QOS)
+        self.publisher = self.create_lifecycle_publisher(TwistStamped, "velocity_controller/reference", STREAM_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self._interfaces = [
             self.create_subscription(PoseStamped, "position_controller/reference", self._on_setpoint, COMMAND_QOS),

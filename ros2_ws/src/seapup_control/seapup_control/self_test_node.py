@@ -43,8 +43,8 @@ from seapup_common.contract import ContractError
 from seapup_common.lockstep import SamplePolicy
 from seapup_common.ros.messages import MeasurementCollector, SampleFeed, command_to_msg, ns_to_stamp
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, destroy_actions,
-                                    run_node)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
+                                    destroy_actions, run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
@@ -84,7 +84,7 @@ class SelfTestNode(Node):
         self.policy = SamplePolicy(self.lockstep)  # which sample is pending (the self-test never waits)
         self.policy.activate(heard_applied=True)
         self.feed = SampleFeed(self.collector, self.policy, self._rejected)
-        self.publisher = self.create_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS)
         self.samples = self.create_publisher(SelfTestSample, "self_test/samples", COMMAND_QOS)
         # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
         self.gate = SubscriberGate([(self.publisher, p["wait_for_command_subscribers"]),

@@ -223,6 +223,11 @@ class SelfTuner(ABC):
     def named_estimate(self) -> dict:
         """The estimate's named traces for a run's ``series.estimate``."""
 
+    def estimate_matrix(self) -> np.ndarray:
+        """The estimator's whole parameter matrix Theta (regressors x outputs, a copy): what a node
+        publishes beside the named traces (``seapup_msgs/ControllerEstimate``)."""
+        return np.array(self.estimator.theta, dtype=float)
+
     def _diagnostics(self) -> dict:
         """The law's own entries of :meth:`diagnostics`."""
         return {}

@@ -46,8 +46,8 @@ from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg, stamp_to_ns)
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file, destroy_actions,
-                                    graph_time_ns, run_node)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
+                                    destroy_actions, graph_time_ns, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -106,7 +106,7 @@ class TaskControllerNode(Node):
         self.setpoint = None
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0,
                        "rejected_altitudes": 0, "repeated_estimates": 0}
-        self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", RELIABLE_QOS)
+        self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", STREAM_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
         self.create_timer(0.5, self._diagnose)

@@ -47,7 +47,12 @@ the first reference or the applied pitch is
 file only feeds it the events and arms a wall-clock timer for the time it
 says to come back. Non-finite or malformed references and sensor messages are
 rejected, counted and logged, never integrated. ``/diagnostics`` carries the
-law's :meth:`~VelocityController.diagnostics` and the node's counts.
+law's :meth:`~VelocityController.diagnostics` and the node's counts (WARN
+with the reason while a self-tuner has fallen back to its fixed gains). A law
+with an estimate (the self-tuners of ch. 7: ``estimate_matrix()`` and
+``named_estimate()``) also publishes ``~/estimate``
+(``seapup_msgs/ControllerEstimate``: Theta, the named traces, the mode, the
+jacket's reason and counts) after every sample it answers.
 """
 from __future__ import annotations
 
@@ -61,7 +66,7 @@ from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
-from seapup_msgs.msg import BladePitch
+from seapup_msgs.msg import BladePitch, ControllerEstimate
 
 from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
@@ -69,7 +74,7 @@ from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSetting
 from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
                                         diagnostic_array, reference_from_msg, stamp_to_ns)
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, declare_mapping,
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, declare_mapping,
                                     refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 
@@ -157,9 +162,12 @@ class VelocityControllerNode(LifecycleNode):
             reference_every_sample=bool(self._value("reference_every_sample")),
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
         self.feed = SampleFeed(self.collector, self.policy, self._rejected)
-        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", RELIABLE_QOS)
+        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", STREAM_QOS)
         self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_subscribers")))])
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
+        # a self-tuner (ch. 7) says its estimate and jacket state after every sample it answers
+        self.estimates = (self.create_lifecycle_publisher(ControllerEstimate, "~/estimate", STREAM_QOS)
+                          if callable(getattr(self.controller, "estimate_matrix", None)) else None)
         self._interfaces = [
             self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
             self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
@@ -209,6 +217,9 @@ class VelocityControllerNode(LifecycleNode):
         self._interfaces = []
         self.destroy_lifecycle_publisher(self.publisher)
         self.destroy_publisher(self.diagnostics)
+        if self.estimates is not None:
+            self.destroy_lifecycle_publisher(self.estimates)
+            self.estimates = None
         self.controller = None
         return TransitionCallbackReturn.SUCCESS
 
@@ -305,6 +316,8 @@ class VelocityControllerNode(LifecycleNode):
         self.policy.answered(t_ns)
         self.counts["samples"] += 1
         self.publisher.publish(command_to_msg(command, t_ns))
+        if self.estimates is not None:
+            self.estimates.publish(self._estimate(t_ns))
         if self.counts["samples"] % max(1, int(self._value("diagnostics_every"))) == 0:
             self._diagnose(t_ns)
 
@@ -323,6 +336,22 @@ class VelocityControllerNode(LifecycleNode):
         timer = self.create_timer(max(wake_at - time.monotonic(), 0.0) + 1e-3, fire,
                                   clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         self._timer = timer
+
+    def _estimate(self, t_ns: int) -> ControllerEstimate:
+        """The self-tuner's estimate after this sample (``seapup_msgs/ControllerEstimate``)."""
+        law = self.controller
+        theta = law.estimate_matrix()
+        named = law.named_estimate()
+        counts = dict(getattr(law, "counts", {}))
+        msg = ControllerEstimate(controller=self.get_name(), type=self.kind.name, mode=str(getattr(law, "mode", "")),
+                                 reason=str(getattr(law, "reason", "")), frozen=str(getattr(law, "frozen", "")),
+                                 names=list(named), values=[float(v) for v in named.values()],
+                                 rows=theta.shape[0], cols=theta.shape[1] if theta.ndim > 1 else 1,
+                                 theta=theta.ravel().tolist(), counters=list(counts),
+                                 counts=[int(v) for v in counts.values()])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 10**9)
+        msg.header.frame_id = "base_link_frd"
+        return msg
 
     def _diagnose(self, t_ns: int) -> None:
         law = self.controller.diagnostics()

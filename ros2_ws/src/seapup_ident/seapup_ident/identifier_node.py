@@ -27,7 +27,7 @@ from seapup_common.bag import BagWriter, make_typestore
 from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.recorder_node import project_msg_files
 from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import APPLIED, IDENTIFIED_MODEL, IMU, NAMESPACE, TOPIC_TYPES, VELOCITY
 from seapup_ident.armax import ArmaxOrders
 from seapup_ident.online import OnlineIdentifier
@@ -56,7 +56,7 @@ class IdentifierNode(Node):
         self.core = OnlineIdentifier(ArmaxOrders(len(outputs), 4, na, nb, nc), p["method"], outputs,
                                      forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]),
                                      filter_weakening=weakening)
-        self.publisher = self.create_publisher(IdentifiedModel, IDENTIFIED_MODEL, RELIABLE_QOS)
+        self.publisher = self.create_publisher(IdentifiedModel, IDENTIFIED_MODEL, STREAM_QOS)
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
         self.drain_on_shutdown = True      # run_node takes the readings already received before closing

@@ -70,7 +70,7 @@ from seapup_common.config import load_yaml, merge
 from seapup_common.contract import Command, ContractError
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, SERVICE_QOS, declare_from_package_file,
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
                                     declare_mapping, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_sim.current import CurrentParams
@@ -211,18 +211,18 @@ class SimulatorNode(Node):
 
     def _create_interfaces(self, publish_clock: bool) -> None:
         pub = self.create_publisher
-        self.pub_applied = pub(BladePitch, "thrusters/applied", RELIABLE_QOS)
-        self.pub_velocity = pub(TwistWithCovarianceStamped, "sensors/velocity", RELIABLE_QOS)
-        self.pub_imu = pub(Imu, "sensors/imu", RELIABLE_QOS)
-        self.pub_position = pub(PoseWithCovarianceStamped, "sensors/position", RELIABLE_QOS)
-        self.pub_depth = pub(Depth, "sensors/depth", RELIABLE_QOS)
-        self.pub_altitude = pub(Range, "sensors/altitude", RELIABLE_QOS)
-        self.pub_truth = pub(Odometry, "truth/odometry", RELIABLE_QOS)
-        self.pub_odom = pub(Odometry, "odometry", RELIABLE_QOS)
-        self.pub_current = pub(Vector3Stamped, "environment/current", RELIABLE_QOS)
-        self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", RELIABLE_QOS)
-        self.pub_manifest = pub(SampleManifest, "sensors/sample", RELIABLE_QOS)
-        self.pub_clock = pub(Clock, CLOCK, RELIABLE_QOS) if publish_clock else None
+        self.pub_applied = pub(BladePitch, "thrusters/applied", STREAM_QOS)
+        self.pub_velocity = pub(TwistWithCovarianceStamped, "sensors/velocity", STREAM_QOS)
+        self.pub_imu = pub(Imu, "sensors/imu", STREAM_QOS)
+        self.pub_position = pub(PoseWithCovarianceStamped, "sensors/position", STREAM_QOS)
+        self.pub_depth = pub(Depth, "sensors/depth", STREAM_QOS)
+        self.pub_altitude = pub(Range, "sensors/altitude", STREAM_QOS)
+        self.pub_truth = pub(Odometry, "truth/odometry", STREAM_QOS)
+        self.pub_odom = pub(Odometry, "odometry", STREAM_QOS)
+        self.pub_current = pub(Vector3Stamped, "environment/current", STREAM_QOS)
+        self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", STREAM_QOS)
+        self.pub_manifest = pub(SampleManifest, "sensors/sample", STREAM_QOS)
+        self.pub_clock = pub(Clock, CLOCK, STREAM_QOS) if publish_clock else None
         self.pub_diag = pub(DiagnosticArray, DIAGNOSTICS, 10)
         self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True)
         def srv(kind, name, callback):

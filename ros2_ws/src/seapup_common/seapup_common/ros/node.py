@@ -35,6 +35,10 @@ __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten"
 
 #: Reliable, keep-last 10: the default for seapup topics.
 RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Per-sample streams are published with a deep history: a reliable writer keeps what a reader has not yet
+#: acknowledged only up to its depth, so a reader that falls behind for a moment (a recorder on a loaded
+#: machine, while lockstep races on) caught up with the samples at depth 10 overwritten -- a bag with holes.
+STREAM_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: Commands queue deeper: every one, good or bad, must be seen and counted.
 COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: Services queue deep enough for bursts: 1000 concurrent requests are each
