@@ -39,15 +39,23 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
 
     run, summary, out = quiet_demo
     legs = {leg["kind"]: leg for leg in summary["legs"]}
-    assert [leg["status"] for leg in summary["legs"]] == ["succeeded"] * 6
+    assert [leg["status"] for leg in summary["legs"]] == ["succeeded"] * 7
     # and the truth agrees with every verdict: the estimate within 4 of its stated std at each leg's end
-    assert [leg["truth_verdict"] for leg in summary["legs"]] == [""] * 6
-    assert {"self_test", "hover", "goto", "inspection", "follow_seabed", "current"} == set(legs)
+    assert [leg["truth_verdict"] for leg in summary["legs"]] == [""] * 7
+    assert {"self_test", "hover", "goto", "inspection", "follow_seabed", "current", "fouling"} == set(legs)
     assert legs["goto"]["end_error_true"] <= 0.5 + 0.3            # arrival tolerance + navigation error
     assert legs["follow_seabed"]["altitude_true_max"] <= 0.3       # on the 1 in 10 slope, from the truth
     assert legs["current"]["hold_rms"] <= 0.5                      # station keeping in the 0.26 m/s current
     hover = legs["hover"]
     assert hover["switch_ok"] and hover["switch_step_deg"] <= hover["normal_step_deg"]  # bumpless swap
+    # issue 24: the thruster fouls under the self-tested gains, the manager switches to the GMV self-tuner
+    # bumplessly, and once tuned in (100 samples) it tracks the creep's velocity as well as the clean vehicle did
+    fouled = legs["fouling"]
+    assert fouled["controller"] == "gmv" and fouled["switch_step_deg"] <= fouled["normal_step_deg"]
+    assert fouled["foul_t"] < fouled["switch_t"] < fouled["t1"]
+    print("fouled thruster: velocity tracking RMS before / fouled / self-tuner "
+          f"{fouled['track_before']:.3f} / {fouled['track_fouled']:.3f} / {fouled['track_adaptive']:.3f} m/s")
+    assert fouled["track_adaptive"] <= 1.25 * fouled["track_before"] and fouled["track_adaptive"] < fouled["track_fouled"]
     for line in ("leg ", "self-test", "station keeping", "swap step"):
         assert line in run.stdout + run.stderr
     for name in summary["plots"]:
@@ -86,7 +94,7 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     taken = int(vehicle["accepted"])  # as of its last status, a little before the end
     assert int(vehicle["lockstep_timeouts"]) == 0, vehicle
     assert taken > 0.95 * samples and counts["/seapup/thrusters/command"] >= taken, (taken, samples)
-    assert set(last) == {"seapup/mfol_fixed", "seapup/mfol_scheduled"}
+    assert set(last) == {"seapup/mfol_fixed", "seapup/mfol_scheduled", "seapup/gmv"}
     assert sum(late for _, late in last.values()) <= 0.01 * sum(n for n, _ in last.values())
     # one time base: every stamped message of every topic is logged no earlier than its own header stamp,
     # and no node stamps with the wall clock on this sim-time graph (/diagnostics once mixed the two)

@@ -12,7 +12,13 @@ faster than real time, every node its own process, plus the recorder) with
 4. the inspection manoeuvre (sec. 5.4.2: body velocities 0.2, 0.1, 0.1 m/s,
    "a diagonal creeping motion"), as a goto along that diagonal at its speed;
 5. seabed following at a set height up the slope;
-6. station keeping in the thesis's 0.26 m/s Gauss-Markov current (sec. 3.9).
+6. station keeping in the thesis's 0.26 m/s Gauss-Markov current (sec. 3.9);
+7. a fouled thruster (sec. 7.4.4): on an inspection creep the main-port thruster's
+   efficiency is halved under the self-tested gains, then the controller manager
+   switches to a self-tuner of ch. 7 (GMV), which re-tunes while the creep goes on;
+   the leg reports the velocity-tracking RMS (truth against the reference) before
+   the fouling, fouled under the fixed gains, and under the self-tuner after it
+   tuned in.
 
 Everything is recorded to an MCAP bag (``<out>/bag``); the demo prints a table
 per leg (duration, tracking errors, position-hold RMS and max from the truth,
@@ -94,7 +100,31 @@ def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
                        altitude_true_max=float(np.abs(error).max()))
     elif "target" in leg:
         out["end_error_true"] = float(np.linalg.norm(truth[window][-1] - leg["target"]))
+    if leg["kind"] == "fouling":
+        out.update(_tracking(logs, leg))
     out.update(_navigation_check(logs, leg, t[window][-1], truth[window][-1]))
+    return out
+
+
+def _tracking(logs: dict, leg: dict) -> dict:
+    """A fouling leg's velocity tracking: the RMS over samples of |(u, v, w) reference - truth| [m/s] and of the
+    yaw-rate error [deg/s] before the fouling, fouled under the fixed gains, and under the self-tuner from
+    ``tune_in`` s after the switch (its commissioning and first estimates) to the leg's end."""
+    rt, ref = logs["reference_t"], logs["reference"]
+    t, velocity = logs["truth_t"], logs["truth_velocity"]
+    index = np.searchsorted(t, rt)
+    ok = (index < len(t))
+    ok[ok] = np.abs(t[index[ok]] - rt[ok]) < 1e-6       # the truth of the sample the reference is for
+    out = {}
+    windows = {"before": (leg["t0"] + leg.get("hold_from", 0.0), leg["foul_t"]),
+               "fouled": (leg["foul_t"], leg["switch_t"]),
+               "adaptive": (leg["switch_t"] + leg.get("tune_in", 0.0), leg["t1"])}
+    for name, (a, b) in windows.items():
+        keep = ok & (rt >= a) & (rt < b)
+        if keep.any():
+            error = ref[keep] - velocity[index[keep]][:, [0, 1, 2, 5]]
+            out[f"track_{name}"] = float(np.sqrt(np.mean(np.sum(error[:, :3] ** 2, axis=1))))
+            out[f"track_{name}_r_deg"] = math.degrees(float(np.sqrt(np.mean(error[:, 3] ** 2))))
     return out
 
 
@@ -190,12 +220,47 @@ def fly_mission(out: Path, config: dict, text) -> dict:
         leg.update(_truth_numbers(logs, leg, seabed))
     if swap and swap["leg"] < len(legs):
         legs[swap["leg"]].update(_swap_bump(logs, swap["t"]))
+    for leg in legs:
+        if leg["kind"] == "fouling" and "switch_t" in leg:
+            leg.update(_swap_bump(logs, leg["switch_t"]))
     # held: the sample [s] the paced graph was held at when it stopped
     return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
 
 
-def _fly_leg(sil, leg: dict, swap: dict) -> dict:
+def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
+    """The fouled-thruster leg: an inspection creep whose thruster fouls ``foul.after`` s in under the active
+    (self-tested) controller, then, held at its end, the switch to the self-tuner and a second creep."""
+    marks = {}
+    if "current" in leg:   # the station keeping's current off: the fouling, not the current, is the test
+        reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", leg["current"])
+        if not reply.success:
+            raise RuntimeError(f"set_current: {reply.message}")
+
+    def foul():
+        marks["foul_t"] = sil.t
+        reply = sil.call(topics.SET_THRUSTER_EFFICIENCY_SERVICE, "seapup_msgs/srv/SetThrusterEfficiency",
+                         {"efficiency": [float(v) for v in leg["foul"]["efficiency"]]})
+        if not reply.success:
+            raise RuntimeError(f"set_thruster_efficiency: {reply.message}")
+        return reply
+    creep = {"kind": "inspection", "name": leg["name"], "body_velocity": leg["body_velocity"],
+             "index": leg["index"]}
+    fixed = _fly_leg(sil, {**creep, "seconds": leg["fouled_seconds"]}, swap, during=(leg["foul"]["after"], foul))
+    marks["switch_t"] = sil.t
+    reply = sil.switch(**leg["switch"])
+    if not reply.ok:
+        raise RuntimeError(f"{leg['name']}: switch refused: {reply.message}")
+    adaptive = _fly_leg(sil, {**creep, "seconds": leg["adaptive_seconds"]}, swap)
+    status = "succeeded" if fixed.get("status") == adaptive.get("status") == "succeeded" else \
+        adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
+    return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
+            "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}
+
+
+def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
     kind = leg["kind"]
+    if kind == "fouling":
+        return _fly_fouling(sil, leg, swap)
     if kind == "self_test":
         t0 = sil.t
         fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}
@@ -231,7 +296,6 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
     elif "offset" in leg:
         target = here + np.asarray(leg["offset"], dtype=float)
         goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
-    during = None
     if "switch" in leg:
         def do_switch():
             swap["t"] = sil.t
@@ -241,7 +305,7 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
                                                              for k, v in goal.items()})
     if not result["accepted"]:
         raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
-    if during is not None:
+    if "switch" in leg:
         swap["leg"] = leg["index"]
         result["switch_ok"] = bool(result["during"].ok)
     out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
@@ -254,7 +318,7 @@ def _fly_leg(sil, leg: dict, swap: dict) -> dict:
 
 def _task_error(leg: dict) -> str:
     """The task's own measure of how well it went (from the navigation estimate)."""
-    if leg["kind"] in ("goto", "inspection"):
+    if leg["kind"] in ("goto", "inspection", "fouling"):
         return f"end {leg['distance']:.2f} m, xt {leg['cross_track_rms']:.2f} m"
     if leg["kind"] == "follow_seabed":
         return f"alt rms {leg['altitude_rms']:.2f} m"
@@ -265,6 +329,9 @@ def _task_error(leg: dict) -> str:
 
 def _truth_error(leg: dict) -> str:
     """The same from the simulator's truth."""
+    if "track_fouled" in leg:
+        return (f"v err {leg['track_before']:.3f}/{leg['track_fouled']:.3f}/"
+                f"{leg.get('track_adaptive', math.nan):.3f} m/s")
     if "hold_rms" in leg:
         return f"rms {leg['hold_rms']:.2f}, max {leg['hold_max']:.2f} m"
     if "altitude_true_rms" in leg:
@@ -291,7 +358,9 @@ def _table(legs: list, text) -> None:
           "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
           f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
           "missed by more than tolerance + that); swap step: blade-pitch change into the incoming controller's "
-          "first command (largest one-sample change in the 15 s before it)", file=text)
+          "first command (largest one-sample change in the 15 s before it); v err: the fouled-thruster leg's "
+          "velocity-tracking RMS from the truth before the fouling / fouled under the fixed gains / under the "
+          "self-tuner once tuned in", file=text)
 
 
 def _plots(result: dict, out: Path) -> list[str]:
@@ -386,7 +455,9 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
 <tbody>{"".join(rows)}</tbody></table>
 <p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
 reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
-the largest one-sample change in the 15 s before it.</p></section>
+the largest one-sample change in the 15 s before it. The fouled-thruster leg's truth column is its velocity-tracking
+RMS [m/s] (truth against the reference): before the fouling / fouled under the self-tested gains / under the
+self-tuner from <code>tune_in</code> s after the switch.</p></section>
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
 <section id="configuration"><h2>Configuration</h2>
 <p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.yaml</code>, from

@@ -292,9 +292,15 @@ class SilGraph:
         own = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
         typed = [entry.split(":")[0] for entry in self.record if ":" in entry]
 
-        def subscribed():
-            return all(self._node.count_subscribers(topic) >= 1 + (topic in own) for topic in typed)
-        if typed and not self.spin_until(subscribed, timeout):
+        recorder = self.processes["recorder"]
+
+        def subscribed():   # or it has exited (a bag that exists already, say): say so at once
+            return not recorder.running or all(self._node.count_subscribers(topic) >= 1 + (topic in own)
+                                               for topic in typed)
+        if typed and (not self.spin_until(subscribed, timeout) or not recorder.running):
+            if not recorder.running:
+                raise SilError(f"the recorder exited: {recorder.log_text().strip().splitlines()[-1:]}; "
+                               f"its log is {self.out_dir / 'recorder.log'}")
             missing = [t for t in typed if self._node.count_subscribers(t) < 1 + (t in own)]
             raise SilError(f"the recorder did not subscribe to {', '.join(missing)} within {timeout:g} s; "
                            f"its log is {self.out_dir / 'recorder.log'}" + self._dead())

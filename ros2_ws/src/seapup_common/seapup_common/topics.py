@@ -14,7 +14,7 @@ __all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", 
            "VELOCITY", "IMU", "DEPTH",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
-           "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SIMULATOR_PARAMETERS_SERVICE", "SWITCH_CONTROLLER_SERVICE",
+           "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SET_THRUSTER_EFFICIENCY_SERVICE", "SIMULATOR_PARAMETERS_SERVICE", "SWITCH_CONTROLLER_SERVICE",
            "task_action", "typed"]
 
 #: The vehicle's namespace: every seapup node runs in it.
@@ -89,6 +89,8 @@ TOPIC_TYPES = {
 SELF_TEST_ACTION = "/seapup/self_test"
 #: The simulator's current switch (``seapup_msgs/srv/SetCurrent``).
 SET_CURRENT_SERVICE = "/seapup/simulator/set_current"
+#: The simulator's thruster fouling (``seapup_msgs/srv/SetThrusterEfficiency``).
+SET_THRUSTER_EFFICIENCY_SERVICE = "/seapup/simulator/set_thruster_efficiency"
 #: The simulator's parameter service (the SIL harness sets ``end_time`` through it to hold the graph).
 SIMULATOR_PARAMETERS_SERVICE = "/seapup/simulator/set_parameters"
 #: The controller manager's switch (``seapup_msgs/srv/SwitchController``).

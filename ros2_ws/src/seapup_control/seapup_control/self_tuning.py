@@ -49,7 +49,7 @@ class TunerJacket:
     excitation: float = math.radians(0.05)                  # a blade pitch moving less than this does not excite
     max_trace_growth: float = 10.0                          # trace P above this times trace P(0): fall back (inf: never)
     min_rcond: float = 1e-4                                 # a matrix the law inverts below it: fall back
-    max_pole: float = 1.1                                   # an estimated open-loop pole |z| at or beyond: fall back
+    max_pole: float = 1.3                                   # an estimated open-loop pole |z| at or beyond: fall back
 
     def __post_init__(self):
         band = np.asarray(self.set_point_band, dtype=float)
@@ -72,7 +72,7 @@ TUNER_PARAMETERS = {"forgetting": 0.999, "p0": 1e4, "commissioning_samples": 5,
 def jacket_from(parameters: dict) -> TunerJacket:
     """The jacket of a registered type's complete parameters."""
     return TunerJacket(tuple(parameters["set_point_band"]), math.radians(parameters["excitation_deg"]),
-                       parameters["max_trace_growth"], parameters["min_rcond"], parameters.get("max_pole", 1.1))
+                       parameters["max_trace_growth"], parameters["min_rcond"], parameters.get("max_pole", 1.3))
 
 
 class SelfTuner(ABC):
