@@ -65,7 +65,7 @@ _shell("lock", "regenerate requirements/lock.txt from seapup.in")
 
 @command("demo", "the main demonstration: the self-tested Seapup flies a mission through the supervisory "
          "hierarchy (self-test, hover + controller swap, goto, inspection, seabed following, station keeping "
-         "in current), recorded, with a table and plots", "[--out DIR] [--json [F]] [--no-plots]")
+         "in current, a fouled thruster and the switch to a self-tuner), recorded, with a table and plots", "[--out DIR] [--json [F]] [--no-plots]")
 def _demo(argv: list[str]) -> int:
     from seapup_bringup.demo import main as demo
     return demo(argv)
