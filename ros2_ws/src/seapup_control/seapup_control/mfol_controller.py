@@ -8,7 +8,9 @@ measured body velocities (u, v, w, r), with
   ``K_int``, ``K_err`` interpolated linearly between operating points at the
   *measured* surge speed, the offset ``u0(r)`` at the *reference* surge speed
   (eq. 5.6), both held constant beyond the first and last points;
-- **anti-windup** (the thesis has none): every sample the integrator state
+- **anti-windup** (the thesis has none; ``anti_windup: false`` flies the thesis's
+  law as written, ``q_{k+1} = q_k + e_k`` whatever the thrusters hold): every
+  sample the integrator state
   is re-set so that the law reproduces the command the vehicle actually
   holds (saturated at the blade-pitch limit),
   ``q_k := K_int^-1 (u_sat,k - K_err e_k - u0)``, before ``q_{k+1} = q_k + e_k``.
@@ -164,11 +166,12 @@ class MFOLController:
     array([0.3, 0. , 0. , 0. ])
     """
 
-    def __init__(self, schedule, limit: float = BLADE_PITCH_LIMIT):
+    def __init__(self, schedule, limit: float = BLADE_PITCH_LIMIT, anti_windup: bool = True):
         self.schedule = schedule if isinstance(schedule, GainSchedule) else GainSchedule([(0.0, schedule)])
         if not (math.isfinite(limit) and limit > 0):
             raise DesignError(f"limit must be > 0 rad, got {limit!r}")
         self.limit = float(limit)
+        self.anti_windup = bool(anti_windup)
         self.sample_period = self.schedule.sample_period
         m = self.schedule.size
         self.q = np.zeros(m)
@@ -237,8 +240,10 @@ class MFOLController:
         raw = k_int @ self.q + k_err @ error + u0
         command = np.clip(raw, -self.limit, self.limit)
         saturated = np.abs(raw) > self.limit
-        # anti-windup: the state that reproduces the held command, then integrate
-        self.q = np.linalg.solve(k_int, command - k_err @ error - u0) + error
+        if self.anti_windup:   # the state that reproduces the held command, then integrate
+            self.q = np.linalg.solve(k_int, command - k_err @ error - u0) + error
+        else:                  # the thesis's law as written: q_{k+1} = q_k + e_k whatever the thrusters hold
+            self.q = self.q + error
         self.saturated_samples += saturated
         self.state = ControllerState(float(t), error, self.q.copy(), raw, saturated)
         return Command(command, stamp=t)
@@ -269,11 +274,14 @@ def create_mfol(parameters: dict, document, sample_period: float | None) -> MFOL
     if sample_period is not None and abs(schedule.sample_period - sample_period) > 1e-9:
         raise DesignError(f"the controller file's gains are for T = {schedule.sample_period:g} s, "
                           f"not {sample_period:g} s")
-    return MFOLController(schedule, limit=float(parameters["blade_pitch_limit"]))
+    return MFOLController(schedule, limit=float(parameters["blade_pitch_limit"]),
+                          anti_windup=bool(parameters["anti_windup"]))
 
 
 #: Owens and Chotai's two-term controller, fixed-gain or gain-scheduled (registered as ``mfol``).
 MFOL_TYPE = ControllerType(
-    "mfol", create_mfol, types.MappingProxyType({"schedule": True, "blade_pitch_limit": BLADE_PITCH_LIMIT}),
+    "mfol", create_mfol, types.MappingProxyType({"schedule": True, "blade_pitch_limit": BLADE_PITCH_LIMIT,
+                                                 "anti_windup": True}),
     "Owens-Chotai two-term PI (eq. 4.11, 5.6) from a self-test's controller file; schedule: gain-scheduled on "
-    "surge speed (sec. 4.6)", needs_document=True)
+    "surge speed (sec. 4.6); anti_windup: false for the thesis's law as written (its integrators run on "
+    "while a thruster saturates)", needs_document=True)

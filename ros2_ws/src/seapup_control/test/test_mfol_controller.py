@@ -112,6 +112,12 @@ def test_anti_windup_leaves_saturation_at_once_where_a_plain_integrator_stays():
     assert saturated_after_stop(runs["plain"][1]) >= saturated_after_stop(runs["aw"][1]) + 10
     # and the vehicle comes back to rest sooner
     assert np.abs(runs["aw"][0][-1]).max() < 0.01 < np.abs(runs["plain"][0][75]).max()
+    # anti_windup=False is the thesis's law as written: the plain integrator above, sample for sample
+    thesis = MFOLController(gains, limit=limit, anti_windup=False)
+    thesis.reset(Command(np.zeros(4)))
+    ys, us = fly(thesis, phi, delta, references)
+    np.testing.assert_allclose(us, runs["plain"][1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ys, runs["plain"][0], rtol=0, atol=1e-12)
 
 
 def test_gain_schedule_interpolates_gains_on_measured_surge_and_the_offset_on_the_reference():
