@@ -157,7 +157,7 @@ def _closed_loop(argv: list[str]) -> int:
 
 @command("scenario", "a closed-loop case of the thesis (sec. 5.4, 7.4) flown by a registered controller (default the self-tested one)",
          "NAME [--controller mfol|explicit|gmv] [--param K=V ...] [--sensors S] [--rate 5|20] [--config C] "
-         "[--schedule] [--graph] [--plots DIR] [--json [F]] | --list")
+         "[--schedule] [--design self-test|eq-5.3|table-5.1] [--graph] [--plots DIR] [--json [F]] | --list")
 def _scenario(argv: list[str]) -> int:
     from seapup_bringup.scenarios import scenario_command
     return scenario_command(argv)

@@ -29,6 +29,7 @@ from seapup_runs.runner import DesignFailed, run
 from seapup_runs.scenarios import scenario_spec, scenarios
 from seapup_runs.targets import thesis_by_metric
 from seapup_runs.spec import RunSpecError
+from seapup_runs.thesis_designs import DESIGNS
 from seapup_sim.vehicle_config import ConfigError, available_configs
 
 __all__ = ["scenario_command", "print_scenario", "plot_scenario"]
@@ -43,6 +44,11 @@ def print_scenario(result: RunResult, text) -> None:
     thesis = thesis_by_metric(f"scenario:{spec.name}:{1.0 / spec.control_period:g}") \
         if spec.vehicle == "baseline" and not scheduled and kind in ("mfol", "hold") else {}
     law = ("scheduled" if scheduled else "fixed") + " gains" if kind == "mfol" else f"the {kind} controller"
+    document = spec.controller.document or {}
+    if document.get("phase") == "thesis":   # designed from the thesis's own matrices (seapup_runs.thesis_designs)
+        law += f" designed from {document.get('reason', 'the thesis')}"
+    if kind == "mfol" and spec.controller.parameters.get("anti_windup") is False:
+        law += ", no anti-windup (the thesis's law)"
     print(f"\nscenario {spec.name}: {spec.vehicle}, {1.0 / spec.control_period:g} Hz, "
           f"{law}, {result.transport} (thesis in brackets where it reports one)", file=text)
     print(f"{'output':>6} {'reference':>10} {'final':>9} {'rise95 [s]':>14} {'overshoot [%]':>16} "
@@ -144,6 +150,9 @@ def scenario_command(argv: list[str]) -> int:
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="a controller setting, e.g. forgetting=0.95, lambda=0.1, order=1 (repeatable)")
     parser.add_argument("--sensors", help="sensor profile instead of the case's (baseline, haslar, ideal)")
+    parser.add_argument("--design", default="self-test", choices=("self-test", *DESIGNS),
+                        help="what designs the controller: our self-test (default), or the thesis's own matrices "
+                             "(eq. 5.3's velocity log, Table 5.1's realistic self-test; 5 Hz)")
     parser.add_argument("--plots", type=Path, help="write a figure like figs 5.10-5.24 into this directory")
     parser.add_argument("--graph", action="store_true",
                         help="fly it through the ROS graph in lockstep (simulator and controller nodes)")
@@ -156,7 +165,7 @@ def scenario_command(argv: list[str]) -> int:
         return 0 if args.list else 2
     try:
         spec = scenario_spec(args.name, args.config, args.rate, args.schedule, args.seed, args.controller,
-                             _parameters(args.param), args.sensors)
+                             _parameters(args.param), args.sensors, args.design)
         if args.graph:
             from seapup_bringup.graph_runner import run_on_graph
             result = run_on_graph(spec, progress=lambda f: progress(args.name, f))

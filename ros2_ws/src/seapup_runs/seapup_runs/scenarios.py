@@ -42,16 +42,20 @@ def scenarios() -> dict:
 
 def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
                   seed: int = 0, controller: str = "mfol", parameters: dict | None = None,
-                  sensors: str | None = None) -> RunSpec:
+                  sensors: str | None = None, design: str = "self-test") -> RunSpec:
     """The run of case ``name`` at ``rate`` [Hz] on ``vehicle`` (see the module docstring).
 
     ``controller`` names a registered velocity controller and ``parameters`` its settings (checked when
     the run is made); ``schedule`` is the ``mfol`` controller's. ``sensors`` overrides the case's profile.
+    ``design``: ``self-test`` (our self-test on the baseline vehicle designs the controller), or one of
+    :data:`seapup_runs.thesis_designs.DESIGNS` -- the thesis's own matrices (eq. 5.3, Table 5.1) at 5 Hz.
 
     Raises
     ------
     KeyError
-        On an unknown case (the message lists the known ones).
+        On an unknown case or design (the message lists the known ones).
+    RunSpecError
+        A thesis design at another rate than 5 Hz.
     """
     cases = scenarios()
     if name not in cases:
@@ -75,6 +79,12 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         if schedule:
             raise RunSpecError(f"gain scheduling is the mfol controller's; {controller!r} has no schedule")
         mfol = ControllerSpec(controller, dict(parameters or {}))
+    if design != "self-test":
+        from seapup_runs.thesis_designs import SAMPLE_PERIOD, thesis_design
+        if abs(period - SAMPLE_PERIOD) > 1e-9:
+            raise RunSpecError(f"the thesis's {design!r} matrices are for 5 Hz (T = {SAMPLE_PERIOD} s), "
+                               f"not {float(rate):g} Hz")
+        mfol = ControllerSpec(mfol.type, mfol.parameters, document=thesis_design(design, schedule=scheduled))
     t_on = float(case.get("controller_on", 0.0))
     if t_on > 0:  # drifting at the hover setting (the start's) until the controller is connected (fig. 5.23)
         controller = ControllerSpec("hold")
