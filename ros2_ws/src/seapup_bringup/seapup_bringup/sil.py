@@ -119,7 +119,8 @@ class SilGraph:
         are subscribed before the graph starts, so nothing of them is lost; untyped ones only once
         a publisher has told the recorder their type.
     ready_timeout : float
-        Wall seconds for the first navigation estimate.
+        Wall seconds for the first navigation estimate (a start on a loaded machine: ten-odd Python nodes
+        importing rclpy beside CPU burners took most of a minute).
     start_at, chunk : float
         Paced driving (module docstring) [s simulated]: the first hold, and the run between holds.
         ``start_at`` 0: the first sample (held there by the graph's ``start_held`` argument), for a graph
@@ -146,7 +147,7 @@ class SilGraph:
     """
 
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
-                 out_dir, record: list[str] | None = None, ready_timeout: float = 60.0,
+                 out_dir, record: list[str] | None = None, ready_timeout: float = 120.0,
                  ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
                                                                 "seapup/position_controller"),
                  instruments: bool = False, start_at: float = 10.0, chunk: float = 1.0):

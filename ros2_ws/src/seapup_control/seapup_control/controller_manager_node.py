@@ -192,7 +192,9 @@ class ControllerManagerNode(Node):
                 (not everyone and time.monotonic() - self._initial_since < 30.0):
             return  # the controller nodes are not up yet: try again at the next tick
         self.destroy_timer(self._initial_timer)
-        self._configure_all(self.switch_timeout)
+        # a node still starting on a loaded machine may not answer in time: ask again (a graph whose
+        # simulator waits for every controller's subscriptions waited for ever on one left unconfigured)
+        self._configure_all(self.switch_timeout, attempts=4)
         problem = self._activate(self._initial, self.switch_timeout)
         if problem:
             self.get_logger().error(f"initial controller {self._initial}: {problem}")
@@ -235,14 +237,29 @@ class ControllerManagerNode(Node):
         self._diagnose()
         return response
 
-    def _configure_all(self, timeout: float) -> None:
+    def _configure_all(self, timeout: float, attempts: int = 1) -> None:
         """Configure every unconfigured controller (as ros2_control loads controllers before switching):
-        an inactive controller already hears the applied blade pitch, so it starts bumpless."""
-        for name in self.core.controllers:
-            if name != self.core.active and self._state(name, timeout) == "unconfigured":
-                problem = self._transition(name, Transition.TRANSITION_CONFIGURE, timeout)
-                if problem:
-                    self.get_logger().warn(f"configure {name}: {problem}")
+        an inactive controller already hears the applied blade pitch, so it starts bumpless. A controller
+        whose state or configuration went unanswered is asked again, up to ``attempts`` times in all (one
+        that refuses its configuration is not: its log says why)."""
+        pending = [name for name in self.core.controllers if name != self.core.active]
+        for attempt in range(max(1, int(attempts))):
+            unanswered = []
+            for name in pending:
+                state = self._state(name, timeout)
+                if state == "unknown":
+                    unanswered.append(name)
+                elif state == "unconfigured":
+                    problem = self._transition(name, Transition.TRANSITION_CONFIGURE, timeout)
+                    if problem and problem.unanswered and self._state(name, timeout) != "inactive":
+                        unanswered.append(name)
+                    elif problem and problem.unanswered is False:
+                        self.get_logger().warn(f"configure {name}: {problem}")
+            if not unanswered:
+                return
+            pending = unanswered
+        self.get_logger().warn(f"configure: {', '.join(pending)} did not answer in {attempts} attempts of "
+                               f"{timeout:g} s (configured when a switch activates them)")
 
     def _run_plan(self, plan, timeout: float) -> tuple[bool, str]:
         self._configure_all(timeout)
