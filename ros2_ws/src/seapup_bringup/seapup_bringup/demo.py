@@ -227,14 +227,19 @@ def fly_mission(out: Path, config: dict, text) -> dict:
     return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
 
 
+def _set_current(sil, detail: dict) -> None:
+    """The simulator's current (``seapup_msgs/srv/SetCurrent`` fields), or why not."""
+    reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", detail)
+    if not reply.success:
+        raise RuntimeError(f"set_current: {reply.message}")
+
+
 def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
     """The fouled-thruster leg: an inspection creep whose thruster fouls ``foul.after`` s in under the active
     (self-tested) controller, then, held at its end, the switch to the self-tuner and a second creep."""
     marks = {}
     if "current" in leg:   # the station keeping's current off: the fouling, not the current, is the test
-        reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", leg["current"])
-        if not reply.success:
-            raise RuntimeError(f"set_current: {reply.message}")
+        _set_current(sil, leg["current"])
 
     def foul():
         marks["foul_t"] = sil.t
@@ -276,9 +281,7 @@ def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
         return {"status": "succeeded", "t0": t0, "t1": t1, "controller_file": result.controller_file,
                 "self_test_duration": result.duration}
     if kind == "current":
-        reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", leg["current"])
-        if not reply.success:
-            raise RuntimeError(f"set_current: {reply.message}")
+        _set_current(sil, leg["current"])
         kind = "hover"
     _, here, attitude = sil.estimate()
     yaw = float(attitude[2])

@@ -72,10 +72,10 @@ from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
 from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
-                                        diagnostic_array, reference_from_msg, stamp_to_ns)
+                                        diagnostic_array, ns_to_stamp, reference_from_msg, stamp_to_ns)
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, declare_mapping,
-                                    refuse_invalid_transitions, run_node)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file,
+                                    declare_mapping, refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
@@ -349,7 +349,7 @@ class VelocityControllerNode(LifecycleNode):
                                  rows=theta.shape[0], cols=theta.shape[1] if theta.ndim > 1 else 1,
                                  theta=theta.ravel().tolist(), counters=list(counts),
                                  counts=[int(v) for v in counts.values()])
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(t_ns), 10**9)
+        msg.header.stamp = ns_to_stamp(t_ns)
         msg.header.frame_id = "base_link_frd"
         return msg
 
