@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-__all__ = ["ConfigError", "merge", "load_yaml", "ConfigView", "nearest"]
+__all__ = ["ConfigError", "merge", "load_yaml", "parsed_yaml", "ConfigView", "nearest"]
 
 _MISSING = object()
 
@@ -81,6 +81,33 @@ def _nearest(key, options, path: str = "") -> str:
     return f" (did you mean {path}{near}?)" if near else f" (valid: {', '.join(map(str, options))})"
 
 
+#: Parsed files by (resolved path, modification time, size): a batch of runs reads the same few
+#: configurations thousands of times; an edited file is parsed again.
+_PARSED: dict = {}
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def parsed_yaml(path: str | Path):
+    """The YAML document in ``path``, a fresh copy: parsed once per version of the file (libyaml's loader).
+
+    Raises
+    ------
+    ConfigError
+        If the file is unreadable or not YAML.
+    """
+    path = Path(path)
+    try:
+        stat = path.stat()
+        key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+        if key not in _PARSED:
+            if len(_PARSED) > 256:
+                _PARSED.clear()
+            _PARSED[key] = yaml.load(path.read_text(), Loader=_LOADER)
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read configuration {path}: {exc}") from exc
+    return copy.deepcopy(_PARSED[key])
+
+
 def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:
     """A YAML mapping, with ``extends: <name or file>`` resolved recursively.
 
@@ -95,10 +122,7 @@ def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:
     path = Path(path)
     if path.resolve() in _seen:
         raise ConfigError(f"{path.name}: 'extends' loops back to itself")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read configuration {path}: {exc}") from exc
+    data = parsed_yaml(path)
     data = {} if data is None else data
     if not isinstance(data, dict):
         raise ConfigError(f"{path.name}: the top level must be a mapping, got {type(data).__name__}")

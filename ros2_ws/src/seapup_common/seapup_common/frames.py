@@ -10,15 +10,16 @@ forward-left-up) every conversion goes through this module:
     v_flu = F v_frd,   F = diag(1, -1, -1)
     R_enu_flu = M R_ned_frd F
 
-Quaternions are (x, y, z, w) as in ROS messages; conversions use
-``scipy.spatial.transform.Rotation``.
+Quaternions are (x, y, z, w) as in ROS messages, scalar part w >= 0: the z-y-x
+Euler rotation of eq. 2.1 as the product q_z(psi) q_y(theta) q_x(phi) of three
+axis rotations, written out here (importing ``scipy.spatial`` costs every node
+process 0.3 s); the tests check them against ``scipy.spatial.transform.Rotation``.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 __all__ = ["NED_TO_ENU", "FRD_TO_FLU", "FRAME_NED", "FRAME_FRD", "FRAME_ENU", "FRAME_FLU",
            "euler_to_quaternion", "quaternion_to_euler", "ned_to_enu", "frd_to_flu",
@@ -31,14 +32,54 @@ FRD_TO_FLU = np.diag([1.0, -1.0, -1.0])
 
 
 def euler_to_quaternion(phi: float, theta: float, psi: float) -> np.ndarray:
-    """(x, y, z, w) of the z-y-x Euler rotation (roll phi, pitch theta, yaw psi)."""
-    return Rotation.from_euler("ZYX", [psi, theta, phi]).as_quat()
+    """(x, y, z, w) of the z-y-x Euler rotation (roll phi, pitch theta, yaw psi) of eq. 2.1."""
+    cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
+    ct, st = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    cp, sp = math.cos(0.5 * psi), math.sin(0.5 * psi)
+    q = np.array([sf * ct * cp - cf * st * sp,
+                  cf * st * cp + sf * ct * sp,
+                  cf * ct * sp - sf * st * cp,
+                  cf * ct * cp + sf * st * sp])
+    return _canonical(q)
 
 
 def quaternion_to_euler(q) -> np.ndarray:
-    """(phi, theta, psi) of a quaternion (x, y, z, w), z-y-x convention."""
-    psi, theta, phi = Rotation.from_quat(q).as_euler("ZYX")
+    """(phi, theta, psi) of a quaternion (x, y, z, w), z-y-x convention (normalised first).
+
+    At pitch +-90 deg (gimbal lock) the roll is taken as 0 and the yaw carries the rotation about the vertical.
+    """
+    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
+    sin_theta = 2.0 * (w * y - x * z)
+    if abs(sin_theta) >= 1.0 - 1e-12:
+        theta = math.copysign(0.5 * math.pi, sin_theta)
+        psi = -2.0 * math.copysign(1.0, sin_theta) * math.atan2(x, w)
+        return np.array([0.0, theta, float(wrap_angle(psi))])
+    phi = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    theta = math.asin(sin_theta)
+    psi = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return np.array([phi, theta, psi])
+
+
+def _product(a, b) -> np.ndarray:
+    """Hamilton product a b of quaternions (x, y, z, w): rotate by b, then by a."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz])
+
+
+def _canonical(q) -> np.ndarray:
+    """The unit quaternion with w >= 0 (q and -q are the same rotation)."""
+    q = np.asarray(q, float) / np.linalg.norm(q)
+    return -q if q[3] < 0.0 or (q[3] == 0.0 and q[np.flatnonzero(q)[0]] < 0.0) else q
+
+
+#: NED_TO_ENU (a half turn about the horizontal axis between north and east) and FRD_TO_FLU (a half turn about
+#: x) as quaternions.
+_Q_NED_TO_ENU = np.array([math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0])
+_Q_FRD_TO_FLU = np.array([1.0, 0.0, 0.0, 0.0])
 
 
 def ned_to_enu(v) -> np.ndarray:
@@ -52,9 +93,8 @@ def frd_to_flu(v) -> np.ndarray:
 
 
 def orientation_ned_frd_to_enu_flu(q_ned_frd) -> np.ndarray:
-    """Quaternion of base_link (FLU) in odom (ENU) from that of FRD in NED."""
-    r = Rotation.from_matrix(NED_TO_ENU @ Rotation.from_quat(q_ned_frd).as_matrix() @ FRD_TO_FLU)
-    return r.as_quat()
+    """Quaternion of base_link (FLU) in odom (ENU) from that of FRD in NED: R_enu_flu = M R_ned_frd F."""
+    return _canonical(_product(_product(_Q_NED_TO_ENU, np.asarray(q_ned_frd, float)), _Q_FRD_TO_FLU))
 
 
 def covariance6_to_enu_flu(cov, world_first: bool) -> np.ndarray:

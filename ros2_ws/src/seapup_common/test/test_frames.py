@@ -20,6 +20,31 @@ def test_quaternion_is_the_vehicle_rotation_matrix():
         np.testing.assert_allclose(quaternion_to_euler(q), [phi, theta, psi], atol=1e-12)
 
 
+def test_the_hand_written_quaternions_agree_with_scipy_everywhere():
+    """The conversions are written out (no scipy.spatial import in every node): scipy's Rotation is the
+    oracle over the whole sphere, at gimbal lock and for unnormalised quaternions of either sign."""
+    rng = np.random.default_rng(1)
+    for _ in range(500):
+        euler = rng.uniform([-math.pi, -math.pi / 2, -math.pi], [math.pi, math.pi / 2, math.pi])
+        q = euler_to_quaternion(*euler)
+        assert q[3] >= 0.0 and np.linalg.norm(q) == pytest.approx(1.0)
+        np.testing.assert_allclose(Rotation.from_quat(q).as_matrix(),
+                                   Rotation.from_euler("ZYX", euler[::-1]).as_matrix(), atol=1e-12)
+        raw = rng.normal(size=4) * rng.uniform(0.1, 10.0)
+        back = quaternion_to_euler(raw)
+        np.testing.assert_allclose(Rotation.from_euler("ZYX", back[::-1]).as_matrix(),
+                                   Rotation.from_quat(raw).as_matrix(), atol=1e-9)
+        np.testing.assert_allclose(Rotation.from_quat(orientation_ned_frd_to_enu_flu(raw)).as_matrix(),
+                                   np.diag([1.0, 1.0, -1.0])[[1, 0, 2]] @ Rotation.from_quat(raw).as_matrix()
+                                   @ np.diag([1.0, -1.0, -1.0]), atol=1e-12)
+    for theta in (math.pi / 2, -math.pi / 2):       # gimbal lock: roll and yaw share one axis
+        for phi, psi in ((0.0, 0.3), (0.5, -2.0), (-1.0, 3.0)):
+            back = quaternion_to_euler(euler_to_quaternion(phi, theta, psi))
+            assert back[0] == 0.0 and back[1] == pytest.approx(theta)
+            np.testing.assert_allclose(Rotation.from_euler("ZYX", back[::-1]).as_matrix(),
+                                       rotation_body_to_ned(phi, theta, psi), atol=1e-9)
+
+
 def test_known_poses():
     # facing north in NED is yaw +90 deg in ENU (x east, y north)
     q = orientation_ned_frd_to_enu_flu(euler_to_quaternion(0.0, 0.0, 0.0))

@@ -17,9 +17,9 @@ the case's sensors (noise-free unless it says), measured by the
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import Path
 
-import yaml
-
+from seapup_common.config import parsed_yaml
 from seapup_common.controllers import ControllerSpec
 from seapup_runs.spec import ReferenceSteps, RunEvent, RunSpec, RunSpecError, SelfTestDesign
 
@@ -32,7 +32,7 @@ CASE_KEYS = ("duration", "reference", "current", "controller_on", "schedule", "s
 
 def scenarios() -> dict:
     """The case definitions, by name."""
-    cases = yaml.safe_load(resources.files("seapup_runs").joinpath("data/scenarios.yaml").read_text())
+    cases = parsed_yaml(Path(str(resources.files("seapup_runs").joinpath("data/scenarios.yaml"))))
     for name, case in cases.items():
         unknown = sorted(set(case) - set(CASE_KEYS))
         if unknown:

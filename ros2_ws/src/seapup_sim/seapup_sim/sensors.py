@@ -34,8 +34,8 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from seapup_common.config import parsed_yaml
 from seapup_common.contract import Measurement
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
@@ -53,7 +53,7 @@ def _profiles_file() -> Path:
 
 def sensor_profiles() -> list[str]:
     """Names of the profiles in ``sensors.yaml``."""
-    return sorted(yaml.safe_load(_profiles_file().read_text()))
+    return sorted(parsed_yaml(_profiles_file()))
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ class SensorProfile:
 
 def load_sensor_profile(name: str) -> SensorProfile:
     """A profile from ``sensors.yaml`` by name."""
-    profiles = yaml.safe_load(_profiles_file().read_text())
+    profiles = parsed_yaml(_profiles_file())
     if name not in profiles:
         raise ValueError(f"no sensor profile {str(name)[:80]!r} (available: {', '.join(sorted(profiles))})")
     p = profiles[name] or {}

@@ -50,8 +50,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.integrate
-import scipy.optimize
 
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
@@ -142,6 +140,8 @@ def _residual(c0: float, lam: float, a: float, b: float):
 
 def _initial_guess(a: float, b: float) -> tuple[float, float]:
     """Symmetric solution (chord normal to the flow): 2 asinh(lam/2) = lam b."""
+    import scipy.optimize  # here, not at the top: scipy.optimize costs every simulator start 0.2 s
+
     f = lambda lam: 2 * math.asinh(lam / 2) - lam * b  # noqa: E731
     hi = 1.0
     while f(hi) > 0 and hi < 1e6:
@@ -221,6 +221,9 @@ def solve_numeric(vehicle_ned, ship_ned, length: float, flow_ned, params: Umbili
     r(L) = ship; unknown F(0), the force on the vehicle. Returns
     (force_on_vehicle, s, r(s), F(s)). Slow; for checks and plots.
     """
+    import scipy.integrate
+    import scipy.optimize
+
     start = np.asarray(vehicle_ned, float)
     end = np.asarray(ship_ned, float)
     flow = np.asarray(flow_ned, float)
