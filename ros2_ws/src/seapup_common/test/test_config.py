@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from seapup_common.config import ConfigError, ConfigView, load_yaml, merge
+from seapup_common.config import ConfigError, ConfigView, load_yaml, merge, parsed_yaml
 
 
 def test_merge_is_deep_and_copies():
@@ -79,3 +79,22 @@ def test_a_strict_merge_names_an_unknown_key_its_path_and_the_nearest_valid_one(
     with pytest.raises(ConfigError, match=r"unknown key zzz \(valid: current, sensors\)"):
         merge(base, {"zzz": 1}, strict="x.yaml")
     assert merge(base, {"zzz": 1})["zzz"] == 1  # not strict: carried along
+
+
+def test_a_parsed_file_is_read_once_per_version_and_handed_out_as_a_copy(tmp_path):
+    """parsed_yaml caches by (path, mtime, size): a caller mutating its copy changes nothing for the next,
+    and an edited file is parsed again."""
+    import os
+    f = tmp_path / "a.yaml"
+    f.write_text("k: [1, 2]\n")
+    first = parsed_yaml(f)
+    first["k"].append(3)
+    assert parsed_yaml(f) == {"k": [1, 2]}
+    f.write_text("k: [1, 2, 3, 4]\n")
+    os.utime(f, ns=(f.stat().st_atime_ns, f.stat().st_mtime_ns + 1_000_000))
+    assert parsed_yaml(f) == {"k": [1, 2, 3, 4]}
+    f.write_text("k: [\n")
+    with pytest.raises(ConfigError, match="cannot read configuration"):
+        parsed_yaml(f)
+    with pytest.raises(ConfigError, match="cannot read configuration"):
+        parsed_yaml(tmp_path / "missing.yaml")
