@@ -210,12 +210,58 @@ def load_document(path: str | Path | None = None) -> dict:
     return doc
 
 
+def _text_fields(value, allowed: set) -> bool:
+    return (isinstance(value, dict) and set(value) == allowed
+            and all(isinstance(v, str) and v.strip() for v in value.values()))
+
+
+def _check_deviation(entry: dict, where: str) -> None:
+    """A deviation is {decision, reason, doc} for the whole target; a matrix or vector target may instead
+    list several, each naming the ``entries`` ("i,j") it explains, no entry twice."""
+    deviation = entry["deviation"]
+    needs = f"deviation needs exactly {', '.join(sorted(_DEVIATION_KEYS))} (each a line of text)"
+    if isinstance(deviation, dict) and "entries" not in deviation:
+        if not _text_fields(deviation, _DEVIATION_KEYS):
+            _fail(where, needs)
+        return
+    if not isinstance(entry["value"], list):
+        _fail(where, "a deviation's entries are for a matrix or vector value")
+    shape = np.shape(entry["value"])
+    valid = {",".join(str(i) for i in index) for index in np.ndindex(shape)}
+    seen = set()
+    for part in deviation if isinstance(deviation, list) else [deviation]:
+        if not isinstance(part, dict) or not _text_fields({k: v for k, v in part.items() if k != "entries"},
+                                                          _DEVIATION_KEYS):
+            _fail(where, needs + ", and entries")
+        entries = part.get("entries")
+        if not isinstance(entries, list) or not entries:
+            _fail(where, "a deviation of part of a matrix lists its entries, e.g. entries: [\"2,3\"]")
+        for key in entries:
+            key = str(key).replace(" ", "")
+            if key not in valid:
+                _fail(where, f"deviation entry {key!r} is not an index of the {'x'.join(map(str, shape))} value")
+            if key in seen:
+                _fail(where, f"deviation entry {key!r} is explained twice")
+            seen.add(key)
+
+
+def _deviation_of(entry: dict, suffix: str) -> dict:
+    """The deviation that explains one entry of a matrix/vector target (``suffix`` "i,j"), or none."""
+    deviation = entry.get("deviation") or {}
+    if isinstance(deviation, dict) and "entries" not in deviation:
+        return dict(deviation)
+    for part in deviation if isinstance(deviation, list) else [deviation]:
+        if suffix in {str(k).replace(" ", "") for k in part["entries"]}:
+            return {k: v for k, v in part.items() if k != "entries"}
+    return {}
+
+
 def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
     """A scalar target, or one per entry of a vector or matrix value (abs_row: a band per matrix row)."""
     value = entry["value"]
     base = dict(chapter=str(entry["chapter"]), where=str(entry["where"]), unit=str(entry["unit"]),
                 run=str(entry["run"]), primary=bool(entry.get("primary", True)),
-                deviation=dict(entry.get("deviation") or {}), typo=dict(entry.get("typo") or {}),
+                deviation=_deviation_of(entry, ""), typo=dict(entry.get("typo") or {}),
                 versus=dict(entry.get("versus") or {}))
     if not isinstance(value, list):
         if spec.get("abs_row") is not None:
@@ -236,7 +282,8 @@ def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
         suffix = ",".join(str(i) for i in index)
         out.append(Target(id=f"{entry['id']}[{suffix}]", quantity=f"{entry['quantity']} [{suffix}]",
                           value=float(array[index]), tolerance=tol,
-                          metric=".".join([str(entry["metric"]), *(str(i) for i in index)]), **base))
+                          metric=".".join([str(entry["metric"]), *(str(i) for i in index)]),
+                          **{**base, "deviation": _deviation_of(entry, suffix)}))
     return out
 
 
@@ -300,10 +347,10 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
             _fail(where, f"value must be a number, true/false or a list, got {entry['value']!r}")
         if not isinstance(entry["metric"], str) or not entry["metric"]:
             _fail(where, "metric must be a dotted path")
-        for key, allowed in (("deviation", _DEVIATION_KEYS), ("typo", _TYPO_KEYS)):
-            if key in entry and (not isinstance(entry[key], dict) or set(entry[key]) != allowed
-                                 or not all(isinstance(v, str) and v.strip() for v in entry[key].values())):
-                _fail(where, f"{key} needs exactly {', '.join(sorted(allowed))} (each a line of text)")
+        if "typo" in entry and not _text_fields(entry["typo"], _TYPO_KEYS):
+            _fail(where, f"typo needs exactly {', '.join(sorted(_TYPO_KEYS))} (each a line of text)")
+        if "deviation" in entry:
+            _check_deviation(entry, where)
         if "versus" in entry:
             _check_versus(entry, runs, where)
         spec = entry["tolerance"] if isinstance(entry["tolerance"], dict) else raw_tolerances.get(entry["tolerance"], {})

@@ -91,6 +91,38 @@ def test_the_matrices_are_the_thesis_s_but_for_documented_typos(target_id):
     assert typo or not differs   # a typo note may also say where two printings disagree (eq. 5.3a)
 
 
+_COLUMNS = [("ch5.eq5_3a.B0inv", "ch5.table5_1.artificial.B0inv", "ch5.table5_1.realistic.B0inv"),
+            ("ch5.eq5_3b.B1inv", "ch5.table5_1.artificial.B1inv", "ch5.table5_1.realistic.B1inv"),
+            ("ch5.eq5_7a.B0inv", "ch5.table5_2.artificial.B0inv", "ch5.table5_2.realistic.B0inv"),
+            ("ch5.eq5_7b.B1inv", "ch5.table5_2.artificial.B1inv", "ch5.table5_2.realistic.B1inv")]
+
+
+@pytest.mark.unit
+def test_the_self_test_tables_deviations_say_what_the_thesis_s_own_numbers_show():
+    """Issue 25: the register's claims about Tables 5.1-5.2 are checked against the thesis's numbers alone:
+    an entry explained by "the columns disagree" has another column of the same index outside its band; one
+    explained as a small coupling is under a quarter of its row's largest entry."""
+    targets = {t.id: t for t in tg.load_targets()}
+    checked = set()
+    for columns in _COLUMNS:
+        for name in columns:
+            for i in range(4):
+                for j in range(4):
+                    t = targets[f"{name}[{i},{j}]"]
+                    doc = t.deviation.get("doc", "")
+                    if doc.endswith("#self-test-columns"):
+                        low, high = t.tolerance.bounds(t.value)
+                        others = [targets[f"{m}[{i},{j}]"].value for m in columns if m != name]
+                        assert any(not low <= v <= high for v in others), (t.id, t.value, others)
+                    elif doc.endswith("#self-test-couplings"):
+                        row = max(abs(targets[f"{name}[{i},{k}]"].value) for k in range(4))
+                        assert abs(t.value) < 0.25 * row, (t.id, t.value, row)
+                    else:
+                        continue
+                    checked.add(doc.rsplit("#", 1)[1])
+    assert checked == {"self-test-columns", "self-test-couplings"}
+
+
 @pytest.mark.unit
 @pytest.mark.parametrize("change, message", [
     ({"unit": "furlongs"}, "unknown unit"),
@@ -131,6 +163,39 @@ def test_a_matrix_expands_into_one_target_per_entry_with_its_row_scale(tmp_path)
     assert expanded["x[0,0]"].tolerance.bounds(2.0) == (1.0, 3.0)                 # 50 % beats 0.2
     assert expanded["x[0,1]"].tolerance.bounds(0.01) == pytest.approx((-0.19, 0.21))  # a tenth of row 0's 2.0
     assert expanded["x[1,1]"].tolerance.bounds(0.0) == pytest.approx((-0.05, 0.05))   # a tenth of row 1's 0.5
+
+
+@pytest.mark.unit
+def test_a_matrix_s_deviations_explain_the_entries_they_name_and_only_those(tmp_path):
+    why = {"decision": "d", "reason": "r", "doc": "docs/decisions.md#x"}
+    doc = _doc(value=[[2.0, 0.01], [-0.5, 0.0]], metric="m",
+               deviation=[{**why, "entries": ["0,1"]}, {**why, "reason": "s", "entries": ["1, 0", "1,1"]}])
+    expanded = {t.id: t for t in tg.load_targets(_write(tmp_path, doc))}
+    assert expanded["x[0,0]"].deviation == {}
+    assert expanded["x[0,1]"].deviation == why
+    assert expanded["x[1,0]"].deviation["reason"] == expanded["x[1,1]"].deviation["reason"] == "s"
+    scores = {t.id: tg.score(t, {"m": [[9.0, 9.0], [9.0, 9.0]]}).status for t in expanded.values()}
+    assert scores == {"x[0,0]": "failed", "x[0,1]": "deviation", "x[1,0]": "deviation", "x[1,1]": "deviation"}
+    (tmp_path / "whole").mkdir()
+    whole = {t.id: t for t in tg.load_targets(_write(tmp_path / "whole", _doc(value=[1.0, 2.0], metric="m",
+                                                                              deviation=why)))}
+    assert all(t.deviation == why for t in whole.values())
+
+
+@pytest.mark.parametrize("value, deviation, message", [
+    (1.0, {"entries": ["0"]}, "entries are for a matrix"),
+    ([1.0, 2.0], {"entries": ["2"]}, "not an index"),
+    ([[1.0, 2.0]], {"entries": ["0,1", "0, 1"]}, "explained twice"),
+    ([[1.0, 2.0]], {"entries": []}, "lists its entries"),
+    ([[1.0, 2.0]], {"reason": "r", "entries": ["0,0"]}, "deviation needs"),
+])
+def test_a_malformed_entry_deviation_is_refused_with_one_line(tmp_path, value, deviation, message):
+    full = {"decision": "d", "reason": "r", "doc": "docs/decisions.md#x", **deviation}
+    if "decision" not in deviation and message == "deviation needs":
+        full = deviation
+    with pytest.raises(tg.TargetsError, match=message) as caught:
+        tg.load_targets(_write(tmp_path, _doc(value=value, metric="m", deviation=full)))
+    assert "\n" not in str(caught.value)
 
 
 # -- scoring ---------------------------------------------------------------------------------------------------
