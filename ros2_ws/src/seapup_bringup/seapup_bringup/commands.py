@@ -108,6 +108,26 @@ def check_model(argv: list[str]) -> int:
     return 1
 
 
+def _plant_step(model, backend: str, command, steps: int, cable=None) -> dict:
+    """Wall and CPU time of one physics step (dt 0.1 s) of ``model`` stepped by ``backend``, after 50
+    warm-up steps (which also load the compiled kernels); with ``cable`` the umbilical's wrench is solved
+    every step (sec. 3.8) from 100 m depth."""
+    x0 = np.zeros(12)
+    x0[2] = 100.0 if cable is not None else 0.0
+    plant = VehicleIntegrator(model, dt=0.1, state=x0, backend=backend)
+
+    def step():
+        plant.step(command, external=cable.wrench(plant.state) if cable is not None else None)
+    for _ in range(50):
+        step()
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        step()
+    wall, cpu = (time.perf_counter() - wall) / steps, (time.process_time() - cpu) / steps
+    return {"backend": plant.backend if plant.compiled or backend == "numpy" else "numpy", "step_us": wall * 1e6,
+            "cpu_us": cpu * 1e6, "rtf": 0.1 / wall, "steps": steps}
+
+
 def bench(argv: list[str]) -> int:
     """``./seapup bench``: speed of the model, the umbilical, verify and the ROS graph."""
     parser = _parser("bench", "benchmarks")
@@ -119,30 +139,18 @@ def bench(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     out_text = text_stream(args)
     model = _model(args.config)
-    integrator = VehicleIntegrator(model, dt=0.1)
-    cmd = np.radians([20.0, 20.0, -10.0, -10.0])
-    for _ in range(50):
-        integrator.step(cmd)
     n = args.steps
-    t0 = time.perf_counter()
-    for _ in range(n):
-        integrator.step(cmd)
-    per_step = (time.perf_counter() - t0) / n
-    out = {"model": {"step_us": per_step * 1e6, "rtf": 0.1 / per_step, "dt": 0.1,
-                     "steps": n, "config": model.config_name}}
+    cmd = np.radians([20.0, 20.0, -10.0, -10.0])
+    # the plant step: compiled kernels (the default) and the NumPy reference, in this run
+    out = {"model": {**_plant_step(model, "compiled", cmd, n), "dt": 0.1, "steps": n, "config": model.config_name}}
+    out["model_numpy"] = _plant_step(model, "numpy", cmd, max(300, n // 10))
+    out["model"]["speedup_vs_numpy"] = out["model_numpy"]["cpu_us"] / out["model"]["cpu_us"]
+    per_step = out["model"]["step_us"] * 1e-6
     # the same step with the quasi-static umbilical solved every step (sec. 3.8)
-    x0 = np.zeros(12)
-    x0[2] = 100.0
     cable = load_environment(rho=model.rho).umbilical.build()
-    integrator = VehicleIntegrator(model, dt=0.1, state=x0)
-    for _ in range(50):
-        integrator.step(cmd, external=cable.wrench(integrator.state))
-    t0 = time.perf_counter()
-    for _ in range(n):
-        integrator.step(cmd, external=cable.wrench(integrator.state))
-    per_cable = (time.perf_counter() - t0) / n
-    out["model_umbilical"] = {"step_us": per_cable * 1e6, "rtf": 0.1 / per_cable,
-                              "extra_percent": 100.0 * (per_cable / per_step - 1.0)}
+    out["model_umbilical"] = _plant_step(model, "compiled", cmd, n, cable)
+    per_cable = out["model_umbilical"]["step_us"] * 1e-6
+    out["model_umbilical"]["extra_percent"] = 100.0 * (per_cable / per_step - 1.0)
     t0 = time.perf_counter()
     run_verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
@@ -186,7 +194,10 @@ def bench(argv: list[str]) -> int:
                   f"{r['sim_s']:.0f} s simulated) in {r['wall_s']:.0f} s; recorder RSS {r['rss_mb_start']:.1f} MB "
                   f"at start, {r['rss_mb_after_1min']:.1f} after 1 min, {r['rss_mb_end']:.1f} at the end "
                   f"(max {r['rss_mb_max']:.1f}); slope {r['rss_slope_mb_per_min']:+.3f} MB/min", file=out_text)
-    print(f"model: {per_step * 1e6:.1f} us per RK4 step (dt 0.1 s) = {0.1 / per_step:.0f}x real time", file=out_text)
+    m, ref = out["model"], out["model_numpy"]
+    print(f"model: {m['step_us']:.1f} us per RK4 step (dt 0.1 s; {m['cpu_us']:.1f} us CPU) = {m['rtf']:.0f}x real time, "
+          f"compiled; the NumPy reference {ref['step_us']:.0f} us ({ref['cpu_us']:.0f} us CPU) = {ref['rtf']:.0f}x: "
+          f"{m['speedup_vs_numpy']:.0f} times faster in CPU time", file=out_text)
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)
     print(f"verify: {out['verify']['seconds']:.2f} s", file=out_text)

@@ -14,20 +14,40 @@ the same, with two additions:
 - a state that becomes non-finite, or leaves the envelope in which the
   equations are valid, is never stored: :class:`DivergenceError` names the
   state variable, its value and the time.
+
+The step is taken by compiled kernels (:mod:`seapup_sim.compiled`) when numba
+is available and the model is a plain :class:`VehicleModel`; the NumPy code of
+:meth:`VehicleModel.derivatives` and :func:`rk4_step` is the reference they
+are tested against, and the path of any model that overrides ``derivatives``
+(the linearised model) or of ``backend="numpy"`` / ``SEAPUP_PLANT=numpy``.
 """
 from __future__ import annotations
+
+import importlib.util
+import os
 
 import numpy as np
 
 from seapup_common.blade_pitch import check_blade_pitch
 from seapup_sim.vehicle import STATE_NAMES, VehicleModel
 
-__all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE"]
+__all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE", "BACKENDS", "default_backend"]
+
+#: How a step is taken: numba kernels or the NumPy reference.
+BACKENDS = ("compiled", "numpy")
 
 #: Largest magnitudes accepted for each state (the Euler kinematics are
 #: singular at theta = 90 deg; speeds beyond these mean a diverged model).
 ENVELOPE = np.array([1e5, 1e5, 1e4, np.inf, np.radians(85.0), np.inf,
                      20.0, 20.0, 20.0, 20.0, 20.0, 20.0])
+
+
+def default_backend() -> str:
+    """``compiled`` unless ``SEAPUP_PLANT=numpy`` asks for the reference or numba is not installed."""
+    choice = os.environ.get("SEAPUP_PLANT", "").strip().lower() or "compiled"
+    if choice not in BACKENDS:
+        raise ValueError(f"SEAPUP_PLANT must be one of {', '.join(BACKENDS)}, got {choice!r}")
+    return "compiled" if choice == "compiled" and importlib.util.find_spec("numba") is not None else "numpy"
 
 
 class DivergenceError(FloatingPointError):
@@ -55,11 +75,19 @@ class VehicleIntegrator:
         Initial state (default: at rest at the origin).
     pitch : array (4,), optional
         Initial applied blade pitches [rad] (default zero).
+    backend : {"compiled", "numpy"}, optional
+        How steps are taken (default :func:`default_backend`); a model that
+        overrides ``derivatives`` always steps with the NumPy reference.
     """
 
-    def __init__(self, model: VehicleModel, dt: float = 0.1, state=None, pitch=None):
+    def __init__(self, model: VehicleModel, dt: float = 0.1, state=None, pitch=None, backend: str | None = None):
         if not (np.isfinite(dt) and 0.0 < dt <= 1.0):
             raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
+        backend = default_backend() if backend is None else backend
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+        self.backend = backend
+        self._packed = (None, None)  # (the model's parts it was packed from, the packed arrays)
         self.model = model
         self.dt = float(dt)
         self.steps = 0  # time is steps * dt: no drift from repeated addition
@@ -88,9 +116,31 @@ class VehicleIntegrator:
                 f"{'not finite' if not np.isfinite(state[i]) else 'outside the valid envelope'} "
                 f"(|{STATE_NAMES[i]}| <= {ENVELOPE[i]:.4g}); the state was not updated")
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the next step runs the compiled kernels."""
+        return self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
+
+    def _compiled_arrays(self):
+        """The model packed for the kernels, re-packed when it was reconfigured (configure() rebuilds
+        its parts; the thrusters' efficiency is read at every step)."""
+        model = self.model
+        parts = (model.m_rigid, model.m_added, model.m_inv, model.hydro, model.thrusters, model.weight,
+                 model.buoyancy, model._hydrostatic_arm)
+        if self._packed[0] is None or any(a is not b for a, b in zip(parts, self._packed[0])):
+            from seapup_sim import compiled
+            self._packed = (parts, compiled.pack(model))
+        return self._packed[1]
+
     def step(self, command, current_ned=None, external=None) -> np.ndarray:
         """Advance one step with ``command`` [rad] held; return the new state (copy)."""
         command, _ = check_blade_pitch(command, self.model.pitch_limit)
+        if self.compiled:
+            from seapup_sim import compiled
+            new, pitch = compiled.rk4_step(self._compiled_arrays(), self.model.thrusters.efficiency, self.state,
+                                           self.pitch, command, self.model.actuator_time_constant, self.dt,
+                                           current_ned, external, self.thrusters_on)
+            return self._accept(new, pitch)
         t0 = self.t
         model, on = self.model, self.thrusters_on
         # the lagged pitch at rk4_step's three distinct stage times (computed the
@@ -102,11 +152,13 @@ class VehicleIntegrator:
         def f(t, x):
             return model.derivatives(x, stage_pitch[t], current_ned, external, on)
 
-        new = rk4_step(f, t0, self.state, self.dt)
-        self._check(new, t0 + self.dt)
+        return self._accept(rk4_step(f, t0, self.state, self.dt), stage_pitch[t0 + dt])
+
+    def _accept(self, new: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+        self._check(new, self.t + self.dt)
         new[3] = (new[3] + np.pi) % (2 * np.pi) - np.pi  # roll and yaw wrap to [-pi, pi)
         new[5] = (new[5] + np.pi) % (2 * np.pi) - np.pi
-        self.pitch = stage_pitch[t0 + dt]
+        self.pitch = pitch
         self.state = new
         self.steps += 1
         return new.copy()

@@ -1,0 +1,272 @@
+"""The vehicle's physics step compiled with numba: the same equations as the NumPy reference.
+
+:class:`~seapup_sim.vehicle.VehicleModel` and :class:`~seapup_sim.integrator.VehicleIntegrator`
+stay the reference implementation (and the only one a model that overrides ``derivatives`` -- the
+linearised model of eq. 3.2 -- ever uses). This module evaluates the same right-hand side (eq.
+2.1-2.3: rigid-body and added-mass Coriolis in Kirchhoff form, the hydrodynamic derivative table of
+sec. 2.3.3, the hydrostatics of sec. 2.3.2, the thrusters' K_T(J, beta) of eq. 2.18 with the momentum
+drag of eq. 2.19) and the same fourth-order Runge-Kutta step with the exactly solved blade-pitch lag,
+as compiled kernels on arrays packed from the model (:func:`pack`). Both are tested equal to 1e-12 on
+random states, inputs and every shipped configuration (``test/test_compiled.py``).
+
+Decisions:
+
+- one kernel call is one physics step. The control period's other work between physics steps -- the
+  current's Gauss-Markov update (eq. 2.29), the umbilical's wrench, configuration events -- stays in
+  :class:`~seapup_sim.simulation.Simulation`, so the single-vehicle path keeps one implementation of
+  them; the batch plant advances whole control periods of many vehicles in one call (issue 26).
+- no ``fastmath``: the operations happen in the reference's order, so the two agree to rounding and
+  the mirror symmetries of the model (sway to port and starboard) hold exactly as before.
+- kernels are compiled once per machine (``cache=True``: numba's cache beside this file, or its
+  user-wide cache where that is read-only). The integrator imports this module (and so numba) on its
+  first step, so a process that never steps a plant does not pay for it.
+- ``SEAPUP_PLANT=numpy`` in the environment selects the reference everywhere (as does the absence of
+  numba), for comparisons and for debugging with Python tracebacks inside the equations
+  (:func:`seapup_sim.integrator.default_backend`).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+__all__ = ["Packed", "pack", "derivatives", "rk4_step"]
+
+_JIT = dict(cache=True, nogil=True)
+
+
+class Packed(NamedTuple):
+    """A vehicle configuration as the kernels read it (everything but the thrusters' efficiency,
+    which events change while a run goes on and is passed at each call)."""
+
+    masses: np.ndarray       # (3, 6, 6): rigid-body, added, inverse of the total
+    h_axis: np.ndarray       # (n,) int64: each hydrodynamic term's axis
+    h_coef: np.ndarray       # (n,): its coefficient
+    h_signed: np.ndarray     # (n, w) int64: indices of its signed factors (6: the constant 1)
+    h_absolute: np.ndarray   # (n, w) int64: indices of its |.| factors
+    point_map: np.ndarray    # (12, 6): velocity of each thruster centre from nu
+    directions: np.ndarray   # (4, 3): unit thrust axes
+    matrix: np.ndarray       # (6, 4): installed c * G
+    force_map: np.ndarray    # (6, 12): wrench of forces at the thruster centres
+    scalars: np.ndarray      # k_beta, beta_0, rho n^2 D^4, k_j/(n D), momentum-drag scale, epsilon,
+                             # W - B, and the hydrostatic arm W r_G - B r_B (3)
+
+
+def pack(model) -> Packed:
+    """The arrays of ``model`` (a :class:`~seapup_sim.vehicle.VehicleModel`) the kernels need."""
+    th, hydro = model.thrusters, model.hydro
+    width = hydro._signed.shape[1] if len(hydro.terms) else 1
+    n = len(hydro.terms)
+    return Packed(
+        masses=np.ascontiguousarray(np.stack([model.m_rigid, model.m_added, model.m_inv]), dtype=np.float64),
+        h_axis=np.ascontiguousarray(hydro._axis if n else np.zeros(0), dtype=np.int64),
+        h_coef=np.ascontiguousarray(hydro._coef if n else np.zeros(0), dtype=np.float64),
+        h_signed=np.ascontiguousarray(hydro._signed if n else np.zeros((0, width)), dtype=np.int64),
+        h_absolute=np.ascontiguousarray(hydro._absolute if n else np.zeros((0, width)), dtype=np.int64),
+        point_map=np.ascontiguousarray(th._point_map, dtype=np.float64),
+        directions=np.ascontiguousarray(th.directions, dtype=np.float64),
+        matrix=np.ascontiguousarray(th.matrix, dtype=np.float64),
+        force_map=np.ascontiguousarray(th._force_map, dtype=np.float64),
+        scalars=np.array([th.k_beta, th.zero_thrust_pitch, th._thrust_scale,
+                          th.k_j / (th.shaft_speed * th.diameter), th._md_scale, th.momentum_drag_epsilon,
+                          model.weight - model.buoyancy, *model._hydrostatic_arm], dtype=np.float64))
+
+
+
+@njit(**_JIT)
+def matvec(a, x, out):
+    for i in range(a.shape[0]):
+        s = 0.0
+        for j in range(a.shape[1]):
+            s += a[i, j] * x[j]
+        out[i] = s
+
+
+@njit(**_JIT)
+def kirchhoff(mass, nu, out):
+    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis)."""
+    m = np.empty(6)
+    matvec(mass, nu, m)
+    a, b, c, d, e, f = m[0], m[1], m[2], m[3], m[4], m[5]
+    u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
+    out[0] = -(q * c - r * b)
+    out[1] = -(r * a - p * c)
+    out[2] = -(p * b - q * a)
+    out[3] = -(q * f - r * e) - (v * c - w * b)
+    out[4] = -(r * d - p * f) - (w * a - u * c)
+    out[5] = -(p * e - q * d) - (u * b - v * a)
+
+
+@njit(**_JIT)
+def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency,
+        masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map, scalars,
+        out):
+    """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term."""
+    phi, theta, psi = x[3], x[4], x[5]
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    rot = np.empty((3, 3))
+    rot[0, 0] = cp * ct
+    rot[0, 1] = cp * st * sf - sp * cf
+    rot[0, 2] = cp * st * cf + sp * sf
+    rot[1, 0] = sp * ct
+    rot[1, 1] = sp * st * sf + cp * cf
+    rot[1, 2] = sp * st * cf - cp * sf
+    rot[2, 0] = -st
+    rot[2, 1] = ct * sf
+    rot[2, 2] = ct * cf
+    nu = x[6:12]
+    nu_r = nu.copy()
+    if use_current:
+        for i in range(3):
+            s = 0.0
+            for j in range(3):
+                s += rot[j, i] * current[j]
+            nu_r[i] -= s
+    rigid = np.empty(6)
+    kirchhoff(masses[0], nu, rigid)
+    added = np.empty(6)
+    kirchhoff(masses[1], nu_r, added)
+    hydro = np.zeros(6)
+    ext = np.empty(7)
+    ext[:6] = nu_r
+    ext[6] = 1.0
+    for k in range(h_coef.shape[0]):
+        signed = 1.0
+        for i in range(h_signed.shape[1]):
+            signed *= ext[h_signed[k, i]]
+        absolute = 1.0
+        for i in range(h_absolute.shape[1]):
+            absolute *= abs(ext[h_absolute[k, i]])
+        hydro[h_axis[k]] += h_coef[k] * signed * absolute
+    dx, dy, dz = rot[2, 0], rot[2, 1], rot[2, 2]
+    net, ax, ay, az = scalars[6], scalars[7], scalars[8], scalars[9]
+    static = np.empty(6)
+    static[0] = net * dx
+    static[1] = net * dy
+    static[2] = net * dz
+    static[3] = ay * dz - az * dy
+    static[4] = az * dx - ax * dz
+    static[5] = ax * dy - ay * dx
+    tau = np.empty(6)
+    for i in range(6):
+        tau[i] = rigid[i] + added[i] + hydro[i] + static[i]
+    if thrusters_on:
+        k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (scalars[0], scalars[1], scalars[2], scalars[3],
+                                                            scalars[4], scalars[5])
+        vel = np.empty(12)
+        matvec(point_map, nu_r, vel)
+        thrust = np.empty(4)
+        drag = np.empty(12)
+        for j in range(4):
+            v_axial = (vel[3 * j] * directions[j, 0] + vel[3 * j + 1] * directions[j, 1]) \
+                + vel[3 * j + 2] * directions[j, 2]
+            bollard = k_beta * (pitch[j] - beta0)
+            thrust[j] = efficiency[j] * (thrust_scale * (bollard - kj_nd * v_axial))
+            k0 = math.sqrt(bollard * bollard + eps ** 2)
+            scale = -md_scale * math.sqrt(k0 / math.pi)
+            for i in range(3):
+                drag[3 * j + i] = scale * (vel[3 * j + i] - v_axial * directions[j, i])
+        wrench = np.empty(6)
+        matvec(matrix, thrust, wrench)
+        moment = np.empty(6)
+        matvec(force_map, drag, moment)
+        for i in range(6):
+            tau[i] += wrench[i] + moment[i]
+    if use_external:
+        for i in range(6):
+            tau[i] += external[i]
+    matvec(rot, nu[:3], out[:3])
+    tt = math.tan(theta)
+    p, q, r = nu[3], nu[4], nu[5]
+    out[3] = (p + sf * tt * q) + cf * tt * r
+    out[4] = (0.0 * p + cf * q) + (-sf) * r
+    out[5] = (0.0 * p + sf / ct * q) + cf / ct * r
+    accel = np.empty(6)
+    matvec(masses[2], tau, accel)
+    out[6:] = accel
+
+
+@njit(**_JIT)
+def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+        efficiency, masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map,
+        scalars, new, pitch_end):
+    """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and
+    ``pitch_end`` (the envelope check and the angle wrap stay with the caller)."""
+    p0 = np.empty(4)
+    ph = np.empty(4)
+    p1 = np.empty(4)
+    for j in range(4):
+        if tau_actuator <= 0.0:
+            p0[j] = command[j]
+            ph[j] = command[j]
+            p1[j] = command[j]
+        else:
+            gap = pitch0[j] - command[j]
+            p0[j] = command[j] + gap * math.exp(-0.0 / tau_actuator)
+            ph[j] = command[j] + gap * math.exp(-(0.5 * dt) / tau_actuator)
+            p1[j] = command[j] + gap * math.exp(-dt / tau_actuator)
+    args = (current, use_current, external, use_external, thrusters_on, efficiency, masses, h_axis, h_coef,
+            h_signed, h_absolute, point_map, directions, matrix, force_map, scalars)
+    k1 = np.empty(12)
+    k2 = np.empty(12)
+    k3 = np.empty(12)
+    k4 = np.empty(12)
+    half = 0.5 * dt
+    rhs(x, p0, *args, k1)
+    rhs(x + half * k1, ph, *args, k2)
+    rhs(x + half * k2, ph, *args, k3)
+    rhs(x + dt * k3, p1, *args, k4)
+    sixth = dt / 6.0
+    for i in range(12):
+        new[i] = x[i] + sixth * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + k4[i])
+    for j in range(4):
+        pitch_end[j] = p1[j]
+
+
+_NONE3 = np.zeros(3)
+_NONE6 = np.zeros(6)
+
+
+def derivatives(packed: Packed, efficiency, state, pitch, current_ned=None, external=None,
+                thrusters_on: bool = True) -> np.ndarray:
+    """x' (12,): :meth:`VehicleModel.derivatives` of the packed model, compiled."""
+    out = np.empty(12)
+    rhs(np.ascontiguousarray(state, dtype=np.float64), np.ascontiguousarray(pitch, dtype=np.float64),
+        _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
+        current_ned is not None,
+        _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
+        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out)
+    return out
+
+
+def rk4_step(packed: Packed, efficiency, state, pitch, command, tau_actuator: float, dt: float,
+             current_ned=None, external=None, thrusters_on: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """One physics step (:meth:`VehicleIntegrator.step` before its checks): the new state and the
+    applied blade pitches at its end."""
+    new, pitch_end = np.empty(12), np.empty(4)
+    rk4(np.ascontiguousarray(state, dtype=np.float64), np.ascontiguousarray(pitch, dtype=np.float64),
+        np.ascontiguousarray(command, dtype=np.float64), float(tau_actuator), float(dt),
+        _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
+        current_ned is not None,
+        _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
+        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, new, pitch_end)
+    return new, pitch_end
+
+
+def warm() -> None:
+    """Compile (or load from the cache) every kernel with the argument types the integrator uses.
+    ``./seapup setup`` runs this after building seapup_sim, so no test or node compiles them itself."""
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    model = VehicleModel(load_vehicle_config("baseline"))
+    packed = pack(model)
+    rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
+    derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
+
+
+if __name__ == "__main__":
+    warm()

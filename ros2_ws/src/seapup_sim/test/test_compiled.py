@@ -1,0 +1,132 @@
+"""The compiled plant (seapup_sim.compiled) against the NumPy reference (issue 26).
+
+Truth: VehicleModel.derivatives and the NumPy VehicleIntegrator step, which the rest of the suite
+checks against the thesis (eq. 2.1-2.3, Table 3.2) and against conservation laws. Equal to 1e-12 on
+random states, blade pitches, currents, external wrenches and thruster efficiencies, for every shipped
+configuration, with the thrusters on and off and with and without the actuator lag.
+"""
+import numpy as np
+import pytest
+
+from seapup_sim import compiled
+from seapup_sim.integrator import DivergenceError, VehicleIntegrator, default_backend
+from seapup_sim.linearised import vehicle_model
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import available_configs, load_vehicle_config
+
+CONFIGS = available_configs()
+
+
+def _random_inputs(rng):
+    state = np.concatenate([rng.normal(0, 20, 3), rng.uniform(-1.2, 1.2, 3) * np.array([1, 1, 2.5]),
+                            rng.normal(0, 0.5, 3), rng.normal(0, 0.4, 3)])
+    pitch = rng.uniform(-0.61, 0.61, 4)
+    current = rng.normal(0, 0.3, 3) if rng.random() < 0.7 else None
+    external = rng.normal(0, 30, 6) if rng.random() < 0.5 else None
+    return state, pitch, current, external
+
+
+@pytest.mark.unit
+def test_the_configurations_are_all_flown():
+    assert {"baseline", "camera", "fouled_main_port"} <= set(CONFIGS)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("name", CONFIGS)
+def test_the_compiled_right_hand_side_is_the_reference_s(name):
+    rng = np.random.default_rng(abs(hash(name)) % 2**32)
+    model = VehicleModel(load_vehicle_config(name))
+    packed = compiled.pack(model)
+    worst = 0.0
+    for k in range(300):
+        state, pitch, current, external = _random_inputs(rng)
+        on = k % 5 != 0
+        efficiency = rng.uniform(0.0, 1.5, 4) if k % 3 == 0 else np.ones(4)
+        model.thrusters.set_efficiency(efficiency)
+        ours = compiled.derivatives(packed, efficiency, state, pitch, current, external, on)
+        ref = model.derivatives(state, pitch, current, external, on)
+        assert np.all(np.isfinite(ref))
+        worst = max(worst, float(np.max(np.abs(ours - ref) / np.maximum(1.0, np.abs(ref)))))
+    assert worst <= 1e-12, worst
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("name", CONFIGS)
+@pytest.mark.parametrize("lag", [True, False])
+def test_one_compiled_step_is_the_reference_step(name, lag):
+    rng = np.random.default_rng(7 + lag)
+    model = VehicleModel(load_vehicle_config(name))
+    if not lag:
+        model.actuator_time_constant = 0.0
+    for k in range(100):
+        state, pitch, current, external = _random_inputs(rng)
+        state[4] = np.clip(state[4], -1.2, 1.2)
+        command = rng.uniform(-0.7, 0.7, 4)   # beyond +-35 deg: saturated the same way
+        dt = (0.1, 0.05, 0.2)[k % 3]
+        steps = [VehicleIntegrator(model, dt=dt, state=state, pitch=pitch, backend=b) for b in ("compiled", "numpy")]
+        for s in steps:
+            s.thrusters_on = k % 7 != 0
+        assert steps[0].compiled and not steps[1].compiled
+        a, b = (s.step(command, current, external) for s in steps)
+        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-12, (k, a - b)
+        assert np.max(np.abs(steps[0].pitch - steps[1].pitch)) <= 1e-15
+        assert steps[0].t == steps[1].t == dt
+
+
+@pytest.mark.unit
+def test_a_run_with_a_reconfiguration_and_fouling_stays_with_the_reference():
+    """A minute of manoeuvring with the configuration switched to the camera vehicle and a thruster fouled
+    mid-run (the events of a scenario): the compiled plant re-packs and follows the reference."""
+    commands = np.radians(np.random.default_rng(3).uniform(-35, 35, (600, 4)))
+    runs = []
+    for backend in ("compiled", "numpy"):
+        model = VehicleModel(load_vehicle_config("baseline"))
+        plant = VehicleIntegrator(model, dt=0.1, state=np.r_[0, 0, 30.0, np.zeros(9)], backend=backend)
+        states = []
+        for k, command in enumerate(commands):
+            if k == 200:
+                model.configure(load_vehicle_config("camera"))
+            if k == 400:
+                model.thrusters.set_efficiency([0.5, 1.0, 1.0, 1.0])
+            states.append(plant.step(command, current_ned=np.array([0.2, 0.05, 0.0])))
+        runs.append(np.array(states))
+    a, b = runs
+    assert np.max(np.abs(a - b)) < 1e-9
+    # and the events acted: the camera vehicle and the fouling change the trajectory
+    plain = VehicleIntegrator(VehicleModel(load_vehicle_config("baseline")), dt=0.1,
+                              state=np.r_[0, 0, 30.0, np.zeros(9)], backend="compiled")
+    unswitched = np.array([plain.step(c, current_ned=np.array([0.2, 0.05, 0.0])) for c in commands])
+    assert np.max(np.abs(unswitched[:200] - a[:200])) == 0.0 and np.max(np.abs(unswitched[250:] - a[250:])) > 1e-3
+
+
+@pytest.mark.unit
+def test_a_model_that_overrides_the_equations_steps_with_the_reference():
+    linear = vehicle_model(load_vehicle_config("baseline"), "linearised")
+    plant = VehicleIntegrator(linear, dt=0.1, backend="compiled")
+    assert not plant.compiled
+    before = plant.state.copy()
+    plant.step(np.radians([10.0, 10.0, 0.0, 0.0]))
+    assert plant.state[6] > before[6]
+
+
+@pytest.mark.unit
+def test_a_diverging_compiled_step_is_refused_and_keeps_the_state():
+    model = VehicleModel(load_vehicle_config("baseline"))
+    plant = VehicleIntegrator(model, dt=0.1, state=np.r_[np.zeros(6), 19.99, np.zeros(5)], backend="compiled")
+    with pytest.raises(DivergenceError, match="state u"):
+        plant.step(np.radians([35.0, 35.0, 0.0, 0.0]), external=np.array([1e5, 0, 0, 0, 0, 0]))
+    assert plant.state[6] == 19.99 and plant.steps == 0
+
+
+@pytest.mark.unit
+def test_the_backend_is_chosen_by_argument_or_environment(monkeypatch):
+    model = VehicleModel(load_vehicle_config("baseline"))
+    with pytest.raises(ValueError, match="backend must be one of"):
+        VehicleIntegrator(model, backend="fortran")
+    monkeypatch.setenv("SEAPUP_PLANT", "numpy")
+    assert default_backend() == "numpy" and not VehicleIntegrator(model).compiled
+    monkeypatch.setenv("SEAPUP_PLANT", "compiled")
+    assert default_backend() == "compiled" and VehicleIntegrator(model).compiled
+    monkeypatch.setenv("SEAPUP_PLANT", "gpu")
+    with pytest.raises(ValueError, match="SEAPUP_PLANT must be one of"):
+        default_backend()
