@@ -128,6 +128,23 @@ def _plant_step(model, backend: str, command, steps: int, cable=None) -> dict:
             "cpu_us": cpu * 1e6, "rtf": 0.1 / wall, "steps": steps}
 
 
+def _batch_step(model, vehicles: int, command, steps: int) -> dict:
+    """Vehicle-steps per second (wall and CPU) of the batch plant stepping ``vehicles`` copies of ``model``
+    in a current, after one warm-up step."""
+    from seapup_sim.batch import BatchPlant
+    batch = BatchPlant([model] * vehicles, dt=0.1)
+    commands, currents = np.tile(command, (vehicles, 1)), np.tile([0.2, 0.1, 0.0], (vehicles, 1))
+    batch.step(commands, currents)
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        batch.step(commands, currents)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    done = vehicles * steps
+    return {"vehicles": vehicles, "steps": steps, "vehicle_steps_per_s": done / wall,
+            "cpu_vehicle_steps_per_s": done / cpu, "cpu_us_per_vehicle_step": cpu / done * 1e6,
+            "rtf_per_vehicle": 0.1 * done / cpu}
+
+
 def bench(argv: list[str]) -> int:
     """``./seapup bench``: speed of the model, the umbilical, verify and the ROS graph."""
     parser = _parser("bench", "benchmarks")
@@ -146,6 +163,7 @@ def bench(argv: list[str]) -> int:
     out["model_numpy"] = _plant_step(model, "numpy", cmd, max(300, n // 10))
     out["model"]["speedup_vs_numpy"] = out["model_numpy"]["cpu_us"] / out["model"]["cpu_us"]
     per_step = out["model"]["step_us"] * 1e-6
+    out["batch_plant"] = _batch_step(model, 1000, cmd, 30)
     # the same step with the quasi-static umbilical solved every step (sec. 3.8)
     cable = load_environment(rho=model.rho).umbilical.build()
     out["model_umbilical"] = _plant_step(model, "compiled", cmd, n, cable)
@@ -198,6 +216,9 @@ def bench(argv: list[str]) -> int:
     print(f"model: {m['step_us']:.1f} us per RK4 step (dt 0.1 s; {m['cpu_us']:.1f} us CPU) = {m['rtf']:.0f}x real time, "
           f"compiled; the NumPy reference {ref['step_us']:.0f} us ({ref['cpu_us']:.0f} us CPU) = {ref['rtf']:.0f}x: "
           f"{m['speedup_vs_numpy']:.0f} times faster in CPU time", file=out_text)
+    b = out["batch_plant"]
+    print(f"batch plant: {b['vehicles']} vehicles, {b['vehicle_steps_per_s']:.0f} vehicle-steps/s wall "
+          f"({b['cpu_us_per_vehicle_step']:.1f} us CPU per vehicle-step, one core)", file=out_text)
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)
     print(f"verify: {out['verify']['seconds']:.2f} s", file=out_text)

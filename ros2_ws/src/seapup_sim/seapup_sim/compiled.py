@@ -32,9 +32,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "derivatives", "rk4_step"]
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch"]
 
 _JIT = dict(cache=True, nogil=True)
+
+#: scratch floats :func:`rhs` needs
+WORK = 104
 
 
 class Packed(NamedTuple):
@@ -85,9 +88,8 @@ def matvec(a, x, out):
 
 
 @njit(**_JIT)
-def kirchhoff(mass, nu, out):
-    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis)."""
-    m = np.empty(6)
+def kirchhoff(mass, nu, out, m):
+    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis); ``m`` (6,) scratch."""
     matvec(mass, nu, m)
     a, b, c, d, e, f = m[0], m[1], m[2], m[3], m[4], m[5]
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
@@ -102,13 +104,14 @@ def kirchhoff(mass, nu, out):
 @njit(**_JIT)
 def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency,
         masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map, scalars,
-        out):
-    """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term."""
+        out, work):
+    """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term. ``work``: at least
+    :data:`WORK` floats of scratch (no allocation in the kernel)."""
     phi, theta, psi = x[3], x[4], x[5]
     cf, sf = math.cos(phi), math.sin(phi)
     ct, st = math.cos(theta), math.sin(theta)
     cp, sp = math.cos(psi), math.sin(psi)
-    rot = np.empty((3, 3))
+    rot = work[6:15].reshape((3, 3))
     rot[0, 0] = cp * ct
     rot[0, 1] = cp * st * sf - sp * cf
     rot[0, 2] = cp * st * cf + sp * sf
@@ -119,19 +122,21 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     rot[2, 1] = ct * sf
     rot[2, 2] = ct * cf
     nu = x[6:12]
-    nu_r = nu.copy()
+    nu_r = work[15:21]
+    nu_r[:] = nu
     if use_current:
         for i in range(3):
             s = 0.0
             for j in range(3):
                 s += rot[j, i] * current[j]
             nu_r[i] -= s
-    rigid = np.empty(6)
-    kirchhoff(masses[0], nu, rigid)
-    added = np.empty(6)
-    kirchhoff(masses[1], nu_r, added)
-    hydro = np.zeros(6)
-    ext = np.empty(7)
+    rigid = work[21:27]
+    kirchhoff(masses[0], nu, rigid, work[0:6])
+    added = work[27:33]
+    kirchhoff(masses[1], nu_r, added, work[0:6])
+    hydro = work[33:39]
+    hydro[:] = 0.0
+    ext = work[39:46]
     ext[:6] = nu_r
     ext[6] = 1.0
     for k in range(h_coef.shape[0]):
@@ -144,23 +149,23 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
         hydro[h_axis[k]] += h_coef[k] * signed * absolute
     dx, dy, dz = rot[2, 0], rot[2, 1], rot[2, 2]
     net, ax, ay, az = scalars[6], scalars[7], scalars[8], scalars[9]
-    static = np.empty(6)
+    static = work[46:52]
     static[0] = net * dx
     static[1] = net * dy
     static[2] = net * dz
     static[3] = ay * dz - az * dy
     static[4] = az * dx - ax * dz
     static[5] = ax * dy - ay * dx
-    tau = np.empty(6)
+    tau = work[52:58]
     for i in range(6):
         tau[i] = rigid[i] + added[i] + hydro[i] + static[i]
     if thrusters_on:
         k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (scalars[0], scalars[1], scalars[2], scalars[3],
                                                             scalars[4], scalars[5])
-        vel = np.empty(12)
+        vel = work[58:70]
         matvec(point_map, nu_r, vel)
-        thrust = np.empty(4)
-        drag = np.empty(12)
+        thrust = work[70:74]
+        drag = work[74:86]
         for j in range(4):
             v_axial = (vel[3 * j] * directions[j, 0] + vel[3 * j + 1] * directions[j, 1]) \
                 + vel[3 * j + 2] * directions[j, 2]
@@ -170,9 +175,9 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
             scale = -md_scale * math.sqrt(k0 / math.pi)
             for i in range(3):
                 drag[3 * j + i] = scale * (vel[3 * j + i] - v_axial * directions[j, i])
-        wrench = np.empty(6)
+        wrench = work[86:92]
         matvec(matrix, thrust, wrench)
-        moment = np.empty(6)
+        moment = work[92:98]
         matvec(force_map, drag, moment)
         for i in range(6):
             tau[i] += wrench[i] + moment[i]
@@ -185,7 +190,7 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     out[3] = (p + sf * tt * q) + cf * tt * r
     out[4] = (0.0 * p + cf * q) + (-sf) * r
     out[5] = (0.0 * p + sf / ct * q) + cf / ct * r
-    accel = np.empty(6)
+    accel = work[98:104]
     matvec(masses[2], tau, accel)
     out[6:] = accel
 
@@ -196,9 +201,10 @@ def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, us
         scalars, new, pitch_end):
     """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and
     ``pitch_end`` (the envelope check and the angle wrap stay with the caller)."""
-    p0 = np.empty(4)
-    ph = np.empty(4)
-    p1 = np.empty(4)
+    buf = np.empty(12 + 5 * 12 + WORK)
+    p0, ph, p1 = buf[0:4], buf[4:8], buf[8:12]
+    k1, k2, k3, k4, xs = buf[12:24], buf[24:36], buf[36:48], buf[48:60], buf[60:72]
+    work = buf[72:]
     for j in range(4):
         if tau_actuator <= 0.0:
             p0[j] = command[j]
@@ -211,20 +217,60 @@ def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, us
             p1[j] = command[j] + gap * math.exp(-dt / tau_actuator)
     args = (current, use_current, external, use_external, thrusters_on, efficiency, masses, h_axis, h_coef,
             h_signed, h_absolute, point_map, directions, matrix, force_map, scalars)
-    k1 = np.empty(12)
-    k2 = np.empty(12)
-    k3 = np.empty(12)
-    k4 = np.empty(12)
     half = 0.5 * dt
-    rhs(x, p0, *args, k1)
-    rhs(x + half * k1, ph, *args, k2)
-    rhs(x + half * k2, ph, *args, k3)
-    rhs(x + dt * k3, p1, *args, k4)
+    rhs(x, p0, *args, k1, work)
+    for i in range(12):
+        xs[i] = x[i] + half * k1[i]
+    rhs(xs, ph, *args, k2, work)
+    for i in range(12):
+        xs[i] = x[i] + half * k2[i]
+    rhs(xs, ph, *args, k3, work)
+    for i in range(12):
+        xs[i] = x[i] + dt * k3[i]
+    rhs(xs, p1, *args, k4, work)
     sixth = dt / 6.0
     for i in range(12):
         new[i] = x[i] + sixth * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + k4[i])
     for j in range(4):
         pitch_end[j] = p1[j]
+
+
+@njit(**_JIT)
+def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
+              efficiency, masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map,
+              scalars, active, new, pitch_end):
+    """:func:`rk4` for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
+    flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
+    a single vehicle is, so it equals the single-vehicle step bit for bit."""
+    for i in range(states.shape[0]):
+        if not active[i]:
+            new[i] = states[i]
+            pitch_end[i] = pitches[i]
+            continue
+        rk4(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i], use_external,
+            thrusters_on[i], efficiency[i], masses[i], h_axis[i], h_coef[i], h_signed[i], h_absolute[i],
+            point_map[i], directions[i], matrix[i], force_map[i], scalars[i], new[i], pitch_end[i])
+
+
+def pack_batch(models) -> Packed:
+    """:func:`pack` of each model, stacked on a leading axis; hydrodynamic tables of different lengths are
+    padded with terms of coefficient zero on the constant factor (they add exactly 0.0)."""
+    packs = [pack(m) for m in models]
+    terms = max(p.h_coef.shape[0] for p in packs)
+    width = max(p.h_signed.shape[1] for p in packs)
+
+    def padded(p: Packed) -> Packed:
+        n, w = p.h_coef.shape[0], p.h_signed.shape[1]
+        signed = np.full((terms, width), 6, dtype=np.int64)
+        absolute = np.full((terms, width), 6, dtype=np.int64)
+        signed[:n, :w], absolute[:n, :w] = p.h_signed, p.h_absolute
+        axis = np.zeros(terms, dtype=np.int64)
+        axis[:n] = p.h_axis
+        coef = np.zeros(terms)
+        coef[:n] = p.h_coef
+        return p._replace(h_axis=axis, h_coef=coef, h_signed=signed, h_absolute=absolute)
+    packs = [padded(p) for p in packs]
+    return Packed(*(np.ascontiguousarray(np.stack([getattr(p, f) for p in packs])) for f in Packed._fields))
 
 
 _NONE3 = np.zeros(3)
@@ -239,7 +285,7 @@ def derivatives(packed: Packed, efficiency, state, pitch, current_ned=None, exte
         _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
         current_ned is not None,
         _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
-        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out)
+        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out, np.empty(WORK))
     return out
 
 
@@ -266,6 +312,8 @@ def warm() -> None:
     packed = pack(model)
     rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
+    from seapup_sim.batch import BatchPlant
+    BatchPlant([model, model], dt=0.1).step(np.zeros((2, 4)), currents=np.zeros((2, 3)), externals=np.zeros((2, 6)))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,155 @@
+"""Many vehicles stepped together: the batch plant of Monte Carlo campaigns (issue 26).
+
+:class:`BatchPlant` holds N vehicles on a leading batch axis -- states (N, 12), applied blade pitches
+(N, 4) -- each with its own configuration (a :class:`~seapup_sim.vehicle.VehicleModel` built from any
+configuration and overlay: baseline, camera, fouled, a perturbed hydrodynamic table), its own thruster
+efficiencies, and its own current and external wrench at every step. One :meth:`BatchPlant.step` is one
+physics step (eq. 2.1-2.3 by fourth-order Runge-Kutta with the exact blade-pitch lag, as
+:class:`~seapup_sim.integrator.VehicleIntegrator`) of every vehicle, in one compiled call that runs the
+single-vehicle kernel of :mod:`seapup_sim.compiled` on each: vehicle i of a batch equals the same vehicle
+stepped alone, bit for bit (``test/test_batch.py``).
+
+What differs from the single-vehicle integrator is what one vehicle's failure does. A vehicle whose step
+would leave the envelope (or become non-finite) is not integrated: its state is kept, it is marked
+inactive with the reason (:attr:`BatchPlant.errors`, the message :class:`DivergenceError` would carry) and
+the others go on. Bad input -- a command, current or wrench of the wrong shape or not finite -- is refused
+for the whole step with one line naming the vehicles, and nothing is integrated.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from seapup_common.blade_pitch import InvalidBladePitchError
+from seapup_sim import compiled
+from seapup_sim.integrator import ENVELOPE
+from seapup_sim.vehicle import STATE_NAMES, VehicleModel
+
+__all__ = ["BatchPlant"]
+
+
+def _rows(name: str, value, n: int, width: int) -> np.ndarray:
+    """``value`` as an (n, width) float array, or a one-line error naming what is wrong."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} is not numeric") from None
+    if array.shape != (n, width):
+        raise ValueError(f"{name} needs shape ({n}, {width}) (one row per vehicle), got {array.shape}")
+    bad = ~np.isfinite(array).all(axis=1)
+    if bad.any():
+        shown = ", ".join(str(i) for i in np.flatnonzero(bad)[:8])
+        raise ValueError(f"{name} is not finite for vehicle(s) {shown}{' ...' if bad.sum() > 8 else ''}")
+    return np.ascontiguousarray(array)
+
+
+class BatchPlant:
+    """N vehicles, one physics step at a time.
+
+    Parameters
+    ----------
+    models : sequence of VehicleModel
+        One per vehicle (the same object may appear more than once). A model that overrides
+        ``derivatives`` (the linearised plant) is refused: it has no compiled kernel.
+    dt : float
+        Physics step [s] (default 0.1 s, thesis sec. 3.2).
+    states : array (N, 12), optional
+        Initial states (default: at rest at the origin).
+    pitches : array (N, 4), optional
+        Initial applied blade pitches [rad] (default zero).
+    """
+
+    def __init__(self, models, dt: float = 0.1, states=None, pitches=None):
+        self.models = list(models)
+        n = len(self.models)
+        if n == 0:
+            raise ValueError("a batch needs at least one vehicle")
+        for i, model in enumerate(self.models):
+            if not isinstance(model, VehicleModel) or type(model).derivatives is not VehicleModel.derivatives:
+                raise ValueError(f"vehicle {i}: a batch steps VehicleModel's equations only, "
+                                 f"not {type(model).__name__}'s")
+        if not (np.isfinite(dt) and 0.0 < dt <= 1.0):
+            raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
+        self.n = n
+        self.dt = float(dt)
+        self.steps = 0
+        self.state = np.zeros((n, 12)) if states is None else _rows("states", states, n, 12).copy()
+        self.pitch = np.zeros((n, 4)) if pitches is None else _rows("pitches", pitches, n, 4).copy()
+        self.thrusters_on = np.ones(n, dtype=bool)
+        #: False once a vehicle's step diverged; it is not integrated again
+        self.active = np.ones(n, dtype=bool)
+        #: why each inactive vehicle stopped (None while it runs)
+        self.errors: list[str | None] = [None] * n
+        self._pack()
+
+    @classmethod
+    def from_configs(cls, configs, **kwargs) -> "BatchPlant":
+        """A batch of one :class:`VehicleModel` per configuration dict (configurations that are the same
+        object share one model)."""
+        models, built = [], {}
+        for config in configs:
+            if id(config) not in built:
+                built[id(config)] = VehicleModel(config)
+            models.append(built[id(config)])
+        return cls(models, **kwargs)
+
+    @property
+    def t(self) -> float:
+        """Simulated time [s]."""
+        return self.steps * self.dt
+
+    def _pack(self) -> None:
+        self._packed = compiled.pack_batch(self.models)
+        self._taus = np.array([m.actuator_time_constant for m in self.models], dtype=float)
+        self.efficiency = np.ascontiguousarray([m.thrusters.efficiency for m in self.models], dtype=float)
+        self._limits = np.array([m.pitch_limit for m in self.models], dtype=float)
+
+    def configure(self, index: int, config: dict) -> None:
+        """Vehicle ``index`` switches to ``config`` (state and pitch kept, as ``Simulation``'s configuration
+        events): it gets a model of its own, so vehicles that shared one are not changed with it."""
+        efficiency = self.efficiency.copy()
+        self.models[index] = VehicleModel(config)
+        self._pack()
+        self.efficiency[:] = efficiency   # a configuration change keeps the fouling (Simulation does too)
+
+    def set_efficiency(self, index: int, efficiency) -> None:
+        """Vehicle ``index``'s four thruster efficiencies (fouling, sec. 7.4.4): checked as
+        ``ThrusterSet.set_efficiency`` checks them (4 finite factors in [0, 1.5])."""
+        eff = np.asarray(efficiency, dtype=float)
+        if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
+            raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got {efficiency!r}")
+        self.efficiency[index] = eff
+
+    def step(self, commands, currents=None, externals=None) -> np.ndarray:
+        """Advance every active vehicle one step with its ``commands`` row [rad] held (clipped to the blade
+        limits); ``currents`` (N, 3) NED water velocities [m/s] and ``externals`` (N, 6) body wrenches, each
+        held over the step. Returns the new states (a copy)."""
+        try:
+            commands = _rows("blade-pitch commands", commands, self.n, 4)
+        except ValueError as exc:
+            raise InvalidBladePitchError(str(exc)) from None
+        commands = np.clip(commands, -self._limits[:, None], self._limits[:, None])
+        use_current, use_external = currents is not None, externals is not None
+        currents = _rows("currents", currents, self.n, 3) if use_current else np.zeros((self.n, 3))
+        externals = _rows("external wrenches", externals, self.n, 6) if use_external else np.zeros((self.n, 6))
+        new, pitch_end = np.empty((self.n, 12)), np.empty((self.n, 4))
+        compiled.rk4_batch(self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals,
+                           use_external, self.thrusters_on, self.efficiency, *self._packed, self.active, new,
+                           pitch_end)
+        bad = (~np.isfinite(new) | (np.abs(new) > ENVELOPE)) & self.active[:, None]
+        stopped = bad.any(axis=1)
+        t = self.t + self.dt
+        for i in np.flatnonzero(stopped):
+            k = int(np.flatnonzero(bad[i])[0])
+            self.errors[i] = (f"state {STATE_NAMES[k]} = {new[i, k]!r} at t = {t:.3f} s is "
+                              f"{'not finite' if not np.isfinite(new[i, k]) else 'outside the valid envelope'} "
+                              f"(|{STATE_NAMES[k]}| <= {ENVELOPE[k]:.4g}); the state was not updated")
+        ok = self.active & ~stopped
+        self.active = ok
+        new[:, 3] = (new[:, 3] + math.pi) % (2 * math.pi) - math.pi   # roll and yaw wrap to [-pi, pi)
+        new[:, 5] = (new[:, 5] + math.pi) % (2 * math.pi) - math.pi
+        self.state[ok] = new[ok]
+        self.pitch[ok] = pitch_end[ok]
+        self.steps += 1
+        return self.state.copy()

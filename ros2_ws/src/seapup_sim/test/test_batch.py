@@ -1,0 +1,127 @@
+"""The batch plant (seapup_sim.batch): N vehicles on a leading axis, each the single vehicle bit for bit.
+
+Truth: the single-vehicle integrator (tested against the NumPy reference in test_compiled.py and against
+the thesis elsewhere), run on each vehicle alone with the same configuration, efficiency, commands,
+currents and wrenches.
+"""
+import copy
+
+import numpy as np
+import pytest
+
+from seapup_common.blade_pitch import InvalidBladePitchError
+from seapup_sim.batch import BatchPlant
+from seapup_sim.integrator import DivergenceError, VehicleIntegrator
+from seapup_sim.linearised import vehicle_model
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
+
+
+def _configs(rng, n):
+    """Mixed configurations: the shipped ones and overlays of the baseline's hydrodynamic table."""
+    out = []
+    for i in range(n):
+        config = copy.deepcopy(load_vehicle_config(("baseline", "camera", "fouled_main_port")[i % 3]))
+        if i % 4 == 3:   # an overlay: every derivative perturbed by up to 20 %
+            config["hydrodynamics"] = {k: v * rng.uniform(0.8, 1.2) for k, v in config["hydrodynamics"].items()}
+        out.append(config)
+    return out
+
+
+@pytest.mark.unit
+def test_each_vehicle_of_a_batch_is_the_vehicle_flown_alone_bit_for_bit():
+    rng = np.random.default_rng(11)
+    n, steps = 12, 300
+    configs = _configs(rng, n)
+    states = np.zeros((n, 12))
+    states[:, 2] = rng.uniform(20, 60, n)
+    states[:, 5] = rng.uniform(-3, 3, n)
+    efficiency = np.where(rng.random((n, 4)) < 0.2, rng.uniform(0.3, 1.0, (n, 4)), 1.0)
+    commands = np.radians(rng.uniform(-40, 40, (steps, n, 4)))   # some beyond the limits: clipped alike
+    currents = rng.normal(0, 0.2, (steps, n, 3))
+    externals = rng.normal(0, 10, (steps, n, 6))
+    batch = BatchPlant.from_configs(configs, dt=0.1, states=states)
+    for i in range(n):
+        batch.set_efficiency(i, efficiency[i])
+    batch.thrusters_on[5] = False
+    trajectory = np.array([batch.step(commands[k], currents[k], externals[k]) for k in range(steps)])
+    assert batch.active.all() and batch.t == pytest.approx(30.0)
+    for i in range(n):
+        alone = VehicleIntegrator(VehicleModel(configs[i]), dt=0.1, state=states[i], backend="compiled")
+        alone.model.thrusters.set_efficiency(efficiency[i])
+        alone.thrusters_on = i != 5
+        mine = np.array([alone.step(commands[k, i], currents[k, i], externals[k, i]) for k in range(steps)])
+        assert np.array_equal(mine, trajectory[:, i]), (i, np.max(np.abs(mine - trajectory[:, i])))
+        assert np.array_equal(alone.pitch, batch.pitch[i])
+    # and the vehicles are not one vehicle: the configurations and inputs made them differ
+    assert np.ptp(trajectory[-1, :, 6]) > 0.05
+
+
+@pytest.mark.unit
+def test_a_diverging_vehicle_stops_alone_with_its_reason():
+    model = VehicleModel(load_vehicle_config("baseline"))
+    batch = BatchPlant([model] * 3, dt=0.1)
+    wrench = np.zeros((3, 6))
+    wrench[1, 0] = 1e6
+    before = batch.state.copy()
+    batch.step(np.zeros((3, 4)), externals=wrench)
+    assert list(batch.active) == [True, False, True]
+    with pytest.raises(DivergenceError) as single:   # the message the vehicle alone would raise
+        VehicleIntegrator(model, dt=0.1, backend="compiled").step(np.zeros(4), external=wrench[1])
+    assert batch.errors[1] == str(single.value) and "outside the valid envelope" in batch.errors[1]
+    assert np.array_equal(batch.state[1], before[1]) and batch.errors[0] is None
+    alone = VehicleIntegrator(model, dt=0.1, backend="compiled")
+    alone.step(np.zeros(4))
+    for _ in range(5):
+        batch.step(np.radians(np.full((3, 4), 20.0)))
+        alone.step(np.radians(np.full(4, 20.0)))
+    assert np.array_equal(batch.state[0], alone.state) and np.array_equal(batch.state[1], before[1])
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("field, value, message", [
+    ("commands", np.zeros((2, 4)), "shape \\(3, 4\\)"),
+    ("commands", np.array([[0, 0, 0, 0], [0, np.nan, 0, 0], [0, 0, 0, 0]]), "not finite for vehicle\\(s\\) 1"),
+    ("currents", np.full((3, 3), np.inf), "currents is not finite"),
+    ("externals", np.zeros((3, 5)), "external wrenches needs shape"),
+])
+def test_bad_input_is_refused_for_the_whole_step_and_changes_nothing(field, value, message):
+    batch = BatchPlant([VehicleModel(load_vehicle_config("baseline"))] * 3, dt=0.1)
+    args = {"commands": np.full((3, 4), 0.3), "currents": None, "externals": None, field: value}
+    before = batch.state.copy()
+    with pytest.raises(ValueError, match=message) as caught:
+        batch.step(args["commands"], args["currents"], args["externals"])
+    assert "\n" not in str(caught.value) and batch.steps == 0 and np.array_equal(batch.state, before)
+    if field == "commands":
+        assert isinstance(caught.value, InvalidBladePitchError)
+
+
+@pytest.mark.unit
+def test_a_reconfigured_vehicle_changes_alone_and_keeps_its_fouling():
+    model = VehicleModel(load_vehicle_config("baseline"))
+    batch = BatchPlant([model, model], dt=0.1)
+    batch.set_efficiency(0, [0.5, 1, 1, 1])
+    command = np.radians(np.full((2, 4), 25.0))
+    for _ in range(20):
+        batch.step(command)
+    batch.configure(1, load_vehicle_config("camera"))
+    assert batch.models[0] is model and batch.models[1] is not model
+    assert list(batch.efficiency[0]) == [0.5, 1, 1, 1]
+    camera = VehicleIntegrator(VehicleModel(load_vehicle_config("baseline")), dt=0.1, backend="compiled")
+    for _ in range(20):
+        camera.step(command[1])
+    camera.model.configure(load_vehicle_config("camera"))
+    for _ in range(30):
+        batch.step(command)
+        camera.step(command[1])
+    assert np.array_equal(batch.state[1], camera.state)
+
+
+@pytest.mark.unit
+def test_a_batch_refuses_what_it_cannot_step():
+    with pytest.raises(ValueError, match="at least one vehicle"):
+        BatchPlant([])
+    with pytest.raises(ValueError, match="LinearisedVehicleModel"):
+        BatchPlant([vehicle_model(load_vehicle_config("baseline"), "linearised")])
+    with pytest.raises(ValueError, match="states needs shape"):
+        BatchPlant([VehicleModel(load_vehicle_config("baseline"))], states=np.zeros(12))
