@@ -312,8 +312,10 @@ def warm() -> None:
     packed = pack(model)
     rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
-    from seapup_sim.batch import BatchPlant
-    BatchPlant([model, model], dt=0.1).step(np.zeros((2, 4)), currents=np.zeros((2, 3)), externals=np.zeros((2, 6)))
+    two = pack_batch([model, model])   # BatchPlant.step's call
+    rk4_batch(np.zeros((2, 12)), np.zeros((2, 4)), np.zeros((2, 4)), np.full(2, 0.05), 0.1, np.zeros((2, 3)), True,
+              np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(2, dtype=np.bool_),
+              np.empty((2, 12)), np.empty((2, 4)))
 
 
 if __name__ == "__main__":
