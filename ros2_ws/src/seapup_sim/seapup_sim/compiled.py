@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch"]
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch", "cable_solve", "CABLE_OUT"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -250,6 +250,134 @@ def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, extern
         rk4(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i], use_external,
             thrusters_on[i], efficiency[i], masses[i], h_axis[i], h_coef[i], h_signed[i], h_absolute[i],
             point_map[i], directions[i], matrix[i], force_map[i], scalars[i], new[i], pitch_end[i])
+
+
+#: :func:`cable_solve`'s outcomes (``out[0]``)
+CABLE_SOLVED, CABLE_SLOW_FLOW, CABLE_LIGHT_LOAD, CABLE_PARALLEL, CABLE_NEEDS_GUESS, CABLE_TOO_SHORT, \
+    CABLE_NOT_CONVERGED = range(7)
+#: ``out``'s layout: outcome, c0, lambda, tension, length, detail (the bypass's number, or the distance),
+#: a, b (the end conditions), e1 (3), e2 (3), start (3), force on the vehicle (NED, 3), wrench on the vehicle
+#: (body axes, 6), residual (2)
+CABLE_OUT = 28
+
+
+@njit(**_JIT)
+def _cable_residual(c0, lam, a, b):
+    cl = c0 - lam
+    r0, rl = math.sqrt(1 + c0 * c0), math.sqrt(1 + cl * cl)
+    return (r0 - rl - lam * a, math.asinh(c0) - math.asinh(cl) - lam * b, c0 / r0 - cl / rl, cl / rl - a,
+            1 / r0 - 1 / rl, 1 / rl - b)
+
+
+@njit(**_JIT)
+def cable_solve(state, current, attachment, ship, fixed_length, length_ratio, k, weight, min_flow, max_ratio,
+                c0, lam, has_guess, tol, max_iter, out):
+    """umbilical.Umbilical.wrench's closed-form quasi-static cable (sec. 2.3.4, 3.8) from a warm start
+    ``(c0, lam)``: the geometry, the bypass tests, damped Newton-Raphson on the two end conditions and the
+    body wrench, into ``out`` (:data:`CABLE_OUT`). ``fixed_length`` NaN: the length follows the ends."""
+    for i in range(CABLE_OUT):
+        out[i] = 0.0
+    phi, theta, psi = state[3], state[4], state[5]
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    rot = np.empty((3, 3))
+    rot[0, 0] = cp * ct
+    rot[0, 1] = cp * st * sf - sp * cf
+    rot[0, 2] = cp * st * cf + sp * sf
+    rot[1, 0] = sp * ct
+    rot[1, 1] = sp * st * sf + cp * cf
+    rot[1, 2] = sp * st * cf - cp * sf
+    rot[2, 0] = -st
+    rot[2, 1] = ct * sf
+    rot[2, 2] = ct * cf
+    w = state[9:12]
+    spin = np.empty(3)
+    spin[0] = state[6] + (w[1] * attachment[2] - w[2] * attachment[1])
+    spin[1] = state[7] + (w[2] * attachment[0] - w[0] * attachment[2])
+    spin[2] = state[8] + (w[0] * attachment[1] - w[1] * attachment[0])
+    end = np.empty(3)
+    flow = np.empty(3)
+    chord = np.empty(3)
+    for i in range(3):
+        offset = 0.0
+        velocity = 0.0
+        for j in range(3):
+            offset += rot[i, j] * attachment[j]
+            velocity += rot[i, j] * spin[j]
+        end[i] = state[i] + offset
+        flow[i] = current[i] - velocity
+    for i in range(3):
+        chord[i] = ship[i] - end[i]
+    dist = math.sqrt(chord[0] * chord[0] + chord[1] * chord[1] + chord[2] * chord[2])
+    length = fixed_length if not math.isnan(fixed_length) else length_ratio * dist
+    out[4] = length
+    out[14:17] = end
+    if length < dist * (1 - 1e-12):
+        out[0] = CABLE_TOO_SHORT
+        out[5] = dist
+        return
+    speed = math.sqrt(flow[0] * flow[0] + flow[1] * flow[1] + flow[2] * flow[2])
+    if speed < min_flow:
+        out[0] = CABLE_SLOW_FLOW
+        out[5] = speed
+        return
+    load = k * speed * speed
+    if weight > max_ratio * load:
+        out[0] = CABLE_LIGHT_LOAD
+        out[5] = weight / load
+        return
+    e1 = flow / speed
+    along = chord[0] * e1[0] + chord[1] * e1[1] + chord[2] * e1[2]
+    across = chord - along * e1
+    across_norm = math.sqrt(across[0] * across[0] + across[1] * across[1] + across[2] * across[2])
+    if across_norm < 1e-9 * max(dist, 1.0):
+        out[0] = CABLE_PARALLEL
+        return
+    e2 = across / across_norm
+    a, b = along / length, across_norm / length
+    out[6], out[7] = a, b
+    out[8:11] = e1
+    out[11:14] = e2
+    if not has_guess:
+        out[0] = CABLE_NEEDS_GUESS
+        return
+    converged = False
+    for _ in range(max_iter):
+        g1, g2, j11, j12, j21, j22 = _cable_residual(c0, lam, a, b)
+        if abs(g1) + abs(g2) < tol:
+            converged = True
+            break
+        det = j11 * j22 - j12 * j21
+        d_c0, d_lam = (-g1 * j22 + g2 * j12) / det, (-g2 * j11 + g1 * j21) / det
+        t = 1.0
+        while lam + t * d_lam <= 0:
+            t *= 0.5
+        c0, lam = c0 + t * d_c0, lam + t * d_lam
+    if not converged:
+        g1, g2, _, _, _, _ = _cable_residual(c0, lam, a, b)
+        out[26], out[27] = g1, g2
+        if not abs(g1) + abs(g2) < 1e-8:
+            out[0] = CABLE_NOT_CONVERGED
+            return
+    tension = load * length / lam
+    norm = math.sqrt(1 + c0 * c0)
+    force = np.empty(3)
+    for i in range(3):
+        force[i] = tension * ((c0 * e1[i] + e2[i]) / norm)
+    body = np.empty(3)
+    for i in range(3):
+        s = 0.0
+        for j in range(3):
+            s += rot[j, i] * force[j]
+        body[i] = s
+    out[0] = CABLE_SOLVED
+    out[1], out[2], out[3] = c0, lam, tension
+    out[17:20] = force
+    out[20:23] = body
+    out[23] = attachment[1] * body[2] - attachment[2] * body[1]
+    out[24] = attachment[2] * body[0] - attachment[0] * body[2]
+    out[25] = attachment[0] * body[1] - attachment[1] * body[0]
 
 
 def pack_batch(models) -> Packed:

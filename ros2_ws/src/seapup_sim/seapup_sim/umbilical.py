@@ -51,6 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from seapup_sim.integrator import default_backend
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
 __all__ = ["shedding_frequency", "wake_stability_parameter", "strumming_drag_coefficient",
@@ -269,9 +270,13 @@ class Umbilical:
         self.solution: CableSolution | None = None
         self._guess = None
         self._bypass_reason = None
+        #: whether the cable is solved by the compiled kernel (default: as the plant, ``SEAPUP_PLANT``)
+        self.compiled = default_backend() == "compiled"
 
     def solve(self, state, current_ned=None, rot=None) -> CableSolution:
         """Equilibrium for a vehicle state (``rot``: its body-to-NED matrix, if known)."""
+        if self.compiled:
+            return self._solve_compiled(state, current_ned)[0]
         if rot is None:
             rot = rotation_body_to_ned(state[3], state[4], state[5])
         end = state[:3] + rot @ self.attachment
@@ -281,6 +286,11 @@ class Umbilical:
         dist = math.sqrt(chord @ chord)
         length = self.fixed_length if self.fixed_length is not None else self.params.length_ratio * dist
         sol = solve_cable(end, self.ship, length, flow, self.params, self._guess)
+        self._record(sol)
+        return sol
+
+    def _record(self, sol: CableSolution) -> None:
+        """Keep ``sol`` and its warm start; log a switch into or out of the bypass."""
         if sol.bypassed:
             if self._bypass_reason is None:
                 log.info("umbilical bypassed: hydrodynamic loading too small (%s)", sol.bypassed)
@@ -292,11 +302,55 @@ class Umbilical:
             self._bypass_reason = None
             self._guess = (sol.c0, sol.lam)
         self.solution = sol
-        return sol
 
     def wrench(self, state, current_ned=None) -> np.ndarray:
         """Body-axis force and moment (6,) of the cable on the vehicle."""
+        if self.compiled:
+            return self._solve_compiled(state, current_ned)[1]
         rot = rotation_body_to_ned(state[3], state[4], state[5])
         sol = self.solve(state, current_ned, rot)
         force_body = rot.T @ sol.force_on_vehicle
         return np.concatenate([force_body, cross(self.attachment, force_body)])
+
+    def _solve_compiled(self, state, current_ned=None) -> tuple[CableSolution, np.ndarray]:
+        """:meth:`solve` and :meth:`wrench` by :func:`seapup_sim.compiled.cable_solve` (the same closed form and
+        Newton-Raphson, compiled): the solution and the body wrench. The rare cold start (no warm guess, or a
+        stale one that did not converge) takes :func:`_initial_guess` here, as the reference does."""
+        from seapup_sim import compiled
+        p = self.params
+        state = np.ascontiguousarray(state, dtype=np.float64)
+        current = np.zeros(3) if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64)
+        fixed = float("nan") if self.fixed_length is None else float(self.fixed_length)
+        out = np.empty(compiled.CABLE_OUT)
+        args = (state, current, self.attachment, self.ship, fixed, float(p.length_ratio), float(p.k),
+                float(p.weight_per_length), float(p.min_flow), float(p.max_gravity_ratio))
+        guess = self._guess
+        while True:
+            c0, lam = guess if guess is not None else (0.0, 0.0)
+            compiled.cable_solve(*args, float(c0), float(lam), guess is not None, 1e-12, 50, out)
+            status = int(out[0])
+            if status == compiled.CABLE_NEEDS_GUESS:
+                guess = _initial_guess(out[6], out[7])
+                continue
+            if status == compiled.CABLE_NOT_CONVERGED:
+                if guess is not None and guess == self._guess:   # a stale warm start: retry cold
+                    guess = _initial_guess(out[6], out[7])
+                    continue
+                raise UmbilicalError(f"Newton-Raphson did not converge (a={out[6]:.4g}, b={out[7]:.4g}, "
+                                     f"residual {out[26]:.3g}, {out[27]:.3g})")
+            break
+        length = float(out[4])
+        if status == compiled.CABLE_TOO_SHORT:
+            raise UmbilicalError(f"cable length {length:.3f} m is shorter than the distance {out[5]:.3f} m")
+        zero = np.zeros(3)
+        if status == compiled.CABLE_SLOW_FLOW:
+            sol = CableSolution(zero, 0.0, length, f"relative flow {out[5]:.4f} m/s < {p.min_flow} m/s")
+        elif status == compiled.CABLE_LIGHT_LOAD:
+            sol = CableSolution(zero, 0.0, length, f"weight/hydrodynamic loading {out[5]:.3f} > {p.max_gravity_ratio}")
+        elif status == compiled.CABLE_PARALLEL:
+            sol = CableSolution(zero, 0.0, length, "chord parallel to the flow: no normal loading")
+        else:
+            sol = CableSolution(out[17:20].copy(), float(out[3]), length, "", float(out[1]), float(out[2]),
+                                out[8:11].copy(), out[11:14].copy(), out[14:17].copy())
+        self._record(sol)
+        return sol, (np.zeros(6) if sol.bypassed else out[20:26].copy())

@@ -130,3 +130,58 @@ def test_the_backend_is_chosen_by_argument_or_environment(monkeypatch):
     monkeypatch.setenv("SEAPUP_PLANT", "gpu")
     with pytest.raises(ValueError, match="SEAPUP_PLANT must be one of"):
         default_backend()
+
+
+# -- the umbilical (sec. 2.3.4, 3.8) --------------------------------------------------------------------------
+def _cables(params, ship, length=None):
+    from seapup_sim.umbilical import Umbilical
+    mine, ref = Umbilical(params, ship, length), Umbilical(params, ship, length)
+    mine.compiled, ref.compiled = True, False
+    return mine, ref
+
+
+@pytest.mark.unit
+def test_the_compiled_umbilical_follows_the_reference_along_a_trajectory_with_bypasses():
+    """A vehicle manoeuvring under the thesis's cable (weightless, and a heavy one that bypasses at low flow):
+    every wrench, solution and warm start of the compiled cable is the reference's to 1e-12, including the
+    switches into and out of the bypass."""
+    from dataclasses import replace
+
+    from seapup_sim.environment_config import load_environment
+    base = load_environment().umbilical.params
+    rng = np.random.default_rng(5)
+    for params in (replace(base, attachment=(0.1, 0.05, -0.2)), replace(base, weight_per_length=2.0)):
+        mine, ref = _cables(params, np.zeros(3))
+        state = np.r_[5.0, -3.0, 60.0, 0.05, -0.1, 0.3, 0.4, 0.1, 0.0, 0.02, -0.03, 0.1]
+        reasons = set()
+        for k in range(400):
+            state = state + np.r_[rng.normal(0, 0.3, 3), rng.normal(0, 0.02, 3), rng.normal(0, 0.05, 6)]
+            state[6:9] *= 0.97
+            current = rng.normal(0, 0.2, 3) * np.array([1, 1, 0]) if k % 4 else None
+            if 150 <= k < 170:   # stopped in still water: the bypass, then back
+                state[6:12], current = 0.0, None
+            a, b = mine.wrench(state, current), ref.wrench(state, current)
+            scale = max(1.0, float(np.max(np.abs(b))))
+            assert np.max(np.abs(a - b)) <= 1e-12 * scale, (k, a, b)
+            sa, sb = mine.solution, ref.solution
+            assert sa.bypassed == sb.bypassed and sa.length == pytest.approx(sb.length, rel=1e-14)
+            reasons.add(sb.bypassed.split(" ")[0] if sb.bypassed else "solved")
+            if not sb.bypassed:
+                assert abs(sa.c0 - sb.c0) <= 1e-12 * max(1.0, abs(sb.c0)) and abs(sa.lam - sb.lam) <= 1e-12 * sb.lam
+                assert np.allclose(sa.shape(20), sb.shape(20), rtol=0, atol=1e-9)
+            assert (mine._guess is None) == (ref._guess is None)
+        assert "solved" in reasons and len(reasons) >= 2, reasons   # both paths met a bypass and a solution
+
+
+@pytest.mark.unit
+def test_the_compiled_umbilical_refuses_what_the_reference_refuses():
+    from seapup_sim.environment_config import load_environment
+    from seapup_sim.umbilical import UmbilicalError
+    params = load_environment().umbilical.params
+    state = np.r_[0.0, 0.0, 50.0, np.zeros(3), 0.5, np.zeros(5)]
+    messages = []
+    for cable in _cables(params, np.zeros(3), length=40.0):
+        with pytest.raises(UmbilicalError) as caught:
+            cable.wrench(state)
+        messages.append(str(caught.value))
+    assert messages[0] == messages[1] and "shorter than the distance" in messages[0]
