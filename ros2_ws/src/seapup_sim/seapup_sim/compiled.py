@@ -88,6 +88,23 @@ def matvec(a, x, out):
 
 
 @njit(**_JIT)
+def rotation(phi, theta, psi, rot):
+    """R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1; frames.rotation_body_to_ned) into ``rot``."""
+    cf, sf = math.cos(phi), math.sin(phi)
+    ct, st = math.cos(theta), math.sin(theta)
+    cp, sp = math.cos(psi), math.sin(psi)
+    rot[0, 0] = cp * ct
+    rot[0, 1] = cp * st * sf - sp * cf
+    rot[0, 2] = cp * st * cf + sp * sf
+    rot[1, 0] = sp * ct
+    rot[1, 1] = sp * st * sf + cp * cf
+    rot[1, 2] = sp * st * cf - cp * sf
+    rot[2, 0] = -st
+    rot[2, 1] = ct * sf
+    rot[2, 2] = ct * cf
+
+
+@njit(**_JIT)
 def kirchhoff(mass, nu, out, m):
     """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis); ``m`` (6,) scratch."""
     matvec(mass, nu, m)
@@ -107,20 +124,11 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
         out, work):
     """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term. ``work``: at least
     :data:`WORK` floats of scratch (no allocation in the kernel)."""
-    phi, theta, psi = x[3], x[4], x[5]
+    phi, theta = x[3], x[4]
     cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
+    ct = math.cos(theta)
     rot = work[6:15].reshape((3, 3))
-    rot[0, 0] = cp * ct
-    rot[0, 1] = cp * st * sf - sp * cf
-    rot[0, 2] = cp * st * cf + sp * sf
-    rot[1, 0] = sp * ct
-    rot[1, 1] = sp * st * sf + cp * cf
-    rot[1, 2] = sp * st * cf - cp * sf
-    rot[2, 0] = -st
-    rot[2, 1] = ct * sf
-    rot[2, 2] = ct * cf
+    rotation(phi, theta, x[5], rot)
     nu = x[6:12]
     nu_r = work[15:21]
     nu_r[:] = nu
@@ -277,20 +285,8 @@ def cable_solve(state, current, attachment, ship, fixed_length, length_ratio, k,
     body wrench, into ``out`` (:data:`CABLE_OUT`). ``fixed_length`` NaN: the length follows the ends."""
     for i in range(CABLE_OUT):
         out[i] = 0.0
-    phi, theta, psi = state[3], state[4], state[5]
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
     rot = np.empty((3, 3))
-    rot[0, 0] = cp * ct
-    rot[0, 1] = cp * st * sf - sp * cf
-    rot[0, 2] = cp * st * cf + sp * sf
-    rot[1, 0] = sp * ct
-    rot[1, 1] = sp * st * sf + cp * cf
-    rot[1, 2] = sp * st * cf - cp * sf
-    rot[2, 0] = -st
-    rot[2, 1] = ct * sf
-    rot[2, 2] = ct * cf
+    rotation(state[3], state[4], state[5], rot)
     w = state[9:12]
     spin = np.empty(3)
     spin[0] = state[6] + (w[1] * attachment[2] - w[2] * attachment[1])
