@@ -23,10 +23,11 @@ import numpy as np
 
 from seapup_common.blade_pitch import InvalidBladePitchError
 from seapup_sim import compiled
+from seapup_sim.current import GaussMarkovCurrent
 from seapup_sim.integrator import ENVELOPE
 from seapup_sim.vehicle import STATE_NAMES, VehicleModel
 
-__all__ = ["BatchPlant"]
+__all__ = ["BatchPlant", "BatchCurrent"]
 
 
 def _rows(name: str, value, n: int, width: int) -> np.ndarray:
@@ -153,3 +154,74 @@ class BatchPlant:
         self.pitch[ok] = pitch_end[ok]
         self.steps += 1
         return self.state.copy()
+
+
+class BatchCurrent:
+    """N Gauss-Markov currents (eq. 2.25-2.33) advanced together, each from its own random stream.
+
+    Built from N :class:`~seapup_sim.current.GaussMarkovCurrent` (each with its generator: a run's
+    ``current`` stream, so vehicle i's current is the one its run alone would meet). The state and the
+    coefficients are vectors; the noise comes from each vehicle's own generator, drawn ``block`` samples
+    at a time (a generator's ``standard_normal(n)`` is its next n single draws), so the speeds and directions
+    equal the single currents' bit for bit while the Python work per step does not grow with N.
+
+    Parameters
+    ----------
+    currents : sequence of GaussMarkovCurrent
+        Taken over: step them only through this object from now on.
+    block : int
+        Normal draws per generator refill.
+    """
+
+    def __init__(self, currents, block: int = 256):
+        self.currents = list(currents)
+        if not self.currents or not all(isinstance(c, GaussMarkovCurrent) for c in self.currents):
+            raise ValueError("a batch current needs at least one GaussMarkovCurrent")
+        if len({c.sample_time for c in self.currents}) != 1:
+            raise ValueError("the currents of a batch share one sample time")
+        if int(block) < 1:
+            raise ValueError(f"block must be >= 1, got {block!r}")
+        self.n, self.block = len(self.currents), int(block)
+        self.speed = np.array([c.speed for c in self.currents], dtype=float)
+        self.direction = np.array([c.direction for c in self.currents], dtype=float)
+        self._noise = np.empty((self.n, self.block))
+        self._used = np.full(self.n, self.block)   # draws taken from each row of _noise
+        self._coefficients()
+
+    def _coefficients(self) -> None:
+        coef = [c.coef for c in self.currents]
+        self._a_c = np.array([k.a_c for k in coef])
+        self._a_alpha = np.array([k.a_alpha for k in coef])
+        self._b = np.array([k.b for k in coef])
+        self._d = np.array([k.d for k in coef])
+        self._sigma_w = np.array([math.sqrt(k.var_w_c) if k.var_w_c > 0 else 0.0 for k in coef])
+        self._ratio = np.array([k.w_alpha_per_w_c for k in coef])
+        self._noisy = np.array([k.var_w_c > 0 for k in coef])
+
+    def set_params(self, index: int, params, reset: bool = False) -> None:
+        """Vehicle ``index``'s current statistics change (:meth:`GaussMarkovCurrent.set_params`)."""
+        current = self.currents[index]
+        current.speed, current.direction = float(self.speed[index]), float(self.direction[index])
+        current.set_params(params, reset)
+        self.speed[index], self.direction[index] = current.speed, current.direction
+        self._coefficients()
+
+    def step(self) -> None:
+        """Advance every current one sample (eq. 2.25, 2.26, 2.33)."""
+        empty = self._noisy & (self._used >= self.block)
+        for i in np.flatnonzero(empty):
+            self._noise[i] = self.currents[i].rng.standard_normal(self.block)
+            self._used[i] = 0
+        rows = np.arange(self.n)
+        z = np.where(self._noisy, self._noise[rows, np.minimum(self._used, self.block - 1)], 0.0)
+        self._used += self._noisy
+        w_c = np.where(self._noisy, self._sigma_w * z, 0.0)
+        w_a = self._ratio * w_c
+        self.speed = self._a_c + self._b * self.speed + self._d * w_c
+        self.direction = self._a_alpha + self._b * self.direction + self._d * w_a
+
+    def velocity_ned(self) -> np.ndarray:
+        """(N, 3) current velocities in NED [m/s] (horizontal), as each current's own ``velocity_ned``."""
+        out = np.zeros((self.n, 3))
+        compiled.polar_to_ned(self.speed, self.direction, out)
+        return out

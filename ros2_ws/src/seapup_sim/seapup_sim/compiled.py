@@ -32,7 +32,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch", "cable_solve", "CABLE_OUT"]
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch", "cable_solve", "CABLE_OUT",
+           "polar_to_ned"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -376,6 +377,15 @@ def cable_solve(state, current, attachment, ship, fixed_length, length_ratio, k,
     out[25] = attachment[0] * body[1] - attachment[1] * body[0]
 
 
+@njit(**_JIT)
+def polar_to_ned(speed, direction, out):
+    """(c cos alpha, c sin alpha, 0) per row (GaussMarkovCurrent.velocity_ned, with the same libm)."""
+    for i in range(speed.shape[0]):
+        out[i, 0] = speed[i] * math.cos(direction[i])
+        out[i, 1] = speed[i] * math.sin(direction[i])
+        out[i, 2] = 0.0
+
+
 def pack_batch(models) -> Packed:
     """:func:`pack` of each model, stacked on a leading axis; hydrodynamic tables of different lengths are
     padded with terms of coefficient zero on the constant factor (they add exactly 0.0)."""
@@ -436,6 +446,7 @@ def warm() -> None:
     packed = pack(model)
     rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
+    polar_to_ned(np.zeros(2), np.zeros(2), np.zeros((2, 3)))
     two = pack_batch([model, model])   # BatchPlant.step's call
     rk4_batch(np.zeros((2, 12)), np.zeros((2, 4)), np.zeros((2, 4)), np.full(2, 0.05), 0.1, np.zeros((2, 3)), True,
               np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(2, dtype=np.bool_),
