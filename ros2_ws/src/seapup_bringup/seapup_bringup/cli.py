@@ -170,6 +170,14 @@ def _fly(argv: list[str]) -> int:
     return fly(argv)
 
 
+@command("campaign", "a Monte Carlo campaign: a run spec x a grid and random draws x seeds, flown on Dask "
+         "(a LocalCluster or --scheduler ADDRESS); a Parquet table and a page of distributions and worst runs",
+         "SPEC.yaml [--scheduler ADDRESS] [--workers N] [--out DIR] [--resume] [--limit N] [--json [F]]")
+def _campaign(argv: list[str]) -> int:
+    from seapup_bringup.campaign_commands import campaign_command
+    return campaign_command(argv)
+
+
 @command("controllers", "the registered velocity controllers (control laws by name) and their parameters",
          "[--json [F]]")
 def _controllers(argv: list[str]) -> int:

@@ -1,0 +1,233 @@
+"""``./seapup campaign SPEC.yaml``: a Monte Carlo campaign on Dask, its table and its page (issue 26).
+
+The campaign file (:mod:`seapup_runs.campaign`) expands into runs; they are grouped into tasks of
+``runs_per_task`` and each task is flown by a Dask worker (:func:`seapup_runs.campaign.fly_rows`): on a
+``LocalCluster`` of ``--workers`` processes (one thread each) by default, or on an existing cluster with
+``--scheduler tcp://HOST:PORT`` (its workers need seapup installed: ``./seapup env`` on each machine). Each
+finished task is written at once to ``OUT/parts/task-NNNNN.parquet``, so ``--resume`` after an interruption
+flies only what is missing (the campaign file must be unchanged: its hash is in ``OUT/campaign.json``).
+At the end ``OUT/results.parquet`` holds one row per run -- index, parameters (``param.*``), status and
+error, wall and CPU seconds, every scalar metric (``metric.*``) -- and ``OUT/index.html`` shows the
+distributions of the summary's metrics by the first grid axis and the worst runs, each with its run spec in
+``OUT/worst/run-N.json`` to fly again with ``./seapup fly OUT/worst/run-N.json --plots DIR``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+
+__all__ = ["campaign_command", "run_campaign"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="./seapup campaign", description=__doc__.split("\n\n")[0])
+    p.add_argument("spec", type=Path, help="the campaign file (YAML; see docs/campaigns.md) or a shipped "
+                   "campaign's name (controller-robustness, adaptive-500)")
+    p.add_argument("--scheduler", help="address of an existing Dask scheduler (default: a LocalCluster here)")
+    p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the CPUs)")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/campaigns/NAME)")
+    p.add_argument("--resume", action="store_true", help="keep the finished tasks of an interrupted campaign")
+    p.add_argument("--limit", type=int, default=None, help="fly only the first N runs (a trial of the file)")
+    add_json_argument(p)
+    return p
+
+
+def campaign_command(argv: list[str]) -> int:
+    """``./seapup campaign``: see the module docstring."""
+    from seapup_runs.campaign import CampaignError, load_campaign
+    args = _parser().parse_args(argv)
+    text = text_stream(args)
+    if args.workers is not None and args.workers < 1:
+        print("seapup: error: --workers must be >= 1", file=sys.stderr)
+        return 2
+    if args.limit is not None and args.limit < 1:
+        print("seapup: error: --limit must be >= 1", file=sys.stderr)
+        return 2
+    try:
+        campaign = load_campaign(args.spec)
+    except CampaignError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    out = args.out or Path(os.environ.get("SEAPUP_ROOT", ".")) / "runs" / "campaigns" / campaign.name
+    try:
+        summary = run_campaign(campaign, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                               limit=args.limit, text=text)
+    except CampaignError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    emit_json(args, summary)
+    return 0 if summary["runs"] else 1
+
+
+def _client(scheduler: str | None, workers: int | None):
+    """A Dask client: to ``scheduler``, or to a LocalCluster of single-threaded worker processes that end
+    with this process (its scheduler lives here; workers give up on a lost scheduler after 10 s)."""
+    import dask
+    from distributed import Client, LocalCluster
+    dask.config.set({"distributed.worker.daemon": False, "distributed.comm.timeouts.connect": "30s",
+                     "distributed.logging.distributed": "error"})
+    if scheduler:
+        from seapup_runs.campaign import CampaignError
+        try:
+            return Client(scheduler, timeout="30s"), None
+        except (OSError, TimeoutError) as exc:
+            raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=40, death_timeout=10)
+    return Client(cluster), cluster
+
+
+def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int | None = None,
+                 resume: bool = False, limit: int | None = None, text=None) -> dict:
+    """Fly ``campaign`` into ``out`` (see the module docstring); the JSON summary."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from seapup_runs.campaign import CampaignError, expand, fly_rows, tasks
+    text = text or sys.stderr
+    start = time.perf_counter()
+    rows = expand(campaign)[:limit]
+    groups = tasks(rows, campaign.runs_per_task)
+    digest = f"{campaign.digest}-{len(rows)}"
+    parts = out / "parts"
+    manifest = out / "campaign.json"
+    previous = json.loads(manifest.read_text()) if manifest.is_file() else None
+    if resume and previous is not None and previous.get("digest") != digest:
+        raise CampaignError(f"{out} holds another campaign (or a changed file or --limit): resume needs the same; "
+                            "choose another --out or drop --resume")
+    if not resume and out.exists():
+        for stale in (parts, out / "worst"):
+            shutil.rmtree(stale, ignore_errors=True)
+    parts.mkdir(parents=True, exist_ok=True)
+    manifest.write_text(json.dumps({"name": campaign.name, "digest": digest, "runs": len(rows),
+                                    "tasks": len(groups), "runs_per_task": campaign.runs_per_task,
+                                    "source": campaign.source}, indent=1, default=str))
+    todo = [k for k in range(len(groups)) if not (parts / f"task-{k:05d}.parquet").is_file()]
+    reused = len(groups) - len(todo)
+    print(f"campaign {campaign.name}: {len(rows)} runs in {len(groups)} tasks of up to {campaign.runs_per_task}"
+          f"{f'; {reused} tasks already done' if reused else ''}", file=text, flush=True)
+    where = scheduler or "a LocalCluster"
+    if todo:
+        client, cluster = _client(scheduler, workers)
+        try:
+            from distributed import as_completed
+            n_workers = len(client.scheduler_info().get("workers", {}))
+            print(f"flying on {where} ({n_workers} workers)...", file=text, flush=True)
+            futures = {client.submit(fly_rows, groups[k], key=f"seapup-{digest}-{k}", pure=False): k for k in todo}
+            done = 0
+            for future in as_completed(futures):
+                k = futures[future]
+                table = pa.Table.from_pylist(_columns_safe(future.result()))
+                pq.write_table(table, parts / f"task-{k:05d}.parquet.tmp")
+                (parts / f"task-{k:05d}.parquet.tmp").replace(parts / f"task-{k:05d}.parquet")
+                done += 1
+                progress("campaign", done / len(todo), stream=text)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    table = _concat([pq.read_table(parts / f"task-{k:05d}.parquet") for k in range(len(groups))])
+    pq.write_table(table, out / "results.parquet")
+    records = table.to_pylist()
+    errors = [r for r in records if r["status"] != "ok"]
+    page, worst = _page(campaign, records, rows, out)
+    summary = {"name": campaign.name, "runs": len(records), "ok": len(records) - len(errors), "errors": len(errors),
+               "tasks": len(groups), "tasks_reused": reused, "where": where, "out": str(out),
+               "results": str(out / "results.parquet"), "page": str(page), "worst": worst,
+               "wall_s": time.perf_counter() - start,
+               "run_cpu_s": float(sum(r["cpu_s"] for r in records))}
+    print(f"{summary['ok']} of {summary['runs']} runs flown ({summary['errors']} failed) in {summary['wall_s']:.1f} s; "
+          f"table {summary['results']}; page {page}", file=text)
+    for r in errors[:5]:
+        print(f"  run {r['index']}: {r['error']}", file=text)
+    return summary
+
+
+def _columns_safe(records: list[dict]) -> list[dict]:
+    """Rows whose metric columns have one type each across tasks (a metric's numbers as float; parameters as
+    given: a seed stays an integer)."""
+    return [{k: (float(v) if k.startswith("metric.") and isinstance(v, int) and not isinstance(v, bool) else v)
+             for k, v in r.items()} for r in records]
+
+
+def _concat(tables):
+    import pyarrow as pa
+    return pa.concat_tables(tables, promote_options="permissive").sort_by("index")
+
+
+def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[Path, list]:
+    """``index.html``: the distributions of the summary's metrics by the first grid axis and the worst runs."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from seapup_bringup.pages import CSS, esc, figure, fmt
+    summary = campaign.summary
+    ok = [r for r in records if r["status"] == "ok"]
+    metric_names = sorted({k for r in ok for k, v in r.items() if k.startswith("metric.") and isinstance(v, float)})
+    chosen = [f"metric.{m}" for m in summary.get("metrics", [])] or metric_names[:6]
+    first = list(rows[0]["parameters"]) if rows else []
+    axis = f"param.{first[0]}" if first and first[0] != "seed" else None
+    figures = []
+    (out / "figures").mkdir(exist_ok=True)
+    for name in [m for m in chosen if m in metric_names]:
+        groups = {}
+        for r in ok:
+            value = r.get(name)
+            if isinstance(value, float) and np.isfinite(value):
+                groups.setdefault(str(r.get(axis, "all")) if axis else "all", []).append(value)
+        if not groups:
+            continue
+        fig, ax = plt.subplots(figsize=(7, 3.2))
+        labels = sorted(groups)
+        ax.boxplot([groups[k] for k in labels], showfliers=True)
+        ax.set_xticks(range(1, len(labels) + 1), [k[:24] for k in labels], rotation=15)
+        ax.set_ylabel(name.removeprefix("metric."))
+        ax.set_title(f"{name.removeprefix('metric.')} by {axis.removeprefix('param.') if axis else 'run'} "
+                     f"({sum(len(v) for v in groups.values())} runs)", fontsize=9)
+        ax.grid(alpha=0.3)
+        path = out / "figures" / f"{name.removeprefix('metric.').replace('.', '_')}.png"
+        fig.tight_layout()
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        figures.append(figure(path, f"{name.removeprefix('metric.')}: distribution over the runs"))
+    worst = []
+    by = summary.get("worst_by")
+    if by and f"metric.{by}" in metric_names:
+        key = f"metric.{by}"
+        scored = [r for r in ok if isinstance(r.get(key), float) and np.isfinite(r[key])]
+        scored.sort(key=lambda r: r[key], reverse=bool(summary.get("worst_highest", True)))
+        (out / "worst").mkdir(exist_ok=True)
+        spec_of = {row["index"]: row["spec"] for row in rows}
+        for r in scored[:int(summary.get("worst", 5))]:
+            path = out / "worst" / f"run-{r['index']}.json"
+            path.write_text(json.dumps(spec_of[r["index"]], indent=1))
+            worst.append({"index": r["index"], by: r[key], "spec": str(path),
+                          "parameters": {k.removeprefix("param."): v for k, v in r.items() if k.startswith("param.")}})
+    failed = [r for r in records if r["status"] != "ok"]
+    worst_rows = "".join(
+        f"<tr><td class=num>{w['index']}</td><td class=num>{fmt(w[by])}</td><td>{esc(', '.join(f'{k}={v}' for k, v in w['parameters'].items()))}"
+        f"</td><td><code>./seapup fly {esc(os.path.relpath(w['spec'], out))} --plots DIR</code></td></tr>" for w in worst)
+    failed_rows = "".join(f"<tr><td class=num>{r['index']}</td><td>{esc(r['error'])}</td></tr>" for r in failed[:50])
+    html = f"""<!doctype html><html><head><meta charset="utf-8"><title>campaign {esc(campaign.name)}</title>
+<style>{CSS}</style></head><body><h1>Campaign {esc(campaign.name)}</h1>
+<p>{esc(campaign.doc)}</p>
+<p>{len(records)} runs: {len(ok)} flown, {len(failed)} failed. Table: <code>results.parquet</code> (one row per run:
+<code>param.*</code>, status, <code>metric.*</code>); campaign file hash {esc(campaign.digest)}.</p>
+<h2>Distributions</h2>{''.join(figures) or '<p>no numeric metric to show</p>'}
+<h2>Worst runs{f' by {esc(by)}' if by else ''}</h2>
+{'<table><tr><th>run</th><th>' + esc(by) + '</th><th>parameters</th><th>fly it again</th></tr>' + worst_rows + '</table>'
+ if worst else '<p>no worst_by metric in the summary</p>'}
+<h2>Failed runs</h2>{'<table><tr><th>run</th><th>reason</th></tr>' + failed_rows + '</table>' if failed else '<p>none</p>'}
+</body></html>"""
+    page = out / "index.html"
+    page.write_text(html)
+    return page, worst

@@ -1,0 +1,116 @@
+"""Campaign files (seapup_runs.campaign): what a file expands into, what it refuses, and a task's rows.
+
+Truth: the run specs built by hand from the same base and values, the randomised specs of
+seapup_runs.randomised, and runs flown directly by seapup_runs.runner.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from seapup_runs import campaign as cp
+from seapup_runs.randomised import random_adaptive_spec
+from seapup_runs.runner import run
+from seapup_runs.spec import RunSpec
+
+BASE = {"spec": {"name": "short", "duration": 2.0, "controller": {"type": "hold"},
+                 "reference": [[0.0, 0.0, 0.0, 0.0, 0.0]], "metrics": ["step_response"]}}
+FOUL = {"time": 1.0, "kind": "thruster_efficiency", "detail": [0.5, 1.0, 1.0, 1.0]}
+
+
+def _doc(**changes):
+    doc = {"name": "trial", "base": BASE, "grid": {"vehicle": ["baseline", "camera"],
+                                                   "control_period": [0.2, 0.1, 0.05]},
+           "random": {"count": 2, "seed": 4, "draws": {
+               "environment.current": {"choice": [{"enabled": False}, {"enabled": True, "mean_speed": 0.2}]},
+               "environment.current.mean_direction": {"uniform": [-1.0, 1.0]},
+               "events+": {"choice": [[], [FOUL]]}}},
+           "seeds": 2, "runs_per_task": 5}
+    doc.update(changes)
+    return doc
+
+
+@pytest.mark.unit
+def test_a_campaign_expands_into_every_combination_draw_and_seed_in_order():
+    campaign = cp.campaign_from_dict(_doc())
+    rows = cp.expand(campaign)
+    assert len(rows) == 2 * 3 * 2 * 2 and [r["index"] for r in rows] == list(range(24))
+    assert rows == cp.expand(cp.campaign_from_dict(_doc()))          # the same file, the same runs
+    for row in rows:
+        p, spec = row["parameters"], RunSpec.from_dict(row["spec"])
+        assert spec.vehicle == p["vehicle"] and spec.control_period == p["control_period"] and spec.seed == p["seed"]
+        current = dict(spec.environment.get("current") or {})
+        assert current["mean_direction"] == p["environment.current.mean_direction"]
+        assert current["enabled"] == p["environment.current"]["enabled"]
+        assert [e.to_dict() for e in spec.events] == [FOUL] * len(p["events+"])
+        assert -1.0 <= p["environment.current.mean_direction"] <= 1.0
+    # two seeds per point, the same two everywhere, and another campaign's are others
+    seeds = {r["parameters"]["seed"] for r in rows}
+    assert len(seeds) == 2
+    assert seeds.isdisjoint({r["parameters"]["seed"] for r in cp.expand(cp.campaign_from_dict(_doc(name="other")))})
+    # the draws differ between the points of a grid, and both choices occur
+    assert len({r["parameters"]["environment.current.mean_direction"] for r in rows}) == 12
+    assert {len(r["parameters"]["events+"]) for r in rows} == {0, 1}
+    assert cp.tasks(rows, 5)[-1] == rows[20:] and len(cp.tasks(rows, 5)) == 5
+
+
+@pytest.mark.unit
+def test_randomised_campaigns_are_the_randomised_runs():
+    campaign = cp.campaign_from_dict({"name": "r", "randomised": {"count": 4, "first": 10}})
+    rows = cp.expand(campaign)
+    assert [r["parameters"]["number"] for r in rows] == [10, 11, 12, 13]
+    assert all(r["spec"] == random_adaptive_spec(r["parameters"]["number"]).to_dict() for r in rows)
+    assert all(r["parameters"]["controller.type"] == r["spec"]["controller"]["type"] for r in rows)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("change, message", [
+    ({"colour": "red"}, "unknown key"),
+    ({"name": "a b"}, "name must be"),
+    ({"runs_per_task": 0}, "runs_per_task"),
+    ({"grid": {"vehicle": []}}, "non-empty list"),
+    ({"random": {"count": 1, "draws": {"seed": {"gaussian": [0, 1]}}}}, "a draw is one of"),
+    ({"random": {"count": 1, "draws": {"duration": {"loguniform": [0, 1]}}}}, "positive"),
+    ({"grid": {"control_period": [0.13]}}, "run 0 .*control_period"),
+    ({"grid": {"vehicle": ["submarine"]}}, "run 0"),
+    ({"base": {"scenario": "no-such-case"}}, "no scenario"),
+    ({"randomised": {"count": 3}}, "either base"),
+    ({"seeds": 0}, "seeds is a count"),
+])
+def test_a_bad_campaign_file_is_refused_with_one_line(change, message):
+    with pytest.raises(cp.CampaignError, match=message) as caught:
+        cp.campaign_from_dict(_doc(**change))
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.unit
+def test_the_shipped_campaigns_load_and_ask_the_thesis_s_questions():
+    shipped = cp.shipped()
+    assert {"controller-robustness", "adaptive-500"} <= set(shipped)
+    robust = cp.expand(cp.load_campaign("controller-robustness"))
+    assert len(robust) == 3 * 2 * 2 * 3 * 3
+    assert {r["parameters"]["controller.type"] for r in robust} == {"mfol", "explicit", "gmv"}
+    assert {r["parameters"]["vehicle"] for r in robust} == {"baseline", "camera"}
+    assert len(cp.expand(cp.load_campaign("adaptive-500"))) == 500
+
+
+@pytest.mark.unit
+def test_a_task_flies_its_runs_and_a_failing_run_is_a_row_with_its_reason():
+    rows = cp.expand(cp.campaign_from_dict(_doc(grid={"vehicle": ["baseline", "camera"]}, random={}, seeds=[3])))
+    bad = {**rows[1], "index": 99, "spec": {**rows[1]["spec"], "controller": {"type": "hold", "parameters": {"x": 1}}}}
+    out = cp.fly_rows([rows[0], bad])
+    assert [r["index"] for r in out] == [0, 99] and [r["status"] for r in out] == ["ok", "error"]
+    assert out[1]["error"] and "\n" not in out[1]["error"] and not any(k.startswith("metric.") for k in out[1])
+    direct = cp.flatten(run(RunSpec.from_dict(rows[0]["spec"])).metrics)
+    mine = {k.removeprefix("metric."): v for k, v in out[0].items() if k.startswith("metric.")}
+    assert mine.keys() == direct.keys() and len(mine) > 5
+    for key, value in direct.items():
+        assert mine[key] == value or (isinstance(value, float) and math.isnan(value) and math.isnan(mine[key])), key
+    assert out[0]["param.vehicle"] == "baseline" and out[0]["param.seed"] == 3 and out[0]["cpu_s"] > 0
+
+
+@pytest.mark.unit
+def test_flatten_keeps_scalars_and_short_numeric_lists():
+    flat = cp.flatten({"a": {"b": 1, "c": True, "d": "x", "e": [1, 2], "f": list(range(9)), "g": None},
+                       "h": np.float64(2.5)})
+    assert flat == {"a.b": 1.0, "a.c": True, "a.d": "x", "a.e.0": 1.0, "a.e.1": 2.0, "h": 2.5}

@@ -1,0 +1,84 @@
+"""./seapup campaign: a campaign flown on a Dask LocalCluster, its table, its page, resuming (issue 26).
+
+Truth: the same runs flown directly in this process by seapup_runs.runner (the table must hold exactly their
+metrics), the campaign file's own expansion, and the files a resumed campaign leaves untouched.
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from seapup_runs import campaign as cp
+from seapup_runs.runner import run
+from seapup_runs.spec import RunSpec
+
+SHORT = {"name": "short", "duration": 3.0, "controller": {"type": "hold"},
+         "reference": [[0.0, 0.0, 0.0, 0.0, 0.0]], "metrics": ["step_response"]}
+
+
+def _file(tmp_path, **changes):
+    doc = {"name": "dask-trial", "doc": "four short runs", "base": {"spec": SHORT},
+           "grid": {"vehicle": ["baseline", "camera"], "environment.sensors": ["ideal", "baseline"]},
+           "seeds": [5], "runs_per_task": 1,
+           "summary": {"metrics": ["pitch_deg.peak", "roll_deg.peak"], "worst_by": "pitch_deg.peak", "worst": 2}}
+    doc.update(changes)
+    path = tmp_path / "campaign.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def _same(a, b) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def test_a_campaign_on_a_local_cluster_writes_every_run_s_metrics_and_resumes(tmp_path):
+    import pyarrow.parquet as pq
+
+    from seapup_bringup.campaign_commands import run_campaign
+    campaign = cp.load_campaign(_file(tmp_path))
+    out = tmp_path / "out"
+    summary = run_campaign(campaign, out, workers=2)
+    assert summary["runs"] == summary["ok"] == 4 and summary["errors"] == 0 and summary["tasks"] == 4
+    table = pq.read_table(out / "results.parquet").to_pylist()
+    assert [r["index"] for r in table] == [0, 1, 2, 3]
+    for row, expected in zip(table, cp.expand(campaign)):
+        assert row["param.vehicle"] == expected["parameters"]["vehicle"] and row["param.seed"] == 5
+        direct = cp.flatten(run(RunSpec.from_dict(expected["spec"])).metrics)
+        assert direct and all(_same(row[f"metric.{k}"], v) for k, v in direct.items()), row["index"]
+    page = (out / "index.html").read_text()
+    assert page.count("<img") == 2 and "dask-trial" in page and "./seapup fly" in page
+    worst = summary["worst"]
+    assert len(worst) == 2 and worst[0]["pitch_deg.peak"] >= worst[1]["pitch_deg.peak"]
+    assert RunSpec.from_dict(json.loads(open(worst[0]["spec"]).read())).vehicle in ("baseline", "camera")
+    # interrupted: one task's part is lost; --resume flies only it, and the table is the same
+    (out / "parts" / "task-00002.parquet").unlink()
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "parts").iterdir()}
+    again = run_campaign(campaign, out, workers=1, resume=True)
+    assert again["tasks_reused"] == 3 and again["runs"] == 4
+    assert all((out / "parts" / name).stat().st_mtime_ns == t for name, t in before.items())
+    timed = ("wall_s", "cpu_s")   # the re-flown task's own timings differ, nothing else
+    resumed = pq.read_table(out / "results.parquet").to_pylist()
+    assert [sorted(r) for r in resumed] == [sorted(r) for r in table]
+    assert all(_same(a[k], b[k]) for a, b in zip(resumed, table) for k in a if k not in timed)
+    # a changed file cannot resume into the same directory
+    changed = cp.load_campaign(_file(tmp_path, seeds=[6]))
+    with pytest.raises(cp.CampaignError, match="another campaign"):
+        run_campaign(changed, out, workers=1, resume=True)
+
+
+def test_the_command_refuses_a_bad_file_and_an_unreachable_scheduler_with_one_line(tmp_path):
+    env = dict(os.environ)
+    bad = _file(tmp_path, grid={"vehicle": ["submarine"]})
+    proc = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "campaign", str(bad)], capture_output=True,
+                          text=True, env=env, timeout=120)
+    assert proc.returncode == 1 and proc.stderr.strip().count("\n") == 0 and "submarine" in proc.stderr
+    good = _file(tmp_path)
+    proc = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "campaign", str(good), "--out",
+                           str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True,
+                          env=env, timeout=180)
+    assert proc.returncode == 1 and "no Dask scheduler at tcp://127.0.0.1:9" in proc.stderr
+    assert "Traceback" not in proc.stderr
