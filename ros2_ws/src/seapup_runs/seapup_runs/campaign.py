@@ -140,7 +140,7 @@ def _check(spec: RunSpec) -> None:
         if vehicle not in available_configs():
             raise RunSpecError(f"no vehicle configuration {vehicle!r}; known: {', '.join(available_configs())}")
     for _, controller in spec.controller_timeline():
-        controller_type(controller.type)
+        controller_type(controller.type).complete(controller.parameters)
 
 
 def _label(parameters: dict) -> str:
@@ -174,6 +174,15 @@ def _base_spec(base, where: str) -> dict:
     except (KeyError, RunSpecError, ValueError) as exc:
         raise CampaignError(f"{where}: base: {str(exc).strip(chr(39))}") from None
     return spec.to_dict()
+
+
+def _get(spec: dict, path: str):
+    node = spec
+    for key in path.split("."):
+        if not isinstance(node, dict):
+            return None
+        node = node.get(key)
+    return node
 
 
 def _set(spec: dict, path: str, value, where: str) -> None:
@@ -275,7 +284,11 @@ def expand(campaign: Campaign) -> list[dict]:
             for seed in seed_list:
                 parameters = {**dict(zip(grid, point)), **drawn, "seed": seed}
                 spec = copy.deepcopy(base)
-                for path, value in parameters.items():
+                # a new law starts from its own defaults: the base's parameters belong to the base's law
+                for path, value in sorted(parameters.items(), key=lambda item: not item[0].endswith(".type")):
+                    if path.endswith(".type") and isinstance(_get(spec, path[:-5]), dict) \
+                            and _get(spec, path) != value:
+                        _get(spec, path[:-5])["parameters"] = {}
                     _set(spec, path, value, where)
                 rows.append({"index": len(rows), "parameters": parameters, "spec": spec})
     return rows

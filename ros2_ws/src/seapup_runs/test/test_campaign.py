@@ -55,6 +55,20 @@ def test_a_campaign_expands_into_every_combination_draw_and_seed_in_order():
 
 
 @pytest.mark.unit
+def test_another_law_starts_from_its_defaults_and_its_parameters_are_checked_before_flying():
+    """The shipped scenario's mfol carries schedule: false; switching the law must not hand it to explicit."""
+    doc = {"name": "laws", "base": {"scenario": "square-inspection"},
+           "grid": {"controller.parameters.forgetting": [0.98], "controller.type": ["explicit", "gmv"]}}
+    rows = cp.expand(cp.campaign_from_dict(doc))
+    assert [r["spec"]["controller"] for r in rows] == [{"type": "explicit", "parameters": {"forgetting": 0.98}},
+                                                       {"type": "gmv", "parameters": {"forgetting": 0.98}}]
+    kept = cp.expand(cp.campaign_from_dict({**doc, "grid": {"controller.type": ["mfol"]}}))
+    assert kept[0]["spec"]["controller"]["parameters"] == {"schedule": False}   # the same law keeps them
+    with pytest.raises(cp.CampaignError, match="has no parameter"):
+        cp.campaign_from_dict({**doc, "grid": {"controller.parameters.lambda": [0.1], "controller.type": ["explicit"]}})
+
+
+@pytest.mark.unit
 def test_randomised_campaigns_are_the_randomised_runs():
     campaign = cp.campaign_from_dict({"name": "r", "randomised": {"count": 4, "first": 10}})
     rows = cp.expand(campaign)
