@@ -11,10 +11,15 @@ random states, inputs and every shipped configuration (``test/test_compiled.py``
 
 Decisions:
 
-- one kernel call is one physics step. The control period's other work between physics steps -- the
-  current's Gauss-Markov update (eq. 2.29), the umbilical's wrench, configuration events -- stays in
-  :class:`~seapup_sim.simulation.Simulation`, so the single-vehicle path keeps one implementation of
-  them; the batch plant advances whole control periods of many vehicles in one call (issue 26).
+- one kernel call is one physics step: of one vehicle (:func:`rk4`), or of N vehicles, each by the same
+  single-vehicle kernel (:func:`rk4_batch`, :class:`seapup_sim.batch.BatchPlant`: vehicle i equals the
+  vehicle stepped alone, bit for bit). The other work between physics steps -- the current's
+  Gauss-Markov update (eq. 2.29), configuration events -- stays in
+  :class:`~seapup_sim.simulation.Simulation` (and :class:`seapup_sim.batch.BatchCurrent`), so each has one
+  implementation.
+- the umbilical's closed-form quasi-static cable (sec. 2.3.4, 3.8) is a kernel too (:func:`cable_solve`,
+  used by :class:`seapup_sim.umbilical.Umbilical`); its rare cold start stays with the reference's Brent
+  bracket.
 - no ``fastmath``: the operations happen in the reference's order, so the two agree to rounding and
   the mirror symmetries of the model (sway to port and starboard) hold exactly as before.
 - kernels are compiled once per machine (``cache=True``: numba's cache beside this file, or its
@@ -32,8 +37,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4_batch", "cable_solve", "CABLE_OUT",
-           "polar_to_ned"]
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_batch", "rhs", "rotation",
+           "cable_solve", "CABLE_OUT", "polar_to_ned", "warm", "WORK"]
 
 _JIT = dict(cache=True, nogil=True)
 
