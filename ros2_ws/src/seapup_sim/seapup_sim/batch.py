@@ -24,8 +24,9 @@ import numpy as np
 from seapup_common.blade_pitch import InvalidBladePitchError
 from seapup_sim import compiled
 from seapup_sim.current import GaussMarkovCurrent
-from seapup_sim.integrator import ENVELOPE
-from seapup_sim.vehicle import STATE_NAMES, VehicleModel
+from seapup_sim.integrator import ENVELOPE, divergence
+from seapup_sim.thrusters import check_efficiency
+from seapup_sim.vehicle import VehicleModel
 
 __all__ = ["BatchPlant", "BatchCurrent"]
 
@@ -117,10 +118,7 @@ class BatchPlant:
     def set_efficiency(self, index: int, efficiency) -> None:
         """Vehicle ``index``'s four thruster efficiencies (fouling, sec. 7.4.4): checked as
         ``ThrusterSet.set_efficiency`` checks them (4 finite factors in [0, 1.5])."""
-        eff = np.asarray(efficiency, dtype=float)
-        if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
-            raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got {efficiency!r}")
-        self.efficiency[index] = eff
+        self.efficiency[index] = check_efficiency(efficiency)
 
     def step(self, commands, currents=None, externals=None) -> np.ndarray:
         """Advance every active vehicle one step with its ``commands`` row [rad] held (clipped to the blade
@@ -138,14 +136,9 @@ class BatchPlant:
         compiled.rk4_batch(self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals,
                            use_external, self.thrusters_on, self.efficiency, *self._packed, self.active, new,
                            pitch_end)
-        bad = (~np.isfinite(new) | (np.abs(new) > ENVELOPE)) & self.active[:, None]
-        stopped = bad.any(axis=1)
-        t = self.t + self.dt
+        stopped = ((~np.isfinite(new) | (np.abs(new) > ENVELOPE)) & self.active[:, None]).any(axis=1)
         for i in np.flatnonzero(stopped):
-            k = int(np.flatnonzero(bad[i])[0])
-            self.errors[i] = (f"state {STATE_NAMES[k]} = {new[i, k]!r} at t = {t:.3f} s is "
-                              f"{'not finite' if not np.isfinite(new[i, k]) else 'outside the valid envelope'} "
-                              f"(|{STATE_NAMES[k]}| <= {ENVELOPE[k]:.4g}); the state was not updated")
+            self.errors[i] = divergence(new[i], self.t + self.dt)   # the single integrator's words
         ok = self.active & ~stopped
         self.active = ok
         new[:, 3] = (new[:, 3] + math.pi) % (2 * math.pi) - math.pi   # roll and yaw wrap to [-pi, pi)

@@ -31,7 +31,7 @@ import numpy as np
 from seapup_common.blade_pitch import check_blade_pitch
 from seapup_sim.vehicle import STATE_NAMES, VehicleModel
 
-__all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE", "BACKENDS", "default_backend"]
+__all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE", "BACKENDS", "default_backend", "divergence"]
 
 #: How a step is taken: numba kernels or the NumPy reference.
 BACKENDS = ("compiled", "numpy")
@@ -48,6 +48,17 @@ def default_backend() -> str:
     if choice not in BACKENDS:
         raise ValueError(f"SEAPUP_PLANT must be one of {', '.join(BACKENDS)}, got {choice!r}")
     return "compiled" if choice == "compiled" and importlib.util.find_spec("numba") is not None else "numpy"
+
+
+def divergence(state: np.ndarray, t: float) -> str:
+    """Why ``state`` (12,) at time ``t`` must not be stored (non-finite or outside :data:`ENVELOPE`), or ''."""
+    bad = ~np.isfinite(state) | (np.abs(state) > ENVELOPE)
+    if not bad.any():
+        return ""
+    i = int(np.flatnonzero(bad)[0])
+    return (f"state {STATE_NAMES[i]} = {state[i]!r} at t = {t:.3f} s is "
+            f"{'not finite' if not np.isfinite(state[i]) else 'outside the valid envelope'} "
+            f"(|{STATE_NAMES[i]}| <= {ENVELOPE[i]:.4g}); the state was not updated")
 
 
 class DivergenceError(FloatingPointError):
@@ -108,13 +119,9 @@ class VehicleIntegrator:
         return command + (self.pitch - command) * np.exp(-elapsed / tau)
 
     def _check(self, state: np.ndarray, t: float) -> None:
-        bad = ~np.isfinite(state) | (np.abs(state) > ENVELOPE)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise DivergenceError(
-                f"state {STATE_NAMES[i]} = {state[i]!r} at t = {t:.3f} s is "
-                f"{'not finite' if not np.isfinite(state[i]) else 'outside the valid envelope'} "
-                f"(|{STATE_NAMES[i]}| <= {ENVELOPE[i]:.4g}); the state was not updated")
+        reason = divergence(state, t)
+        if reason:
+            raise DivergenceError(reason)
 
     @property
     def compiled(self) -> bool:

@@ -49,8 +49,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ThrusterSet"]
+__all__ = ["ThrusterSet", "check_efficiency"]
 
+
+
+def check_efficiency(efficiency) -> np.ndarray:
+    """Four thruster efficiencies as a new array: finite factors in [0, 1.5] (ValueError otherwise)."""
+    eff = np.array(efficiency, dtype=float)
+    if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
+        shown = ", ".join(f"{float(x):g}" for x in eff.ravel()[:8]) if eff.size else str(efficiency)[:80]
+        raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got [{shown}]")
+    return eff
 
 @dataclass
 class ThrusterSet:
@@ -134,11 +143,7 @@ class ThrusterSet:
         """Per-thruster factors in [0, 1.5] on the installation coefficients (fouling,
         sec. 7.4.4: the main port thruster's coefficients halved). Momentum drag is
         a property of the rotating propeller and is not scaled."""
-        eff = np.asarray(efficiency, float)
-        if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
-            shown = ", ".join(f"{float(x):g}" for x in eff.ravel()[:8]) if eff.size else str(efficiency)[:80]
-            raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got [{shown}]")
-        self.efficiency = eff.copy()
+        self.efficiency = check_efficiency(efficiency)
 
     def thrust_coefficient(self, advance: np.ndarray, pitch: np.ndarray) -> np.ndarray:
         """K_T(J, beta) for each thruster."""
