@@ -12,6 +12,7 @@
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import replace
@@ -52,7 +53,9 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     """Simulated seconds per wall second of simulator + a controller in lockstep.
 
     ``controller``: the controller's command line (default: ``open_loop``
-    holding the mains at 0.6 rad).
+    holding the mains at 0.6 rad). Beside the wall-clock rate, each process's
+    CPU time per control step (user + system, from ``/proc``): what a step
+    costs whatever else the machine is doing.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -86,9 +89,11 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             while time.monotonic() < deadline and (not stamps or stamps[-1][1] < 1.0):
                 ex.spin_once(timeout_sec=0.05)
             wall0, sim0 = stamps[-1]
+            cpu0 = [_cpu_s(p.popen.pid) for p in (simulator, ctl)]
             while time.monotonic() < deadline and stamps[-1][1] - sim0 < sim_seconds:
                 ex.spin_once(timeout_sec=0.05)
             wall1, sim1 = stamps[-1]
+            cpu1 = [_cpu_s(p.popen.pid) for p in (simulator, ctl)]
         finally:
             if ctl is not None:
                 ctl.stop()
@@ -98,7 +103,9 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             ctx.try_shutdown()
     steps = (sim1 - sim0) / control_period
     return {"rtf": (sim1 - sim0) / (wall1 - wall0), "steps_per_s": steps / (wall1 - wall0),
-            "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period}
+            "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period,
+            "simulator_cpu_us_per_step": 1e6 * (cpu1[0] - cpu0[0]) / steps,
+            "controller_cpu_us_per_step": 1e6 * (cpu1[1] - cpu0[1]) / steps}
 
 
 def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
@@ -144,6 +151,12 @@ def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
             ctx.try_shutdown()
     s = np.array(samples) * 1e6
     return {"median_us": float(np.median(s)), "p99_us": float(np.percentile(s, 99)), "n": n}
+
+
+def _cpu_s(pid: int) -> float:
+    """User + system CPU time of a process so far [s] (Linux /proc)."""
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def _rss_mb(pid: int) -> float:

@@ -71,11 +71,13 @@ from seapup_msgs.msg import BladePitch, ControllerEstimate
 from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
-from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg, command_to_msg,
+from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg,
                                         diagnostic_array, ns_to_stamp, reference_from_msg, stamp_to_ns)
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file,
-                                    declare_mapping, refuse_invalid_transitions, run_node)
+from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
+                                    QosWatch, declare_from_package_file, declare_mapping,
+                                    refuse_invalid_transitions, run_node)
+from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
@@ -162,23 +164,28 @@ class VelocityControllerNode(LifecycleNode):
             reference_every_sample=bool(self._value("reference_every_sample")),
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
         self.feed = SampleFeed(self.collector, self.policy, self._rejected)
-        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", STREAM_QOS)
+        self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", STREAM_QOS,
+                                                         event_callbacks=QUIET_PUBLISHER)
         self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_subscribers")))])
-        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS,
+                                                 event_callbacks=QUIET_PUBLISHER)
         # a self-tuner (ch. 7) says its estimate and jacket state after every sample it answers
-        self.estimates = (self.create_lifecycle_publisher(ControllerEstimate, "~/estimate", STREAM_QOS)
+        self.estimates = (self.create_lifecycle_publisher(ControllerEstimate, "~/estimate", STREAM_QOS,
+                                                          event_callbacks=QUIET_PUBLISHER)
                           if callable(getattr(self.controller, "estimate_matrix", None)) else None)
+        def subscribe(kind, topic, callback, qos):  # no event handlers on the executor's path: QosWatch
+            return self.create_subscription(kind, topic, callback, qos, event_callbacks=QUIET_SUBSCRIPTION)
         self._interfaces = [
-            self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
-            self.create_subscription(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
-            self.create_subscription(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS),
+            subscribe(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
+            subscribe(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
+            subscribe(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS),
             # a controller manager's copy of what reached the vehicle: activated while the graph is held at a
             # sample the outgoing controller answered, this one starts at the next (SamplePolicy)
-            self.create_subscription(BladePitch, FORWARDED_COMMAND,
-                                     lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)),
-                                     RELIABLE_QOS)]
+            subscribe(BladePitch, FORWARDED_COMMAND,
+                      lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)), RELIABLE_QOS)]
+        self._qos_watch = QosWatch(self)
         if lockstep:
-            self._interfaces.append(self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS))
+            self._interfaces.append(subscribe(Clock, CLOCK, self._on_clock, RELIABLE_QOS))
         else:
             self._interfaces.append(self.create_timer(self.controller.sample_period, self._on_timer))
         self.get_logger().info(f"configured {self.kind.name} ({spec.file or 'no file'}; "
@@ -315,7 +322,7 @@ class VelocityControllerNode(LifecycleNode):
             return
         self.policy.answered(t_ns)
         self.counts["samples"] += 1
-        self.publisher.publish(command_to_msg(command, t_ns))
+        self.publisher.publish(command_bytes(command.blade_pitch, t_ns))  # serialised: a fraction of the cost
         if self.estimates is not None:
             self.estimates.publish(self._estimate(t_ns))
         if self.counts["samples"] % max(1, int(self._value("diagnostics_every"))) == 0:
@@ -361,8 +368,10 @@ class VelocityControllerNode(LifecycleNode):
         rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
         saturated = any(law.get("saturated", ()))
         fallen_back = law.get("mode") == "fallback"   # a self-tuner's jacket refused its estimate (ch. 7)
-        level = DiagnosticStatus.WARN if (rejected or saturated or fallen_back) else DiagnosticStatus.OK
+        qos = self._qos_watch.problems()
+        level = DiagnosticStatus.WARN if (rejected or saturated or fallen_back or qos) else DiagnosticStatus.OK
         message = (f"fallback: {law.get('reason', '')}" if fallen_back else "saturated" if saturated else "tracking")
+        message += "".join(f"; {problem}" for problem in qos)
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level, message, values, t_ns))
 
 

@@ -67,11 +67,12 @@ from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfil
 from seapup_common import frames
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.config import load_yaml, merge
-from seapup_common.contract import Command, ContractError
+from seapup_common.contract import ContractError
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
-                                    declare_mapping, run_node)
+from seapup_common.ros.sample_bytes import SampleEncoder
+from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
+                                    SERVICE_QOS, QosWatch, declare_from_package_file, declare_mapping, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import default_environment_mapping, load_environment
@@ -195,7 +196,8 @@ class SimulatorNode(Node):
         self._end_ns = int(round(p["end_time"] * 1e9))  # 0: no end
         self._held_at_start = bool(p["start_held"])  # until end_time is set at run time
         self._answered_ns: int | None = None  # lockstep: the sample whose command has come
-        self._sent: list = []  # the current sample's (publisher, message) pairs, for a republish
+        self._encoder = SampleEncoder()
+        self._sent: list = []  # the current sample's (publisher, message or its bytes) pairs, for a republish
         self._catch_up = False  # resumed at an unanswered sample: republish it to readers that match late
         self._readers: list[int] = []  # matched readers per publisher of _sent at its last (re)publish
         if self.mode == "lockstep":
@@ -210,7 +212,9 @@ class SimulatorNode(Node):
             f"{self.config.physics_step} s, seed {self.config.seed}")
 
     def _create_interfaces(self, publish_clock: bool) -> None:
-        pub = self.create_publisher
+        def pub(kind, topic, qos):  # no per-publisher event handlers on the executor's path: QosWatch instead
+            return self.create_publisher(kind, topic, qos, event_callbacks=QUIET_PUBLISHER)
+        self._qos_watch = QosWatch(self)
         self.pub_applied = pub(BladePitch, "thrusters/applied", STREAM_QOS)
         self.pub_velocity = pub(TwistWithCovarianceStamped, "sensors/velocity", STREAM_QOS)
         self.pub_imu = pub(Imu, "sensors/imu", STREAM_QOS)
@@ -224,7 +228,8 @@ class SimulatorNode(Node):
         self.pub_manifest = pub(SampleManifest, "sensors/sample", STREAM_QOS)
         self.pub_clock = pub(Clock, CLOCK, STREAM_QOS) if publish_clock else None
         self.pub_diag = pub(DiagnosticArray, DIAGNOSTICS, 10)
-        self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True)
+        self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True,
+                                 event_callbacks=QUIET_SUBSCRIPTION)
         def srv(kind, name, callback):
             self.create_service(kind, name, callback, qos_profile=SERVICE_QOS)
         srv(Reset, "~/reset", self._srv_reset)
@@ -398,28 +403,28 @@ class SimulatorNode(Node):
             out = self._outputs = self.simulator.outputs()
             self.simulator.check_finite(out)
         if self.pub_clock is not None:
-            self.pub_clock.publish(Clock(clock=conv.ns_to_stamp(t_ns)))
+            self.pub_clock.publish(self._encoder.clock(t_ns))
         if resend:
             return  # handshake: say t_k again on /clock only (no duplicate data for recorders)
         self._samples_published += 1
         sample, m = out["sample"], out["sample"].measurement
         prof = self.simulator.sensor_profile
+        encode = self._encoder  # serialised bytes: the messages of seapup_common.ros.messages, packed
         messages = [
-            (self.pub_applied, conv.command_to_msg(Command(out["applied_blade_pitch"]), t_ns, FRD)),
-            (self.pub_velocity, conv.velocity_to_msg(m.velocity, m.rates, t_ns)),
-            (self.pub_imu, conv.imu_to_msg(m.attitude, m.rates, sample.specific_force, t_ns)),
-            *([(self.pub_position, conv.position_to_msg(m.position, t_ns))] if m.position.valid else []),
-            (self.pub_depth, conv.depth_to_msg(m.depth, t_ns)),
-            (self.pub_altitude, conv.altitude_to_msg(  # every sample: +inf when invalid (REP-117)
+            (self.pub_applied, encode.applied(out["applied_blade_pitch"], t_ns)),
+            (self.pub_velocity, encode.velocity(m.velocity, m.rates, t_ns)),
+            (self.pub_imu, encode.imu(m.attitude, m.rates, sample.specific_force, t_ns)),
+            *([(self.pub_position, encode.position(m.position, t_ns))] if m.position.valid else []),
+            (self.pub_depth, encode.depth(m.depth, t_ns)),
+            (self.pub_altitude, encode.altitude(  # every sample: +inf when invalid (REP-117)
                 m.altitude, t_ns, field_of_view=prof.altimeter_field_of_view, min_range=prof.altimeter_min_range,
                 max_range=prof.altimeter_max_range)),
-            (self.pub_truth, conv.odometry_ned(sample.state, t_ns)),
-            (self.pub_odom, conv.odometry_enu(sample.state, t_ns)),
-            (self.pub_current, conv.vector3_stamped(sample.current_ned, t_ns, NED)),
-            (self.pub_wrench, conv.wrench_stamped(sample.umbilical_body, t_ns, FRD))]
+            (self.pub_truth, encode.odometry_ned(sample.state, t_ns)),
+            (self.pub_odom, encode.odometry_enu(sample.state, t_ns)),
+            (self.pub_current, encode.vector3_stamped(sample.current_ned, t_ns, NED)),
+            (self.pub_wrench, encode.wrench_stamped(sample.umbilical_body, t_ns, FRD))]
         # last: what this sample holds (the acoustic fix comes only at some samples)
-        manifest = SampleManifest(topics=[publisher.topic_name for publisher, _ in messages])
-        manifest.header.stamp = conv.ns_to_stamp(t_ns)
+        manifest = encode.manifest([publisher.topic_name for publisher, _ in messages], t_ns)
         self._sent = messages + [(self.pub_manifest, manifest)]
         for publisher, msg in self._sent:
             publisher.publish(msg)
@@ -427,7 +432,7 @@ class SimulatorNode(Node):
     def _republish(self) -> None:
         """The current sample's messages once more, unchanged (a reader takes a sample once)."""
         if self.pub_clock is not None:
-            self.pub_clock.publish(Clock(clock=conv.ns_to_stamp(self.simulator.t_ns)))
+            self.pub_clock.publish(self._encoder.clock(self.simulator.t_ns))
         for publisher, msg in self._sent:
             publisher.publish(msg)
         self._readers = self._reader_counts()
@@ -468,7 +473,7 @@ class SimulatorNode(Node):
 
     def _graph_problems(self) -> list[str]:
         """What is wrong around the simulator on the graph (for WARN diagnostics)."""
-        problems = []
+        problems = self._qos_watch.problems()
         if self.pub_clock is not None and self.count_publishers(CLOCK) > 1:
             problems.append(f"{self.count_publishers(CLOCK)} publishers on {CLOCK}: another clock source "
                             "(a second simulator?) interleaves its time with ours")

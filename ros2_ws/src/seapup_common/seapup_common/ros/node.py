@@ -24,14 +24,15 @@ from rclpy.duration import Duration
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.qos import QoSCompatibility, QoSProfile, ReliabilityPolicy, qos_check_compatible
 from rclpy.signals import SignalHandlerOptions
 
 from seapup_common.parameters import load_node_parameters
 
 __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
-           "refuse_invalid_transitions", "stop_requested",
-           "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
+           "refuse_invalid_transitions", "stop_requested", "QUIET_PUBLISHER", "QUIET_SUBSCRIPTION",
+           "QosWatch", "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
 RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -44,6 +45,12 @@ COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: Services queue deep enough for bursts: 1000 concurrent requests are each
 #: answered (rclpy's default keeps 10 and drops the rest silently).
 SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: A publisher or subscription without rclpy's default event handlers. Those (one per endpoint: "incompatible
+#: QoS") are waited on at every executor iteration: with the simulator's thirteen publishers they doubled the cost
+#: of each ``spin_once`` (about 500 against 220 us measured here), several times per lockstep sample. A node that
+#: uses these checks the same thing at its diagnostics period instead (:class:`QosWatch`).
+QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
+QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 #: Python loggers of the pure cores whose records go to the node's ROS logger.
 CORE_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident")
 
@@ -347,6 +354,51 @@ def refuse_unknown_overrides(node) -> None:
             hints.append(f"{name!r}" + (f" (did you mean {near!r}?)" if near else ""))
         raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; "
                          f"'./seapup param list {node.get_fully_qualified_name()}' on a running node lists them")
+
+
+class QosWatch:
+    """The incompatible-QoS warnings of rclpy's default event handlers, checked when asked rather than waited on.
+
+    :meth:`problems` compares each of the node's publishers with every matched
+    subscription on its topic, and each subscription with every publisher
+    (``qos_check_compatible``), and returns one line per pair that cannot
+    communicate; a pair is logged as a warning the first time it is seen, like
+    the default handler's "requesting incompatible QoS. No messages will be
+    sent to it". Asked more often than every ``interval`` wall seconds, it
+    answers what it found last (a node may ask at every sample).
+    """
+
+    def __init__(self, node, interval: float = 1.0):
+        self.node = node
+        self.interval = interval
+        self._said: set = set()
+        self._found: list[str] = []
+        self._checked = -math.inf
+
+    def problems(self) -> list[str]:
+        if time.monotonic() - self._checked < self.interval:
+            return list(self._found)
+        self._checked = time.monotonic()
+        node, found = self.node, []
+        endpoints = [(pub.topic_name, pub.qos_profile, node.get_subscriptions_info_by_topic, True)
+                     for pub in node.publishers]
+        endpoints += [(sub.topic_name, sub.qos_profile, node.get_publishers_info_by_topic, False)
+                      for sub in node.subscriptions]
+        for topic, qos, others, publishing in endpoints:
+            for info in others(topic):
+                pair = (qos, info.qos_profile) if publishing else (info.qos_profile, qos)
+                compatibility, reason = qos_check_compatible(*pair)
+                if compatibility != QoSCompatibility.ERROR:
+                    continue
+                other = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                text = (f"{topic}: {'subscription' if publishing else 'publisher'} {other} has an incompatible "
+                        f"QoS ({reason.strip() or 'see ./seapup topic info -v'}): no messages pass")
+                found.append(text)
+                if text not in self._said:
+                    self._said.add(text)
+                    node.get_logger().warn(text)
+        self._found = found
+        return list(found)
 
 
 #: The signals :func:`run_node` has been asked to stop by (empty while it runs on).

@@ -1,0 +1,140 @@
+"""Packed messages against rclpy's own serialiser and the message builders of seapup_common.ros.messages."""
+import math
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import AccelWithCovarianceStamped, Polygon, PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry, Path
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Imu, Range
+from rosgraph_msgs.msg import Clock
+from seapup_msgs.msg import BladePitch, SampleManifest
+
+from seapup_common import frames
+from seapup_common.contract import Command, Reading
+from seapup_common.ros import messages as conv
+from seapup_common.ros.cdr import Packer, Restamper
+from seapup_common.ros.sample_bytes import SampleEncoder, command_bytes
+
+RNG = np.random.default_rng(7)
+
+
+def _values(packer):
+    values = []
+    for name in packer.fields:
+        if name.split(".")[-1] == "sec":
+            values.append(int(RNG.integers(-2**31, 2**31)))
+        elif name.endswith("nanosec"):
+            values.append(int(RNG.integers(0, 10**9)))
+        elif name == "radiation_type":
+            values.append(int(RNG.integers(0, 2)))
+        else:
+            values.append(float(RNG.normal(0.0, 1e3)))
+    return values
+
+
+def _field(msg, name):
+    for part in name.replace("]", "").split("."):
+        attribute, _, index = part.partition("[")
+        msg = getattr(msg, attribute)
+        if index:
+            msg = msg[int(index)]
+    return msg
+
+
+@pytest.mark.parametrize("msg_type, strings", [
+    (Odometry, {"header.frame_id": "odom_ned", "child_frame_id": "base_link_frd"}),
+    (Imu, {"header.frame_id": "x"}),          # a 1-byte string: every later field realigned
+    (Range, {}),                              # empty strings, a uint8 then float32s
+    (BladePitch, {"header.frame_id": "abcdefg"}),
+    (AccelWithCovarianceStamped, {"header.frame_id": "base_link_frd"}),
+    (Duration, {}),                           # no header at all
+])
+def test_packed_bytes_are_what_rclpy_serialises_for_the_same_fields(msg_type, strings):
+    packer = Packer(msg_type, strings)
+    for _ in range(5):
+        values = _values(packer)
+        data = packer.pack(values)
+        msg = deserialize_message(data, msg_type)
+        assert len(data) == len(serialize_message(msg)) == packer.size
+        for name, value in zip(packer.fields, values):
+            got = _field(msg, name)
+            if isinstance(value, float) and type(got) is float and _is_float32(msg_type, name):
+                assert got == pytest.approx(value, rel=1e-6)
+            else:
+                assert got == value, name
+        for path, text in strings.items():
+            assert _field(msg, path) == text
+
+
+def _is_float32(msg_type, name):
+    return msg_type is Range and name in ("field_of_view", "min_range", "max_range", "range", "variance")
+
+
+def test_a_packer_refuses_what_has_no_fixed_layout_and_the_wrong_number_of_values():
+    with pytest.raises(TypeError, match="no fixed layout"):
+        Packer(Path)  # a sequence of poses
+    with pytest.raises(TypeError, match="no fixed layout"):
+        Packer(Polygon)
+    with pytest.raises(ValueError, match="no string field"):
+        Packer(Imu, {"header.frame": "x"})
+    packer = Packer(BladePitch)
+    with pytest.raises(ValueError, match="5 values for 6 fields"):
+        packer.pack([0, 0, 1.0, 2.0, 3.0])
+
+
+def _reading(value, variance):
+    return Reading(np.asarray(value, float), 1.0, variance)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_every_sample_message_deserialises_to_what_the_message_builders_make(seed):
+    rng = np.random.default_rng(seed)
+    encoder = SampleEncoder()
+    t_ns = int(rng.integers(0, 10**13))
+    state = rng.normal(0.0, 1.0, 12) * [50, 50, 50, 0.5, 0.5, 3, 1, 1, 1, 0.3, 0.3, 0.3]
+    velocity = _reading(rng.normal(size=3), rng.uniform(0, 1e-3, 3))
+    rates = _reading(rng.normal(size=3), float(rng.uniform(0, 1e-4)))  # scalar variance: each axis
+    attitude = _reading(state[3:6], rng.uniform(0, 1e-4, 3))
+    position = _reading(state[:3], rng.uniform(0, 1, 3))
+    depth = Reading(float(state[2]), 1.0, float(rng.uniform(0, 0.1)))
+    altitude = Reading(float(rng.uniform(0.5, 20)), 1.0, 0.01) if seed % 2 else Reading.invalid()
+    force, wrench, pitch = rng.normal(size=3), rng.normal(size=6), rng.uniform(-0.6, 0.6, 4)
+    ranges = dict(field_of_view=0.2, min_range=0.3, max_range=30.0)
+    pairs = [
+        (encoder.applied(pitch, t_ns), conv.command_to_msg(Command(pitch), t_ns, frames.FRAME_FRD)),
+        (encoder.velocity(velocity, rates, t_ns), conv.velocity_to_msg(velocity, rates, t_ns)),
+        (encoder.imu(attitude, rates, force, t_ns), conv.imu_to_msg(attitude, rates, force, t_ns)),
+        (encoder.position(position, t_ns), conv.position_to_msg(position, t_ns)),
+        (encoder.depth(depth, t_ns), conv.depth_to_msg(depth, t_ns)),
+        (encoder.altitude(altitude, t_ns, **ranges), conv.altitude_to_msg(altitude, t_ns, **ranges)),
+        (encoder.odometry_ned(state, t_ns), conv.odometry_ned(state, t_ns)),
+        (encoder.odometry_enu(state, t_ns), conv.odometry_enu(state, t_ns)),
+        (encoder.vector3_stamped(force, t_ns, frames.FRAME_NED), conv.vector3_stamped(force, t_ns, frames.FRAME_NED)),
+        (encoder.wrench_stamped(wrench, t_ns, frames.FRAME_FRD), conv.wrench_stamped(wrench, t_ns, frames.FRAME_FRD)),
+    ]
+    for data, expected in pairs:
+        got = deserialize_message(data, type(expected))
+        received = deserialize_message(serialize_message(expected), type(expected))  # float32s rounded
+        assert got == received, type(expected).__name__
+        assert len(data) == len(serialize_message(expected))
+    if not seed % 2:
+        assert math.isinf(deserialize_message(pairs[5][0], Range).range)
+    assert deserialize_message(encoder.clock(t_ns), Clock).clock == conv.ns_to_stamp(t_ns)
+    assert deserialize_message(command_bytes(pitch, t_ns), BladePitch) == conv.command_to_msg(Command(pitch), t_ns)
+    topics = ["/seapup/sensors/velocity", "/seapup/sensors/position"][:1 + seed % 2]
+    manifest = deserialize_message(encoder.manifest(topics, t_ns), SampleManifest)
+    assert manifest.topics == topics and manifest.header.stamp == conv.ns_to_stamp(t_ns)
+
+
+def test_a_restamped_message_keeps_everything_but_its_stamp():
+    original = SampleManifest(topics=["/a", "/bc", "/def"])
+    original.header.frame_id = "odom_ned"
+    restamper = Restamper(original)
+    for t_ns in (0, 1, 999_999_999, 1_000_000_000, 2**31 * 10**9 - 1):
+        got = deserialize_message(restamper.pack(t_ns), SampleManifest)
+        assert got.header.stamp == conv.ns_to_stamp(t_ns)
+        assert (got.header.frame_id, got.topics) == ("odom_ned", ["/a", "/bc", "/def"])
+    with pytest.raises(TypeError, match="does not begin with a header"):
+        Restamper(Clock())
