@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg
@@ -450,4 +450,38 @@ def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_mea
     assert np.abs(held - wanted).max() > 0.05 and np.allclose(applied[-1].pitch, wanted, atol=0.02)
     assert stamps(velocity).count(1.4) == 1
     assert int(probe.counters()["lockstep_timeouts"]) == timeouts
+    probe.close()
+
+
+def test_a_subscriber_with_an_incompatible_qos_is_reported_once_in_the_log_and_in_diagnostics(
+        ros_context, node_process, spin):
+    """The simulator's publishers carry no per-endpoint event handlers (speed): the incompatible-QoS warning
+    rclpy's default handler would log comes from the diagnostics check instead -- once in the log, and as a
+    WARN naming the topic and the subscriber for as long as it is there."""
+    from rclpy.qos import DurabilityPolicy
+
+    sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=5.0", "watchdog_timeout:=1000.0")
+    probe = Probe(ros_context, spin)
+    probe.record("/diagnostics", DiagnosticArray)
+    depth = []
+    greedy = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)  # the publisher offers volatile
+    probe.node.create_subscription(Depth, "/seapup/sensors/depth", depth.append, greedy)
+
+    def warned():
+        for d in probe.msgs["/diagnostics"][-3:]:
+            for st in d.status:
+                if st.name == "seapup/simulator" and "incompatible QoS" in st.message:
+                    return st
+        return None
+    assert probe.spin(warned, 20.0), sim.log_text()[-2000:]
+    status = warned()
+    assert status.level == DiagnosticStatus.WARN
+    assert "/seapup/sensors/depth: subscription /probe has an incompatible QoS" in status.message
+    assert "transient local" in status.message.lower()
+    assert status.message.count("incompatible QoS") == 1, "compatible endpoints (the probe's own) are not reported"
+    assert not depth, "nothing passes between incompatible endpoints"
+    n_diagnostics = len(probe.msgs["/diagnostics"])
+    assert probe.spin(lambda: len(probe.msgs["/diagnostics"]) > n_diagnostics + 10, 20.0)
+    assert sim.log_text().count("/seapup/sensors/depth: subscription /probe has an incompatible QoS") == 1
     probe.close()

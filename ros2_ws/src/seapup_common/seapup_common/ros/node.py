@@ -380,25 +380,35 @@ class QosWatch:
             return list(self._found)
         self._checked = time.monotonic()
         node, found = self.node, []
-        endpoints = [(pub.topic_name, pub.qos_profile, node.get_subscriptions_info_by_topic, True)
-                     for pub in node.publishers]
-        endpoints += [(sub.topic_name, sub.qos_profile, node.get_publishers_info_by_topic, False)
-                      for sub in node.subscriptions]
-        for topic, qos, others, publishing in endpoints:
-            for info in others(topic):
-                pair = (qos, info.qos_profile) if publishing else (info.qos_profile, qos)
-                compatibility, reason = qos_check_compatible(*pair)
-                if compatibility != QoSCompatibility.ERROR:
-                    continue
-                other = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                text = (f"{topic}: {'subscription' if publishing else 'publisher'} {other} has an incompatible "
-                        f"QoS ({reason.strip() or 'see ./seapup topic info -v'}): no messages pass")
-                found.append(text)
-                if text not in self._said:
-                    self._said.add(text)
-                    node.get_logger().warn(text)
+        me = (node.get_namespace(), node.get_name())
+        # both sides as the graph reports them: a requested profile leaves deadline and liveliness at
+        # "default", which the check would read as a mismatch with what the middleware actually offers
+        endpoints = [(topic, node.get_publishers_info_by_topic, node.get_subscriptions_info_by_topic, True)
+                     for topic in {pub.topic_name for pub in node.publishers}]
+        endpoints += [(topic, node.get_subscriptions_info_by_topic, node.get_publishers_info_by_topic, False)
+                      for topic in {sub.topic_name for sub in node.subscriptions}]
+        for topic, mine, others, publishing in endpoints:
+            own = [info.qos_profile for info in mine(topic) if (info.node_namespace, info.node_name) == me]
+            for qos in own[:1]:
+                found += self._check(topic, qos, others(topic), publishing)
         self._found = found
         return list(found)
+
+    def _check(self, topic: str, qos, others, publishing: bool) -> list[str]:
+        found = []
+        for info in others:
+            pair = (qos, info.qos_profile) if publishing else (info.qos_profile, qos)
+            compatibility, reason = qos_check_compatible(*pair)
+            if compatibility != QoSCompatibility.ERROR:
+                continue
+            other = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+            text = (f"{topic}: {'subscription' if publishing else 'publisher'} {other} has an incompatible "
+                    f"QoS ({reason.strip().rstrip(';') or 'see ./seapup topic info -v'}): no messages pass")
+            found.append(text)
+            if text not in self._said:
+                self._said.add(text)
+                self.node.get_logger().warn(text)
+        return found
 
 
 #: The signals :func:`run_node` has been asked to stop by (empty while it runs on).
