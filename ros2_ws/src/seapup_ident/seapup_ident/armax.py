@@ -202,6 +202,13 @@ def polynomial_roots(coefficients: np.ndarray) -> np.ndarray:
 
 def is_stable(coefficients: np.ndarray, margin: float = 0.0) -> bool:
     """True when every root of the monic matrix polynomial lies inside |z| < 1 - margin (sec. 6.3's
-    stability region for C(z^-1), which the RPEM's prediction-error filter needs)."""
+    stability region for C(z^-1), which the RPEM's prediction-error filter needs).
+
+    For a first-order polynomial the roots are the eigenvalues of -M_1, whose moduli no induced norm
+    exceeds: when the largest absolute row sum is already below 1 - margin the answer is yes without
+    the eigenvalues (the RPEM asks at every sample; the same answer, tested against the roots)."""
+    coefficients = np.asarray(coefficients, dtype=float)
+    if len(coefficients) == 1 and np.abs(coefficients[0]).sum(axis=1).max() < 1.0 - margin:
+        return True
     roots = polynomial_roots(coefficients)
     return bool(np.all(np.abs(roots) < 1.0 - margin)) if len(roots) else True

@@ -119,21 +119,17 @@ def ud_update(U: np.ndarray, D: np.ndarray, phi: np.ndarray, lam: float) -> np.n
     and returns L = P(t-1) phi / (lam + phi^T P(t-1) phi) (Ljung and Soderstrom 1983, sec. 6.2;
     U unit upper triangular, D > 0, so P stays symmetric positive definite to rounding).
     """
-    n = len(D)
     f = U.T @ phi
     g = D * f
-    beta = lam
-    nu = np.zeros(n)
-    for j in range(n):
-        beta_prev = beta
-        beta = beta_prev + f[j] * g[j]
-        D[j] *= beta_prev / (beta * lam)
-        mu = -f[j] / beta_prev
-        column = U[:j, j].copy()
-        U[:j, j] = column + nu[:j] * mu
-        nu[:j] += column * g[j]
-        nu[j] = g[j]
-    return nu / beta
+    # Bierman's loop over the columns j, as running sums (the same additions in the same order, so the
+    # same bits): beta_j = lam + sum_{k<=j} f_k g_k, and nu before column j = sum_{k<j} U_:,k g_k, which
+    # is zero on and below row j because U is unit upper triangular
+    beta = np.cumsum(np.concatenate(([lam], f * g)))
+    beta_prev = beta[:-1]
+    nu = np.cumsum(U * g, axis=1)
+    D *= beta_prev / (beta[1:] * lam)
+    U[:, 1:] += nu[:, :-1] * (-f[1:] / beta_prev[1:])
+    return nu[:, -1] / beta[-1]
 
 
 class RecursiveArmax:
@@ -324,28 +320,38 @@ class RecursiveArmax:
         self.regressor.push(y, u, residual)
 
     def _rpem_update(self, phi: np.ndarray, error: np.ndarray, lam: float, trace: np.ndarray) -> None:
+        """One RPEM step (eq. 6.19-6.22 with sec. 6.3's projection), all outputs at once: output i has its
+        own gradient psi_i and covariance P_i (the arrays' leading axis)."""
         o = self.orders
-        c = self.theta[o.c_slice].T.reshape(o.ny, o.nc, o.ny) if o.nc else np.zeros((o.ny, 0, o.ny))
-        step = np.zeros_like(self.theta)
+        ny, nc = o.ny, o.nc
+        outputs = np.arange(ny)
         mu = self.filter_weakening.next() if self.filter_weakening is not None else 1.0
-        for i in range(o.ny):
+        if nc:
             # psi_i(t) = phi(t) - sum_k mu^k c_ii,k psi_i(t-k): the prediction's gradient for output i
-            psi = phi - sum(mu ** (k + 1) * c[i, k, i] * self._psi[i, k] for k in range(o.nc))
-            P = self._P[i]
-            lam_i = 1.0 if trace[i] > self.jacket.max_trace else lam
-            self.counts["trace_limited"] += int(lam_i == 1.0 and lam < 1.0)
-            Pp = P @ psi
-            gain = Pp / (lam_i + psi @ Pp)
-            P = (P - np.outer(gain, Pp)) / lam_i
-            P = 0.5 * (P + P.T) + self.regularisation * np.eye(len(psi))   # Levenberg-Marquardt
-            self._P[i] = P
-            step[:, i] = gain * error[i]
-            if o.nc:
-                self._psi[i, 1:] = self._psi[i, :-1]
-                self._psi[i, 0] = psi
+            c = self.theta[o.c_slice].T.reshape(ny, nc, ny)[outputs, :, outputs]       # c_ii,k: (ny, nc)
+            weights = c * mu ** np.arange(1, nc + 1)
+            psi = phi - np.einsum("ik,ikn->in", weights, self._psi[:, :nc])
+        else:
+            psi = np.broadcast_to(phi, (ny, len(phi)))
+        limited = trace > self.jacket.max_trace
+        lam_i = np.where(limited, 1.0, lam)
+        if lam < 1.0:
+            self.counts["trace_limited"] += int(np.count_nonzero(limited))
+        P = self._P
+        Pp = np.einsum("inm,im->in", P, psi)
+        gain = Pp / (lam_i + np.einsum("in,in->i", psi, Pp))[:, None]
+        P = (P - gain[:, :, None] * Pp[:, None, :]) / lam_i[:, None, None]
+        P = 0.5 * (P + P.transpose(0, 2, 1))
+        P[:, np.arange(P.shape[1]), np.arange(P.shape[1])] += self.regularisation   # Levenberg-Marquardt
+        self._P = P
+        step = (gain * error[:, None]).T
+        if nc:
+            self._psi[:, 1:] = self._psi[:, :-1]
+            self._psi[:, 0] = psi
         candidate = self.theta + step
         for _ in range(30):  # the projection of sec. 6.3: shrink the correction until C is stable
-            if not o.nc or is_stable(ArmaxModel.from_theta(o, candidate).C, self.stability_margin):
+            if not nc or is_stable(candidate[o.c_slice].T.reshape(ny, nc, ny).transpose(1, 0, 2),
+                                   self.stability_margin):
                 break
             self.counts["projections"] += 1
             step *= 0.5

@@ -212,3 +212,89 @@ def test_observe_then_input_is_step_for_a_controller_that_chooses_u_after_seeing
     whole.step(y[150], u[150])
     np.testing.assert_array_equal(whole.theta, halves.theta)
     assert not np.array_equal(before, halves.theta)
+
+
+def test_a_first_order_polynomial_is_judged_stable_exactly_as_by_its_roots():
+    """is_stable's shortcut (the largest absolute row sum bounds every root's modulus) gives the roots' answer
+    on random matrices either side of the boundary, with and without a margin."""
+    rng = np.random.default_rng(5)
+    agree = shortcut = 0
+    for _ in range(3000):
+        m = rng.normal(0.0, rng.uniform(0.05, 0.8), size=(1, 3, 3))
+        margin = rng.choice([0.0, 1e-3, 0.1])
+        by_roots = bool(np.all(np.abs(polynomial_roots(m)) < 1.0 - margin))
+        agree += is_stable(m, margin) == by_roots
+        shortcut += np.abs(m[0]).sum(axis=1).max() < 1.0 - margin
+    assert agree == 3000
+    assert 300 < shortcut < 2700, "both paths exercised"
+
+
+def _rpem_per_output(estimator, phi, error, lam, trace):
+    """The RPEM step written output by output (eq. 6.19-6.22), as a reference for the vectorised one."""
+    o = estimator.orders
+    c = estimator.theta[o.c_slice].T.reshape(o.ny, o.nc, o.ny)
+    step = np.zeros_like(estimator.theta)
+    P_all, psi_all = estimator._P.copy(), estimator._psi.copy()
+    for i in range(o.ny):
+        psi = phi - sum(c[i, k, i] * psi_all[i, k] for k in range(o.nc))
+        lam_i = 1.0 if trace[i] > estimator.jacket.max_trace else lam
+        P = P_all[i]
+        Pp = P @ psi
+        gain = Pp / (lam_i + psi @ Pp)
+        P = (P - np.outer(gain, Pp)) / lam_i
+        P_all[i] = 0.5 * (P + P.T) + estimator.regularisation * np.eye(len(psi))
+        step[:, i] = gain * error[i]
+        psi_all[i, 1:] = psi_all[i, :-1]
+        psi_all[i, 0] = psi
+    return estimator.theta + step, P_all, psi_all
+
+
+def test_the_rpem_step_for_all_outputs_at_once_equals_it_output_by_output():
+    o = ArmaxOrders(ny=3, nu=2, na=2, nb=1, nc=2)
+    rng = np.random.default_rng(8)
+    estimator = RecursiveArmax(o, "rpem", p0=10.0, forgetting=Forgetting(0.98), jacket=Jacket(max_trace=100.0))  # trace P(0) = 140: limited at first
+    checked = 0
+    for t in range(300):
+        y, u = rng.normal(size=3), rng.normal(size=2)
+        phi = estimator.regressor.phi()
+        error = y - estimator.theta.T @ phi
+        expected = _rpem_per_output(estimator, phi, error, 0.98, estimator.trace)
+        projections = estimator.counts["projections"]
+        estimator.step(y, u)
+        if estimator.counts["projections"] == projections:  # no projection: the raw step is the new estimate
+            np.testing.assert_allclose(estimator.theta, expected[0], rtol=1e-12, atol=1e-12)
+            checked += 1
+        np.testing.assert_allclose(estimator._P, expected[1], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(estimator._psi, expected[2], rtol=1e-12, atol=1e-12)
+    assert checked > 100 and estimator.counts["trace_limited"] > 0
+
+
+def _ud_update_by_columns(U, D, phi, lam):
+    """Bierman's UD update as the column loop of Ljung and Soderstrom (1983, sec. 6.2): the reference."""
+    n = len(D)
+    f = U.T @ phi
+    g = D * f
+    beta, nu = lam, np.zeros(n)
+    for j in range(n):
+        beta_prev, beta = beta, beta + f[j] * g[j]
+        D[j] *= beta_prev / (beta * lam)
+        mu = -f[j] / beta_prev
+        column = U[:j, j].copy()
+        U[:j, j] = column + nu[:j] * mu
+        nu[:j] += column * g[j]
+        nu[j] = g[j]
+    return nu / beta
+
+
+def test_the_ud_update_as_running_sums_is_the_column_loop_bit_for_bit():
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        n = int(rng.integers(1, 15))
+        U = np.triu(rng.normal(size=(n, n)), 1) + np.eye(n)
+        D = rng.uniform(0.1, 10.0, n)
+        U_ref, D_ref = U.copy(), D.copy()
+        for _ in range(20):
+            phi, lam = rng.normal(size=n), float(rng.uniform(0.9, 1.0))
+            gain = ud_update(U, D, phi, lam)
+            assert np.array_equal(gain, _ud_update_by_columns(U_ref, D_ref, phi, lam))
+            assert np.array_equal(U, U_ref) and np.array_equal(D, D_ref)
