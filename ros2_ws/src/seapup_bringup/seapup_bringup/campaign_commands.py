@@ -211,11 +211,14 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
             path = out / "worst" / f"run-{r['index']}.json"
             path.write_text(json.dumps(spec_of[r["index"]], indent=1))
             worst.append({"index": r["index"], by: r[key], "spec": str(path),
-                          "parameters": {k.removeprefix("param."): v for k, v in r.items() if k.startswith("param.")}})
+                          "parameters": {k.removeprefix("param."): v for k, v in r.items() if k.startswith("param.")},
+                          "log_lines": int(r.get("log_lines") or 0), "log": r.get("log") or ""})
     failed = [r for r in records if r["status"] != "ok"]
     worst_rows = "".join(
         f"<tr><td class=num>{w['index']}</td><td class=num>{fmt(w[by])}</td><td>{esc(', '.join(f'{k}={v}' for k, v in w['parameters'].items()))}"
-        f"</td><td><code>./seapup fly {esc(os.path.relpath(w['spec'], out))} --plots DIR</code></td></tr>" for w in worst)
+        f"</td><td><code>./seapup fly {esc(os.path.relpath(w['spec'], out))} --plots DIR</code></td>"
+        f"<td>{w['log_lines']}{'<br><small>' + '<br>'.join(map(esc, w['log'].splitlines()[:5])) + '</small>' if w['log'] else ''}"
+        "</td></tr>" for w in worst)
     failed_rows = "".join(f"<tr><td class=num>{r['index']}</td><td>{esc(r['error'])}</td></tr>" for r in failed[:50])
     html = f"""<!doctype html><html><head><meta charset="utf-8"><title>campaign {esc(campaign.name)}</title>
 <style>{CSS}</style></head><body><h1>Campaign {esc(campaign.name)}</h1>
@@ -224,7 +227,7 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
 <code>param.*</code>, status, <code>metric.*</code>); campaign file hash {esc(campaign.digest)}.</p>
 <h2>Distributions</h2>{''.join(figures) or '<p>no numeric metric to show</p>'}
 <h2>Worst runs{f' by {esc(by)}' if by else ''}</h2>
-{'<table><tr><th>run</th><th>' + esc(by) + '</th><th>parameters</th><th>fly it again</th></tr>' + worst_rows + '</table>'
+{'<table><tr><th>run</th><th>' + esc(by) + '</th><th>parameters</th><th>fly it again</th><th>lines logged (first five)</th></tr>' + worst_rows + '</table>'
  if worst else '<p>no worst_by metric in the summary</p>'}
 <h2>Failed runs</h2>{'<table><tr><th>run</th><th>reason</th></tr>' + failed_rows + '</table>' if failed else '<p>none</p>'}
 </body></html>"""

@@ -29,7 +29,9 @@ in place of ``base``/``grid``/``random``/``seeds``.
 run is flown); :func:`expand` lists the runs (the same file, the same runs, in the same order); :func:`fly_rows`
 flies a task's runs in the calling process -- a Dask worker's -- and returns one flat row each: the run's index,
 its parameters, status (``ok`` or ``error`` with the reason: a failed run is a result, not a crash), wall and
-CPU time, and every scalar metric. Orchestration (the cluster, progress, the Parquet table, resuming, the page)
+CPU time, every scalar metric, and what the run's cores logged (``log_lines``, and the first lines in ``log``: a
+self-tuner's jacket says when and why it fell back) -- kept with the row instead of printed by the worker, where
+hundreds of runs' lines would bury the progress bar. Orchestration (the cluster, progress, the Parquet table, resuming, the page)
 is the bringup's ``./seapup campaign``.
 """
 from __future__ import annotations
@@ -38,8 +40,10 @@ import copy
 import hashlib
 import itertools
 import json
+import logging
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -323,6 +327,35 @@ def flatten(value, prefix: str = "", out: dict | None = None) -> dict:
     return out
 
 
+#: The loggers of the cores a run executes; a campaign keeps their records with the run's row.
+RUN_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident", "seapup_runs")
+#: At most this many of a run's log lines are kept in its row (all are counted).
+LOG_LINES_KEPT = 20
+
+
+@contextmanager
+def _run_log():
+    """The records the cores log meanwhile, as lines, instead of on the process's stderr."""
+    lines: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            lines.append(f"{record.levelname.lower()}: {record.getMessage()}")
+    handler = Keep(logging.INFO)
+    loggers = [logging.getLogger(name) for name in RUN_LOGGERS]
+    saved = [(logger, logger.propagate, logger.level) for logger in loggers]
+    for logger in loggers:
+        logger.addHandler(handler)
+        logger.propagate = False
+        logger.setLevel(logging.INFO)
+    try:
+        yield lines
+    finally:
+        for logger, propagate, level in saved:
+            logger.removeHandler(handler)
+            logger.propagate, logger.level = propagate, level
+
+
 def fly_rows(rows: list[dict]) -> list[dict]:
     """Fly each run of a task in this process; one flat row per run (see the module docstring)."""
     from seapup_runs.runner import run
@@ -332,13 +365,15 @@ def fly_rows(rows: list[dict]) -> list[dict]:
         record = {"index": int(row["index"]), "name": "", "status": "ok", "error": ""}
         record.update({f"param.{k}": (v if isinstance(v, (int, float, str, bool)) else json.dumps(v, sort_keys=True))
                        for k, v in row["parameters"].items()})
-        try:
-            spec = RunSpec.from_dict(row["spec"])
-            record["name"] = spec.name
-            result = run(spec)
-            record.update({f"metric.{k}": v for k, v in flatten(result.metrics).items()})
-        except Exception as exc:   # a run that fails is a result of the campaign, with its reason
-            record["status"], record["error"] = "error", f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
+        with _run_log() as lines:
+            try:
+                spec = RunSpec.from_dict(row["spec"])
+                record["name"] = spec.name
+                result = run(spec)
+                record.update({f"metric.{k}": v for k, v in flatten(result.metrics).items()})
+            except Exception as exc:   # a run that fails is a result of the campaign, with its reason
+                record["status"], record["error"] = "error", f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
+        record["log_lines"], record["log"] = len(lines), "\n".join(lines[:LOG_LINES_KEPT])
         record["wall_s"], record["cpu_s"] = time.perf_counter() - wall, time.process_time() - cpu
         out.append(record)
     return out

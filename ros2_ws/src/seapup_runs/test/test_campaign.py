@@ -124,6 +124,31 @@ def test_a_task_flies_its_runs_and_a_failing_run_is_a_row_with_its_reason():
 
 
 @pytest.mark.unit
+def test_what_a_run_logs_is_kept_in_its_row_not_printed(monkeypatch, caplog):
+    """A worker flies hundreds of runs: their cores' log lines (a jacket falling back) go to each run's row."""
+    import logging
+
+    import seapup_runs.runner
+
+    def noisy(spec):
+        for k in range(25):
+            logging.getLogger("seapup_control.explicit").warning("fallback %d (estimated pole |z| = 1.4)", k)
+        raise ValueError("diverged")
+    rows = cp.expand(cp.campaign_from_dict(_doc(grid={"vehicle": ["baseline"]}, random={}, seeds=[3])))
+    monkeypatch.setattr(seapup_runs.runner, "run", noisy)
+    before = logging.getLogger("seapup_control").propagate
+    (row,) = cp.fly_rows(rows[:1])
+    assert row["status"] == "error" and row["error"] == "ValueError: diverged"
+    assert row["log_lines"] == 25
+    assert row["log"].splitlines() == [f"warning: fallback {k} (estimated pole |z| = 1.4)"
+                                       for k in range(cp.LOG_LINES_KEPT)]
+    assert not caplog.records, "nothing reached the process's handlers"
+    assert logging.getLogger("seapup_control").propagate == before
+    logging.getLogger("seapup_control.explicit").warning("after the task")
+    assert [r.getMessage() for r in caplog.records] == ["after the task"], "the loggers are given back"
+
+
+@pytest.mark.unit
 def test_flatten_keeps_scalars_and_short_numeric_lists():
     flat = cp.flatten({"a": {"b": 1, "c": True, "d": "x", "e": [1, 2], "f": list(range(9)), "g": None},
                        "h": np.float64(2.5)})
