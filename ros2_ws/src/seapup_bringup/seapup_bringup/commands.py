@@ -232,7 +232,7 @@ def bench(argv: list[str]) -> int:
           f"reference {law['with_measurement_and_reference_us']:.1f} us", file=out_text)
     for method, value in out["estimator"].items():
         print(f"estimator {method} (4 outputs, 4 inputs, orders {value['orders']}, offset; ch. 7): "
-              f"{value['step_us']:.1f} us per step (target <= 100 us for ls)", file=out_text)
+              f"{value['step_us']:.1f} us per step (target <= 100 us)", file=out_text)
     for name, value in out["control_laws"].items():
         thesis = value.get("thesis_ratio_to_fixed")
         print(f"control law {name}: {value['cpu_us']:.0f} us CPU ({value['wall_us']:.0f} us wall) per step, "

@@ -281,16 +281,18 @@ def law_step_costs(repeats: int = 10) -> dict:
     adaptive law estimates and redesigns as it does in flight; only its own calls (``applied`` and
     ``update``) are timed, ``repeats`` runs each."""
     from seapup_runs import runner
+    from seapup_runs.campaign import run_log
     from seapup_runs.scenarios import scenario_spec
 
     spec = runner.design(scenario_spec("square-inspection"))
     out = {}
     for name, law in _law_specs(spec.controller.document).items():
         timer = _CallTimer()
-        for _ in range(repeats):
-            runner.run(replace(spec, controller=law), wrap=timer.wrap)
+        with run_log() as lines:  # a self-tuner's jacket lines: counted, not printed over the benchmark's text
+            for _ in range(repeats):
+                runner.run(replace(spec, controller=law), wrap=timer.wrap)
         out[name] = {"wall_us": 1e6 * timer.wall / timer.steps, "cpu_us": 1e6 * timer.cpu / timer.steps,
-                     "steps": timer.steps}
+                     "steps": timer.steps, "log_lines": len(lines)}
     base = out["fixed"]["cpu_us"]
     for name, value in out.items():
         value["cpu_ratio_to_fixed"] = value["cpu_us"] / base

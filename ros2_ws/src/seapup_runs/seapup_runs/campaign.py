@@ -334,8 +334,9 @@ LOG_LINES_KEPT = 20
 
 
 @contextmanager
-def _run_log():
-    """The records the cores log meanwhile, as lines, instead of on the process's stderr."""
+def run_log():
+    """The records the cores log meanwhile (:data:`RUN_LOGGERS`), as lines, instead of on the process's stderr:
+    for code that flies many runs (a campaign task, a benchmark) and keeps or counts what they said."""
     lines: list[str] = []
 
     class Keep(logging.Handler):
@@ -365,7 +366,7 @@ def fly_rows(rows: list[dict]) -> list[dict]:
         record = {"index": int(row["index"]), "name": "", "status": "ok", "error": ""}
         record.update({f"param.{k}": (v if isinstance(v, (int, float, str, bool)) else json.dumps(v, sort_keys=True))
                        for k, v in row["parameters"].items()})
-        with _run_log() as lines:
+        with run_log() as lines:
             try:
                 spec = RunSpec.from_dict(row["spec"])
                 record["name"] = spec.name
