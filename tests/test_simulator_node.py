@@ -400,7 +400,10 @@ def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_mea
     probe.record("/diagnostics", DiagnosticArray)
     probe.record("/seapup/sensors/velocity", TwistWithCovarianceStamped)
     probe.record("/seapup/thrusters/applied", BladePitch)
-    start_simulator(node_process, "mode:=lockstep", "lockstep_timeout:=0.05", "start_held:=true",
+    # a sample nobody answers goes on after lockstep_timeout: long enough for the simulator to match a reader
+    # that joined while it was held (discovery lags on a loaded machine; with 0.05 s the held sample was once
+    # gone before the simulator had seen the new reader, so it was never said to it)
+    start_simulator(node_process, "mode:=lockstep", "lockstep_timeout:=1.0", "start_held:=true",
                     "wait_for_subscribers:=['sensors/velocity', 'thrusters/applied']")
     velocity, applied = probe.msgs["/seapup/sensors/velocity"], probe.msgs["/seapup/thrusters/applied"]
 
