@@ -13,3 +13,7 @@ node processes). rclpy shells: :mod:`seapup_common.ros`, and the ``recorder`` no
 Dependencies point one way: seapup_msgs <- seapup_common <- seapup_sim, seapup_control,
 seapup_ident <- seapup_bringup.
 """
+
+#: Python loggers of the pure cores (``logging.getLogger(__name__)`` in their modules): a node routes their
+#: records to its ROS logger (:mod:`seapup_common.ros.node`), a campaign keeps them with each run's row.
+CORE_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident")

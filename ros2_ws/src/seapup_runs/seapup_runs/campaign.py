@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from seapup_common import CORE_LOGGERS
 from seapup_runs.spec import RunSpec, RunSpecError
 
 __all__ = ["CampaignError", "Campaign", "shipped", "load_campaign", "campaign_from_dict", "expand", "tasks", "fly_rows",
@@ -328,7 +329,7 @@ def flatten(value, prefix: str = "", out: dict | None = None) -> dict:
 
 
 #: The loggers of the cores a run executes; a campaign keeps their records with the run's row.
-RUN_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident", "seapup_runs")
+RUN_LOGGERS = CORE_LOGGERS + ("seapup_runs",)
 #: At most this many of a run's log lines are kept in its row (all are counted).
 LOG_LINES_KEPT = 20
 

@@ -28,6 +28,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import QoSCompatibility, QoSProfile, ReliabilityPolicy, qos_check_compatible
 from rclpy.signals import SignalHandlerOptions
 
+from seapup_common import CORE_LOGGERS  # noqa: F401 - the cores' loggers, routed to the node's (re-exported)
 from seapup_common.parameters import load_node_parameters
 
 __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
@@ -51,8 +52,6 @@ SERVICE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: uses these checks the same thing at its diagnostics period instead (:class:`QosWatch`).
 QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
 QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
-#: Python loggers of the pure cores whose records go to the node's ROS logger.
-CORE_LOGGERS = ("seapup_common", "seapup_sim", "seapup_control", "seapup_ident")
 
 
 class RosLogHandler(logging.Handler):
