@@ -23,7 +23,7 @@ from pathlib import Path
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 
-__all__ = ["campaign_command", "run_campaign"]
+__all__ = ["campaign_command", "run_campaign", "campaign_rates"]
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -234,3 +234,45 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
     page = out / "index.html"
     page.write_text(html)
     return page, worst
+
+
+def campaign_rates(runs: int = 16, worker_counts=(1, 2)) -> dict:
+    """The benchmark of a campaign's throughput (``./seapup bench``): ``runs`` fixed-gain MFOL runs (eq. 4.11,
+    schedule off) of square-inspection with the baseline sensors, each its own seed, in tasks of 2, on a
+    LocalCluster of each of ``worker_counts`` worker processes. Each worker first designs the controller (the
+    self-test, once per process) outside the timing; the timing is the tasks' flight, submit to last result.
+    Returns ``runs_per_s_<k>_worker(s)``, the scaling from the first count to the last, and the closed-loop
+    vehicle-samples per second (control samples of all runs over the wall time) with the most workers."""
+    from seapup_runs.campaign import campaign_from_dict, expand, fly_rows, tasks
+    from seapup_runs.runner import design
+    from seapup_runs.spec import RunSpec
+    campaign = campaign_from_dict({"name": "bench", "base": {"scenario": "square-inspection"},
+                                   "grid": {"controller.parameters.schedule": [False]}, "seeds": runs,
+                                   "runs_per_task": 2})
+    rows = expand(campaign)
+    groups = tasks(rows, campaign.runs_per_task)
+    samples = sum(RunSpec.from_dict(r["spec"]).samples for r in rows)
+    out: dict = {"runs": len(rows), "runs_per_task": campaign.runs_per_task, "samples": samples}
+    first_spec = rows[0]["spec"]
+    for workers in worker_counts:
+        client, cluster = _client(None, workers)
+        try:
+            client.run(lambda: design(RunSpec.from_dict(first_spec)) and None)   # each worker's self-test, untimed
+            t0 = time.perf_counter()
+            results = client.gather([client.submit(fly_rows, g, pure=False) for g in groups])
+            wall = time.perf_counter() - t0
+        finally:
+            client.close()
+            cluster.close()
+        flown = [r for task in results for r in task]
+        failed = [r for r in flown if r["status"] != "ok"]
+        if failed:
+            raise RuntimeError(f"campaign benchmark: {len(failed)} runs failed, first: {failed[0]['error']}")
+        key = f"runs_per_s_{workers}_worker{'s' if workers > 1 else ''}"
+        out[key] = len(flown) / wall
+        out[f"wall_s_{workers}"] = wall
+        out[f"run_cpu_s_{workers}"] = float(sum(r["cpu_s"] for r in flown))
+        out["closed_loop_samples_per_s"] = samples / wall
+    first, last = worker_counts[0], worker_counts[-1]
+    out["scaling"] = out[f"wall_s_{first}"] / out[f"wall_s_{last}"]
+    return out

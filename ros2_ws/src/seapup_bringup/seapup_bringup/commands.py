@@ -128,11 +128,11 @@ def _plant_step(model, backend: str, command, steps: int, cable=None) -> dict:
             "cpu_us": cpu * 1e6, "rtf": 0.1 / wall, "steps": steps}
 
 
-def _batch_step(model, vehicles: int, command, steps: int) -> dict:
+def _batch_step(model, vehicles: int, command, steps: int, threads: int = 1) -> dict:
     """Vehicle-steps per second (wall and CPU) of the batch plant stepping ``vehicles`` copies of ``model``
-    in a current, after one warm-up step."""
+    in a current on ``threads`` threads, after one warm-up step."""
     from seapup_sim.batch import BatchPlant
-    batch = BatchPlant([model] * vehicles, dt=0.1)
+    batch = BatchPlant([model] * vehicles, dt=0.1, threads=threads)
     commands, currents = np.tile(command, (vehicles, 1)), np.tile([0.2, 0.1, 0.0], (vehicles, 1))
     batch.step(commands, currents)
     wall, cpu = time.perf_counter(), time.process_time()
@@ -140,16 +140,18 @@ def _batch_step(model, vehicles: int, command, steps: int) -> dict:
         batch.step(commands, currents)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     done = vehicles * steps
-    return {"vehicles": vehicles, "steps": steps, "vehicle_steps_per_s": done / wall,
+    return {"vehicles": vehicles, "steps": steps, "threads": threads, "vehicle_steps_per_s": done / wall,
             "cpu_vehicle_steps_per_s": done / cpu, "cpu_us_per_vehicle_step": cpu / done * 1e6,
             "rtf_per_vehicle": 0.1 * done / cpu}
 
 
 def bench(argv: list[str]) -> int:
-    """``./seapup bench``: speed of the model, the umbilical, verify and the ROS graph."""
+    """``./seapup bench``: speed of the model, the batch plant, campaigns, the umbilical, verify and the ROS
+    graph."""
     parser = _parser("bench", "benchmarks")
     parser.add_argument("--steps", type=int, default=3000)
     parser.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
+    parser.add_argument("--no-campaign", action="store_true", help="skip the Dask campaign throughput benchmark")
     parser.add_argument("--no-report", action="store_true", help="skip the reproduction report's cold/warm timing")
     parser.add_argument("--recording-minutes", type=float, default=10.0,
                         help="wall minutes of the recorder memory benchmark (0 skips it; default 10)")
@@ -164,11 +166,21 @@ def bench(argv: list[str]) -> int:
     out["model"]["speedup_vs_numpy"] = out["model_numpy"]["cpu_us"] / out["model"]["cpu_us"]
     per_step = out["model"]["step_us"] * 1e-6
     out["batch_plant"] = _batch_step(model, 1000, cmd, 30)
+    # vehicle-steps/s against N, on one thread and on two (the 2-core figure: target 1M at N = 1000)
+    sweep = {str(n): {str(k): _batch_step(model, n, cmd, max(3, 30000 // n), threads=k) for k in (1, 2)}
+             for n in (1, 10, 100, 1000, 10000)}
+    out["batch"] = {n: max(v["1"]["vehicle_steps_per_s"], v["2"]["vehicle_steps_per_s"]) for n, v in sweep.items()}
+    out["batch_threads"] = sweep
     # the same step with the quasi-static umbilical solved every step (sec. 3.8)
     cable = load_environment(rho=model.rho).umbilical.build()
     out["model_umbilical"] = _plant_step(model, "compiled", cmd, n, cable)
     per_cable = out["model_umbilical"]["step_us"] * 1e-6
     out["model_umbilical"]["extra_percent"] = 100.0 * (per_cable / per_step - 1.0)
+    if not args.no_campaign:
+        from seapup_bringup.campaign_commands import campaign_rates
+        print("campaign: 16 fixed-gain runs on a LocalCluster of 1, then 2 worker processes...", file=out_text,
+              flush=True)
+        out["campaign"] = campaign_rates()
     t0 = time.perf_counter()
     run_verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
@@ -224,6 +236,16 @@ def bench(argv: list[str]) -> int:
     b = out["batch_plant"]
     print(f"batch plant: {b['vehicles']} vehicles, {b['vehicle_steps_per_s']:.0f} vehicle-steps/s wall "
           f"({b['cpu_us_per_vehicle_step']:.1f} us CPU per vehicle-step, one core)", file=out_text)
+    for n, by_threads in out["batch_threads"].items():
+        one, two = by_threads["1"], by_threads["2"]
+        print(f"batch plant, N = {n:>5}: {one['vehicle_steps_per_s']:9.0f} vehicle-steps/s on 1 thread, "
+              f"{two['vehicle_steps_per_s']:9.0f} on 2 ({one['cpu_us_per_vehicle_step']:.2f} / "
+              f"{two['cpu_us_per_vehicle_step']:.2f} us CPU per vehicle-step)", file=out_text)
+    if "campaign" in out:
+        c = out["campaign"]
+        print(f"campaign ({c['runs']} fixed-gain runs, {c['samples']} samples): {c['runs_per_s_1_worker']:.2f} runs/s "
+              f"on 1 worker, {c['runs_per_s_2_workers']:.2f} on 2 ({c['scaling']:.2f}x; target >= 1.7x); "
+              f"{c['closed_loop_samples_per_s']:.0f} closed-loop vehicle-samples/s", file=out_text)
     print(f"model + umbilical: {per_cable * 1e6:.1f} us per step = {0.1 / per_cable:.0f}x real time "
           f"(+{out['model_umbilical']['extra_percent']:.0f} %; the thesis reports +30 %)", file=out_text)
     print(f"verify: {out['verify']['seconds']:.2f} s", file=out_text)

@@ -18,6 +18,7 @@ for the whole step with one line naming the vehicles, and nothing is integrated.
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -25,10 +26,11 @@ from seapup_common.blade_pitch import InvalidBladePitchError
 from seapup_sim import compiled
 from seapup_sim.current import GaussMarkovCurrent
 from seapup_sim.integrator import ENVELOPE, divergence
+from seapup_sim.sensors import SensorSuite
 from seapup_sim.thrusters import check_efficiency
 from seapup_sim.vehicle import VehicleModel
 
-__all__ = ["BatchPlant", "BatchCurrent"]
+__all__ = ["BatchPlant", "BatchCurrent", "BatchSensors"]
 
 
 def _rows(name: str, value, n: int, width: int) -> np.ndarray:
@@ -60,9 +62,13 @@ class BatchPlant:
         Initial states (default: at rest at the origin).
     pitches : array (N, 4), optional
         Initial applied blade pitches [rad] (default zero).
+    threads : int
+        Threads stepping the vehicles, each a contiguous part of the batch in the compiled kernel (which
+        releases the GIL); default 1. The result is the same bits for any number. Leave it at 1 where
+        processes already share the cores (a campaign's workers).
     """
 
-    def __init__(self, models, dt: float = 0.1, states=None, pitches=None):
+    def __init__(self, models, dt: float = 0.1, states=None, pitches=None, threads: int = 1):
         self.models = list(models)
         n = len(self.models)
         if n == 0:
@@ -73,7 +79,11 @@ class BatchPlant:
                                  f"not {type(model).__name__}'s")
         if not (np.isfinite(dt) and 0.0 < dt <= 1.0):
             raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
         self.n = n
+        self.threads = min(int(threads), n)
+        self._pool = ThreadPoolExecutor(self.threads, "batch-plant") if self.threads > 1 else None
         self.dt = float(dt)
         self.steps = 0
         self.state = np.zeros((n, 12)) if states is None else _rows("states", states, n, 12).copy()
@@ -133,9 +143,16 @@ class BatchPlant:
         currents = _rows("currents", currents, self.n, 3) if use_current else np.zeros((self.n, 3))
         externals = _rows("external wrenches", externals, self.n, 6) if use_external else np.zeros((self.n, 6))
         new, pitch_end = np.empty((self.n, 12)), np.empty((self.n, 4))
-        compiled.rk4_batch(self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals,
-                           use_external, self.thrusters_on, self.efficiency, *self._packed, self.active, new,
-                           pitch_end)
+        args = (self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals, use_external,
+                self.thrusters_on, self.efficiency, *self._packed, self.active, new, pitch_end)
+        if self._pool is None:
+            compiled.rk4_batch(*args)
+        else:
+            def part(lo, hi):
+                compiled.rk4_batch(*(a[lo:hi] if isinstance(a, np.ndarray) else a for a in args))
+            bounds = [self.n * k // self.threads for k in range(self.threads + 1)]
+            for future in [self._pool.submit(part, lo, hi) for lo, hi in zip(bounds, bounds[1:])]:
+                future.result()
         stopped = ((~np.isfinite(new) | (np.abs(new) > ENVELOPE)) & self.active[:, None]).any(axis=1)
         for i in np.flatnonzero(stopped):
             self.errors[i] = divergence(new[i], self.t + self.dt)   # the single integrator's words
@@ -217,4 +234,105 @@ class BatchCurrent:
         """(N, 3) current velocities in NED [m/s] (horizontal), as each current's own ``velocity_ned``."""
         out = np.zeros((self.n, 3))
         compiled.polar_to_ned(self.speed, self.direction, out)
+        return out
+
+
+class _Draws:
+    """One instrument's random draws for N vehicles: each vehicle's own generator, read ``block`` draws
+    at a time (a generator's ``standard_normal(n)`` / ``random(n)`` is its next n single draws), ``k`` per
+    reading, so every vehicle sees the sequence its instrument alone would draw."""
+
+    def __init__(self, generators, k: int, uniform: bool = False, readings: int = 85):
+        self.generators, self.k, self.uniform = list(generators), k, uniform
+        self.n, self.block = len(self.generators), k * readings
+        self.buffer = np.empty((self.n, self.block))
+        self.used = np.full(self.n, self.block)
+
+    def take(self, mask: np.ndarray) -> np.ndarray:
+        """(N, k) draws: the next k of each vehicle in ``mask``, zeros for the others (who draw nothing)."""
+        for i in np.flatnonzero(mask & (self.used >= self.block)):
+            g = self.generators[i]
+            self.buffer[i] = g.random(self.block) if self.uniform else g.standard_normal(self.block)
+            self.used[i] = 0
+        rows = np.flatnonzero(mask)
+        out = np.zeros((self.n, self.k))
+        out[rows] = self.buffer[rows[:, None], self.used[rows, None] + np.arange(self.k)]
+        self.used[rows] += self.k
+        return out
+
+
+class BatchSensors:
+    """The sensors of N vehicles read together: :meth:`SensorSuite.measure` of each, as arrays.
+
+    Built from N :class:`~seapup_sim.sensors.SensorSuite` (taken over: read them only through this object
+    from now on), each with its profile, seabed and random streams, so vehicle i's readings equal those its
+    suite alone would give, bit for bit (``test/test_batch.py``): the same noise draws from the same
+    streams, conditional draws (an altimeter echo, an acoustic fix that is not lost) only where the single
+    suite draws, and the same arithmetic. Strapdown velocity (App. A.3) integrates each vehicle's own
+    accelerometers and is left to the single suite: a profile with it enabled is refused.
+
+    :meth:`measure` returns the readings as arrays with NaN where a reading is invalid (no echo, no fix):
+    ``velocity`` (N, 3), ``rates`` (N, 3), ``attitude`` (N, 3), ``depth`` (N,), ``altitude`` (N,),
+    ``position`` (N, 3).
+    """
+
+    def __init__(self, suites):
+        self.suites = list(suites)
+        if not self.suites or not all(isinstance(s, SensorSuite) for s in self.suites):
+            raise ValueError("batch sensors need at least one SensorSuite")
+        for i, suite in enumerate(self.suites):
+            if suite.profile.strapdown_enabled:
+                raise ValueError(f"vehicle {i}: strapdown velocity (profile {suite.profile.name!r}) is read by "
+                                 "the single SensorSuite only")
+        self.n = n = len(self.suites)
+        profiles = [s.profile for s in self.suites]
+
+        def column(name):
+            return np.array([getattr(p, name) for p in profiles], dtype=float)
+        self._std = {"velocity": column("velocity_std"), "rates": column("rate_std"),
+                     "attitude": column("attitude_std"), "depth": column("depth_std")[:, None],
+                     "altitude": column("altitude_std")[:, None], "position": np.repeat(column("position_std")[:, None], 3, 1)}
+        self._noisy = {name: (std > 0).any(axis=1) for name, std in self._std.items()}
+        self._draws = {name: _Draws([s.rng[name] for s in self.suites], std.shape[1])
+                       for name, std in self._std.items()}
+        self._dropout_draws = _Draws([s.rng["position_dropout"] for s in self.suites], 1, uniform=True)
+        self._fix_period = 1.0 / column("position_rate_hz")
+        self._dropout = column("position_dropout")
+        self._alt_range = column("altimeter_min_range"), column("altimeter_max_range")
+        self._next_fix = np.array([s._next_fix for s in self.suites], dtype=float)
+        self._seabeds = [s.seabed for s in self.suites]
+
+    def _noise(self, name: str) -> np.ndarray:
+        return self._std[name] * self._draws[name].take(self._noisy[name])
+
+    def _altitude(self, states: np.ndarray) -> np.ndarray:
+        out = np.full(self.n, np.nan)
+        vertical = np.full(self.n, np.nan)
+        for seabed in {id(b): b for b in self._seabeds if b is not None}.values():
+            rows = np.array([b is seabed for b in self._seabeds])
+            vertical[rows] = seabed.depth_at(states[rows, 0], states[rows, 1]) - states[rows, 2]
+        tilt = np.empty(self.n)
+        compiled.cos_product(np.ascontiguousarray(states[:, 3]), np.ascontiguousarray(states[:, 4]), tilt)
+        echo = (vertical > 0) & (tilt > 0)   # seabed below, beam pointing down (NaN: no seabed)
+        z = self._draws["altitude"].take(echo & self._noisy["altitude"])[:, 0]
+        reading = vertical[echo] / tilt[echo] + self._std["altitude"][echo, 0] * z[echo]
+        low, high = self._alt_range
+        out[echo] = np.where((low[echo] <= reading) & (reading <= high[echo]), reading, np.nan)
+        return out
+
+    def measure(self, t: float, states) -> dict:
+        """Every vehicle's readings at ``t`` for its true state (a row of ``states`` (N, 12))."""
+        states = np.asarray(states, dtype=float)
+        att = states[:, 3:6] + self._noise("attitude")
+        att[:, 0] = (att[:, 0] + math.pi) % (2 * math.pi) - math.pi
+        att[:, 2] = (att[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        out = {"velocity": states[:, 6:9] + self._noise("velocity"), "rates": states[:, 9:12] + self._noise("rates"),
+               "attitude": att, "depth": states[:, 2] + self._noise("depth")[:, 0], "altitude": self._altitude(states),
+               "position": np.full((self.n, 3), np.nan)}
+        due = t + 1e-9 >= self._next_fix
+        if due.any():
+            self._next_fix[due] = t + self._fix_period[due]
+            kept = due & (self._dropout_draws.take(due)[:, 0] >= self._dropout)
+            noise = self._std["position"] * self._draws["position"].take(kept & self._noisy["position"])
+            out["position"][kept] = states[kept, :3] + noise[kept]
         return out

@@ -11,8 +11,8 @@ random states, inputs and every shipped configuration (``test/test_compiled.py``
 
 Decisions:
 
-- one kernel call is one physics step: of one vehicle (:func:`rk4`), or of N vehicles, each by the same
-  single-vehicle kernel (:func:`rk4_batch`, :class:`seapup_sim.batch.BatchPlant`: vehicle i equals the
+- one kernel call is one physics step: of one vehicle (:func:`rk4`), or of N vehicles (or a contiguous part
+  of them, on one of several threads), each by the same single-vehicle kernel (:func:`rk4_batch`, :class:`seapup_sim.batch.BatchPlant`: vehicle i equals the
   vehicle stepped alone, bit for bit). The other work between physics steps -- the current's
   Gauss-Markov update (eq. 2.29), configuration events -- stays in
   :class:`~seapup_sim.simulation.Simulation` (and :class:`seapup_sim.batch.BatchCurrent`), so each has one
@@ -37,8 +37,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_batch", "rhs", "rotation",
-           "cable_solve", "CABLE_OUT", "polar_to_ned", "warm", "WORK"]
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_batch", "rhs",
+           "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "WORK", "RK4_SCRATCH"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -48,19 +48,42 @@ WORK = 104
 
 class Packed(NamedTuple):
     """A vehicle configuration as the kernels read it (everything but the thrusters' efficiency,
-    which events change while a run goes on and is passed at each call)."""
+    which events change while a run goes on and is passed at each call).
 
-    masses: np.ndarray       # (3, 6, 6): rigid-body, added, inverse of the total
+    The model's constant matrices are stored row-compressed (:data:`SPARSE_ROWS`): they are mostly zeros
+    (the baseline's rigid-body mass matrix has 6 non-zeros of 36, the thruster maps 28 of 72), and a
+    product that skips exact zeros adds the same terms in the same order as the dense one, so it gives the
+    same bits for every finite input (``s + 0.0 * x`` is ``s``: a sum begun at +0.0 is never -0.0)."""
+
+    sp_ptr: np.ndarray       # (rows + 1,) int64: row starts in sp_idx / sp_val
+    sp_idx: np.ndarray       # (nnz,) int64: column of each non-zero
+    sp_val: np.ndarray       # (nnz,): its value
     h_axis: np.ndarray       # (n,) int64: each hydrodynamic term's axis
     h_coef: np.ndarray       # (n,): its coefficient
     h_signed: np.ndarray     # (n, w) int64: indices of its signed factors (6: the constant 1)
     h_absolute: np.ndarray   # (n, w) int64: indices of its |.| factors
-    point_map: np.ndarray    # (12, 6): velocity of each thruster centre from nu
     directions: np.ndarray   # (4, 3): unit thrust axes
-    matrix: np.ndarray       # (6, 4): installed c * G
-    force_map: np.ndarray    # (6, 12): wrench of forces at the thruster centres
     scalars: np.ndarray      # k_beta, beta_0, rho n^2 D^4, k_j/(n D), momentum-drag scale, epsilon,
                              # W - B, and the hydrostatic arm W r_G - B r_B (3)
+
+
+#: The matrices of :class:`Packed`'s row-compressed block, each by its first row: the rigid-body mass, the
+#: added mass, the inverse of their sum (6 x 6 each), the velocity of each thruster centre from nu (12 x 6),
+#: the installed thrust matrix c G (6 x 4) and the wrench of forces at the thruster centres (6 x 12).
+M_RIGID, M_ADDED, M_INV, POINT_MAP, THRUST_MATRIX, FORCE_MAP, SPARSE_ROWS = 0, 6, 12, 18, 30, 36, 42
+
+
+def _row_compressed(matrices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row starts, columns, values) of the non-zeros of ``matrices`` stacked by rows."""
+    ptr, idx, val = [0], [], []
+    for a in matrices:
+        for row in np.asarray(a, dtype=np.float64):
+            cols = np.flatnonzero(row)
+            idx.extend(cols.tolist())
+            val.extend(row[cols].tolist())
+            ptr.append(len(idx))
+    return (np.array(ptr, dtype=np.int64), np.array(idx, dtype=np.int64).reshape(-1),
+            np.array(val, dtype=np.float64).reshape(-1))
 
 
 def pack(model) -> Packed:
@@ -68,23 +91,21 @@ def pack(model) -> Packed:
     th, hydro = model.thrusters, model.hydro
     width = hydro._signed.shape[1] if len(hydro.terms) else 1
     n = len(hydro.terms)
+    sp_ptr, sp_idx, sp_val = _row_compressed([model.m_rigid, model.m_added, model.m_inv, th._point_map,
+                                              th.matrix, th._force_map])
     return Packed(
-        masses=np.ascontiguousarray(np.stack([model.m_rigid, model.m_added, model.m_inv]), dtype=np.float64),
+        sp_ptr=sp_ptr, sp_idx=sp_idx, sp_val=sp_val,
         h_axis=np.ascontiguousarray(hydro._axis if n else np.zeros(0), dtype=np.int64),
         h_coef=np.ascontiguousarray(hydro._coef if n else np.zeros(0), dtype=np.float64),
         h_signed=np.ascontiguousarray(hydro._signed if n else np.zeros((0, width)), dtype=np.int64),
         h_absolute=np.ascontiguousarray(hydro._absolute if n else np.zeros((0, width)), dtype=np.int64),
-        point_map=np.ascontiguousarray(th._point_map, dtype=np.float64),
         directions=np.ascontiguousarray(th.directions, dtype=np.float64),
-        matrix=np.ascontiguousarray(th.matrix, dtype=np.float64),
-        force_map=np.ascontiguousarray(th._force_map, dtype=np.float64),
         scalars=np.array([th.k_beta, th.zero_thrust_pitch, th._thrust_scale,
                           th.k_j / (th.shaft_speed * th.diameter), th._md_scale, th.momentum_drag_epsilon,
                           model.weight - model.buoyancy, *model._hydrostatic_arm], dtype=np.float64))
 
 
-
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def matvec(a, x, out):
     for i in range(a.shape[0]):
         s = 0.0
@@ -93,7 +114,17 @@ def matvec(a, x, out):
         out[i] = s
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
+def spmv(ptr, idx, val, first, rows, x, out):
+    """``out = A x`` for rows ``first`` ... ``first + rows - 1`` of the row-compressed block (:class:`Packed`)."""
+    for i in range(rows):
+        s = 0.0
+        for k in range(ptr[first + i], ptr[first + i + 1]):
+            s += val[k] * x[idx[k]]
+        out[i] = s
+
+
+@njit(inline="always", **_JIT)
 def rotation(phi, theta, psi, rot):
     """R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1; frames.rotation_body_to_ned) into ``rot``."""
     cf, sf = math.cos(phi), math.sin(phi)
@@ -110,10 +141,11 @@ def rotation(phi, theta, psi, rot):
     rot[2, 2] = ct * cf
 
 
-@njit(**_JIT)
-def kirchhoff(mass, nu, out, m):
-    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis); ``m`` (6,) scratch."""
-    matvec(mass, nu, m)
+@njit(inline="always", **_JIT)
+def kirchhoff(ptr, idx, val, first, nu, out, m):
+    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis), M the block's rows
+    from ``first``; ``m`` (6,) scratch."""
+    spmv(ptr, idx, val, first, 6, nu, m)
     a, b, c, d, e, f = m[0], m[1], m[2], m[3], m[4], m[5]
     u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
     out[0] = -(q * c - r * b)
@@ -126,8 +158,7 @@ def kirchhoff(mass, nu, out, m):
 
 @njit(**_JIT)
 def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency,
-        masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map, scalars,
-        out, work):
+        sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, out, work):
     """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term. ``work``: at least
     :data:`WORK` floats of scratch (no allocation in the kernel)."""
     phi, theta = x[3], x[4]
@@ -145,9 +176,9 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
                 s += rot[j, i] * current[j]
             nu_r[i] -= s
     rigid = work[21:27]
-    kirchhoff(masses[0], nu, rigid, work[0:6])
+    kirchhoff(sp_ptr, sp_idx, sp_val, M_RIGID, nu, rigid, work[0:6])
     added = work[27:33]
-    kirchhoff(masses[1], nu_r, added, work[0:6])
+    kirchhoff(sp_ptr, sp_idx, sp_val, M_ADDED, nu_r, added, work[0:6])
     hydro = work[33:39]
     hydro[:] = 0.0
     ext = work[39:46]
@@ -177,7 +208,7 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
         k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (scalars[0], scalars[1], scalars[2], scalars[3],
                                                             scalars[4], scalars[5])
         vel = work[58:70]
-        matvec(point_map, nu_r, vel)
+        spmv(sp_ptr, sp_idx, sp_val, POINT_MAP, 12, nu_r, vel)
         thrust = work[70:74]
         drag = work[74:86]
         for j in range(4):
@@ -190,9 +221,9 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
             for i in range(3):
                 drag[3 * j + i] = scale * (vel[3 * j + i] - v_axial * directions[j, i])
         wrench = work[86:92]
-        matvec(matrix, thrust, wrench)
+        spmv(sp_ptr, sp_idx, sp_val, THRUST_MATRIX, 6, thrust, wrench)
         moment = work[92:98]
-        matvec(force_map, drag, moment)
+        spmv(sp_ptr, sp_idx, sp_val, FORCE_MAP, 6, drag, moment)
         for i in range(6):
             tau[i] += wrench[i] + moment[i]
     if use_external:
@@ -205,17 +236,15 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     out[4] = (0.0 * p + cf * q) + (-sf) * r
     out[5] = (0.0 * p + sf / ct * q) + cf / ct * r
     accel = work[98:104]
-    matvec(masses[2], tau, accel)
+    spmv(sp_ptr, sp_idx, sp_val, M_INV, 6, tau, accel)
     out[6:] = accel
 
 
 @njit(**_JIT)
-def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-        efficiency, masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map,
-        scalars, new, pitch_end):
-    """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and
-    ``pitch_end`` (the envelope check and the angle wrap stay with the caller)."""
-    buf = np.empty(12 + 5 * 12 + WORK)
+def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
+              pitch_end, buf):
+    """:func:`rk4` with its scratch ``buf`` (:data:`RK4_SCRATCH` floats) given."""
     p0, ph, p1 = buf[0:4], buf[4:8], buf[8:12]
     k1, k2, k3, k4, xs = buf[12:24], buf[24:36], buf[36:48], buf[48:60], buf[60:72]
     work = buf[72:]
@@ -229,19 +258,21 @@ def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, us
             p0[j] = command[j] + gap * math.exp(-0.0 / tau_actuator)
             ph[j] = command[j] + gap * math.exp(-(0.5 * dt) / tau_actuator)
             p1[j] = command[j] + gap * math.exp(-dt / tau_actuator)
-    args = (current, use_current, external, use_external, thrusters_on, efficiency, masses, h_axis, h_coef,
-            h_signed, h_absolute, point_map, directions, matrix, force_map, scalars)
     half = 0.5 * dt
-    rhs(x, p0, *args, k1, work)
+    rhs(x, p0, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k1, work)
     for i in range(12):
         xs[i] = x[i] + half * k1[i]
-    rhs(xs, ph, *args, k2, work)
+    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k2, work)
     for i in range(12):
         xs[i] = x[i] + half * k2[i]
-    rhs(xs, ph, *args, k3, work)
+    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k3, work)
     for i in range(12):
         xs[i] = x[i] + dt * k3[i]
-    rhs(xs, p1, *args, k4, work)
+    rhs(xs, p1, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k4, work)
     sixth = dt / 6.0
     for i in range(12):
         new[i] = x[i] + sixth * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + k4[i])
@@ -249,21 +280,38 @@ def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, us
         pitch_end[j] = p1[j]
 
 
+#: scratch floats of one RK4 step: the three lagged pitches, four stages, the stage state, :func:`rhs`'s work
+RK4_SCRATCH = 12 + 5 * 12 + WORK
+
+
+@njit(**_JIT)
+def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+        efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
+        pitch_end):
+    """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and
+    ``pitch_end`` (the envelope check and the angle wrap stay with the caller)."""
+    _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
+              pitch_end, np.empty(RK4_SCRATCH))
+
+
 @njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
-              efficiency, masses, h_axis, h_coef, h_signed, h_absolute, point_map, directions, matrix, force_map,
-              scalars, active, new, pitch_end):
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, active,
+              new, pitch_end):
     """:func:`rk4` for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
     flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
-    a single vehicle is, so it equals the single-vehicle step bit for bit."""
+    a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads may step
+    disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
+    buf = np.empty(RK4_SCRATCH)
     for i in range(states.shape[0]):
         if not active[i]:
             new[i] = states[i]
             pitch_end[i] = pitches[i]
             continue
-        rk4(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i], use_external,
-            thrusters_on[i], efficiency[i], masses[i], h_axis[i], h_coef[i], h_signed[i], h_absolute[i],
-            point_map[i], directions[i], matrix[i], force_map[i], scalars[i], new[i], pitch_end[i])
+        _rk4_into(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i],
+                  use_external, thrusters_on[i], efficiency[i], sp_ptr[i], sp_idx[i], sp_val[i], h_axis[i],
+                  h_coef[i], h_signed[i], h_absolute[i], directions[i], scalars[i], new[i], pitch_end[i], buf)
 
 
 #: :func:`cable_solve`'s outcomes (``out[0]``)
@@ -391,12 +439,21 @@ def polar_to_ned(speed, direction, out):
         out[i, 2] = 0.0
 
 
+@njit(**_JIT)
+def cos_product(a, b, out):
+    """cos(a) cos(b) per element (the altimeter's tilt, sensors.SensorSuite, with the same libm)."""
+    for i in range(a.shape[0]):
+        out[i] = math.cos(a[i]) * math.cos(b[i])
+
+
 def pack_batch(models) -> Packed:
     """:func:`pack` of each model, stacked on a leading axis; hydrodynamic tables of different lengths are
-    padded with terms of coefficient zero on the constant factor (they add exactly 0.0)."""
+    padded with terms of coefficient zero on the constant factor (they add exactly 0.0), and the
+    row-compressed non-zeros with entries no row reaches (each vehicle keeps its own row starts)."""
     packs = [pack(m) for m in models]
     terms = max(p.h_coef.shape[0] for p in packs)
     width = max(p.h_signed.shape[1] for p in packs)
+    nnz = max(p.sp_idx.shape[0] for p in packs)
 
     def padded(p: Packed) -> Packed:
         n, w = p.h_coef.shape[0], p.h_signed.shape[1]
@@ -407,7 +464,9 @@ def pack_batch(models) -> Packed:
         axis[:n] = p.h_axis
         coef = np.zeros(terms)
         coef[:n] = p.h_coef
-        return p._replace(h_axis=axis, h_coef=coef, h_signed=signed, h_absolute=absolute)
+        idx, val = np.zeros(nnz, dtype=np.int64), np.zeros(nnz)
+        idx[:p.sp_idx.shape[0]], val[:p.sp_val.shape[0]] = p.sp_idx, p.sp_val
+        return p._replace(h_axis=axis, h_coef=coef, h_signed=signed, h_absolute=absolute, sp_idx=idx, sp_val=val)
     packs = [padded(p) for p in packs]
     return Packed(*(np.ascontiguousarray(np.stack([getattr(p, f) for p in packs])) for f in Packed._fields))
 
@@ -452,10 +511,12 @@ def warm() -> None:
     rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
     polar_to_ned(np.zeros(2), np.zeros(2), np.zeros((2, 3)))
-    two = pack_batch([model, model])   # BatchPlant.step's call
-    rk4_batch(np.zeros((2, 12)), np.zeros((2, 4)), np.zeros((2, 4)), np.full(2, 0.05), 0.1, np.zeros((2, 3)), True,
-              np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(2, dtype=np.bool_),
-              np.empty((2, 12)), np.empty((2, 4)))
+    cos_product(np.zeros(2), np.zeros(2), np.zeros(2))
+    two = pack_batch([model, model])   # BatchPlant.step's calls
+    batch = (np.zeros((2, 12)), np.zeros((2, 4)), np.zeros((2, 4)), np.full(2, 0.05), 0.1, np.zeros((2, 3)), True,
+             np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(2, dtype=np.bool_),
+             np.empty((2, 12)), np.empty((2, 4)))
+    rk4_batch(*batch)
 
 
 if __name__ == "__main__":

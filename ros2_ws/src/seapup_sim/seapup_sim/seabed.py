@@ -49,3 +49,14 @@ class Seabed:
         if self.kind == "slope":
             return self.depth + self.gradient * d
         return float(np.interp(d, self.points[:, 0], self.points[:, 1]))
+
+    def depth_at(self, x, y) -> np.ndarray:
+        """Seabed depth [m] below each of the positions (arrays ``x``, ``y``): :meth:`__call__` element by
+        element, with the same arithmetic."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        if self.kind == "flat":
+            return np.full(np.broadcast(x, y).shape, self.depth)
+        d = x * math.cos(self.direction) + y * math.sin(self.direction)
+        if self.kind == "slope":
+            return self.depth + self.gradient * d
+        return np.interp(d, self.points[:, 0], self.points[:, 1])

@@ -159,3 +159,59 @@ def test_a_batch_of_currents_is_each_current_alone_bit_for_bit():
         assert np.array_equal(batch.direction, [c.direction for c in alone]), k
         assert np.array_equal(batch.velocity_ned(), [c.velocity_ned() for c in alone]), k
     assert np.std(batch.speed) > 0 and len(set(np.round(batch.speed, 6))) == 7
+
+
+@pytest.mark.unit
+def test_batch_sensors_read_what_each_suite_alone_reads_bit_for_bit():
+    """Every profile but strapdown, a sloping seabed some vehicles are above and some below, fixes lost and
+    kept, altimeter echoes in and out of range: the readings of vehicle i equal its SensorSuite's."""
+    from seapup_common.random_streams import RandomStreams
+    from seapup_sim.batch import BatchSensors
+    from seapup_sim.seabed import Seabed
+    from seapup_sim.sensors import SensorSuite, load_sensor_profile
+    rng = np.random.default_rng(5)
+    n, samples = 12, 120
+    seabeds = [Seabed("flat", 30.0), Seabed("slope", 20.0, 0.3, 0.5), None,
+               Seabed("polyline", 25.0, direction=-0.4, points=[[-30, 10.0], [0, 35.0], [40, 5.0]])]
+    profiles = ["ideal", "baseline", "haslar"]
+
+    def suites():
+        return [SensorSuite(load_sensor_profile(profiles[i % 3]), RandomStreams(100 + i), seabeds[i // 3])
+                for i in range(n)]
+    alone, batch = suites(), BatchSensors(suites())
+    states = np.zeros((samples, n, 12))
+    states[:, :, :3] = rng.normal(0, 20, (samples, n, 3))          # above and below the seabeds
+    states[:, :, 3:6] = rng.normal(0, 1.2, (samples, n, 3))        # some tilts point the altimeter up
+    states[:, :, 6:] = rng.normal(0, 0.3, (samples, n, 6))
+    names = {"velocity": "velocity", "rates": "rates", "attitude": "attitude", "depth": "depth",
+             "altitude": "altitude", "position": "position"}
+    seen = {"altitude": 0, "position": 0}
+    for k in range(samples):
+        t = 0.2 * k
+        read = batch.measure(t, states[k])
+        for i in range(n):
+            m = alone[i].measure(t, states[k, i])
+            for field, key in names.items():
+                reading = getattr(m, field)
+                if reading.valid:
+                    seen[field] = seen.get(field, 0) + 1
+                    assert np.array_equal(np.atleast_1d(reading.value), np.atleast_1d(read[key][i])), (k, i, field)
+                else:
+                    assert np.isnan(read[key][i]).all(), (k, i, field)
+    # the conditional readings happened both ways
+    assert 0 < seen["altitude"] < samples * n and 0 < seen["position"] < samples * n
+
+
+@pytest.mark.unit
+def test_a_batch_on_two_threads_is_the_batch_on_one():
+    rng = np.random.default_rng(3)
+    n = 40
+    configs = _configs(rng, n)
+    states = np.zeros((n, 12))
+    states[:, 2] = rng.uniform(20, 60, n)
+    one, two = (BatchPlant.from_configs(configs, states=states, threads=k) for k in (1, 2))
+    for _ in range(50):
+        commands, currents = np.radians(rng.uniform(-30, 30, (n, 4))), rng.normal(0, 0.2, (n, 3))
+        assert np.array_equal(one.step(commands, currents), two.step(commands, currents))
+    with pytest.raises(ValueError, match="threads"):
+        BatchPlant.from_configs(configs[:2], threads=0)
