@@ -49,7 +49,7 @@ from seapup_common.contract import Command, ContractError, Measurement, Referenc
 from seapup_common.controllers import ControllerType
 from seapup_control.mfol import DesignError, TwoTermGains
 
-__all__ = ["GainSchedule", "MFOLController", "ControllerState", "MFOL_TYPE", "create_mfol"]
+__all__ = ["GainSchedule", "MFOLController", "BatchMFOL", "ControllerState", "MFOL_TYPE", "create_mfol"]
 
 SURGE = 0  # index of u among the outputs (u, v, w, r)
 
@@ -247,6 +247,93 @@ class MFOLController:
         self.saturated_samples += saturated
         self.state = ControllerState(float(t), error, self.q.copy(), raw, saturated)
         return Command(command, stamp=t)
+
+
+class BatchMFOL:
+    """N :class:`MFOLController` flown together on (N, 4) arrays: for a campaign's batch of vehicles
+    (:func:`seapup_runs.batch_runner.fly_batch`), where N controllers' Python would cost more than their
+    plants.
+
+    Each vehicle keeps its controller's schedule (any number of operating points), blade-pitch limit and
+    anti-windup choice, and gets what :meth:`MFOLController.reset` / :meth:`MFOLController.update` would
+    give it: the gains interpolated at its measured surge speed and the offset at its reference (sec. 4.6,
+    eq. 5.6), the bumpless start at its first sample, the back-calculated integrators. The arithmetic is the
+    single controller's with the per-vehicle products done as stacked ones (agreement to rounding;
+    ``seapup_runs/test/test_batch_runner.py``).
+
+    Parameters
+    ----------
+    controllers : sequence of MFOLController
+        Their schedules, limits and anti-windup flags are read; the controllers themselves are not changed.
+    """
+
+    def __init__(self, controllers):
+        controllers = list(controllers)
+        if not controllers or not all(isinstance(c, MFOLController) for c in controllers):
+            raise ValueError("a batch law needs at least one MFOLController")
+        if len({c.schedule.size for c in controllers}) != 1 or controllers[0].schedule.size != 4:
+            raise ValueError("every controller of a batch must have 4 outputs (u, v, w, r)")
+        n, points = len(controllers), max(len(c.schedule.speeds) for c in controllers)
+        self.n = n
+        self.count = np.array([len(c.schedule.speeds) for c in controllers])
+        self.speeds = np.full((n, points), np.inf)   # padding: never below a speed, never chosen
+        self.k_int, self.k_err = np.zeros((n, points, 4, 4)), np.zeros((n, points, 4, 4))
+        self.u0 = np.zeros((n, points, 4))
+        for i, c in enumerate(controllers):
+            m = self.count[i]
+            self.speeds[i, :m] = c.schedule.speeds
+            self.k_int[i, :m], self.k_err[i, :m], self.u0[i, :m] = c.schedule._k_int, c.schedule._k_err, c.schedule._u0
+        self.limit = np.array([c.limit for c in controllers])[:, None]
+        self.anti_windup = np.array([c.anti_windup for c in controllers])[:, None]
+        self.q = np.zeros((n, 4))
+        self._start_from: np.ndarray | None = None
+        self._rows = np.arange(n)
+
+    def _weights(self, speed: np.ndarray):
+        """GainSchedule._weights of each vehicle: (i, j, w) arrays."""
+        rows, last = self._rows, self.count - 1
+        low = (self.count == 1) | (speed <= self.speeds[:, 0])
+        high = ~low & (speed >= self.speeds[rows, last])
+        j = np.clip((self.speeds < speed[:, None]).sum(axis=1) - 1, 0, None)
+        mid = ~low & ~high
+        i = np.where(low, 0, np.where(high, last, j))
+        k = np.where(low, 0, np.where(high, last, np.minimum(j + 1, last)))
+        w = np.zeros(self.n)
+        w[mid] = (speed[mid] - self.speeds[rows[mid], j[mid]]) / (self.speeds[rows[mid], j[mid] + 1]
+                                                                  - self.speeds[rows[mid], j[mid]])
+        return i, k, w
+
+    def _gains(self, surge: np.ndarray):
+        i, k, w = self._weights(surge)
+        a, b = (1 - w)[:, None, None], w[:, None, None]
+        rows = self._rows
+        return a * self.k_int[rows, i] + b * self.k_int[rows, k], a * self.k_err[rows, i] + b * self.k_err[rows, k]
+
+    def _offset(self, surge_reference: np.ndarray):
+        i, k, w = self._weights(surge_reference)
+        return (1 - w)[:, None] * self.u0[self._rows, i] + w[:, None] * self.u0[self._rows, k]
+
+    def reset(self, applied) -> None:
+        """Bumpless start from the applied blade pitches (N, 4) [rad]: the first :meth:`update` makes them the
+        command at zero error, at that sample's operating point."""
+        self._start_from = np.clip(np.asarray(applied, dtype=float), -self.limit, self.limit)
+
+    def update(self, y, reference) -> np.ndarray:
+        """One sample of eq. 5.6 for every vehicle: measured (u, v, w, r) rows ``y``, reference rows; the
+        commands (N, 4) [rad], saturated at each vehicle's limit."""
+        y, r = np.asarray(y, dtype=float), np.asarray(reference, dtype=float)
+        error = r - y
+        k_int, k_err = self._gains(y[:, SURGE])
+        u0 = self._offset(r[:, SURGE])
+        if self._start_from is not None:
+            self.q = np.linalg.solve(k_int, (self._start_from - u0)[..., None])[..., 0]
+            self._start_from = None
+        proportional = (k_err @ error[..., None])[..., 0]
+        raw = (k_int @ self.q[..., None])[..., 0] + proportional + u0
+        command = np.clip(raw, -self.limit, self.limit)
+        held = np.linalg.solve(k_int, (command - proportional - u0)[..., None])[..., 0] + error
+        self.q = np.where(self.anti_windup, held, self.q + error)
+        return command
 
 
 def create_mfol(parameters: dict, document, sample_period: float | None) -> MFOLController:

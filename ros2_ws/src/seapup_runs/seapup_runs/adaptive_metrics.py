@@ -54,7 +54,7 @@ def converged_sample(values: np.ndarray, start: int = 0) -> int | None:
 
 
 def _steps(result: RunResult) -> list[tuple[float, np.ndarray]]:
-    return [(float(t), np.asarray(r, float)) for t, r in result.spec.reference.steps]
+    return [(float(t), np.asarray(r, float)) for t, r in result.reference_steps_flown()]
 
 
 def _square(t, y, steps, end) -> dict:

@@ -358,23 +358,74 @@ def run_log():
             logger.propagate, logger.level = propagate, level
 
 
-def fly_rows(rows: list[dict]) -> list[dict]:
-    """Fly each run of a task in this process; one flat row per run (see the module docstring)."""
-    from seapup_runs.runner import run
-    out = []
-    for row in rows:
+def _record(row: dict) -> dict:
+    record = {"index": int(row["index"]), "name": "", "status": "ok", "error": ""}
+    record.update({f"param.{k}": (v if isinstance(v, (int, float, str, bool)) else json.dumps(v, sort_keys=True))
+                   for k, v in row["parameters"].items()})
+    return record
+
+
+def _failed(record: dict, exc: BaseException) -> None:
+    record["status"], record["error"] = "error", f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
+
+
+def _fly_batched(rows: list[dict]) -> dict[int, dict]:
+    """The rows whose runs can share a batch (:mod:`seapup_runs.batch_runner`), flown a batch per sample grid;
+    their records by position in ``rows``. A batch shares its time, and its log lines, among its runs."""
+    from seapup_runs.batch_runner import batch_key, batch_reason, fly_batch
+    groups: dict[tuple, list[tuple[int, RunSpec]]] = {}
+    for k, row in enumerate(rows):
+        try:
+            spec = RunSpec.from_dict(row["spec"])
+            if batch_reason(spec) is None:
+                groups.setdefault(batch_key(spec), []).append((k, spec))
+        except Exception:   # the single path reports it
+            continue
+    out = {}
+    for members in groups.values():
+        if len(members) < 2:
+            continue
         wall, cpu = time.perf_counter(), time.process_time()
-        record = {"index": int(row["index"]), "name": "", "status": "ok", "error": ""}
-        record.update({f"param.{k}": (v if isinstance(v, (int, float, str, bool)) else json.dumps(v, sort_keys=True))
-                       for k, v in row["parameters"].items()})
+        with run_log() as lines:
+            try:
+                results = fly_batch([spec for _, spec in members])
+            except Exception:   # e.g. a design that fails: each run then says why on its own
+                continue
+        wall, cpu = (time.perf_counter() - wall) / len(members), (time.process_time() - cpu) / len(members)
+        for (k, spec), result in zip(members, results):
+            record = _record(rows[k])
+            record["name"] = spec.name
+            if isinstance(result, Exception):
+                _failed(record, result)
+            else:
+                record.update({f"metric.{key}": v for key, v in flatten(result.metrics).items()})
+            record["log_lines"], record["log"] = len(lines), "\n".join(lines[:LOG_LINES_KEPT])
+            record["wall_s"], record["cpu_s"] = wall, cpu
+            out[k] = record
+    return out
+
+
+def fly_rows(rows: list[dict]) -> list[dict]:
+    """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs of one
+    MFOL law on one sample grid fly together as a batch (:func:`seapup_runs.batch_runner.fly_batch`, the same
+    results to rounding), the others one by one."""
+    from seapup_runs.runner import run
+    batched = _fly_batched(rows)
+    out = []
+    for k, row in enumerate(rows):
+        if k in batched:
+            out.append(batched[k])
+            continue
+        wall, cpu = time.perf_counter(), time.process_time()
+        record = _record(row)
         with run_log() as lines:
             try:
                 spec = RunSpec.from_dict(row["spec"])
                 record["name"] = spec.name
                 result = run(spec)
-                record.update({f"metric.{k}": v for k, v in flatten(result.metrics).items()})
+                record.update({f"metric.{key}": v for key, v in flatten(result.metrics).items()})
             except Exception as exc:   # a run that fails is a result of the campaign, with its reason
-                record["status"], record["error"] = "error", f"{type(exc).__name__}: {str(exc).splitlines()[0][:300]}"
+                _failed(record, exc)
         record["log_lines"], record["log"] = len(lines), "\n".join(lines[:LOG_LINES_KEPT])
         record["wall_s"], record["cpu_s"] = time.perf_counter() - wall, time.process_time() - cpu
         out.append(record)

@@ -93,7 +93,7 @@ def step_response(result: RunResult) -> dict:
     states = series.states()
     y = series.velocity()
     to_thesis = np.array([1.0, 1.0, 1.0, 180.0 / math.pi])  # r in deg/s
-    steps = spec.reference.steps
+    steps = result.reference_steps_flown()
     final_ref = np.array(steps[-1][1])
     last_change = steps[-1][0]
     prev_ref = np.array(steps[-2][1]) if len(steps) > 1 else np.zeros(4)

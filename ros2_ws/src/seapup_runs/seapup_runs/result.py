@@ -143,6 +143,12 @@ class RunResult:
     metrics: dict = field(default_factory=dict)
     transport: str = "in-process"
 
+    def reference_steps_flown(self) -> list:
+        """The reference profile's ``(time, (u, v, w, r))`` steps the run reached with at least two samples
+        (a profile may go on beyond the duration); the first step always."""
+        t, steps = self.series.t, self.spec.reference.steps
+        return [steps[0]] + [step for step in steps[1:] if len(t) > 1 and step[0] <= t[-2] + 1e-9]
+
     def to_dict(self) -> dict:
         return {"format": FORMAT, "version": 1, "transport": self.transport, "spec": jsonable(self.spec.to_dict()),
                 "metrics": jsonable(self.metrics), "series": self.series.to_dict()}

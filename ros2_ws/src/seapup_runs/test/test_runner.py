@@ -135,3 +135,16 @@ def test_an_open_loop_schedule_is_a_registered_law_timed_from_its_start():
     np.testing.assert_array_equal(series.command[on], np.tile(surge, (on.sum(), 1)))
     np.testing.assert_array_equal(series.command[(t > 5.0 - 1e-9)][:-1], 0.0)
     assert series.truth["u"][on].max() > 0.3   # the surge test pushes ahead
+
+
+@pytest.mark.unit
+def test_a_reference_profile_longer_than_the_run_is_measured_on_the_steps_flown():
+    """A run cut short of its profile (square-inspection's steps at 30, 40, 50 s, flown 24 s) is scored on
+    the last step it flew (20 s), not refused for the steps after its end."""
+    from seapup_runs.campaign import campaign_from_dict, expand
+    spec = expand(campaign_from_dict({"name": "t", "base": {"scenario": "square-inspection"}}))[0]["spec"]
+    from seapup_runs.spec import RunSpec
+    short = run(RunSpec.from_dict({**spec, "duration": 24.0}))
+    u = short.metrics["outputs"]["u"]
+    assert u["reference"] == pytest.approx(0.2)     # the step at 20 s, to 0.2 m/s
+    assert 0.0 < u["rise95_s"] < 4.0

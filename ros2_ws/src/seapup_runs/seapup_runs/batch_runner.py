@@ -1,0 +1,161 @@
+"""Many runs flown together: the batch runner of campaigns (issue 26).
+
+:func:`fly_batch` flies N :class:`~seapup_runs.spec.RunSpec` at once -- the plants as one
+:class:`~seapup_sim.batch.BatchPlant`, their currents as one :class:`~seapup_sim.batch.BatchCurrent`, their
+sensors as one :class:`~seapup_sim.batch.BatchSensors` and their MFOL laws (eq. 4.11, 5.6; fixed-gain or
+scheduled) as one :class:`~seapup_control.mfol_controller.BatchMFOL` -- in fig. 5.1's lockstep loop: at each
+sample every vehicle's sensors are read, its law gives the command held over the control period, and the
+plants step with the scheduled events (configuration, fouling, current statistics) of each run at their
+times. Each vehicle is built by :class:`~seapup_sim.simulation.Simulation` exactly as
+:func:`seapup_runs.runner.run` builds it (the same model, random streams and events), so its
+:class:`~seapup_runs.result.RunResult` is the one ``run(spec)`` gives, to rounding (the plant, current and
+sensors bit for bit; the laws' stacked products to the last bits: ``test/test_batch_runner.py``).
+
+What the batch does not fly (:func:`batch_reason` says why, and :func:`seapup_runs.campaign.fly_rows` flies
+those runs one by one): other controllers (the self-tuners' per-sample estimation is per-run Python anyway),
+controller switches, the linearised plant, the umbilical, strapdown velocity, and a current switched on or
+off during a run. A vehicle that diverges stops alone: its entry is the
+:class:`~seapup_sim.integrator.DivergenceError` the single run would raise.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from seapup_runs.metrics import compute
+from seapup_runs.result import RunResult, Series
+from seapup_runs.spec import RunEvent, RunSpec
+
+__all__ = ["batch_reason", "fly_batch", "batch_key"]
+
+_MEASURED = {"velocity": ("u", "v", "w"), "rates": ("p", "q", "r"), "attitude": ("roll", "pitch", "yaw"),
+             "position": ("x", "y", "z"), "depth": ("depth",), "altitude": ("altitude",)}
+
+
+def batch_reason(spec: RunSpec) -> str | None:
+    """Why ``spec`` cannot fly in a batch (None: it can)."""
+    from seapup_sim.environment_config import load_environment
+    if spec.dynamics != "nonlinear":
+        return f"the {spec.dynamics} plant has no compiled kernel"
+    if len(spec.controller_timeline()) != 1 or spec.controller.type != "mfol":
+        return "only a run of one MFOL law (fixed-gain or scheduled) is batched"
+    env = load_environment(spec.environment)
+    if env.umbilical.enabled:
+        return "the umbilical's wrench is solved per vehicle"
+    if env.sensors.strapdown_enabled:
+        return "strapdown velocity is read by the single sensor suite"
+    for event in spec.plant_events():
+        if event.kind == "current" and (event.detail is None or not env.current.enabled):
+            return "a current switched on or off during the run"
+    return None
+
+
+def batch_key(spec: RunSpec) -> tuple:
+    """Runs with the same key can share a batch: the same sample grid and physics step."""
+    return (spec.control_period, spec.physics_step, spec.samples)
+
+
+def fly_batch(specs, threads: int = 1) -> list:
+    """Fly ``specs`` together (see the module docstring): for each, its :class:`RunResult` or the exception its
+    single run would raise (a diverged plant).
+
+    Raises
+    ------
+    ValueError
+        If a spec cannot be batched (:func:`batch_reason`) or the specs do not share one :func:`batch_key`.
+    """
+    from seapup_common.controllers import create_controller
+    from seapup_control.mfol_controller import BatchMFOL
+    from seapup_sim.batch import BatchCurrent, BatchPlant, BatchSensors
+    from seapup_sim.integrator import DivergenceError
+    from seapup_sim.simulation import Simulation
+    from seapup_runs.runner import design, simulation_events, start_pitch
+
+    specs = [design(s) for s in specs]
+    for i, spec in enumerate(specs):
+        reason = batch_reason(spec)
+        if reason is not None:
+            raise ValueError(f"run {i} ({spec.name}) cannot fly in a batch: {reason}")
+    if len({batch_key(s) for s in specs}) != 1:
+        raise ValueError("the runs of a batch need one control period, physics step and duration")
+    spec0 = specs[0]
+    sims = [Simulation.from_config(s.vehicle, s.environment, seed=s.seed, dt=s.physics_step,
+                                   control_period=s.control_period, events=simulation_events(s),
+                                   state=s.initial_state(), pitch=start_pitch(s), dynamics=s.dynamics) for s in specs]
+    n, dt, substeps, samples = len(specs), spec0.physics_step, sims[0].substeps, spec0.samples
+    plant = BatchPlant([sim.model for sim in sims], dt=dt, states=[sim.plant.state for sim in sims],
+                       pitches=[sim.plant.pitch for sim in sims], threads=threads)
+    for i, sim in enumerate(sims):
+        plant.set_efficiency(i, sim.model.thrusters.efficiency)
+    with_current = [i for i, sim in enumerate(sims) if sim.current is not None]
+    slot = {i: k for k, i in enumerate(with_current)}
+    currents = BatchCurrent([sims[i].current for i in with_current]) if with_current else None
+    sensors = BatchSensors([sim.sensors for sim in sims])
+    law = BatchMFOL([create_controller(s.controller, s.control_period) for s in specs])
+    pending = [list(sim.events) for sim in sims]
+    next_event = min((e.time for events in pending for e in events), default=np.inf)
+    references = {}
+    for i, s in enumerate(specs):
+        references.setdefault(s.reference, []).append(i)
+
+    t = np.full(samples + 1, np.nan)
+    states, applied = np.full((samples + 1, n, 12), np.nan), np.full((samples + 1, n, 4), np.nan)
+    reference, command = np.full((samples + 1, n, 4), np.nan), np.full((samples + 1, n, 4), np.nan)
+    measured = {name: np.full((samples + 1, n), np.nan) for names in _MEASURED.values() for name in names}
+    velocity = np.zeros((n, 3))
+    for k in range(samples + 1):
+        now = plant.t
+        t[k], states[k], applied[k] = now, plant.state, plant.pitch
+        read = sensors.measure(now, plant.state)
+        for field, names in _MEASURED.items():
+            values = read[field].reshape(n, -1)
+            for j, name in enumerate(names):
+                measured[name][k] = values[:, j]
+        if k == samples:
+            break
+        if k == 0:
+            law.reset(plant.pitch)
+        ref = np.empty((n, 4))
+        for profile, rows in references.items():
+            ref[rows] = profile.at(now).velocity
+        out = law.update(np.column_stack([read["velocity"], read["rates"][:, 2]]), ref)
+        reference[k], command[k] = ref, out
+        for _ in range(substeps):
+            if plant.t + 1e-9 >= next_event:
+                next_event = _apply_events(plant, currents, slot, pending)
+            if currents is not None:
+                velocity[with_current] = currents.velocity_ned()
+            plant.step(out, velocity)
+            if currents is not None:
+                currents.step()
+
+    results = []
+    for i, spec in enumerate(specs):
+        if not plant.active[i]:
+            results.append(DivergenceError(plant.errors[i]))
+            continue
+        events = sorted(({"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]}
+                         for e in spec.plant_events()), key=lambda e: e["time"])
+        series = Series.from_states(t, states[:, i], {name: v[:, i] for name, v in measured.items()},
+                                    reference[:, i], command[:, i], applied[:, i], events)
+        result = RunResult(spec, series)
+        result.metrics = compute(result)
+        results.append(result)
+    return results
+
+
+def _apply_events(plant, currents, slot: dict, pending: list) -> float:
+    """Carry out every event due at the plant's time (as ``Simulation._apply_events``); the next one's time."""
+    from seapup_sim.vehicle_config import load_vehicle_config
+    for i, events in enumerate(pending):
+        while events and events[0].time <= plant.t + 1e-9:
+            event = events.pop(0)
+            if event.kind == "configuration":
+                config = load_vehicle_config(event.value) if isinstance(event.value, str) else event.value
+                plant.configure(i, config)
+                if "thruster_efficiency" in config:   # a configuration that sets its own fouling
+                    plant.set_efficiency(i, plant.models[i].thrusters.efficiency)
+            elif event.kind == "thruster_efficiency":
+                plant.set_efficiency(i, event.value)
+            else:
+                currents.set_params(slot[i], event.value)
+    return min((events[0].time for events in pending if events), default=np.inf)
