@@ -236,9 +236,10 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
     return page, worst
 
 
-def campaign_rates(runs: int = 16, worker_counts=(1, 2)) -> dict:
+def campaign_rates(runs: int = 32, worker_counts=(1, 2), per_task: int = 8) -> dict:
     """The benchmark of a campaign's throughput (``./seapup bench``): ``runs`` fixed-gain MFOL runs (eq. 4.11,
-    schedule off) of square-inspection with the baseline sensors, each its own seed, in tasks of 2, on a
+    schedule off) of square-inspection with the baseline sensors, each its own seed, in tasks of ``per_task``
+    (each task's runs flown as one batch, :mod:`seapup_runs.batch_runner`), on a
     LocalCluster of each of ``worker_counts`` worker processes. Each worker first designs the controller (the
     self-test, once per process) outside the timing; the timing is the tasks' flight, submit to last result.
     Returns ``runs_per_s_<k>_worker(s)``, the scaling from the first count to the last, and the closed-loop
@@ -248,7 +249,7 @@ def campaign_rates(runs: int = 16, worker_counts=(1, 2)) -> dict:
     from seapup_runs.spec import RunSpec
     campaign = campaign_from_dict({"name": "bench", "base": {"scenario": "square-inspection"},
                                    "grid": {"controller.parameters.schedule": [False]}, "seeds": runs,
-                                   "runs_per_task": 2})
+                                   "runs_per_task": per_task})
     rows = expand(campaign)
     groups = tasks(rows, campaign.runs_per_task)
     samples = sum(RunSpec.from_dict(r["spec"]).samples for r in rows)
@@ -275,4 +276,12 @@ def campaign_rates(runs: int = 16, worker_counts=(1, 2)) -> dict:
         out["closed_loop_samples_per_s"] = samples / wall
     first, last = worker_counts[0], worker_counts[-1]
     out["scaling"] = out[f"wall_s_{first}"] / out[f"wall_s_{last}"]
+    # the batch loop alone, in this process: every run of the campaign as one batch
+    from seapup_runs.batch_runner import fly_batch
+    specs = [RunSpec.from_dict(r["spec"]) for r in rows]
+    design(specs[0])   # this process's self-test, untimed as the workers' were
+    wall, cpu = time.perf_counter(), time.process_time()
+    fly_batch(specs)
+    out["batch_samples_per_s"] = samples / (time.perf_counter() - wall)
+    out["batch_samples_per_cpu_s"] = samples / (time.process_time() - cpu)
     return out

@@ -109,7 +109,14 @@ def start_pitch(spec: RunSpec) -> np.ndarray:
     from seapup_sim.analysis import hover_blade_pitch
     from seapup_sim.linearised import vehicle_model
     from seapup_sim.vehicle_config import load_vehicle_config
-    return hover_blade_pitch(vehicle_model(load_vehicle_config(spec.vehicle), "nonlinear"))
+    config = load_vehicle_config(spec.vehicle)
+    key = json.dumps(config, sort_keys=True, default=str)   # the trim is solved once per configuration
+    if key not in _HOVER:
+        _HOVER[key] = hover_blade_pitch(vehicle_model(config, "nonlinear"))
+    return _HOVER[key].copy()
+
+
+_HOVER: dict[str, np.ndarray] = {}
 
 
 def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Callable | None = None) -> RunResult:

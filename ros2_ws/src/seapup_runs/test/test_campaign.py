@@ -124,6 +124,34 @@ def test_a_task_flies_its_runs_and_a_failing_run_is_a_row_with_its_reason():
 
 
 @pytest.mark.unit
+def test_a_task_of_mfol_runs_flies_them_as_one_batch_with_each_run_s_own_row():
+    """Runs of one MFOL law on one sample grid share a batch (seapup_runs.batch_runner): each row's metrics are
+    its run's alone (to rounding), one failing row does not spoil the others, and the rest fly one by one."""
+    from seapup_runs.batch_runner import batch_reason
+    doc = {"name": "mfol", "base": {"scenario": "square-inspection"}, "grid": {"vehicle": ["baseline", "camera"]},
+           "random": {"count": 2, "seed": 8, "draws": {"events+": {"choice": [[], [{**FOUL, "time": 5.0}]]}}},
+           "seeds": 1, "runs_per_task": 10}
+    rows = cp.expand(cp.campaign_from_dict(doc))
+    for row in rows:
+        row["spec"]["duration"] = 12.0
+    hold = {**cp.expand(cp.campaign_from_dict(_doc(random={}, seeds=[3])))[0], "index": 50}
+    assert batch_reason(RunSpec.from_dict(rows[0]["spec"])) is None
+    assert batch_reason(RunSpec.from_dict(hold["spec"])) is not None
+    out = cp.fly_rows(rows + [hold])
+    assert [r["index"] for r in out] == [r["index"] for r in rows] + [50]
+    assert all(r["status"] == "ok" for r in out)
+    for row, record in zip(rows + [hold], out):
+        direct = cp.flatten(run(RunSpec.from_dict(row["spec"])).metrics)
+        mine = {k.removeprefix("metric."): v for k, v in record.items() if k.startswith("metric.")}
+        assert mine.keys() == direct.keys() and len(mine) > 5
+        for key, value in direct.items():
+            if isinstance(value, float):
+                assert mine[key] == pytest.approx(value, rel=1e-6, abs=1e-9, nan_ok=True), key
+            else:
+                assert mine[key] == value, key
+
+
+@pytest.mark.unit
 def test_what_a_run_logs_is_kept_in_its_row_not_printed(monkeypatch, caplog):
     """A worker flies hundreds of runs: their cores' log lines (a jacket falling back) go to each run's row."""
     import logging

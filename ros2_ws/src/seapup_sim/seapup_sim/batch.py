@@ -300,7 +300,14 @@ class BatchSensors:
         self._dropout = column("position_dropout")
         self._alt_range = column("altimeter_min_range"), column("altimeter_max_range")
         self._next_fix = np.array([s._next_fix for s in self.suites], dtype=float)
-        self._seabeds = [s.seabed for s in self.suites]
+        # vehicles over the same seabed (equal profiles, not only one object) are read together
+        groups: dict = {}
+        for i, suite in enumerate(self.suites):
+            b = suite.seabed
+            if b is not None:
+                key = (b.kind, b.depth, b.gradient, b.direction, b.points.tobytes())
+                groups.setdefault(key, (b, []))[1].append(i)
+        self._seabed_groups = [(b, np.array(rows)) for b, rows in groups.values()]
 
     def _noise(self, name: str) -> np.ndarray:
         return self._std[name] * self._draws[name].take(self._noisy[name])
@@ -308,8 +315,7 @@ class BatchSensors:
     def _altitude(self, states: np.ndarray) -> np.ndarray:
         out = np.full(self.n, np.nan)
         vertical = np.full(self.n, np.nan)
-        for seabed in {id(b): b for b in self._seabeds if b is not None}.values():
-            rows = np.array([b is seabed for b in self._seabeds])
+        for seabed, rows in self._seabed_groups:
             vertical[rows] = seabed.depth_at(states[rows, 0], states[rows, 1]) - states[rows, 2]
         tilt = np.empty(self.n)
         compiled.cos_product(np.ascontiguousarray(states[:, 3]), np.ascontiguousarray(states[:, 4]), tilt)
