@@ -20,6 +20,7 @@ objects. This module is the shared machinery for that:
 from __future__ import annotations
 
 import copy
+import os
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -98,7 +99,7 @@ def parsed_yaml(path: str | Path):
     path = Path(path)
     try:
         stat = path.stat()
-        key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+        key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)   # abspath: no system call per read
         if key not in _PARSED:
             if len(_PARSED) > 256:
                 _PARSED.clear()

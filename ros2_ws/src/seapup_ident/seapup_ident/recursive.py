@@ -160,6 +160,9 @@ class RecursiveArmax:
         unfiltered regressor, the full RPEM gradient once K -> 1. None: no weakening.
     keep_history : bool
         Keep Theta, lambda, trace P and the prediction errors of every sample (``history``).
+    compiled : bool, optional
+        RPEM's gradient step by the compiled kernel (default: when numba is installed) or by the NumPy
+        reference (False).
 
     Examples
     --------
@@ -175,7 +178,7 @@ class RecursiveArmax:
     def __init__(self, orders: ArmaxOrders, method: str = "ls", *, forgetting: Forgetting | None = None,
                  p0: float = 1e3, theta0=None, jacket: Jacket | None = None, regularisation: float = 1e-6,
                  stability_margin: float = 1e-3, filter_weakening: tuple[float, float] | None = None,
-                 keep_history: bool = False):
+                 keep_history: bool = False, compiled: bool | None = None):
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
         if method == "ls" and orders.nc:
@@ -194,6 +197,7 @@ class RecursiveArmax:
             raise ValueError(f"filter_weakening is an RPEM option, not {method}'s")
         self.filter_weakening = None if filter_weakening is None else Forgetting.schedule(*filter_weakening)
         self.keep_history = keep_history
+        self.compiled = _numba_available() if compiled is None else bool(compiled)
         self.reset()
 
     # -- state -----------------------------------------------------------------------------
@@ -321,33 +325,27 @@ class RecursiveArmax:
 
     def _rpem_update(self, phi: np.ndarray, error: np.ndarray, lam: float, trace: np.ndarray) -> None:
         """One RPEM step (eq. 6.19-6.22 with sec. 6.3's projection), all outputs at once: output i has its
-        own gradient psi_i and covariance P_i (the arrays' leading axis)."""
+        own gradient psi_i and covariance P_i (the arrays' leading axis). The gradient step is compiled
+        (:mod:`seapup_ident.compiled`) unless ``compiled=False`` chose the NumPy reference."""
         o = self.orders
         ny, nc = o.ny, o.nc
-        outputs = np.arange(ny)
         mu = self.filter_weakening.next() if self.filter_weakening is not None else 1.0
-        if nc:
-            # psi_i(t) = phi(t) - sum_k mu^k c_ii,k psi_i(t-k): the prediction's gradient for output i
-            c = self.theta[o.c_slice].T.reshape(ny, nc, ny)[outputs, :, outputs]       # c_ii,k: (ny, nc)
+        if nc:   # c_ii,k mu^k: the (weakened) gradient filter 1/C_ii of output i
+            c = self.theta[o.c_slice].T.reshape(ny, nc, ny)[np.arange(ny), :, np.arange(ny)]       # (ny, nc)
             weights = c * mu ** np.arange(1, nc + 1)
-            psi = phi - np.einsum("ik,ikn->in", weights, self._psi[:, :nc])
         else:
-            psi = np.broadcast_to(phi, (ny, len(phi)))
+            weights = np.zeros((ny, 0))
         limited = trace > self.jacket.max_trace
         lam_i = np.where(limited, 1.0, lam)
         if lam < 1.0:
             self.counts["trace_limited"] += int(np.count_nonzero(limited))
-        P = self._P
-        Pp = np.einsum("inm,im->in", P, psi)
-        gain = Pp / (lam_i + np.einsum("in,in->i", psi, Pp))[:, None]
-        P = (P - gain[:, :, None] * Pp[:, None, :]) / lam_i[:, None, None]
-        P = 0.5 * (P + P.transpose(0, 2, 1))
-        P[:, np.arange(P.shape[1]), np.arange(P.shape[1])] += self.regularisation   # Levenberg-Marquardt
-        self._P = P
-        step = (gain * error[:, None]).T
-        if nc:
-            self._psi[:, 1:] = self._psi[:, :-1]
-            self._psi[:, 0] = psi
+        if self.compiled:
+            from seapup_ident.compiled import rpem_gradient_step
+            step = np.empty((len(phi), ny))
+            rpem_gradient_step(self._P, self._psi, phi, np.ascontiguousarray(weights), lam_i, self.regularisation,
+                               error, step)
+        else:
+            step = self._rpem_gradient_numpy(phi, weights, lam_i, error)
         candidate = self.theta + step
         for _ in range(30):  # the projection of sec. 6.3: shrink the correction until C is stable
             if not nc or is_stable(candidate[o.c_slice].T.reshape(ny, nc, ny).transpose(1, 0, 2),
@@ -359,6 +357,30 @@ class RecursiveArmax:
         else:
             candidate = self.theta
         self.theta = candidate
+
+    def _rpem_gradient_numpy(self, phi, weights, lam_i, error) -> np.ndarray:
+        """The reference of :func:`seapup_ident.compiled.rpem_gradient_step` in NumPy: psi_i, P_i, the step."""
+        ny, nc = self.orders.ny, weights.shape[1]
+        psi = phi - np.einsum("ik,ikn->in", weights, self._psi[:, :nc]) if nc else np.broadcast_to(phi, (ny, len(phi)))
+        P = self._P
+        Pp = np.einsum("inm,im->in", P, psi)
+        gain = Pp / (lam_i + np.einsum("in,in->i", psi, Pp))[:, None]
+        P = (P - gain[:, :, None] * Pp[:, None, :]) / lam_i[:, None, None]
+        P = 0.5 * (P + P.transpose(0, 2, 1))
+        P[:, np.arange(P.shape[1]), np.arange(P.shape[1])] += self.regularisation   # Levenberg-Marquardt
+        self._P = P
+        if nc:
+            self._psi[:, 1:] = self._psi[:, :-1]
+            self._psi[:, 0] = psi
+        return (gain * error[:, None]).T
+
+
+def _numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 class RecursiveRegression:

@@ -249,10 +249,13 @@ def _rpem_per_output(estimator, phi, error, lam, trace):
     return estimator.theta + step, P_all, psi_all
 
 
-def test_the_rpem_step_for_all_outputs_at_once_equals_it_output_by_output():
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_the_rpem_step_for_all_outputs_at_once_equals_it_output_by_output(compiled):
+    """Both the compiled gradient step (seapup_ident.compiled) and its NumPy reference."""
     o = ArmaxOrders(ny=3, nu=2, na=2, nb=1, nc=2)
     rng = np.random.default_rng(8)
-    estimator = RecursiveArmax(o, "rpem", p0=10.0, forgetting=Forgetting(0.98), jacket=Jacket(max_trace=100.0))  # trace P(0) = 140: limited at first
+    estimator = RecursiveArmax(o, "rpem", p0=10.0, forgetting=Forgetting(0.98), jacket=Jacket(max_trace=100.0),
+                               compiled=compiled)  # trace P(0) = 140: limited at first
     checked = 0
     for t in range(300):
         y, u = rng.normal(size=3), rng.normal(size=2)
@@ -298,3 +301,29 @@ def test_the_ud_update_as_running_sums_is_the_column_loop_bit_for_bit():
             gain = ud_update(U, D, phi, lam)
             assert np.array_equal(gain, _ud_update_by_columns(U_ref, D_ref, phi, lam))
             assert np.array_equal(U, U_ref) and np.array_equal(D, D_ref)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("nc, weakening", [(1, (0.1, 0.98)), (2, None), (0, None)])
+def test_the_compiled_rpem_estimates_as_the_numpy_reference_over_a_whole_run(nc, weakening):
+    """Ljung's ARMAX data, 1500 samples with forgetting, the filter weakened or not, projections and all:
+    the two paths' estimates, covariances and counts agree to rounding."""
+    rng = np.random.default_rng(nc)
+    o = ArmaxOrders(ny=2, nu=2, na=1, nb=1, nc=nc)
+    runs = [RecursiveArmax(o, "rpem", p0=100.0, forgetting=Forgetting(0.995), filter_weakening=weakening,
+                           compiled=flag) for flag in (True, False)]
+    y, e_prev = np.zeros(2), np.zeros(2)
+    for t in range(1500):
+        u, e = rng.normal(size=2), 0.1 * rng.normal(size=2)
+        for est in runs:
+            est.step(y, u)
+        y = 0.7 * y + np.array([0.5 * u[0], 0.3 * u[1] + 0.2 * u[0]]) + e + 0.5 * e_prev
+        e_prev = e
+    fast, reference = runs
+    assert fast.compiled and not reference.compiled
+    np.testing.assert_allclose(fast.theta, reference.theta, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast._P, reference._P, rtol=1e-9, atol=1e-12)
+    assert fast.counts == reference.counts
+    if nc == 1:   # and the estimate is the system's (C = 1 + 0.5 z^-1): the noise model found
+        assert fast.theta[o.c_slice][0, 0] == pytest.approx(0.5, abs=0.1)
+        assert fast.theta[o.c_slice][1, 1] == pytest.approx(0.5, abs=0.1)
