@@ -198,6 +198,9 @@ class RecursiveArmax:
         self.filter_weakening = None if filter_weakening is None else Forgetting.schedule(*filter_weakening)
         self.keep_history = keep_history
         self.compiled = _numba_available() if compiled is None else bool(compiled)
+        if self.compiled and method == "rpem":   # loaded now (from numba's cache), not at the first sample
+            from seapup_ident.compiled import rpem_gradient_step
+            self._gradient_step = rpem_gradient_step
         self.reset()
 
     # -- state -----------------------------------------------------------------------------
@@ -340,9 +343,8 @@ class RecursiveArmax:
         if lam < 1.0:
             self.counts["trace_limited"] += int(np.count_nonzero(limited))
         if self.compiled:
-            from seapup_ident.compiled import rpem_gradient_step
             step = np.empty((len(phi), ny))
-            rpem_gradient_step(self._P, self._psi, phi, np.ascontiguousarray(weights), lam_i, self.regularisation,
+            self._gradient_step(self._P, self._psi, phi, np.ascontiguousarray(weights), lam_i, self.regularisation,
                                error, step)
         else:
             step = self._rpem_gradient_numpy(phi, weights, lam_i, error)
