@@ -88,8 +88,9 @@ _PARSED: dict = {}
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
-def parsed_yaml(path: str | Path):
+def parsed_yaml(path: str | Path, *, shared: bool = False):
     """The YAML document in ``path``, a fresh copy: parsed once per version of the file (libyaml's loader).
+    ``shared``: the cached document itself, not a copy, for a caller that only reads it.
 
     Raises
     ------
@@ -106,7 +107,7 @@ def parsed_yaml(path: str | Path):
             _PARSED[key] = yaml.load(path.read_text(), Loader=_LOADER)
     except (OSError, yaml.YAMLError) as exc:
         raise ConfigError(f"cannot read configuration {path}: {exc}") from exc
-    return copy.deepcopy(_PARSED[key])
+    return _PARSED[key] if shared else copy.deepcopy(_PARSED[key])
 
 
 def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:
@@ -121,7 +122,7 @@ def load_yaml(path: str | Path, _seen: tuple = ()) -> dict:
         If a file is unreadable, not a mapping, or the chain loops.
     """
     path = Path(path)
-    if path.resolve() in _seen:
+    if _seen and path.resolve() in _seen:
         raise ConfigError(f"{path.name}: 'extends' loops back to itself")
     data = parsed_yaml(path)
     data = {} if data is None else data

@@ -25,20 +25,21 @@ from seapup_runs.metrics import compute
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec
 
-__all__ = ["batch_reason", "fly_batch", "batch_key"]
+__all__ = ["batch_reason", "fly_batch", "batch_key", "environments_of"]
 
 _MEASURED = {"velocity": ("u", "v", "w"), "rates": ("p", "q", "r"), "attitude": ("roll", "pitch", "yaw"),
              "position": ("x", "y", "z"), "depth": ("depth",), "altitude": ("altitude",)}
 
 
-def batch_reason(spec: RunSpec) -> str | None:
-    """Why ``spec`` cannot fly in a batch (None: it can)."""
+def batch_reason(spec: RunSpec, environment=None) -> str | None:
+    """Why ``spec`` cannot fly in a batch (None: it can). ``environment``: the spec's
+    :class:`~seapup_sim.environment_config.EnvironmentConfig` when the caller has it already."""
     from seapup_sim.environment_config import load_environment
     if spec.dynamics != "nonlinear":
         return f"the {spec.dynamics} plant has no compiled kernel"
     if len(spec.controller_timeline()) != 1 or spec.controller.type != "mfol":
         return "only a run of one MFOL law (fixed-gain or scheduled) is batched"
-    env = load_environment(spec.environment)
+    env = environment if environment is not None else load_environment(spec.environment)
     if env.umbilical.enabled:
         return "the umbilical's wrench is solved per vehicle"
     if env.sensors.strapdown_enabled:
@@ -71,16 +72,24 @@ def fly_batch(specs, threads: int = 1) -> list:
     from seapup_runs.runner import design, simulation_events, start_pitch
 
     specs = [design(s) for s in specs]
+    environments = environments_of(specs)
     for i, spec in enumerate(specs):
-        reason = batch_reason(spec)
+        reason = batch_reason(spec, environments[i])
         if reason is not None:
             raise ValueError(f"run {i} ({spec.name}) cannot fly in a batch: {reason}")
     if len({batch_key(s) for s in specs}) != 1:
         raise ValueError("the runs of a batch need one control period, physics step and duration")
     spec0 = specs[0]
-    sims = [Simulation.from_config(s.vehicle, s.environment, seed=s.seed, dt=s.physics_step,
+    trims: dict = {}   # the hover trim, once per vehicle (start_pitch reads and keys its configuration)
+    pitches = []
+    for s in specs:
+        if s.start_pitch is None and s.vehicle not in trims:
+            trims[s.vehicle] = start_pitch(s)
+        pitches.append(start_pitch(s) if s.start_pitch is not None else trims[s.vehicle])
+    sims = [Simulation.from_config(s.vehicle, environments[i], seed=s.seed, dt=s.physics_step,
                                    control_period=s.control_period, events=simulation_events(s),
-                                   state=s.initial_state(), pitch=start_pitch(s), dynamics=s.dynamics) for s in specs]
+                                   state=s.initial_state(), pitch=pitches[i].copy(), dynamics=s.dynamics)
+            for i, s in enumerate(specs)]
     n, dt, substeps, samples = len(specs), spec0.physics_step, sims[0].substeps, spec0.samples
     plant = BatchPlant([sim.model for sim in sims], dt=dt, states=[sim.plant.state for sim in sims],
                        pitches=[sim.plant.pitch for sim in sims], threads=threads)
@@ -141,6 +150,26 @@ def fly_batch(specs, threads: int = 1) -> list:
         result.metrics = compute(result)
         results.append(result)
     return results
+
+
+def environments_of(specs, cache: dict | None = None) -> list:
+    """Each spec's environment, read once per distinct overrides and water density: a campaign's rows mostly
+    share a few (:class:`~seapup_sim.environment_config.EnvironmentConfig` is frozen, so sharing is safe).
+    ``cache``: a dict to share the readings between calls."""
+    import json
+    from seapup_sim.environment_config import load_environment
+    from seapup_sim.linearised import vehicle_model
+    from seapup_sim.vehicle_config import load_vehicle_config
+    cache = {} if cache is None else cache
+    rho, built, out = cache.setdefault("rho", {}), cache.setdefault("environment", {}), []
+    for spec in specs:
+        if spec.vehicle not in rho:
+            rho[spec.vehicle] = vehicle_model(load_vehicle_config(spec.vehicle), spec.dynamics).rho
+        key = (json.dumps(spec.environment, sort_keys=True, default=repr), rho[spec.vehicle])
+        if key not in built:
+            built[key] = load_environment(spec.environment, rho=key[1])
+        out.append(built[key])
+    return out
 
 
 def _apply_events(plant, currents, slot: dict, pending: list) -> float:

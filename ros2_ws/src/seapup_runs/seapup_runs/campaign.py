@@ -372,12 +372,13 @@ def _failed(record: dict, exc: BaseException) -> None:
 def _fly_batched(rows: list[dict]) -> dict[int, dict]:
     """The rows whose runs can share a batch (:mod:`seapup_runs.batch_runner`), flown a batch per sample grid;
     their records by position in ``rows``. A batch shares its time, and its log lines, among its runs."""
-    from seapup_runs.batch_runner import batch_key, batch_reason, fly_batch
+    from seapup_runs.batch_runner import batch_key, batch_reason, environments_of, fly_batch
     groups: dict[tuple, list[tuple[int, RunSpec]]] = {}
+    read: dict = {}
     for k, row in enumerate(rows):
         try:
             spec = RunSpec.from_dict(row["spec"])
-            if batch_reason(spec) is None:
+            if batch_reason(spec, environments_of([spec], read)[0]) is None:
                 groups.setdefault(batch_key(spec), []).append((k, spec))
         except Exception:   # the single path reports it
             continue

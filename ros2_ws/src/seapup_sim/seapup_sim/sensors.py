@@ -28,6 +28,8 @@ roll error leaks g sin(0.1 deg) into sway, 0.17 m/s after 10 s (App. A.3).
 """
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from dataclasses import dataclass, field
 from importlib import resources
@@ -47,6 +49,7 @@ INSTRUMENTS = ("velocity", "rates", "attitude", "depth", "altitude", "position",
                "strapdown")
 
 
+@functools.cache
 def _profiles_file() -> Path:
     return Path(str(resources.files("seapup_sim") / "environment" / "sensors.yaml"))
 
@@ -103,7 +106,7 @@ class SensorProfile:
 
 def load_sensor_profile(name: str) -> SensorProfile:
     """A profile from ``sensors.yaml`` by name."""
-    profiles = parsed_yaml(_profiles_file())
+    profiles = parsed_yaml(_profiles_file(), shared=True)   # read only: the profile copies what it takes
     if name not in profiles:
         raise ValueError(f"no sensor profile {str(name)[:80]!r} (available: {', '.join(sorted(profiles))})")
     p = profiles[name] or {}
@@ -114,7 +117,7 @@ def load_sensor_profile(name: str) -> SensorProfile:
                          float(p.get("altitude_std", 0.0)), float(pos.get("std", 0.0)),
                          float(pos.get("rate_hz", 1.0)), float(pos.get("dropout", 0.0)),
                          float(alt.get("min_range", 0.0)), float(alt.get("max_range", math.inf)),
-                         float(alt.get("field_of_view", 0.0)), dict(p.get("strapdown", {})))
+                         float(alt.get("field_of_view", 0.0)), copy.deepcopy(dict(p.get("strapdown", {}))))
 
 
 def _wrap(angle: float) -> float:

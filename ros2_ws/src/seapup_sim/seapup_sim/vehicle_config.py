@@ -20,6 +20,8 @@ notation): the term parser checks those.
 """
 from __future__ import annotations
 
+import functools
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -35,6 +37,7 @@ OPEN_KEYS = ("hydrodynamics",)
 PAYLOAD_KEYS = ("name", "mass", "buoyancy_mass", "position", "radius")
 
 
+@functools.cache
 def _vehicles_dir() -> Path:
     return Path(str(resources.files("seapup_sim") / "vehicles"))
 
@@ -62,7 +65,7 @@ def load_vehicle_config(name_or_path: str | Path) -> dict:
     if not path.is_file():
         raise ConfigError(f"no vehicle configuration file {str(path)[:200]}")
     data = load_yaml(path)
-    schema = data if path.resolve() == (_vehicles_dir() / "baseline.yaml").resolve() \
+    schema = data if os.path.abspath(path) == os.path.abspath(_vehicles_dir() / "baseline.yaml") \
         else load_yaml(_vehicles_dir() / "baseline.yaml")
     _check_keys(data, schema, path.name)
     data["name"] = path.stem
