@@ -62,12 +62,24 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
         assert Path(name).stat().st_size > 10_000
     # the bag: rosbags and the mcap library both read every message, and agree
     with AnyReader([out / "bag"]) as reader:
-        counts = {}
+        counts, first_tf, static = {}, None, None
         for connection, _, raw in reader.messages():
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
             if connection.topic == "/seapup/truth/odometry" and counts[connection.topic] == 1:
                 first = reader.deserialize(raw, connection.msgtype)
+            if connection.topic == "/tf" and first_tf is None:
+                first_tf = reader.deserialize(raw, connection.msgtype)
+            if connection.topic == "/tf_static":
+                static = reader.deserialize(raw, connection.msgtype)
     assert first.header.frame_id == "odom_ned" and first.child_frame_id == "base_link_frd"
+    # issue 27: a ROS viewer finds the vehicle in /tf (odom -> base_link, ENU: upright) and the thesis's frames
+    # in /tf_static, latched before the recorder subscribed
+    assert counts["/tf_static"] == 1 and {(t.header.frame_id, t.child_frame_id) for t in static.transforms} == \
+        {("odom", "odom_ned"), ("base_link", "base_link_frd")}
+    (vehicle_tf,) = first_tf.transforms
+    assert (vehicle_tf.header.frame_id, vehicle_tf.child_frame_id) == ("odom", "base_link")
+    assert vehicle_tf.transform.translation.z < 0.0   # below the surface, z up
+    assert counts["/tf"] >= counts["/seapup/truth/odometry"] - 5
     storage = next((out / "bag").glob("*.mcap"))
     with open(storage, "rb") as f:
         theirs = {}

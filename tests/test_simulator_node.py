@@ -19,13 +19,14 @@ from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import Imu
 from seapup_msgs.msg import BladePitch, Depth
 from seapup_msgs.srv import Reset, SetConfiguration, SetSensorProfile, SetThrusterEfficiency
+from tf2_msgs.msg import TFMessage
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT as LIMIT
 from seapup_control.profiles import OpenLoop, PitchProfile
@@ -276,7 +277,36 @@ def test_frames_units_and_enu_conversion(ros_context, node_process, spin):
     depth = next(m for m in reversed(probe.msgs["/seapup/sensors/depth"])
                  if (m.header.stamp.sec, m.header.stamp.nanosec) in ned)
     assert abs(depth.depth - ned[(depth.header.stamp.sec, depth.header.stamp.nanosec)].pose.pose.position.z) < 0.5
+    _check_tf(probe)
     probe.close()
+
+
+def _check_tf(probe):
+    """/tf carries odom -> base_link at each sample, the ENU odometry's pose; /tf_static, subscribed late as
+    tf2 listeners do (transient local), the two fixed frames."""
+    tf = []
+    probe.node.create_subscription(TFMessage, "/tf", tf.append, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    static = []
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    probe.node.create_subscription(TFMessage, "/tf_static", static.append, latched)
+    truth = probe.msgs["/seapup/truth/odometry"]
+    assert probe.spin(lambda: static and len(tf) > 3 and _stamp(tf[-3].transforms[0]) <= _stamp(truth[-1]), 20.0)
+    ned = {_stamp(m): m for m in truth}
+    assert {(t.header.frame_id, t.child_frame_id) for t in static[0].transforms} == \
+        {("odom", "odom_ned"), ("base_link", "base_link_frd")}
+    compared = 0
+    for msg in tf:
+        (transform,) = msg.transforms
+        assert (transform.header.frame_id, transform.child_frame_id) == ("odom", "base_link")
+        if _stamp(transform) in ned:
+            p, q = ned[_stamp(transform)].pose.pose.position, transform.transform
+            assert (q.translation.x, q.translation.y, q.translation.z) == (p.y, p.x, -p.z)
+            compared += 1
+    assert compared >= 3
+
+
+def _stamp(msg):
+    return msg.header.stamp.sec, msg.header.stamp.nanosec
 
 
 def param(name, value):

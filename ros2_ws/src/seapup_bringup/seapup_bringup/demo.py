@@ -51,9 +51,12 @@ MISSION = "mission.yaml"
 #: recorder then subscribes once it has seen their publisher, so the simulator still waits for the
 #: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
 #: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
-#: recorded from the first message.
+#: recorded from the first message. ``/tf_static`` is untyped too: the recorder then matches its publisher's
+#: latched QoS and gets the fixed frames sent before it subscribed; ``/tf`` (odom -> base_link) makes the bag
+#: show an upright vehicle in any ROS viewer.
 HANDSHAKE = [topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION, topics.APPLIED]
-RECORDED = HANDSHAKE + topics.typed(topics.CLOCK, topics.COMMAND, topics.TRUTH_ODOMETRY, topics.ALTITUDE,
+RECORDED = HANDSHAKE + [topics.TF_STATIC] + topics.typed(
+                                    topics.CLOCK, topics.TF, topics.COMMAND, topics.TRUTH_ODOMETRY, topics.ALTITUDE,
                                     topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE, topics.POSITION_REFERENCE,
                                     topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 

@@ -23,7 +23,8 @@ import numpy as np
 
 __all__ = ["NED_TO_ENU", "FRD_TO_FLU", "FRAME_NED", "FRAME_FRD", "FRAME_ENU", "FRAME_FLU",
            "euler_to_quaternion", "quaternion_to_euler", "ned_to_enu", "frd_to_flu",
-           "orientation_ned_frd_to_enu_flu", "covariance6_to_enu_flu", "rotation_body_to_ned", "wrap_angle"]
+           "orientation_ned_frd_to_enu_flu", "covariance6_to_enu_flu", "rotation_body_to_ned", "wrap_angle",
+           "QUATERNION_NED_IN_ENU", "QUATERNION_FRD_IN_FLU"]
 
 FRAME_NED, FRAME_FRD = "odom_ned", "base_link_frd"
 FRAME_ENU, FRAME_FLU = "odom", "base_link"
@@ -80,6 +81,10 @@ def _canonical(q) -> np.ndarray:
 #: x) as quaternions.
 _Q_NED_TO_ENU = np.array([math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0])
 _Q_FRD_TO_FLU = np.array([1.0, 0.0, 0.0, 0.0])
+#: The fixed rotations of the frame tree published on ``/tf_static`` (x, y, z, w): ``odom_ned`` in ``odom``
+#: (p_enu = M p_ned) and ``base_link_frd`` in ``base_link`` (p_flu = F p_frd).
+QUATERNION_NED_IN_ENU = _Q_NED_TO_ENU.copy()
+QUATERNION_FRD_IN_FLU = _Q_FRD_TO_FLU.copy()
 
 
 def ned_to_enu(v) -> np.ndarray:

@@ -10,7 +10,7 @@ fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC
 """
 from __future__ import annotations
 
-__all__ = ["NAMESPACE", "CLOCK", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
+__all__ = ["NAMESPACE", "CLOCK", "TF", "TF_STATIC", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
            "VELOCITY", "IMU", "DEPTH",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
@@ -23,6 +23,10 @@ NAMESPACE = "/seapup"
 # -- topics ----------------------------------------------------------------------------------------
 #: Simulated time (published by a lockstep or sim-time simulator).
 CLOCK = "/clock"
+#: The vehicle's pose as transforms (REP-105 odom -> base_link, each sample) and the fixed frames
+#: (odom -> odom_ned, base_link -> base_link_frd; latched), where tf2 and ROS viewers look.
+TF = "/tf"
+TF_STATIC = "/tf_static"
 #: Every node's diagnostics.
 DIAGNOSTICS = "/diagnostics"
 #: Blade pitches commanded by the active controller [rad].
@@ -65,6 +69,8 @@ SENSORS = (VELOCITY, IMU, DEPTH, POSITION, ALTITUDE)
 #: Topic -> message type (rosbag2 spelling ``pkg/msg/Type``).
 TOPIC_TYPES = {
     CLOCK: "rosgraph_msgs/msg/Clock",
+    TF: "tf2_msgs/msg/TFMessage",
+    TF_STATIC: "tf2_msgs/msg/TFMessage",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
     COMMAND: "seapup_msgs/msg/BladePitch",
     FORWARDED_COMMAND: "seapup_msgs/msg/BladePitch",

@@ -113,3 +113,34 @@ def test_a_sample_feed_answers_samples_once_and_refuses_what_the_collector_refus
     assert feed.velocity(velocity(200_000_000, u=float("nan"))) is None  # refused: never a sample
     assert len(refused) == 1 and "finite" in refused[0] and policy.latest_ns == 0
     assert feed.collector.measurement(0.0).velocity.value[0] == 0.1
+
+
+def test_the_frame_tree_puts_the_vehicle_upright_in_enu_and_its_ned_frames_where_the_thesis_has_them():
+    """Compose /tf_static and /tf as tf2 would (child in parent: p_parent = R p_child + t) and check a point
+    given in base_link_frd lands, in odom_ned, where the 12-state's rotation of eq. 2.1 puts it."""
+    def pose(transform):
+        t, q = transform.transform.translation, transform.transform.rotation
+        return Rotation.from_quat([q.x, q.y, q.z, q.w]), np.array([t.x, t.y, t.z])
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        state = np.zeros(12)
+        state[:3] = rng.normal(0.0, 20.0, 3)
+        state[3:6] = rng.uniform(-1.2, 1.2, 3)
+        dynamic = conv.transforms_enu(state, 5_000_000_000).transforms
+        static = {t.child_frame_id: t for t in conv.static_transforms(0).transforms}
+        assert [(t.header.frame_id, t.child_frame_id) for t in dynamic] == [("odom", "base_link")]
+        assert {c: t.header.frame_id for c, t in static.items()} == {"odom_ned": "odom", "base_link_frd": "base_link"}
+        assert conv.stamp_to_ns(dynamic[0].header.stamp) == 5_000_000_000
+        r_vehicle, t_vehicle = pose(dynamic[0])
+        r_frd, _ = pose(static["base_link_frd"])
+        r_ned, _ = pose(static["odom_ned"])
+        point_frd = rng.normal(size=3)
+        in_odom = r_vehicle.apply(r_frd.apply(point_frd)) + t_vehicle          # odom <- base_link <- base_link_frd
+        in_ned = r_ned.inv().apply(in_odom)                                      # odom_ned <- odom
+        expected = frames.rotation_body_to_ned(*state[3:6]) @ point_frd + state[:3]
+        np.testing.assert_allclose(in_ned, expected, atol=1e-9)
+    level = conv.transforms_enu(np.zeros(12), 0).transforms[0].transform   # level, heading north
+    up_flu = Rotation.from_quat([level.rotation.x, level.rotation.y, level.rotation.z, level.rotation.w]).apply([0, 0, 1])
+    np.testing.assert_allclose(up_flu, [0, 0, 1], atol=1e-12)   # the vehicle's top is up: drawn upright
+    assert conv.transforms_enu(np.r_[0, 0, 10.0, np.zeros(9)], 0).transforms[0].transform.translation.z == -10.0

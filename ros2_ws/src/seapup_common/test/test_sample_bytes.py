@@ -10,6 +10,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, Range
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch, SampleManifest
+from tf2_msgs.msg import TFMessage
 
 from seapup_common import frames
 from seapup_common.contract import Command, Reading
@@ -50,9 +51,13 @@ def _field(msg, name):
     (BladePitch, {"header.frame_id": "abcdefg"}),
     (AccelWithCovarianceStamped, {"header.frame_id": "base_link_frd"}),
     (Duration, {}),                           # no header at all
+    (TFMessage, {"transforms[0].header.frame_id": "odom", "transforms[0].child_frame_id": "b"}),   # a sequence
+    (TFMessage, {"transforms[1].child_frame_id": "abc"}),   # its second element realigned after a 4-byte string
 ])
 def test_packed_bytes_are_what_rclpy_serialises_for_the_same_fields(msg_type, strings):
-    packer = Packer(msg_type, strings)
+    lengths = {"transforms": 2 if "transforms[1].child_frame_id" in strings else 1} if msg_type is TFMessage \
+        else None
+    packer = Packer(msg_type, strings, lengths)
     for _ in range(5):
         values = _values(packer)
         data = packer.pack(values)
@@ -79,6 +84,10 @@ def test_a_packer_refuses_what_has_no_fixed_layout_and_the_wrong_number_of_value
         Packer(Polygon)
     with pytest.raises(ValueError, match="no string field"):
         Packer(Imu, {"header.frame": "x"})
+    with pytest.raises(ValueError, match="no sequence field"):
+        Packer(Imu, lengths={"transforms": 1})
+    with pytest.raises(TypeError, match="no fixed layout"):
+        Packer(TFMessage)   # a sequence without a length
     packer = Packer(BladePitch)
     with pytest.raises(ValueError, match="5 values for 6 fields"):
         packer.pack([0, 0, 1.0, 2.0, 3.0])
@@ -113,6 +122,7 @@ def test_every_sample_message_deserialises_to_what_the_message_builders_make(see
         (encoder.odometry_enu(state, t_ns), conv.odometry_enu(state, t_ns)),
         (encoder.vector3_stamped(force, t_ns, frames.FRAME_NED), conv.vector3_stamped(force, t_ns, frames.FRAME_NED)),
         (encoder.wrench_stamped(wrench, t_ns, frames.FRAME_FRD), conv.wrench_stamped(wrench, t_ns, frames.FRAME_FRD)),
+        (encoder.transforms_enu(state, t_ns), conv.transforms_enu(state, t_ns)),
     ]
     for data, expected in pairs:
         got = deserialize_message(data, type(expected))

@@ -21,7 +21,9 @@ def test_every_named_topic_is_in_the_table_once_and_nothing_else_is():
 def test_names_are_absolute_and_the_vehicle_s_are_in_its_namespace(name):
     topic = getattr(topics, name)
     assert topic.startswith("/") and not topic.endswith("/")
-    assert topic in (topics.CLOCK, topics.DIAGNOSTICS) or topic.startswith(topics.NAMESPACE + "/")
+    # the graph-wide topics ROS tools look for at the root (tf2 listens on /tf and /tf_static)
+    assert topic in (topics.CLOCK, topics.DIAGNOSTICS, topics.TF, topics.TF_STATIC) \
+        or topic.startswith(topics.NAMESPACE + "/")
 
 
 @pytest.mark.parametrize("topic", sorted(topics.TOPIC_TYPES))

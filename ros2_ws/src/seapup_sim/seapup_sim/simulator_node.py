@@ -63,6 +63,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, Range
 from seapup_msgs.msg import BladePitch, Depth, SampleManifest
 from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfile, SetThrusterEfficiency
+from tf2_msgs.msg import TFMessage
 
 from seapup_common import frames
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
@@ -72,8 +73,8 @@ from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.sample_bytes import SampleEncoder
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
-                                    SERVICE_QOS, QosWatch, declare_from_package_file, declare_mapping, run_node)
-from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
+                                    SERVICE_QOS, TF_QOS, TF_STATIC_QOS, QosWatch, declare_from_package_file, declare_mapping, run_node)
+from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import default_environment_mapping, load_environment
 from seapup_sim.sensors import sensor_profiles
@@ -146,6 +147,9 @@ class SimulatorNode(Node):
             "watchdog_action": ParameterDescriptor(description="hover | neutral"),
             "start_depth": _float_range(0.0, 6000.0, "initial depth [m]", **ro),
             "publish_clock": ParameterDescriptor(description="publish /clock (the simulator owns time)", **ro),
+            "publish_tf": ParameterDescriptor(description="publish /tf (REP-105 odom -> base_link, each sample) "
+                                                          "and /tf_static (odom -> odom_ned, base_link -> "
+                                                          "base_link_frd)", **ro),
             "diagnostics_period": _float_range(0.05, 60.0, "diagnostics period [s wall]", **ro),
             "end_time": _float_range(0.0, 1e9, "the last sample [s sim]: no step past it; 0 = run on (settable at "
                                                "run time: a later value resumes a held graph)"),
@@ -179,7 +183,7 @@ class SimulatorNode(Node):
         self.simulator.limits.check_state(self.start_state)
         self.simulator.limits.check_real_time_factor(p["real_time_factor"], self.config.control_period)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._create_interfaces(p["publish_clock"])
+        self._create_interfaces(p["publish_clock"], p["publish_tf"])
         self._gate = self._subscriber_gate(p["wait_for_subscribers"])
 
         self._wall_start = time.monotonic()
@@ -211,7 +215,7 @@ class SimulatorNode(Node):
             f"{self.simulator.sensor_profile.name}, T = {self.config.control_period} s, dt = "
             f"{self.config.physics_step} s, seed {self.config.seed}")
 
-    def _create_interfaces(self, publish_clock: bool) -> None:
+    def _create_interfaces(self, publish_clock: bool, publish_tf: bool) -> None:
         def pub(kind, topic, qos):  # no per-publisher event handlers on the executor's path: QosWatch instead
             return self.create_publisher(kind, topic, qos, event_callbacks=QUIET_PUBLISHER)
         self._qos_watch = QosWatch(self)
@@ -227,6 +231,10 @@ class SimulatorNode(Node):
         self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", STREAM_QOS)
         self.pub_manifest = pub(SampleManifest, "sensors/sample", STREAM_QOS)
         self.pub_clock = pub(Clock, CLOCK, STREAM_QOS) if publish_clock else None
+        self.pub_tf = pub(TFMessage, TF, TF_QOS) if publish_tf else None
+        if publish_tf:   # latched: a viewer that joins later still gets the fixed frames
+            self._pub_tf_static = pub(TFMessage, TF_STATIC, TF_STATIC_QOS)
+            self._pub_tf_static.publish(conv.static_transforms(0))
         self.pub_diag = pub(DiagnosticArray, DIAGNOSTICS, 10)
         self.create_subscription(BladePitch, "thrusters/command", self._on_command, COMMAND_QOS, raw=True,
                                  event_callbacks=QUIET_SUBSCRIPTION)
@@ -422,7 +430,8 @@ class SimulatorNode(Node):
             (self.pub_truth, encode.odometry_ned(sample.state, t_ns)),
             (self.pub_odom, encode.odometry_enu(sample.state, t_ns)),
             (self.pub_current, encode.vector3_stamped(sample.current_ned, t_ns, NED)),
-            (self.pub_wrench, encode.wrench_stamped(sample.umbilical_body, t_ns, FRD))]
+            (self.pub_wrench, encode.wrench_stamped(sample.umbilical_body, t_ns, FRD)),
+            *([(self.pub_tf, encode.transforms_enu(sample.state, t_ns))] if self.pub_tf is not None else [])]
         # last: what this sample holds (the acoustic fix comes only at some samples)
         manifest = encode.manifest([publisher.topic_name for publisher, _ in messages], t_ns)
         self._sent = messages + [(self.pub_manifest, manifest)]

@@ -50,7 +50,12 @@ class Packer:
         A generated ROS message class (e.g. ``nav_msgs.msg.Odometry``).
     strings : dict, optional
         The value of every string field, by dotted path (``"header.frame_id"``,
-        ``"child_frame_id"``); a string not given is empty.
+        ``"child_frame_id"``, ``"transforms[0].header.frame_id"``); a string not given is empty.
+    lengths : dict, optional
+        A fixed length for sequence fields, by dotted path (``{"transforms": 1}`` for a
+        ``tf2_msgs/TFMessage`` of one transform): packed as CDR packs any sequence (its length, then the
+        elements), with the elements' fields named ``transforms[0].header.stamp.sec``, ... A sequence not
+        given a length has no fixed layout (refused).
 
     Attributes
     ----------
@@ -59,9 +64,11 @@ class Packer:
         paths, array elements as ``name[i]`` (``"pose.covariance[35]"``).
     """
 
-    def __init__(self, msg_type: type, strings: dict[str, str] | None = None):
+    def __init__(self, msg_type: type, strings: dict[str, str] | None = None,
+                 lengths: dict[str, int] | None = None):
         self.msg_type = msg_type
         strings = dict(strings or {})
+        self._lengths = dict(lengths or {})
         self._segments: list = []  # bytes (constant) or (struct.Struct, number of values)
         self._format = ""
         self._count = 0
@@ -71,6 +78,8 @@ class Packer:
         self._flush()
         if strings:
             raise ValueError(f"{msg_type.__name__} has no string field {', '.join(sorted(strings))}")
+        if self._lengths:
+            raise ValueError(f"{msg_type.__name__} has no sequence field {', '.join(sorted(self._lengths))}")
         self.fields = tuple(fields)
         self.size = len(ENCAPSULATION_CDR_LE) + self._offset
 
@@ -114,8 +123,25 @@ class Packer:
                 self._walk(_message_class(kind), name + ".", strings, fields)
             elif kind_name in ("UnboundedString", "BoundedString"):
                 self._constant(strings.pop(name, ""))
+            elif kind_name in ("UnboundedSequence", "BoundedSequence") and name in self._lengths:
+                self._sequence(kind, name, self._lengths.pop(name), strings, fields)
             else:
                 raise TypeError(f"{msg_type.__name__}.{name}: {kind_name} has no fixed layout")
+
+    def _sequence(self, kind, name: str, length: int, strings: dict, fields: list) -> None:
+        if length < 0 or (kind_bound := getattr(kind, "maximum_size", None)) is not None and length > kind_bound:
+            raise ValueError(f"{name}: length {length} out of range")
+        self._align(4)
+        self._flush()
+        self._segments.append(struct.pack("<I", length))
+        self._offset += 4
+        value_type = kind.value_type
+        for i in range(length):
+            if type(value_type).__name__ == "BasicType":
+                self._value(*_BASIC[value_type.typename])
+                fields.append(f"{name}[{i}]")
+            else:
+                self._walk(_message_class(value_type), f"{name}[{i}].", strings, fields)
 
     # -- packing ----------------------------------------------------------------
     def pack(self, values: Sequence) -> bytes:

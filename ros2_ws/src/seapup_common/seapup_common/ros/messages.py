@@ -20,10 +20,11 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import (PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped,
-                               Vector3Stamped, WrenchStamped)
+from geometry_msgs.msg import (PoseStamped, PoseWithCovarianceStamped, TransformStamped, TwistStamped,
+                               TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, Range
+from tf2_msgs.msg import TFMessage
 from seapup_msgs.msg import BladePitch, Depth
 
 from seapup_common import frames
@@ -35,7 +36,7 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
            "vector3_stamped", "wrench_stamped", "MeasurementCollector", "SampleFeed",
            "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
-           "reference_to_msg", "reference_from_msg", "diagnostic_array",
+           "reference_to_msg", "reference_from_msg", "diagnostic_array", "transforms_enu", "static_transforms",
            "UNKNOWN_VARIANCE"]
 
 #: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
@@ -222,6 +223,34 @@ def odometry_enu(state, t_ns: int) -> Odometry:
     _set_xyz(msg.twist.twist.linear, frames.frd_to_flu(x[6:9]))
     _set_xyz(msg.twist.twist.angular, frames.frd_to_flu(x[9:12]))
     return msg
+
+
+def _transform(parent: str, child: str, t_ns: int, translation, rotation) -> TransformStamped:
+    msg = _header(TransformStamped(), t_ns, parent)
+    msg.child_frame_id = child
+    _set_xyz(msg.transform.translation, translation)
+    _set_quaternion(msg.transform.rotation, rotation)
+    return msg
+
+
+def transforms_enu(state, t_ns: int) -> TFMessage:
+    """``/tf`` of a 12-state: ``odom`` -> ``base_link`` (REP-105, ENU/FLU), the pose of :func:`odometry_enu`.
+
+    The frame tree is ``odom`` -> ``base_link`` -> ``base_link_frd`` and ``odom`` -> ``odom_ned``
+    (:func:`static_transforms`): one parent per frame, as tf2 requires, with the thesis's NED/FRD frames
+    (REP-156's ``_ned``/``_frd`` suffixes) fixed to their ROS counterparts."""
+    x = np.asarray(state, float)
+    q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6]))
+    return TFMessage(transforms=[_transform(frames.FRAME_ENU, frames.FRAME_FLU, t_ns, frames.ned_to_enu(x[:3]), q)])
+
+
+def static_transforms(t_ns: int) -> TFMessage:
+    """``/tf_static``: ``odom_ned`` in ``odom`` (x north = y east, z down = -z up) and ``base_link_frd`` in
+    ``base_link`` (a half turn about x), both fixed."""
+    zero = (0.0, 0.0, 0.0)
+    return TFMessage(transforms=[
+        _transform(frames.FRAME_ENU, frames.FRAME_NED, t_ns, zero, frames.QUATERNION_NED_IN_ENU),
+        _transform(frames.FRAME_FLU, frames.FRAME_FRD, t_ns, zero, frames.QUATERNION_FRD_IN_FLU)])
 
 
 # -- the hierarchy: navigation estimate, pose setpoints, velocity references ---------

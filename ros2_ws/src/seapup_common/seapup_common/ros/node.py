@@ -25,7 +25,7 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import QoSCompatibility, QoSProfile, ReliabilityPolicy, qos_check_compatible
+from rclpy.qos import DurabilityPolicy, QoSCompatibility, QoSProfile, ReliabilityPolicy, qos_check_compatible
 from rclpy.signals import SignalHandlerOptions
 
 from seapup_common import CORE_LOGGERS  # noqa: F401 - the cores' loggers, routed to the node's (re-exported)
@@ -33,7 +33,7 @@ from seapup_common.parameters import load_node_parameters
 
 __all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
            "refuse_invalid_transitions", "stop_requested", "QUIET_PUBLISHER", "QUIET_SUBSCRIPTION",
-           "QosWatch", "RELIABLE_QOS", "COMMAND_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
+           "QosWatch", "RELIABLE_QOS", "COMMAND_QOS", "TF_QOS", "TF_STATIC_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
 RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -41,6 +41,10 @@ RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 #: acknowledged only up to its depth, so a reader that falls behind for a moment (a recorder on a loaded
 #: machine, while lockstep races on) caught up with the samples at depth 10 overwritten -- a bag with holes.
 STREAM_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: ``/tf`` and ``/tf_static`` as tf2's broadcasters offer them (reliable, depth 100; the static one latched, depth 1,
+#: every fixed transform in its one message), so rviz, Foxglove and tf2 listeners match them.
+TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Commands queue deeper: every one, good or bad, must be seen and counted.
 COMMAND_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 #: Services queue deep enough for bursts: 1000 concurrent requests are each

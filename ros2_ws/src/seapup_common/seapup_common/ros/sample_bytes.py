@@ -18,6 +18,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, Range
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch, Depth, SampleManifest
+from tf2_msgs.msg import TFMessage
 
 from seapup_common import frames
 from seapup_common.contract import Reading
@@ -71,6 +72,8 @@ class SampleEncoder:
                         for frame in (frames.FRAME_NED, frames.FRAME_FRD)}
         self._wrench = {frame: Packer(WrenchStamped, {"header.frame_id": frame})
                         for frame in (frames.FRAME_NED, frames.FRAME_FRD)}
+        self._tf = Packer(TFMessage, {"transforms[0].header.frame_id": frames.FRAME_ENU,
+                                      "transforms[0].child_frame_id": frames.FRAME_FLU}, {"transforms": 1})
         self._clock = Packer(Clock)
         self._manifests: dict[tuple, Restamper] = {}
 
@@ -131,6 +134,12 @@ class SampleEncoder:
         return self._odom.pack(_stamp(t_ns) + frames.ned_to_enu(x[:3]).tolist() + q + [0.0] * 36
                                + frames.frd_to_flu(x[6:9]).tolist() + frames.frd_to_flu(x[9:12]).tolist()
                                + [0.0] * 36)
+
+    def transforms_enu(self, state, t_ns: int) -> bytes:
+        """:func:`~seapup_common.ros.messages.transforms_enu`: ``/tf``, odom -> base_link."""
+        x = np.asarray(state, float)
+        q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6])).tolist()
+        return self._tf.pack(_stamp(t_ns) + frames.ned_to_enu(x[:3]).tolist() + q)
 
     def vector3_stamped(self, vector, t_ns: int, frame_id: str) -> bytes:
         """:func:`~seapup_common.ros.messages.vector3_stamped` (``odom_ned`` or ``base_link_frd``)."""
