@@ -113,6 +113,26 @@ def _run(argv: list[str]) -> int:
     return 1  # not reached
 
 
+@command("view", "watch the running graph (this domain) in Foxglove or Lichtblick: a WebSocket server on "
+         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "[--port P] [--vehicle V] "
+         "[--environment-file F]")
+def _view(argv: list[str]) -> int:
+    import argparse
+    from seapup_common.processes import find_executable
+    parser = argparse.ArgumentParser(prog="./seapup view", description="the live_view node on this domain "
+                                     "(docs/live-view.md); Ctrl-C ends it")
+    parser.add_argument("--port", type=int, default=8765, help="WebSocket port on 127.0.0.1 (default 8765)")
+    parser.add_argument("--vehicle", default="baseline", help="configuration drawn (the simulator's)")
+    parser.add_argument("--environment-file", default="", help="the graph's environment overrides (the seabed)")
+    args = parser.parse_args(argv)
+    if not 0 <= args.port <= 65535:
+        parser.error(f"--port must be 0..65535, got {args.port}")
+    path = find_executable("seapup_bringup", "live_view")
+    os.execv(str(path), [str(path), "--ros-args", "-p", f"port:={args.port}", "-p", f"vehicle:={args.vehicle}",
+                         "-p", f"environment_file:={args.environment_file}"])
+    return 1  # not reached
+
+
 @command("verify", "open-loop verification of the vehicle model against the thesis",
          "[--config C] [--json [F]] [--plots DIR]")
 def _verify(argv: list[str]) -> int:

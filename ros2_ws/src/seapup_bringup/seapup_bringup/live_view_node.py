@@ -1,0 +1,237 @@
+"""The ``live_view`` node: the graph in Foxglove (or Lichtblick) through a WebSocket on localhost.
+
+A shell over :mod:`seapup_bringup.view_scene` (the geometry) and the ``foxglove-sdk`` server (its own
+threads: nothing here waits for a viewer). It subscribes to the graph's topics and, at each sample of the
+simulator's truth, logs to the server, stamped with the sample's (sim) time, which the server also
+broadcasts as its clock:
+
+- ``/tf`` (foxglove.FrameTransforms): ``odom`` -> ``base_link`` and the fixed ``odom_ned``, ``base_link_frd``;
+- ``/scene/vehicle`` (foxglove.SceneUpdate, in ``base_link_frd``): the frame, the four thrusters with their
+  blade-pitch arrows (full length at the +-35 deg limit), the payloads (the bow camera when fitted);
+- ``/scene/world`` (in ``odom_ned``): the track flown, the current's arrow, the position set point, the
+  navigator's estimate (a sphere of its 2-sigma horizontal uncertainty) and the acoustic fixes as they come;
+- ``/scene/seabed``: the environment's seabed around the vehicle (re-sent every few seconds: the server keeps
+  nothing for a client that subscribes later);
+- ``/plot`` (JSON): body velocities (measured and reference), blade pitches [deg] and the limit.
+
+Services through the server (JSON requests): ``switch_controller`` (``{"activate": "gmv"}`` -> the controller
+manager's switch) and ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's).
+
+A message is built only when a viewer subscribes to its channel (``has_sinks``); the server's per-client
+queues are bounded and drop the oldest, so a slow or vanished viewer costs the graph nothing.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import threading
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped, \
+    Vector3Stamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from seapup_msgs.msg import BladePitch
+from seapup_msgs.srv import SetCurrent, SwitchController
+
+from seapup_common.ros import messages as conv
+from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, run_node
+from seapup_common.topics import (APPLIED, CURRENT, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
+                                  SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, VELOCITY,
+                                  VELOCITY_REFERENCE)
+from seapup_bringup import view_scene
+
+__all__ = ["LiveViewNode", "main", "PLOT_SCHEMA"]
+
+#: The /plot channel's JSON schema (what a plot panel's paths name).
+PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
+    "t": {"type": "number"}, "velocity": {"type": "array"}, "reference": {"type": "array"},
+    "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}}}
+
+_SEABED_PERIOD_NS = 5_000_000_000
+
+
+def _state_from_truth(msg: Odometry) -> np.ndarray:
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    from seapup_common import frames
+    angles = frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
+    v, w = msg.twist.twist.linear, msg.twist.twist.angular
+    return np.array([p.x, p.y, p.z, *angles, v.x, v.y, v.z, w.x, w.y, w.z], float)
+
+
+class LiveViewNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("live_view", **kwargs)
+        self.declare_parameter("port", 8765, ParameterDescriptor(
+            description="the WebSocket server's port on 127.0.0.1 (0: any free port, logged)", read_only=True,
+            integer_range=[IntegerRange(from_value=0, to_value=65535)]))
+        self.declare_parameter("vehicle", "baseline", ParameterDescriptor(
+            description="vehicle configuration drawn (the simulator's)", read_only=True))
+        self.declare_parameter("environment_file", "", ParameterDescriptor(
+            description="the graph's environment overrides (YAML; '' = default): the seabed drawn", read_only=True))
+        import foxglove
+        from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
+        from foxglove.websocket import Capability
+        from seapup_sim.environment_config import load_environment
+        from seapup_sim.linearised import vehicle_model
+        from seapup_sim.vehicle_config import load_vehicle_config
+
+        logging.getLogger("foxglove").setLevel(logging.ERROR)   # a dropped client is not the graph's problem
+        self.shape = view_scene.vehicle_shape(vehicle_model(load_vehicle_config(self.get_parameter("vehicle").value)))
+        env_file = self.get_parameter("environment_file").value
+        self.seabed = load_environment(env_file or None).seabed
+        self.trail = view_scene.Trail()
+        self._latest: dict = {}
+        self._fixes: list = []
+        self._seabed_sent_ns = -_SEABED_PERIOD_NS
+        self.server = foxglove.start_server(
+            name="seapup", host="127.0.0.1", port=int(self.get_parameter("port").value),
+            capabilities=[Capability.Time], services=self._viewer_services(foxglove), supported_encodings=["json"])
+        self.tf_channel = FrameTransformsChannel("/tf")
+        self.vehicle_channel = SceneUpdateChannel("/scene/vehicle")
+        self.world_channel = SceneUpdateChannel("/scene/world")
+        self.seabed_channel = SceneUpdateChannel("/scene/seabed")
+        self.plot_channel = foxglove.Channel("/plot", schema=PLOT_SCHEMA)
+        self.samples = 0
+        self.create_subscription(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
+        for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
+                            (VELOCITY_REFERENCE, TwistStamped), (NAVIGATION_ODOMETRY, Odometry),
+                            (POSITION_REFERENCE, PoseStamped)):
+            self.create_subscription(kind, topic, lambda msg, t=topic: self._latest.__setitem__(t, msg), STREAM_QOS)
+        self.create_subscription(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
+        self.switch_client = self.create_client(SwitchController, SWITCH_CONTROLLER_SERVICE)
+        self.current_client = self.create_client(SetCurrent, SET_CURRENT_SERVICE)
+        self.get_logger().info(f"live view: ws://127.0.0.1:{self.server.port} (open it in Foxglove or Lichtblick: "
+                               f"{self.server.app_url()})")
+
+    # -- the graph -> the viewer -------------------------------------------------------------
+    def _on_fix(self, msg: PoseWithCovarianceStamped) -> None:
+        p = msg.pose.pose.position
+        self._fixes = (self._fixes + [(p.x, p.y, p.z)])[-50:]
+
+    def _on_truth(self, msg: Odometry) -> None:
+        t_ns = conv.stamp_to_ns(msg.header.stamp)
+        state = _state_from_truth(msg)
+        if not np.all(np.isfinite(state)):
+            return
+        self.samples += 1
+        self.trail.add(state[:3])
+        self.server.broadcast_time(t_ns)
+        from seapup_bringup import live_view_messages as fm
+        if self.tf_channel.has_sinks():
+            self.tf_channel.log(fm.frame_transforms(view_scene.frame_transforms(state), t_ns), log_time=t_ns)
+        applied = self._latest.get(APPLIED)
+        pitch = np.asarray(applied.pitch, float) if applied is not None else np.zeros(4)
+        if self.vehicle_channel.has_sinks():
+            self.vehicle_channel.log(fm.vehicle(self.shape, view_scene.thrust_arrows(self.shape, pitch), t_ns),
+                                     log_time=t_ns)
+        if self.world_channel.has_sinks():
+            self.world_channel.log(fm.world(self._world(t_ns)), log_time=t_ns)
+        if self.seabed_channel.has_sinks() and t_ns - self._seabed_sent_ns >= _SEABED_PERIOD_NS:
+            self._seabed_sent_ns = t_ns
+            self.seabed_channel.log(fm.seabed(*view_scene.seabed_grid(self.seabed, state[:3]), t_ns), log_time=t_ns)
+        if self.plot_channel.has_sinks():
+            self.plot_channel.log(self._plot(t_ns, pitch), log_time=t_ns)
+
+    def _world(self, t_ns: int) -> dict:
+        world = {"t_ns": t_ns, "trail": self.trail.points(), "fixes": list(self._fixes)}
+        current = self._latest.get(CURRENT)
+        if current is not None:
+            world["current"] = view_scene.current_arrow([current.vector.x, current.vector.y, current.vector.z])
+        goal = self._latest.get(POSITION_REFERENCE)
+        if goal is not None:
+            world["goal"] = np.array([goal.pose.position.x, goal.pose.position.y, goal.pose.position.z])
+        estimate = self._latest.get(NAVIGATION_ODOMETRY)
+        if estimate is not None:
+            e = conv.estimate_from_odometry(estimate)
+            world["estimate"] = (np.asarray(e.position, float),
+                                 2.0 * float(np.sqrt(np.max(np.diag(e.position_cov)[:2]))))
+        return world
+
+    def _plot(self, t_ns: int, pitch: np.ndarray) -> dict:
+        plot = {"t": t_ns * 1e-9, "blade_pitch_deg": np.degrees(pitch).tolist(),
+                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit))}
+        measured = self._latest.get(VELOCITY)
+        if measured is not None:
+            v, w = measured.twist.twist.linear, measured.twist.twist.angular
+            plot["velocity"] = [v.x, v.y, v.z, w.z]
+        reference = self._latest.get(VELOCITY_REFERENCE)
+        if reference is not None:
+            v, w = reference.twist.linear, reference.twist.angular
+            plot["reference"] = [v.x, v.y, v.z, w.z]
+        return plot
+
+    # -- the viewer -> the graph ---------------------------------------------------------------
+    def _viewer_services(self, foxglove) -> list:
+        def schema(name, properties):
+            return foxglove.MessageSchema(encoding="json", schema=foxglove.Schema(
+                name=name, encoding="jsonschema", data=json.dumps({"type": "object", "properties": properties}).encode()))
+        result = schema("seapup.Result", {"ok": {"type": "boolean"}, "message": {"type": "string"}})
+        return [
+            foxglove.Service("switch_controller", schema=foxglove.ServiceSchema(
+                "seapup.SwitchController", request=schema("seapup.Switch", {"activate": {"type": "string"}}),
+                response=result), handler=self._switch),
+            foxglove.Service("set_current", schema=foxglove.ServiceSchema(
+                "seapup.SetCurrent", request=schema("seapup.Current", {
+                    k: {"type": "number"} for k in ("mean_speed", "mean_direction", "speed_std", "direction_std",
+                                                    "break_time")} | {"enabled": {"type": "boolean"}}),
+                response=result), handler=self._set_current)]
+
+    def _switch(self, request) -> bytes:
+        body = _json_object(request.payload, {"activate"})
+        name = body.get("activate")
+        if not isinstance(name, str) or not name:
+            raise ValueError("switch_controller needs {\"activate\": \"<controller name>\"}")
+        ros = SwitchController.Request(activate_controllers=[name], strictness=SwitchController.Request.STRICT)
+        response = self._call(self.switch_client, ros)
+        return json.dumps({"ok": bool(response.ok), "message": response.message}).encode()
+
+    def _set_current(self, request) -> bytes:
+        keys = {"enabled", "mean_speed", "mean_direction", "speed_std", "direction_std", "break_time"}
+        body = _json_object(request.payload, keys)
+        ros = SetCurrent.Request(enabled=bool(body.get("enabled", True)))
+        for key in keys - {"enabled"}:
+            value = body.get(key, 0.0)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise ValueError(f"set_current: {key} must be a finite number, got {value!r}")
+            setattr(ros, key, float(value))
+        response = self._call(self.current_client, ros)
+        return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
+
+    def _call(self, client, request, timeout: float = 5.0):
+        """A ROS service call from the server's thread: the node's executor completes it."""
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise RuntimeError(f"{client.srv_name} is not on the graph")
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise RuntimeError(f"{client.srv_name} did not answer in {timeout:g} s")
+        return future.result()
+
+    def destroy_node(self):
+        self.server.stop()
+        return super().destroy_node()
+
+
+def _json_object(payload: bytes, allowed: set) -> dict:
+    """A service request's JSON object, refusing what is not one and keys not asked for (one line each)."""
+    try:
+        body = json.loads(bytes(payload).decode() or "{}")
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"the request is not JSON: {exc}") from None
+    if not isinstance(body, dict):
+        raise ValueError("the request must be a JSON object")
+    unknown = sorted(set(body) - allowed)
+    if unknown:
+        raise ValueError(f"unknown keys {unknown} (allowed: {sorted(allowed)})")
+    return body
+
+
+def main(args=None) -> int:
+    return run_node(LiveViewNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

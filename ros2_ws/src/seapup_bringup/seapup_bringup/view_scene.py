@@ -1,0 +1,155 @@
+"""What the live view draws, as plain geometry (the pure core of :mod:`seapup_bringup.live_view_node`).
+
+No viewer types here: numpy arrays, frame names and small dataclasses, so every shape is tested without a
+server, and the node only copies them into Foxglove's messages.
+
+Frames (:mod:`seapup_common.frames`): the vehicle is drawn in ``base_link_frd`` with the configuration's own
+body coordinates (sec. 2.2: x forward, y starboard, z down), world things (trail, current, seabed, goals) in
+``odom_ned``; :func:`frame_transforms` relates both to the REP-103/105 ``odom``/``base_link`` a viewer displays
+in (ENU: up is up), the same tree as the simulator's ``/tf`` (:func:`seapup_common.ros.messages.transforms_enu`).
+
+The Seapup's hull dimensions are not in the thesis: the frame is drawn as the box spanning the four thrusters
+(Table 3.2's positions) padded by one propeller diameter, the bow camera (sec. 3.6) as its payload sphere.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from seapup_common import frames
+
+__all__ = ["Transform", "Thruster", "VehicleShape", "vehicle_shape", "thrust_arrows", "frame_transforms",
+           "Trail", "seabed_grid", "current_arrow", "ARROW_FULL_LENGTH"]
+
+#: Length [m] of a thruster's arrow at the blade-pitch limit (the arrows scale with |beta - beta_0| / limit).
+ARROW_FULL_LENGTH = 0.5
+
+
+@dataclass(frozen=True)
+class Transform:
+    """``child`` in ``parent``: p_parent = R(rotation) p_child + translation; rotation (x, y, z, w)."""
+
+    parent: str
+    child: str
+    translation: tuple
+    rotation: tuple
+
+
+@dataclass(frozen=True)
+class Thruster:
+    position: np.ndarray     # [m] body axes (FRD), Table 3.2
+    direction: np.ndarray    # unit thrust axis (FRD)
+    diameter: float          # [m]
+
+
+@dataclass(frozen=True)
+class VehicleShape:
+    """The drawn vehicle in ``base_link_frd``: the frame box, the thrusters and payload spheres."""
+
+    frame_center: np.ndarray
+    frame_size: np.ndarray
+    thrusters: tuple
+    payloads: tuple          # (name, position (3,), radius)
+    zero_thrust_pitch: float
+    pitch_limit: float
+
+
+def vehicle_shape(model) -> VehicleShape:
+    """The shape of a :class:`~seapup_sim.vehicle.VehicleModel`'s active configuration (a configuration switch
+    changes it: the camera appears)."""
+    th = model.thrusters
+    positions = np.asarray(th.positions, float)
+    pad = float(th.diameter)
+    low, high = positions.min(axis=0) - pad, positions.max(axis=0) + pad
+    thrusters = tuple(Thruster(positions[j].copy(), np.asarray(th.directions[j], float).copy(), float(th.diameter))
+                      for j in range(len(positions)))
+    payloads = tuple((str(p.get("name", f"payload {i}")), np.asarray(p["position"], float), float(p.get("radius", 0.1)))
+                     for i, p in enumerate(model.config.get("payloads") or []))
+    return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, float(th.zero_thrust_pitch),
+                        float(model.pitch_limit))
+
+
+def thrust_arrows(shape: VehicleShape, blade_pitch) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """One arrow per thruster (origin, unit direction, length) in ``base_link_frd``: along the thrust axis, pointing
+    the way the thrust acts (the sign of beta - beta_0, eq. 2.18's bollard term), its length
+    :data:`ARROW_FULL_LENGTH` times |beta - beta_0| / limit, so an arrow at full length is a blade at the
+    +-35 deg limit."""
+    pitch = np.asarray(blade_pitch, float).reshape(len(shape.thrusters))
+    arrows = []
+    for thruster, beta in zip(shape.thrusters, pitch):
+        effective = beta - shape.zero_thrust_pitch
+        sign = 1.0 if effective >= 0.0 else -1.0
+        arrows.append((thruster.position.copy(), sign * thruster.direction,
+                       ARROW_FULL_LENGTH * min(abs(effective) / shape.pitch_limit, 2.0)))
+    return arrows
+
+
+def frame_transforms(state) -> list[Transform]:
+    """The frame tree for a 12-state (eq. 2.1's z-y-x angles): ``odom`` -> ``base_link`` (REP-105, ENU/FLU),
+    ``odom`` -> ``odom_ned`` and ``base_link`` -> ``base_link_frd`` (fixed)."""
+    x = np.asarray(state, float)
+    q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6]))
+    zero = (0.0, 0.0, 0.0)
+    return [Transform(frames.FRAME_ENU, frames.FRAME_FLU, tuple(frames.ned_to_enu(x[:3]).tolist()), tuple(q.tolist())),
+            Transform(frames.FRAME_ENU, frames.FRAME_NED, zero, tuple(frames.QUATERNION_NED_IN_ENU.tolist())),
+            Transform(frames.FRAME_FLU, frames.FRAME_FRD, zero, tuple(frames.QUATERNION_FRD_IN_FLU.tolist()))]
+
+
+class Trail:
+    """The track flown (``odom_ned``): a point each time the vehicle has moved ``spacing`` m, the last
+    ``capacity`` kept (a ring: constant memory however long the graph runs)."""
+
+    def __init__(self, capacity: int = 2000, spacing: float = 0.05):
+        if capacity < 2 or not spacing > 0.0:
+            raise ValueError(f"a trail needs capacity >= 2 and spacing > 0, got {capacity}, {spacing}")
+        self._points = np.zeros((capacity, 3))
+        self._count = 0
+        self._next = 0
+        self.spacing = float(spacing)
+
+    def add(self, position_ned) -> bool:
+        """Take a position; True if it was kept (far enough from the last)."""
+        p = np.asarray(position_ned, float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            return False
+        if self._count and np.linalg.norm(p - self._points[(self._next - 1) % len(self._points)]) < self.spacing:
+            return False
+        self._points[self._next] = p
+        self._next = (self._next + 1) % len(self._points)
+        self._count = min(self._count + 1, len(self._points))
+        return True
+
+    def points(self) -> np.ndarray:
+        """The kept positions, oldest first."""
+        if self._count < len(self._points):
+            return self._points[:self._count].copy()
+        return np.roll(self._points, -self._next, axis=0)
+
+
+def seabed_grid(seabed, center_ned, half_width: float = 20.0, cells: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """The seabed under a square around ``center_ned`` as triangles: vertices (``odom_ned``, depth from
+    :meth:`seapup_sim.seabed.Seabed.depth_at`) and a (k, 3) array of vertex indices, two per cell."""
+    if cells < 1 or not half_width > 0.0:
+        raise ValueError(f"a seabed grid needs cells >= 1 and half_width > 0, got {cells}, {half_width}")
+    c = np.asarray(center_ned, float)
+    xs = np.linspace(c[0] - half_width, c[0] + half_width, cells + 1)
+    ys = np.linspace(c[1] - half_width, c[1] + half_width, cells + 1)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    vertices = np.column_stack([gx.ravel(), gy.ravel(), seabed.depth_at(gx.ravel(), gy.ravel())])
+    i, j = np.meshgrid(np.arange(cells), np.arange(cells), indexing="ij")
+    a = (i * (cells + 1) + j).ravel()
+    b, d = a + 1, a + cells + 1
+    triangles = np.concatenate([np.column_stack([a, d, b]), np.column_stack([b, d, d + 1])])
+    return vertices, triangles
+
+
+def current_arrow(current_ned, metres_per_knot: float = 2.0) -> tuple[np.ndarray, float] | None:
+    """The current's arrow in ``odom_ned``: unit direction and length (``metres_per_knot`` per knot of speed);
+    None in still water."""
+    v = np.asarray(current_ned, float)
+    speed = float(np.linalg.norm(v))
+    if not math.isfinite(speed) or speed < 1e-9:
+        return None
+    return v / speed, metres_per_knot * speed / 0.514444

@@ -1,0 +1,206 @@
+"""The live view through its WebSocket, as a Foxglove client sees it (issue 27, item 5), no GUI.
+
+The simulator and the ``live_view`` node run as their own processes on the test's domain; this process is a
+WebSocket client speaking ``foxglove.sdk.v1`` (decoding the typed channels with the FileDescriptorSet the server
+advertises, as the app does) and a ROS node reading the simulator's truth.
+"""
+import asyncio
+import base64
+import json
+import socket
+import struct
+import threading
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from tornado.websocket import websocket_connect
+
+from seapup_common import frames
+
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _decoder(channel: dict):
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    files = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
+    pool = descriptor_pool.DescriptorPool()
+    for f in files.file:
+        pool.Add(f)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
+
+
+class Client:
+    """A minimal Foxglove WebSocket client (the ws-protocol's JSON ops and binary frames)."""
+
+    def __init__(self, connection):
+        self.connection, self.channels, self.services, self.info = connection, {}, {}, None
+        self.messages: dict[str, list] = {}
+        self._subscribed: dict[int, str] = {}
+        self.responses: list = []
+        self.failures: list = []
+
+    @classmethod
+    async def connect(cls, port: int, timeout: float = 20.0):
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                return cls(await websocket_connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"]))
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                await asyncio.sleep(0.2)
+
+    async def pump(self, until, timeout: float):
+        deadline = time.monotonic() + timeout
+        while not until():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            try:
+                frame = await asyncio.wait_for(self.connection.read_message(), remaining)
+            except asyncio.TimeoutError:
+                return False
+            assert frame is not None, "the server closed the connection"
+            self._take(frame)
+        return True
+
+    def _take(self, frame):
+        if isinstance(frame, str):
+            op = json.loads(frame)
+            if op["op"] == "serverInfo":
+                self.info = op
+            elif op["op"] == "advertise":
+                self.channels.update({c["topic"]: c for c in op["channels"]})
+            elif op["op"] == "advertiseServices":
+                self.services.update({s["name"]: s for s in op["services"]})
+            elif op["op"] == "serviceCallFailure":
+                self.failures.append(op)
+            return
+        if frame[0] == 0x01:
+            subscription, log_ns = struct.unpack_from("<IQ", frame, 1)
+            self.messages.setdefault(self._subscribed[subscription], []).append((log_ns, bytes(frame[13:])))
+        elif frame[0] == 0x03:
+            service, call, length = struct.unpack_from("<III", frame, 1)
+            self.responses.append((call, json.loads(bytes(frame[13 + length:]))))
+
+    def subscribe(self, *topics):
+        subs = []
+        for topic in topics:
+            sid = len(self._subscribed) + 1
+            self._subscribed[sid] = topic
+            subs.append({"id": sid, "channelId": self.channels[topic]["id"]})
+        self.connection.write_message(json.dumps({"op": "subscribe", "subscriptions": subs}))
+
+    def call(self, service: str, request: dict, call_id: int):
+        encoding = b"json"
+        payload = json.dumps(request).encode()
+        self.connection.write_message(struct.pack("<BIII", 0x02, self.services[service]["id"], call_id, len(encoding))
+                                      + encoding + payload, binary=True)
+
+
+@pytest.fixture
+def graph(node_process, ros_context):
+    port = _free_port()
+    node_process(package="seapup_sim", executable="simulator",
+                 args=["--ros-args", "-p", "mode:=realtime", "-p", "real_time_factor:=10.0", "-p", "start_depth:=12.0",
+                       "-p", "watchdog_timeout:=1000.0"])
+    node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
+    node = rclpy.create_node("truth_probe", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    truth = {}
+    node.create_subscription(Odometry, "/seapup/truth/odometry",
+                             lambda m: truth.__setitem__(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    spinner = threading.Thread(target=executor.spin, daemon=True)   # truth arrives while the client reads
+    spinner.start()
+    yield port, executor, truth
+    executor.shutdown()
+    spinner.join(5.0)
+    node.destroy_node()
+
+
+async def _watch(port, executor, truth):
+    client = await Client.connect(port)
+    assert await client.pump(lambda: {"/tf", "/scene/vehicle", "/plot"} <= set(client.channels)
+                             and "set_current" in client.services, 20.0)
+    assert client.info["name"] == "seapup" and "time" in client.info["capabilities"]
+    assert client.channels["/tf"]["schemaName"] == "foxglove.FrameTransforms"
+    assert client.channels["/scene/vehicle"]["schemaName"] == "foxglove.SceneUpdate"
+    assert client.channels["/plot"]["encoding"] == "json"
+    client.subscribe("/tf", "/scene/vehicle", "/plot")
+    assert await client.pump(lambda: sum(ns in truth for ns, _ in client.messages.get("/tf", [])) >= 10
+                             and client.messages.get("/scene/vehicle") and client.messages.get("/plot"), 30.0)
+    return client
+
+
+def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps(graph):
+    port, executor, truth = graph
+
+    async def scenario():
+        client = await _watch(port, executor, truth)
+        # the pose: the FrameTransforms at a sample's stamp equals the simulator's truth (NED -> ENU)
+        transforms = _decoder(client.channels["/tf"])
+        compared = 0
+        for log_ns, payload in client.messages["/tf"]:
+            message = transforms.FromString(payload)
+            vehicle = next(t for t in message.transforms if t.child_frame_id == "base_link")
+            assert vehicle.parent_frame_id == "odom" and vehicle.timestamp.ToNanoseconds() == log_ns
+            if log_ns in truth:
+                p, q = truth[log_ns].pose.pose.position, truth[log_ns].pose.pose.orientation
+                np.testing.assert_allclose([vehicle.translation.x, vehicle.translation.y, vehicle.translation.z],
+                                           [p.y, p.x, -p.z], atol=1e-12)
+                expected = frames.orientation_ned_frd_to_enu_flu([q.x, q.y, q.z, q.w])
+                got = np.array([vehicle.rotation.x, vehicle.rotation.y, vehicle.rotation.z, vehicle.rotation.w])
+                assert min(np.abs(got - expected).max(), np.abs(got + expected).max()) < 1e-9
+                compared += 1
+        assert compared >= 10
+        # the vehicle model: a frame box, four thrusters and four thrust arrows in base_link_frd
+        scene = _decoder(client.channels["/scene/vehicle"]).FromString(client.messages["/scene/vehicle"][-1][1])
+        (entity,) = scene.entities
+        assert entity.frame_id == "base_link_frd" and len(entity.cubes) == 1 and len(entity.arrows) == 4
+        plot = json.loads(client.messages["/plot"][-1][1])
+        assert plot["pitch_limit_deg"] == pytest.approx(35.0) and len(plot["blade_pitch_deg"]) == 4
+        # a service call through the server takes effect in the graph: the simulator's current
+        client.call("set_current", {"enabled": True, "mean_speed": 0.3, "mean_direction": 0.0, "speed_std": 0.0,
+                                    "direction_std": 0.0, "break_time": 0.0}, call_id=7)
+        assert await client.pump(lambda: client.responses or client.failures, 15.0), "no answer"
+        assert not client.failures and client.responses[0] == (7, {"ok": True, "message": client.responses[0][1]["message"]})
+        # bad input: a clear failure, nothing changed
+        client.call("set_current", {"mean_speed": "fast"}, call_id=8)
+        client.call("switch_controller", {"activate": "mfol", "bogus": 1}, call_id=9)
+        assert await client.pump(lambda: len(client.failures) >= 2, 15.0)
+        assert "finite number" in client.failures[0]["message"] and "unknown keys" in client.failures[1]["message"]
+        client.connection.close()
+        return len(client.messages["/tf"])
+
+    asyncio.run(scenario())
+
+
+def test_a_client_killed_mid_stream_leaves_the_view_serving(graph):
+    port, executor, truth = graph
+
+    async def scenario():
+        first = await _watch(port, executor, truth)
+        first.connection.stream.close()    # the TCP connection dropped without a close handshake: a crashed viewer
+        second = await Client.connect(port)
+        assert await second.pump(lambda: "/tf" in second.channels, 20.0)
+        second.subscribe("/tf")
+        start = time.monotonic()
+        assert await second.pump(lambda: len(second.messages.get("/tf", [])) >= 20, 30.0)
+        stamps = [ns for ns, _ in second.messages["/tf"]]
+        assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+        second.connection.close()
+        return time.monotonic() - start
+
+    asyncio.run(scenario())
