@@ -113,7 +113,8 @@ def graph(node_process, ros_context):
     port = _free_port()
     node_process(package="seapup_sim", executable="simulator",
                  args=["--ros-args", "-p", "mode:=realtime", "-p", "real_time_factor:=10.0", "-p", "start_depth:=12.0",
-                       "-p", "watchdog_timeout:=1000.0"])
+                       "-p", "watchdog_timeout:=1000.0", "-p", "environment.seabed.kind:=slope",
+                       "-p", "environment.seabed.depth:=40.0", "-p", "environment.seabed.gradient:=0.1"])
     node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
     node = rclpy.create_node("truth_probe", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
@@ -169,6 +170,19 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         scene = _decoder(client.channels["/scene/vehicle"]).FromString(client.messages["/scene/vehicle"][-1][1])
         (entity,) = scene.entities
         assert entity.frame_id == "base_link_frd" and len(entity.cubes) == 1 and len(entity.arrows) == 4
+        # the seabed the simulator flies over (read from its parameters): a 1-in-10 slope 40 m down at the origin
+        client.subscribe("/scene/seabed")
+        seabed = _decoder(client.channels["/scene/seabed"])
+
+        def sloped():   # the default (flat, 100 m) is drawn until the simulator's parameters are read
+            return any(seabed.FromString(m).entities[0].triangles[0].points[0].z != 100.0
+                       for _, m in client.messages.get("/scene/seabed", []))
+        assert await client.pump(sloped, 20.0)
+        bed = seabed.FromString(client.messages["/scene/seabed"][-1][1])
+        (mesh,) = bed.entities[0].triangles
+        assert bed.entities[0].frame_id == "odom_ned" and len(mesh.points) > 100
+        for point in mesh.points:
+            assert point.z == pytest.approx(40.0 + 0.1 * point.x)
         plot = json.loads(client.messages["/plot"][-1][1])
         assert plot["pitch_limit_deg"] == pytest.approx(35.0) and len(plot["blade_pitch_deg"]) == 4
         # a service call through the server takes effect in the graph: the simulator's current

@@ -173,15 +173,17 @@ SCHEDULE_TIMES = [0.0, 4.0]
 SCHEDULE_PITCHES = [0.6, 0.6, 0.0, 0.0, 0.3, -0.1, 0.4, -0.4]
 
 
-def run_lockstep_with_open_loop(node_process, probe, seed, duration):
-    """One lockstep run (simulator + open_loop in their own processes); returns
-    the truth and measured-velocity histories, and stops both nodes."""
+def run_lockstep_with_open_loop(node_process, probe, seed, duration, pace=0.0):
+    """One lockstep run (simulator + open_loop in their own processes, the simulator paced at ``pace`` x real
+    time); returns the truth and measured-velocity histories and the wall seconds from the controller's start
+    to the last sample, and stops both nodes."""
     for topic in probe.msgs:
         probe.msgs[topic].clear()
     sim = node_process(package="seapup_sim", executable="simulator",
                        args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", f"seed:={seed}",
                              "-p", "environment.current.enabled:=true", "-p", "environment.sensors:=baseline",
-                             "-p", "wait_for_subscribers:=['truth/odometry', 'sensors/velocity']"],
+                             "-p", "wait_for_subscribers:=['truth/odometry', 'sensors/velocity']",
+                             "-p", f"lockstep_pace:={float(pace)}"],
                        name="sim")
     # the simulator holds t_0 (re-sending it) until a controller answers: start
     # the controller only once this probe hears t_0, so it records from the start
@@ -195,6 +197,7 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration):
     ctl = node_process(package="seapup_control", executable="open_loop",
                        args=["--ros-args", "-p", "lockstep:=true", "-p", f"times:={SCHEDULE_TIMES}",
                              "-p", f"pitches:={SCHEDULE_PITCHES}"], name="open_loop")
+    started = time.monotonic()
     n = int(round(duration / 0.2)) + 1
 
     def first_per_stamp(msgs):  # t_0 may have been re-sent while waiting
@@ -205,6 +208,7 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration):
 
     assert probe.spin(lambda: len(first_per_stamp(odom)) >= n
                       and len(first_per_stamp(probe.msgs["/seapup/sensors/velocity"])) >= n, 60.0), sim.log_text()
+    wall = time.monotonic() - started
     ctl.stop()
     sim.stop()
     probe.spin(lambda: False, 0.5)  # drain what was still in flight
@@ -213,17 +217,19 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration):
                        m.twist.twist.angular.z) for m in first_per_stamp(odom)[:n]])
     vel = np.array([(m.twist.twist.linear.x, m.twist.twist.linear.y)
                     for m in first_per_stamp(probe.msgs["/seapup/sensors/velocity"])[:n]])
-    return truth, vel
+    return truth, vel, wall
 
 
 def test_lockstep_is_deterministic_and_equals_the_pure_core_loop(ros_context, node_process, spin):
     probe = Probe(ros_context, spin)
     probe.record("/seapup/truth/odometry", Odometry)
     probe.record("/seapup/sensors/velocity", TwistWithCovarianceStamped)
-    truth1, vel1 = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0)
-    truth2, vel2 = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0)
+    truth1, vel1, _ = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0)
+    # paced to 4x real time (to be watched): the same run, bit for bit, no faster than the pace
+    truth2, vel2, wall = run_lockstep_with_open_loop(node_process, probe, seed=7, duration=10.0, pace=4.0)
     np.testing.assert_array_equal(truth1, truth2)
     np.testing.assert_array_equal(vel1, vel2)
+    assert wall >= 10.0 / 4.0 - 0.2 - 0.05, wall   # the first sample sets the schedule
     # the same scenario through the pure core (no ROS), sample by sample
     schedule = PitchProfile(SCHEDULE_TIMES, SCHEDULE_PITCHES, LIMIT)
     core = Simulation.from_config("baseline", {"current": {"enabled": True}, "sensors": "baseline"}, seed=7,

@@ -37,7 +37,7 @@ from seapup_msgs.srv import SetCurrent, SwitchController
 
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, run_node
-from seapup_common.topics import (APPLIED, CURRENT, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
+from seapup_common.topics import (APPLIED, CURRENT, NAMESPACE, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
                                   SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, VELOCITY,
                                   VELOCITY_REFERENCE)
 from seapup_bringup import view_scene
@@ -50,6 +50,8 @@ PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
     "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}}}
 
 _SEABED_PERIOD_NS = 5_000_000_000
+_SEABED_KEYS = ("kind", "depth", "gradient", "direction")   # and "points" for a polyline (an empty list is no
+_SEABED_PARAMETERS = tuple(f"environment.seabed.{key}" for key in _SEABED_KEYS)   # parameter at all)
 
 
 def _state_from_truth(msg: Odometry) -> np.ndarray:
@@ -67,9 +69,10 @@ class LiveViewNode(Node):
             description="the WebSocket server's port on 127.0.0.1 (0: any free port, logged)", read_only=True,
             integer_range=[IntegerRange(from_value=0, to_value=65535)]))
         self.declare_parameter("vehicle", "baseline", ParameterDescriptor(
-            description="vehicle configuration drawn (the simulator's)", read_only=True))
+            description="vehicle configuration drawn until the simulator's own is read", read_only=True))
         self.declare_parameter("environment_file", "", ParameterDescriptor(
-            description="the graph's environment overrides (YAML; '' = default): the seabed drawn", read_only=True))
+            description="environment overrides (YAML; '' = default): the seabed drawn until the simulator's own "
+                        "is read", read_only=True))
         import foxglove
         from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
         from foxglove.websocket import Capability
@@ -81,6 +84,11 @@ class LiveViewNode(Node):
         self.shape = view_scene.vehicle_shape(vehicle_model(load_vehicle_config(self.get_parameter("vehicle").value)))
         env_file = self.get_parameter("environment_file").value
         self.seabed = load_environment(env_file or None).seabed
+        # what the graph's simulator flies (its read-only parameters), once it is on the graph
+        from rclpy.parameter_client import AsyncParameterClient
+        self._simulator_parameters = AsyncParameterClient(self, f"{NAMESPACE}/simulator")
+        self._asked = None
+        self._ask_timer = self.create_timer(1.0, self._ask_simulator)
         self.trail = view_scene.Trail()
         self._latest: dict = {}
         self._fixes: list = []
@@ -106,6 +114,48 @@ class LiveViewNode(Node):
                                f"{self.server.app_url()})")
 
     # -- the graph -> the viewer -------------------------------------------------------------
+    def _ask_simulator(self) -> None:
+        if self._asked is not None or not self._simulator_parameters.services_are_ready():
+            return
+        self._asked = self._simulator_parameters.get_parameters(["vehicle", *_SEABED_PARAMETERS],
+                                                                 callback=self._on_simulator_parameters)
+
+    def _on_points(self, future, vehicle: str, seabed: dict) -> None:
+        from rclpy.parameter import parameter_value_to_python
+        try:
+            (points,) = [parameter_value_to_python(v) for v in future.result().values]
+            self._draw(vehicle, {**seabed, "points": points})
+        except Exception as exc:  # noqa: BLE001 - as in _on_simulator_parameters
+            self.destroy_timer(self._ask_timer)
+            self.get_logger().warn(f"could not read the simulator's seabed polyline ({exc})")
+
+    def _draw(self, vehicle: str, seabed: dict) -> None:
+        from seapup_sim.linearised import vehicle_model
+        from seapup_sim.seabed import Seabed
+        from seapup_sim.vehicle_config import load_vehicle_config
+        self.shape = view_scene.vehicle_shape(vehicle_model(load_vehicle_config(vehicle)))
+        self.seabed = Seabed.from_config(seabed)
+        self._seabed_sent_ns = -_SEABED_PERIOD_NS
+        self.destroy_timer(self._ask_timer)
+        self.get_logger().info(f"drawing the simulator's vehicle ({vehicle}) and seabed ({seabed['kind']})")
+
+    def _on_simulator_parameters(self, future) -> None:
+        from rclpy.parameter import parameter_value_to_python
+        try:
+            values = [parameter_value_to_python(v) for v in future.result().values]
+            if len(values) != 1 + len(_SEABED_KEYS):
+                raise ValueError(f"{len(values)} of {1 + len(_SEABED_KEYS)} parameters answered")
+            vehicle, seabed = values[0], dict(zip(_SEABED_KEYS, values[1:]))
+            if seabed["kind"] == "polyline":
+                self._simulator_parameters.get_parameters(["environment.seabed.points"],
+                                                          callback=lambda f: self._on_points(f, vehicle, seabed))
+                return
+            self._draw(vehicle, seabed)
+        except Exception as exc:  # noqa: BLE001 - a foreign simulator: keep drawing the defaults
+            self.destroy_timer(self._ask_timer)
+            self.get_logger().warn(f"could not read the simulator's vehicle and seabed ({exc}): drawing the "
+                                   f"node's own vehicle and environment_file")
+
     def _on_fix(self, msg: PoseWithCovarianceStamped) -> None:
         p = msg.pose.pose.position
         self._fixes = (self._fixes + [(p.x, p.y, p.z)])[-50:]

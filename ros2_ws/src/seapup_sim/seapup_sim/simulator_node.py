@@ -69,6 +69,7 @@ from seapup_common import frames
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.config import load_yaml, merge
 from seapup_common.contract import ContractError
+from seapup_common.lockstep import Pacer
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.sample_bytes import SampleEncoder
@@ -134,6 +135,9 @@ class SimulatorNode(Node):
             "mode": ParameterDescriptor(description="lockstep | realtime", **ro),
             "real_time_factor": _float_range(0.0, 1e4, "realtime speed-up (0 = as fast as possible)"),
             "lockstep_timeout": _float_range(0.001, 60.0, "wall seconds to wait for the t_k command"),
+            "lockstep_pace": _float_range(0.0, 1e4, "lockstep: publish no faster than this many times real time, "
+                                                    "to be watched (0: as fast as the graph answers; settable at "
+                                                    "run time; simulated results are the same at any pace)"),
             "control_period": _float_range(0.01, 10.0, "controller sample period T [s]", **ro),
             "physics_step": _float_range(0.001, 1.0, "integration step [s]", **ro),
             "vehicle": ParameterDescriptor(description="vehicle configuration (~/set_configuration "
@@ -201,6 +205,8 @@ class SimulatorNode(Node):
         self._held_at_start = bool(p["start_held"])  # until end_time is set at run time
         self._answered_ns: int | None = None  # lockstep: the sample whose command has come
         self._encoder = SampleEncoder()
+        self._pacer = Pacer(p["lockstep_pace"])
+        self._pace_timer = None  # a paced sample waiting for its wall time
         self._sent: list = []  # the current sample's (publisher, message or its bytes) pairs, for a republish
         self._catch_up = False  # resumed at an unanswered sample: republish it to readers that match late
         self._readers: list[int] = []  # matched readers per publisher of _sent at its last (re)publish
@@ -303,6 +309,8 @@ class SimulatorNode(Node):
         for prm in params:
             if prm.name == "end_time":
                 self._set_end(float(prm.value))
+            elif prm.name == "lockstep_pace":
+                self._pacer.rate = float(prm.value)
             elif prm.name == "watchdog_timeout":
                 self.config.watchdog_timeout = float(prm.value)
             elif prm.name == "watchdog_action":
@@ -342,7 +350,7 @@ class SimulatorNode(Node):
         if ok and lockstep and stamp == self.simulator.t_ns:
             self._unanswered = 0
             self._answered_ns = stamp
-            self._advance()
+            self._advance_paced()
 
     def _set_end(self, end_time: float) -> None:
         """A new ``end_time`` [s]: resumes a graph held at its end when it lies beyond the held sample."""
@@ -353,7 +361,7 @@ class SimulatorNode(Node):
             return
         if self.mode == "lockstep" and self._started:
             if self._answered_ns == self.simulator.t_ns:
-                self._advance()  # the command for the held sample came meanwhile
+                self._advance_paced()  # the command for the held sample came meanwhile
             else:
                 # a node that joined while the graph was held (a controller configured and activated
                 # there) never heard the sample it is to answer: say it again, every topic, same messages,
@@ -379,8 +387,25 @@ class SimulatorNode(Node):
         self._waiting_since = time.monotonic()
         self._catch_up = False
 
+    def _advance_paced(self) -> None:
+        """Step on now, or when :class:`~seapup_common.lockstep.Pacer` says the next sample is due (a one-shot
+        timer: the executor never sleeps, and no lockstep time-out runs meanwhile)."""
+        if self._pace_timer is not None:
+            return
+        delay = self._pacer.delay(self.simulator.t + self.config.control_period, time.monotonic())
+        if delay <= 0.0:
+            self._advance()
+            return
+        self._waiting_since = None
+        self._pace_timer = self.create_timer(delay, self._paced_due)
+
+    def _paced_due(self) -> None:
+        self.destroy_timer(self._pace_timer)
+        self._pace_timer = None
+        self._advance()
+
     def _lockstep_watch(self) -> None:
-        if self._halted or not self._start_when_ready() or self._at_end():
+        if self._halted or not self._start_when_ready() or self._at_end() or self._pace_timer is not None:
             return
         now = time.monotonic()
         if self._catch_up and now - self._last_republish > 0.05:
@@ -398,7 +423,7 @@ class SimulatorNode(Node):
             self._unanswered += 1
             self.simulator.lockstep_timeout()
             self._warn(f"no command stamped t = {self.simulator.t:.3f} s within {timeout} s: holding the last one")
-            self._advance()
+            self._advance_paced()
 
     def _realtime_tick(self) -> None:
         if self._start_when_ready():
@@ -519,6 +544,10 @@ class SimulatorNode(Node):
             self.simulator.reset(request.seed, state)  # validated against environment/limits.yaml, atomic
             self._halted = ""
             self._answered_ns, self._unanswered, self._catch_up = None, 0, False  # the commands were for before
+            if self._pace_timer is not None:   # a paced step of the old run is not taken
+                self.destroy_timer(self._pace_timer)
+                self._pace_timer = None
+            self._pacer.restart()   # the schedule starts again at t = 0
             self._publish_outputs()
             self._waiting_since = time.monotonic()
         return self._answer(response, act, lambda: f"reset: t = 0, seed {request.seed}")
