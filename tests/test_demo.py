@@ -11,11 +11,11 @@ import pytest
 from seapup_common import topics
 
 
-def _demo(out: Path):
+def _demo(out: Path, *extra: str):
     """Run ``./seapup demo`` (it leases a ROS domain of its own); the process and its summary."""
     import os
     run = subprocess.run([sys.executable, "-m", "seapup_bringup.demo", "--out", str(out / "demo"), "--json",
-                          str(out / "summary.json")], env=dict(os.environ), capture_output=True, text=True,
+                          str(out / "summary.json"), *extra], env=dict(os.environ), capture_output=True, text=True,
                          timeout=900)
     assert run.returncode == 0, (run.stdout + run.stderr)[-3000:]
     return run, json.loads((out / "summary.json").read_text())
@@ -161,16 +161,23 @@ def test_the_demo_flies_the_same_mission_with_both_cores_saturated(quiet_demo, t
     """Issue 28: every node of the lockstep hierarchy is waited for and the demo acts only while the graph
     is held, so with a CPU burner per core beside it the demo records the same messages, sample for sample, as
     on an idle machine: every leg's numbers and verdicts are those of the quiet run (a demo repeated any
-    number of times flies every leg within tolerance in truth exactly when the quiet one does)."""
+    number of times flies every leg within tolerance in truth exactly when the quiet one does). This run also
+    serves the live view (issue 27, unpaced): the view changes nothing the graph does."""
     import os
+    import socket
     _, quiet, quiet_out = quiet_demo
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
     try:
-        _, loaded = _demo(tmp_path)
+        run, loaded = _demo(tmp_path, "--view", "--view-port", str(port), "--rate", "0")
     finally:
         for burner in burners:
             burner.kill()
             burner.wait()
+    assert f"live view at ws://127.0.0.1:{port}" in run.stderr + run.stdout
+    assert "live_view" in [p.name.removesuffix(".log") for p in (tmp_path / "demo").glob("*.log")]
     assert loaded["held"] == quiet["held"] and quiet["held"] > 500.0
     for a, b in zip(quiet["legs"], loaded["legs"]):
         timed = {"wall_s", "controller_file"}  # the self-test's result file is named by the wall clock: its content

@@ -11,6 +11,7 @@ import socket
 import struct
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -216,5 +217,35 @@ def test_a_client_killed_mid_stream_leaves_the_view_serving(graph):
         assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
         second.connection.close()
         return time.monotonic() - start
+
+    asyncio.run(scenario())
+
+
+def test_a_replayed_bag_plays_into_the_view_with_its_recorded_poses(node_process, ros_env, tmp_path):
+    """``./seapup replay BAG --view``: the reference bag's truth, as the view serves it, at the bag's stamps."""
+    from rclpy.serialization import deserialize_message
+
+    from seapup_common.bag import read_bag
+    repo = Path(__file__).resolve().parents[1]
+    bag = repo / "bags" / "demo_120s"
+    truth = {}
+    for message in read_bag(bag, ["/seapup/truth/odometry"]):
+        odometry = deserialize_message(message.cdr, Odometry)
+        truth[odometry.header.stamp.sec * 10**9 + odometry.header.stamp.nanosec] = odometry.pose.pose.position
+    port = _free_port()
+    node_process([str(repo / "seapup"), "replay", str(bag), "--view", "--view-port", str(port), "--rate", "20"],
+                 name="replay")
+
+    async def scenario():
+        client = await Client.connect(port, timeout=30.0)
+        assert await client.pump(lambda: "/tf" in client.channels, 20.0)
+        client.subscribe("/tf")
+        assert await client.pump(lambda: len(client.messages.get("/tf", [])) >= 20, 30.0)
+        transforms = _decoder(client.channels["/tf"])
+        for log_ns, payload in client.messages["/tf"]:
+            vehicle = next(t for t in transforms.FromString(payload).transforms if t.child_frame_id == "base_link")
+            p = truth[log_ns]   # a stamp of the bag's
+            assert (vehicle.translation.x, vehicle.translation.y, vehicle.translation.z) == (p.y, p.x, -p.z)
+        client.connection.close()
 
     asyncio.run(scenario())

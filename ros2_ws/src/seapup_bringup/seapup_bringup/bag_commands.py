@@ -24,7 +24,7 @@ import yaml
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
-from seapup_common.topics import CLOCK
+from seapup_common.topics import CLOCK, TRUTH_ODOMETRY
 
 __all__ = ["record", "bag", "replay"]
 
@@ -186,6 +186,9 @@ def replay(argv: list[str]) -> int:
                         help="drive a node under test sample by sample: publish /clock t_k and the messages "
                              "logged at t_k, then wait for its answer on TOPIC (stamped >= t_k) before t_k+1; "
                              "the recorded TOPIC is not replayed")
+    parser.add_argument("--view", action="store_true",
+                        help="play into the live view (docs/live-view.md): the bag's truth, commands and estimates")
+    parser.add_argument("--view-port", type=int, default=8765, help="its port (default 8765)")
     parser.add_argument("--lockstep-timeout", type=float, default=10.0,
                         help="seconds to wait for an answer before going on (counted as a timeout)")
     add_json_argument(parser)
@@ -194,6 +197,12 @@ def replay(argv: list[str]) -> int:
         parser.error("--rate and --lockstep-timeout must be > 0 and --start-offset >= 0")
     if args.lockstep and args.loop:
         parser.error("--lockstep plays the bag once (--loop would send time backwards)")
+    if args.view:
+        from seapup_bringup.view import check_port
+        try:
+            check_port(args.view_port)
+        except ValueError as exc:
+            parser.error(str(exc))
     if not storage_file(args.path).is_file():
         print(f"seapup: error: {args.path} has no {storage_file(args.path).name}", file=sys.stderr)
         return 1
@@ -223,7 +232,10 @@ def replay(argv: list[str]) -> int:
     clock_pub = node.create_publisher(Clock, CLOCK, _qos({})) if clock else None
     report = {"sent": 0, "topics": sorted(topic for topic, _, _ in channels.values())}
     answers = _answer_subscription(node, args.lockstep, message_class(answer_type)) if args.lockstep else None
+    view = _start_view(args.view_port, args.path) if args.view else None
     try:
+        if view is not None:
+            _await_view(executor, pubs, channels)
         # lockstep: the node under test must hear /clock and be heard on the answer topic;
         # timed: every replayed topic needs its subscribers
         needed = [clock_pub] if args.lockstep else list(pubs.values())
@@ -246,6 +258,8 @@ def replay(argv: list[str]) -> int:
             pub.wait_for_all_acked(Duration(seconds=2.0))
         node.destroy_node()
         rclpy.try_shutdown()
+        if view is not None:
+            view.stop()
     line = f"replayed {report['sent']} messages"
     if args.lockstep:
         line += (f" in {report['samples']} samples: {report['answered']} answered on {args.lockstep}, "
@@ -253,6 +267,27 @@ def replay(argv: list[str]) -> int:
     print(line, file=text_stream(args))
     emit_json(args, report)
     return 0 if not args.lockstep or report["timeouts"] == 0 else 1
+
+
+def _start_view(port: int, bag: Path):
+    """The live view on this domain, for a replay (its log in the temporary directory)."""
+    import os
+    import tempfile
+    from seapup_bringup.view import view_node, view_url
+    from seapup_common.processes import NodeProcess
+    from seapup_common.ros.launch_graph import command_line
+    log = Path(tempfile.gettempdir()) / f"seapup_live_view_{os.getpid()}.log"
+    process = NodeProcess(command_line(view_node(port)), dict(os.environ), log, "live_view").start()
+    print(f"seapup replay: live view at {view_url(port)}", file=sys.stderr)
+    return process
+
+
+def _await_view(executor, pubs, channels, timeout: float = 15.0) -> None:
+    """Wait (briefly) until the view listens to the bag's truth, so it draws from the first sample."""
+    truth = [pub for cid, pub in pubs.items() if channels[cid][0] == TRUTH_ODOMETRY]
+    deadline = time.monotonic() + timeout
+    while truth and time.monotonic() < deadline and truth[0].get_subscription_count() < 1:
+        executor.spin_once(timeout_sec=0.05)
 
 
 def _load_replay(path: Path, topics, lockstep_topic, clock: bool):

@@ -115,7 +115,7 @@ def _run(argv: list[str]) -> int:
 
 @command("view", "watch the running graph (this domain) in Foxglove or Lichtblick: a WebSocket server on "
          "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "[--port P] [--vehicle V] "
-         "[--environment-file F]")
+         "[--environment-file F] [--write-layout FILE]")
 def _view(argv: list[str]) -> int:
     import argparse
     from seapup_common.processes import find_executable
@@ -123,8 +123,16 @@ def _view(argv: list[str]) -> int:
                                      "(docs/live-view.md); Ctrl-C ends it")
     parser.add_argument("--port", type=int, default=8765, help="WebSocket port on 127.0.0.1 (default 8765)")
     parser.add_argument("--vehicle", default="baseline", help="configuration drawn (the simulator's)")
-    parser.add_argument("--environment-file", default="", help="the graph's environment overrides (the seabed)")
+    parser.add_argument("--environment-file", default="", help="the seabed drawn until the simulator's is read")
+    parser.add_argument("--write-layout", metavar="FILE", help="write the Foxglove layout (3D, plots, services) to "
+                                                               "FILE and exit: import it in Foxglove")
     args = parser.parse_args(argv)
+    if args.write_layout:
+        from pathlib import Path
+        from seapup_bringup.view_layout import layout_json
+        Path(args.write_layout).write_text(layout_json())
+        print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
+        return 0
     if not 0 <= args.port <= 65535:
         parser.error(f"--port must be 0..65535, got {args.port}")
     path = find_executable("seapup_bringup", "live_view")

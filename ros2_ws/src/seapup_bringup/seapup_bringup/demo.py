@@ -172,8 +172,9 @@ def _swap_bump(logs: dict, t_switch: float) -> dict:
             "normal_step_deg": math.degrees(float(before.max())) if len(before) else math.nan}
 
 
-def fly_mission(out: Path, config: dict, text) -> dict:
-    """Fly the mission in a SIL graph; the per-leg numbers (and the logs as arrays under ``logs``)."""
+def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
+    """Fly the mission in a SIL graph (with ``extra_nodes``: the live view); the per-leg numbers (and the logs
+    as arrays under ``logs``)."""
     from seapup_bringup.sil import SilGraph
     from seapup_sim.seabed import Seabed
 
@@ -187,7 +188,8 @@ def fly_mission(out: Path, config: dict, text) -> dict:
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
     logs, bag, held = {}, out / "bag", None
     try:
-        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0) as sil:
+        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0,
+                      extra_nodes=extra_nodes) as sil:
             print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
             for leg in plan:
                 start, wall = sil.t, time.monotonic()
@@ -477,21 +479,37 @@ self-tuner from <code>tune_in</code> s after the switch.</p></section>
 
 
 def main(argv=None) -> int:
+    from seapup_bringup.view import add_view_arguments, check_port, view_node, view_url
     parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
     parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
                                       "(default bags/demo_<UTC time> under the checkout)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_view_arguments(parser, "fly at this many times real time (the lockstep graph paced; default: as fast as "
+                               "it answers, or 1 with --view); the summary is the same at any rate")
     add_json_argument(parser)
     args = parser.parse_args(argv)
+    rate = args.rate if args.rate is not None else (1.0 if args.view else 0.0)
+    if not (rate >= 0 and rate < 1e4):
+        parser.error(f"--rate must be >= 0 (0: unpaced) and < 10000, got {args.rate}")
+    if args.view:
+        try:
+            check_port(args.view_port)
+        except ValueError as exc:
+            parser.error(str(exc))
     text = text_stream(args)
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
     config = mission_config()
     for index, leg in enumerate(config["mission"]):
         leg["index"] = index
+    if rate:
+        config["graph"]["lockstep_pace"] = rate
+    extra = [view_node(args.view_port)] if args.view else []
+    if args.view:
+        print(f"seapup demo: live view at {view_url(args.view_port)}", file=text)
     wall = time.monotonic()
     try:
-        result = fly_mission(out, config, text)
+        result = fly_mission(out, config, text, extra)
     except Exception as exc:  # a failed leg or graph: say which, point at the logs
         if stopped_by_signal(exc):
             raise

@@ -167,6 +167,7 @@ class Launch:
 def launch(argv: list[str]) -> int:
     """``./seapup launch GRAPH.yaml [name:=value ...]`` or ``./seapup launch PACKAGE FILE [name:=value ...]``."""
     import argparse
+    from seapup_bringup.view import add_view_arguments, check_port, view_node, view_url
     parser = argparse.ArgumentParser(prog="./seapup launch", description="start a graph of nodes, as 'ros2 launch'",
                                      epilog="Graphs shipped: seapup_bringup simulator.yaml, "
                                             "seapup_bringup simulator_controller.yaml. --json [FILE] writes the "
@@ -174,8 +175,15 @@ def launch(argv: list[str]) -> int:
     parser.add_argument("graph", nargs="+", help="GRAPH.yaml, or PACKAGE FILE, then name:=value arguments")
     parser.add_argument("--show-args", action="store_true", help="print the graph's arguments and exit")
     parser.add_argument("--stop-grace", type=float, default=5.0, help="seconds between SIGINT, SIGTERM, SIGKILL")
+    add_view_arguments(parser, "a lockstep graph at this many times real time (its lockstep_pace argument; "
+                               "default: unpaced, or 1 with --view)")
     add_json_argument(parser)
     args = parser.parse_args(argv)
+    if args.view:
+        try:
+            check_port(args.view_port)
+        except ValueError as exc:
+            parser.error(str(exc))
     words = [w for w in args.graph if ":=" not in w]
     given = dict(w.split(":=", 1) for w in args.graph if ":=" in w)
     try:
@@ -186,8 +194,17 @@ def launch(argv: list[str]) -> int:
             for name, default in graph_arguments(path).items():
                 print(f"    '{name}': default '{default}'")
             return 0
-        specs = load_graph(path, given)
+        rate = args.rate if args.rate is not None else (1.0 if args.view else None)
+        if rate is not None:
+            if "lockstep_pace" not in graph_arguments(path):
+                raise LaunchError(f"--rate: {path.name} has no lockstep_pace argument to pace")
+            if not 0 <= rate < 1e4:
+                raise LaunchError(f"--rate must be >= 0 (0: unpaced) and < 10000, got {rate}")
+            given.setdefault("lockstep_pace", repr(float(rate)))
+        specs = load_graph(path, given) + ([view_node(args.view_port)] if args.view else [])
         runner = Launch(specs, stop_grace=args.stop_grace)
+        if args.view:
+            print(f"seapup launch: live view at {view_url(args.view_port)}", file=sys.stderr)
     except LaunchError as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1

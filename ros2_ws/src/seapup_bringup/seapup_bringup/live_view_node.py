@@ -42,7 +42,13 @@ from seapup_common.topics import (APPLIED, CURRENT, NAMESPACE, NAVIGATION_ODOMET
                                   VELOCITY_REFERENCE)
 from seapup_bringup import view_scene
 
-__all__ = ["LiveViewNode", "main", "PLOT_SCHEMA"]
+__all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES"]
+
+#: The server's channels: the scene (SceneUpdate), the plot (JSON), the frames (FrameTransforms).
+SCENE_TOPICS = ("/scene/vehicle", "/scene/world", "/scene/seabed")
+PLOT_TOPIC, TF_TOPIC = "/plot", "/tf"
+#: The server's services.
+SERVICES = ("switch_controller", "set_current")
 
 #: The /plot channel's JSON schema (what a plot panel's paths name).
 PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
@@ -96,11 +102,9 @@ class LiveViewNode(Node):
         self.server = foxglove.start_server(
             name="seapup", host="127.0.0.1", port=int(self.get_parameter("port").value),
             capabilities=[Capability.Time], services=self._viewer_services(foxglove), supported_encodings=["json"])
-        self.tf_channel = FrameTransformsChannel("/tf")
-        self.vehicle_channel = SceneUpdateChannel("/scene/vehicle")
-        self.world_channel = SceneUpdateChannel("/scene/world")
-        self.seabed_channel = SceneUpdateChannel("/scene/seabed")
-        self.plot_channel = foxglove.Channel("/plot", schema=PLOT_SCHEMA)
+        self.tf_channel = FrameTransformsChannel(TF_TOPIC)
+        self.vehicle_channel, self.world_channel, self.seabed_channel = (SceneUpdateChannel(t) for t in SCENE_TOPICS)
+        self.plot_channel = foxglove.Channel(PLOT_TOPIC, schema=PLOT_SCHEMA)
         self.samples = 0
         self.create_subscription(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
         for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
@@ -219,10 +223,10 @@ class LiveViewNode(Node):
                 name=name, encoding="jsonschema", data=json.dumps({"type": "object", "properties": properties}).encode()))
         result = schema("seapup.Result", {"ok": {"type": "boolean"}, "message": {"type": "string"}})
         return [
-            foxglove.Service("switch_controller", schema=foxglove.ServiceSchema(
+            foxglove.Service(SERVICES[0], schema=foxglove.ServiceSchema(
                 "seapup.SwitchController", request=schema("seapup.Switch", {"activate": {"type": "string"}}),
                 response=result), handler=self._switch),
-            foxglove.Service("set_current", schema=foxglove.ServiceSchema(
+            foxglove.Service(SERVICES[1], schema=foxglove.ServiceSchema(
                 "seapup.SetCurrent", request=schema("seapup.Current", {
                     k: {"type": "number"} for k in ("mean_speed", "mean_direction", "speed_std", "direction_std",
                                                     "break_time")} | {"enabled": {"type": "boolean"}}),

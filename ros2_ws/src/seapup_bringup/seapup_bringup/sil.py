@@ -144,13 +144,15 @@ class SilGraph:
         has reached every reader of ``navigation/odometry`` this probe sees (its ``/diagnostics``
         count; it says that estimate again to a reader that matches late), so no reader -- the
         recorder, a controller, the probe -- lacks the estimate of the sample the graph is held at.
+    extra_nodes : list of NodeSpec
+        Nodes started with the graph's own (the live view of ``./seapup demo --view``).
     """
 
     def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
                  out_dir, record: list[str] | None = None, ready_timeout: float = 120.0,
                  ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
                                                                 "seapup/position_controller"),
-                 instruments: bool = False, start_at: float = 10.0, chunk: float = 1.0):
+                 instruments: bool = False, start_at: float = 10.0, chunk: float = 1.0, extra_nodes=()):
         if not (math.isfinite(start_at) and start_at >= 0 and math.isfinite(chunk) and chunk > 0):
             raise ValueError(f"start_at must be finite and >= 0 s, chunk > 0 s, got {start_at!r}, {chunk!r}")
         self.start_at, self.chunk = float(start_at), float(chunk)
@@ -158,6 +160,7 @@ class SilGraph:
         self.held: float | None = None  # paced: the sample [s] the graph is held at
         self.late_results = 0   # paced: results heard too late to be acted on at their chunk boundary
         self.graph = str(graph)
+        self.extra_nodes = list(extra_nodes)   # NodeSpecs started with the graph's own (the live view)
         self.instruments = bool(instruments)
         self.arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in (arguments or {}).items()}
         self.out_dir = Path(out_dir)
@@ -221,7 +224,7 @@ class SilGraph:
                  "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
                 self.env, self.out_dir / "recorder.log", "recorder").start()
             self._wait_for_recorder()
-        for spec in specs:
+        for spec in [*specs, *self.extra_nodes]:
             self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
                                                      self.out_dir / f"{spec.label}.log", spec.label).start()
         names = (self.ready_status,) if isinstance(self.ready_status, str) else tuple(self.ready_status or ())

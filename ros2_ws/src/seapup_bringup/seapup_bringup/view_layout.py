@@ -1,0 +1,57 @@
+"""The live view's Foxglove layout, generated from code with the SDK's layout API (``foxglove.layouts``).
+
+``./seapup view --write-layout FILE`` writes it; the shipped copy is ``config/foxglove_layout.json`` (a test keeps
+it equal to :func:`layout`). Import it in Foxglove (Layouts -> Import from file): a 3D panel in ``odom``
+(ENU, up is up) following the vehicle, with its three scene topics; plots of the body velocities against
+the velocity controllers' references and of the blade pitches against the +-35 deg limit; the two service
+buttons. The paths name :data:`seapup_bringup.live_view_node.PLOT_SCHEMA`'s fields.
+"""
+from __future__ import annotations
+
+import json
+
+__all__ = ["layout", "layout_json", "VELOCITY_AXES"]
+
+#: The /plot arrays' components (velocity and reference: u, v, w [m/s], r [rad/s]).
+VELOCITY_AXES = ("u", "v", "w", "r")
+
+
+def layout():
+    """The layout object (``foxglove.layouts.Layout``)."""
+    from foxglove import layouts as L
+    from seapup_bringup.live_view_node import PLOT_TOPIC, SCENE_TOPICS, SERVICES
+
+    scene = {topic: L.BaseRendererSceneUpdateTopicSettings(visible=True) for topic in SCENE_TOPICS}
+    three_d = L.ThreeDeePanel(title="Seapup (odom, ENU: up is up)", config=L.ThreeDeeConfig(
+        follow_tf="base_link", follow_mode="follow-position", topics=scene))
+    colours = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")
+    velocity_series = []
+    for i, axis in enumerate(VELOCITY_AXES):
+        velocity_series += [
+            L.PlotSeries(value=f"{PLOT_TOPIC}.velocity[{i}]", label=f"{axis} measured", color=colours[i]),
+            L.PlotSeries(value=f"{PLOT_TOPIC}.reference[{i}]", label=f"{axis} reference", color=colours[i],
+                         line_style="dashed")]
+    velocities = L.PlotPanel(title="body velocities vs references (m/s, rad/s)",
+                             config=L.PlotConfig(paths=velocity_series, show_legend=True))
+    pitch_series = [L.PlotSeries(value=f"{PLOT_TOPIC}.blade_pitch_deg[{j}]", label=f"thruster {j + 1}", color=colours[j])
+                    for j in range(4)]
+    pitch_series += [L.PlotSeries(value=f"{PLOT_TOPIC}.pitch_limit_deg", label="+limit", color="#888888", line_style="dotted")]
+    pitches = L.PlotPanel(title="blade pitches (deg) and the 35 deg limit",
+                          config=L.PlotConfig(paths=pitch_series, show_legend=True))
+    switch = L.ServiceCallPanel(title="switch controller", config=L.ServiceCallConfig(
+        service_name=SERVICES[0], request_payload=json.dumps({"activate": "gmv"}), button_text="switch"))
+    current = L.ServiceCallPanel(title="set current", config=L.ServiceCallConfig(
+        service_name=SERVICES[1], request_payload=json.dumps(
+            {"enabled": True, "mean_speed": 0.26, "mean_direction": 0.0, "speed_std": 0.0, "direction_std": 0.0,
+             "break_time": 0.0}), button_text="set"))
+    right = L.SplitContainer(direction="column", items=[
+        L.SplitItem(proportion=2, content=velocities), L.SplitItem(proportion=2, content=pitches),
+        L.SplitItem(proportion=1, content=L.SplitContainer(direction="row", items=[
+            L.SplitItem(content=switch), L.SplitItem(content=current)]))])
+    return L.Layout(content=L.SplitContainer(direction="row", items=[
+        L.SplitItem(proportion=3, content=three_d), L.SplitItem(proportion=2, content=right)]))
+
+
+def layout_json() -> str:
+    """The layout as the JSON a Foxglove import takes (indented, stable: the shipped file is this text)."""
+    return json.dumps(json.loads(layout().to_json()), indent=2, sort_keys=True) + "\n"

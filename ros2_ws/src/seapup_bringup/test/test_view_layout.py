@@ -1,0 +1,38 @@
+"""The shipped Foxglove layout is the generated one, and names only what the live view serves."""
+import json
+import re
+from pathlib import Path
+
+from seapup_bringup.live_view_node import PLOT_SCHEMA, PLOT_TOPIC, SCENE_TOPICS, SERVICES
+from seapup_bringup.view_layout import layout_json
+
+SHIPPED = Path(__file__).resolve().parents[1] / "config" / "foxglove_layout.json"
+
+
+def _walk(node):
+    if isinstance(node, dict):
+        yield node
+        for value in node.values():
+            yield from _walk(value)
+    elif isinstance(node, list):
+        for value in node:
+            yield from _walk(value)
+
+
+def test_the_shipped_layout_is_generated_from_code():
+    assert SHIPPED.read_text() == layout_json(), "regenerate: ./seapup view --write-layout " + str(SHIPPED)
+
+
+def test_every_panel_names_a_channel_field_or_service_the_view_serves():
+    panels = [n for n in _walk(json.loads(layout_json())) if n.get("type") == "panel"]
+    kinds = {p["panelType"] for p in panels}
+    assert kinds == {"ThreeDee", "Plot", "ServiceCall"}
+    three_d = next(p for p in panels if p["panelType"] == "ThreeDee")
+    assert set(three_d["config"]["topics"]) == set(SCENE_TOPICS) and three_d["config"]["followTf"] == "base_link"
+    plotted = [s["value"] for p in panels if p["panelType"] == "Plot" for s in p["config"]["paths"]]
+    assert len(plotted) == 13
+    for path in plotted:
+        topic, field = re.fullmatch(r"(/\w+)\.(\w+)(?:\[\d\])?", path).groups()
+        assert topic == PLOT_TOPIC and field in PLOT_SCHEMA["properties"], path
+    called = [p["config"]["serviceName"] for p in panels if "serviceName" in p.get("config", {})]
+    assert sorted(called) == sorted(SERVICES)
