@@ -49,6 +49,7 @@ class Client:
         self._subscribed: dict[int, str] = {}
         self.responses: list = []
         self.failures: list = []
+        self.parameters: list = []
 
     @classmethod
     async def connect(cls, port: int, timeout: float = 20.0):
@@ -86,6 +87,8 @@ class Client:
                 self.services.update({s["name"]: s for s in op["services"]})
             elif op["op"] == "serviceCallFailure":
                 self.failures.append(op)
+            elif op["op"] == "parameterValues":
+                self.parameters.append(op)
             return
         if frame[0] == 0x01:
             subscription, log_ns = struct.unpack_from("<IQ", frame, 1)
@@ -107,6 +110,19 @@ class Client:
         payload = json.dumps(request).encode()
         self.connection.write_message(struct.pack("<BIII", 0x02, self.services[service]["id"], call_id, len(encoding))
                                       + encoding + payload, binary=True)
+
+
+def _simulator_parameter(executor, name: str):
+    from rclpy.parameter import parameter_value_to_python
+    from rclpy.parameter_client import AsyncParameterClient
+    node = executor.get_nodes()[0]
+    client = AsyncParameterClient(node, "/seapup/simulator")
+    assert client.wait_for_services(timeout_sec=10.0)
+    future = client.get_parameters([name])
+    deadline = time.monotonic() + 10.0
+    while not future.done() and time.monotonic() < deadline:
+        time.sleep(0.02)   # the fixture's thread spins the node
+    return parameter_value_to_python(future.result().values[0])
 
 
 @pytest.fixture
@@ -196,6 +212,24 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         client.call("switch_controller", {"activate": "mfol", "bogus": 1}, call_id=9)
         assert await client.pump(lambda: len(client.failures) >= 2, 15.0)
         assert "finite number" in client.failures[0]["message"] and "unknown keys" in client.failures[1]["message"]
+        # the server's parameters: the simulator's pace, set through the viewer, is the simulator's parameter
+        client.connection.write_message(json.dumps({"op": "setParameters", "id": "pace", "parameters": [
+            {"name": "lockstep_pace", "value": 3.0, "type": "float64"}]}))
+        assert await client.pump(lambda: any(p.get("id") == "pace" for p in client.parameters), 15.0)
+        reply = next(p for p in client.parameters if p.get("id") == "pace")
+        assert reply["parameters"] == [{"name": "lockstep_pace", "value": 3.0, "type": "float64"}]
+        assert _simulator_parameter(executor, "lockstep_pace") == 3.0
+        client.subscribe("/events")
+        await client.pump(lambda: False, 0.5)   # the subscription is taken asynchronously
+        client.connection.write_message(json.dumps({"op": "setParameters", "id": "bad", "parameters": [
+            {"name": "lockstep_pace", "value": -1.0, "type": "float64"}]}))   # refused: nothing changes
+        assert await client.pump(lambda: any(p.get("id") == "bad" for p in client.parameters)
+                                 and client.messages.get("/events"), 15.0)
+        said = _decoder(client.channels["/events"]).FromString(client.messages["/events"][-1][1])
+        level = said.DESCRIPTOR.fields_by_name["level"].enum_type.values_by_number[said.level].name
+        assert "refused: lockstep_pace" in said.message and level == "ERROR"
+        assert next(p for p in client.parameters if p.get("id") == "bad")["parameters"][0]["value"] == 3.0
+        assert _simulator_parameter(executor, "lockstep_pace") == 3.0
         client.connection.close()
         return len(client.messages["/tf"])
 

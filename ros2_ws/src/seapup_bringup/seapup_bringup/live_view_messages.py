@@ -7,17 +7,24 @@ from __future__ import annotations
 
 import numpy as np
 from foxglove.messages import (ArrowPrimitive, Color, CubePrimitive, Duration, FrameTransform, FrameTransforms,
-                               LinePrimitive, LinePrimitiveLineType, Point3, Pose, Quaternion, SceneEntity,
+                               LinePrimitive, LinePrimitiveLineType, Log, LogLevel, Point3, Pose, Quaternion,
+                               SceneEntity,
                                SceneUpdate, SpherePrimitive, Timestamp, TriangleListPrimitive, Vector3)
 
 from seapup_common import frames
 
-__all__ = ["frame_transforms", "vehicle", "world", "seabed", "timestamp"]
+__all__ = ["frame_transforms", "vehicle", "world", "seabed", "timestamp", "event"]
 
 _IDENTITY = (0.0, 0.0, 0.0, 1.0)
 _FRAME_COLOUR = Color(r=0.95, g=0.75, b=0.1, a=0.55)
 _THRUSTER_COLOUR = Color(r=0.3, g=0.3, b=0.35, a=1.0)
 _ARROW_COLOUR = Color(r=0.1, g=0.6, b=1.0, a=1.0)
+
+
+def event(text: str, t_ns: int, error: bool = False) -> Log:
+    """A line on the view's ``/events`` (a controller switch; a refused request)."""
+    return Log(timestamp=timestamp(t_ns), level=LogLevel.Error if error else LogLevel.Info, message=text,
+               name="seapup", file="", line=0)
 
 
 def timestamp(t_ns: int) -> Timestamp:

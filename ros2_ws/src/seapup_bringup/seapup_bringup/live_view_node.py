@@ -32,28 +32,36 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamp
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.node import Node
-from seapup_msgs.msg import BladePitch
-from seapup_msgs.srv import SetCurrent, SwitchController
+from diagnostic_msgs.msg import DiagnosticArray
+from foxglove.websocket import ServerListener
+from seapup_msgs.msg import BladePitch, ControllerEstimate
+from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, run_node
-from seapup_common.topics import (APPLIED, CURRENT, NAMESPACE, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
+from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
                                   SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, VELOCITY,
                                   VELOCITY_REFERENCE)
 from seapup_bringup import view_scene
 
-__all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES"]
+__all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
+           "VIEW_PARAMETERS", "EVENTS_TOPIC", "ESTIMATE_TOPIC"]
 
 #: The server's channels: the scene (SceneUpdate), the plot (JSON), the frames (FrameTransforms).
 SCENE_TOPICS = ("/scene/vehicle", "/scene/world", "/scene/seabed")
 PLOT_TOPIC, TF_TOPIC = "/plot", "/tf"
 #: The server's services.
-SERVICES = ("switch_controller", "set_current")
+SERVICES = ("switch_controller", "set_current", "set_sensor_profile")
+#: The server's parameters: the simulator's lockstep pace and the active velocity controller (setting it
+#: switches).
+VIEW_PARAMETERS = ("lockstep_pace", "controller")
+#: The server's other channels: controller switches and refusals (foxglove.Log), the self-tuners' estimates.
+EVENTS_TOPIC, ESTIMATE_TOPIC = "/events", "/estimate"
 
 #: The /plot channel's JSON schema (what a plot panel's paths name).
 PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
     "t": {"type": "number"}, "velocity": {"type": "array"}, "reference": {"type": "array"},
-    "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}}}
+    "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}, "controller": {"type": "string"}}}
 
 _SEABED_PERIOD_NS = 5_000_000_000
 _SEABED_KEYS = ("kind", "depth", "gradient", "direction")   # and "points" for a polyline (an empty list is no
@@ -94,6 +102,7 @@ class LiveViewNode(Node):
         from rclpy.parameter_client import AsyncParameterClient
         self._simulator_parameters = AsyncParameterClient(self, f"{NAMESPACE}/simulator")
         self._asked = None
+        self._pace = 0.0
         self._ask_timer = self.create_timer(1.0, self._ask_simulator)
         self.trail = view_scene.Trail()
         self._latest: dict = {}
@@ -101,10 +110,17 @@ class LiveViewNode(Node):
         self._seabed_sent_ns = -_SEABED_PERIOD_NS
         self.server = foxglove.start_server(
             name="seapup", host="127.0.0.1", port=int(self.get_parameter("port").value),
-            capabilities=[Capability.Time], services=self._viewer_services(foxglove), supported_encodings=["json"])
+            capabilities=[Capability.Time, Capability.Parameters], services=self._viewer_services(foxglove),
+            supported_encodings=["json"], server_listener=_Listener(self))
         self.tf_channel = FrameTransformsChannel(TF_TOPIC)
         self.vehicle_channel, self.world_channel, self.seabed_channel = (SceneUpdateChannel(t) for t in SCENE_TOPICS)
         self.plot_channel = foxglove.Channel(PLOT_TOPIC, schema=PLOT_SCHEMA)
+        from foxglove.channels import LogChannel
+        self.events_channel = LogChannel(EVENTS_TOPIC)
+        self.estimate_channel = foxglove.Channel(ESTIMATE_TOPIC, schema={"title": "seapup.Estimate", "type": "object"})
+        self.active_controller = ""
+        self._estimates: set[str] = set()   # estimate topics subscribed (found on the graph: their names vary)
+        self._t_ns = 0
         self.samples = 0
         self.create_subscription(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
         for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
@@ -114,6 +130,9 @@ class LiveViewNode(Node):
         self.create_subscription(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
         self.switch_client = self.create_client(SwitchController, SWITCH_CONTROLLER_SERVICE)
         self.current_client = self.create_client(SetCurrent, SET_CURRENT_SERVICE)
+        self.profile_client = self.create_client(SetSensorProfile, f"{NAMESPACE}/simulator/set_sensor_profile")
+        self.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RELIABLE_QOS)
+        self.create_timer(2.0, self._find_estimates)
         self.get_logger().info(f"live view: ws://127.0.0.1:{self.server.port} (open it in Foxglove or Lichtblick: "
                                f"{self.server.app_url()})")
 
@@ -121,8 +140,15 @@ class LiveViewNode(Node):
     def _ask_simulator(self) -> None:
         if self._asked is not None or not self._simulator_parameters.services_are_ready():
             return
+        self._simulator_parameters.get_parameters(["lockstep_pace"], callback=self._on_pace)
         self._asked = self._simulator_parameters.get_parameters(["vehicle", *_SEABED_PARAMETERS],
                                                                  callback=self._on_simulator_parameters)
+
+    def _on_pace(self, future) -> None:
+        from rclpy.parameter import parameter_value_to_python
+        values = future.result().values if future.result() is not None else []
+        if len(values) == 1:
+            self._pace = float(parameter_value_to_python(values[0]) or 0.0)
 
     def _on_points(self, future, vehicle: str, seabed: dict) -> None:
         from rclpy.parameter import parameter_value_to_python
@@ -164,8 +190,36 @@ class LiveViewNode(Node):
         p = msg.pose.pose.position
         self._fixes = (self._fixes + [(p.x, p.y, p.z)])[-50:]
 
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name != "seapup/controller_manager":
+                continue
+            active = next((kv.value for kv in status.values if kv.key == "active"), self.active_controller)
+            if active != self.active_controller:
+                if self.events_channel.has_sinks():
+                    from seapup_bringup import live_view_messages as fm
+                    self.events_channel.log(fm.event(f"controller {self.active_controller or '(none)'} -> "
+                                                     f"{active or '(none)'}", self._t_ns), log_time=self._t_ns)
+                self.active_controller = active
+
+    def _find_estimates(self) -> None:
+        """Subscribe to every self-tuner's estimate on the graph (``<controller>/estimate``)."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic not in self._estimates and "seapup_msgs/msg/ControllerEstimate" in types:
+                self._estimates.add(topic)
+                self.create_subscription(ControllerEstimate, topic, self._on_estimate, STREAM_QOS)
+
+    def _on_estimate(self, msg: ControllerEstimate) -> None:
+        if msg.controller != self.active_controller or not self.estimate_channel.has_sinks():
+            return
+        t_ns = conv.stamp_to_ns(msg.header.stamp)
+        self.estimate_channel.log({"t": t_ns * 1e-9, "controller": msg.controller, "mode": msg.mode,
+                                   "frozen": msg.frozen, **{name: value for name, value in zip(msg.names, msg.values)
+                                                            if np.isfinite(value)}}, log_time=t_ns)
+
     def _on_truth(self, msg: Odometry) -> None:
         t_ns = conv.stamp_to_ns(msg.header.stamp)
+        self._t_ns = t_ns
         state = _state_from_truth(msg)
         if not np.all(np.isfinite(state)):
             return
@@ -205,7 +259,7 @@ class LiveViewNode(Node):
 
     def _plot(self, t_ns: int, pitch: np.ndarray) -> dict:
         plot = {"t": t_ns * 1e-9, "blade_pitch_deg": np.degrees(pitch).tolist(),
-                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit))}
+                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit)), "controller": self.active_controller}
         measured = self._latest.get(VELOCITY)
         if measured is not None:
             v, w = measured.twist.twist.linear, measured.twist.twist.angular
@@ -230,7 +284,10 @@ class LiveViewNode(Node):
                 "seapup.SetCurrent", request=schema("seapup.Current", {
                     k: {"type": "number"} for k in ("mean_speed", "mean_direction", "speed_std", "direction_std",
                                                     "break_time")} | {"enabled": {"type": "boolean"}}),
-                response=result), handler=self._set_current)]
+                response=result), handler=self._set_current),
+            foxglove.Service(SERVICES[2], schema=foxglove.ServiceSchema(
+                "seapup.SetSensorProfile", request=schema("seapup.Profile", {"name": {"type": "string"}}),
+                response=result), handler=self._set_profile)]
 
     def _switch(self, request) -> bytes:
         body = _json_object(request.payload, {"activate"})
@@ -253,6 +310,40 @@ class LiveViewNode(Node):
         response = self._call(self.current_client, ros)
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
 
+    def _set_profile(self, request) -> bytes:
+        name = _json_object(request.payload, {"name"}).get("name")
+        if not isinstance(name, str) or not name:
+            raise ValueError("set_sensor_profile needs {\"name\": \"ideal|baseline|haslar\"}")
+        response = self._call(self.profile_client, SetSensorProfile.Request(name=name))
+        return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
+
+    def viewer_parameters(self) -> dict:
+        """The server's parameters: the simulator's pace (as last read) and the active controller."""
+        return {"lockstep_pace": float(self._pace), "controller": self.active_controller}
+
+    def set_viewer_parameter(self, name: str, value) -> None:
+        """A viewer set a parameter: carried out in the graph (raises with one line if refused)."""
+        if name == "lockstep_pace":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value < 1e4):
+                raise ValueError(f"lockstep_pace must be a number in [0, 10000), got {value!r}")
+            from rclpy.parameter import Parameter
+            done = threading.Event()
+            future = self._simulator_parameters.set_parameters([Parameter("lockstep_pace", value=float(value))])
+            future.add_done_callback(lambda _: done.set())
+            if not done.wait(5.0) or not future.result().results[0].successful:
+                raise RuntimeError("the simulator did not take lockstep_pace")
+            self._pace = float(value)
+        elif name == "controller":
+            if not isinstance(value, str) or not value:
+                raise ValueError(f"controller must be a controller's name, got {value!r}")
+            response = self._call(self.switch_client, SwitchController.Request(
+                activate_controllers=[value], strictness=SwitchController.Request.STRICT))
+            if not response.ok:
+                raise RuntimeError(f"switch to {value} refused: {response.message}")
+            self.active_controller = value
+        else:
+            raise ValueError(f"no parameter {name!r} (parameters: {', '.join(VIEW_PARAMETERS)})")
+
     def _call(self, client, request, timeout: float = 5.0):
         """A ROS service call from the server's thread: the node's executor completes it."""
         if not client.wait_for_service(timeout_sec=timeout):
@@ -264,9 +355,39 @@ class LiveViewNode(Node):
             raise RuntimeError(f"{client.srv_name} did not answer in {timeout:g} s")
         return future.result()
 
+    def refused(self, text: str) -> None:
+        """A viewer's request the graph did not take: logged, and said on ``/events``."""
+        self.get_logger().warn(f"viewer request refused: {text}")
+        from seapup_bringup import live_view_messages as fm
+        self.events_channel.log(fm.event(f"refused: {text}", self._t_ns, error=True), log_time=self._t_ns)
+
     def destroy_node(self):
         self.server.stop()
         return super().destroy_node()
+
+
+class _Listener(ServerListener):
+    """The server's parameter requests (its threads), carried out by the node; a refusal is logged on
+    ``/events`` and the parameter keeps its value. (The other callbacks: the SDK's defaults.)"""
+
+    def __init__(self, node: "LiveViewNode"):
+        self.node = node
+
+    def _parameters(self, names):
+        from foxglove import Parameter
+        values = self.node.viewer_parameters()
+        return [Parameter(name, value=values[name]) for name in (names or VIEW_PARAMETERS) if name in values]
+
+    def on_get_parameters(self, client, param_names, request_id=None):
+        return self._parameters(param_names)
+
+    def on_set_parameters(self, client, parameters, request_id=None):
+        for parameter in parameters:
+            try:
+                self.node.set_viewer_parameter(parameter.name, parameter.get_value())
+            except Exception as exc:  # noqa: BLE001 - refused: said, nothing changed
+                self.node.refused(f"{parameter.name}: {exc}")
+        return self._parameters([p.name for p in parameters])
 
 
 def _json_object(payload: bytes, allowed: set) -> dict:

@@ -19,7 +19,7 @@ VELOCITY_AXES = ("u", "v", "w", "r")
 def layout():
     """The layout object (``foxglove.layouts.Layout``)."""
     from foxglove import layouts as L
-    from seapup_bringup.live_view_node import PLOT_TOPIC, SCENE_TOPICS, SERVICES
+    from seapup_bringup.live_view_node import EVENTS_TOPIC, PLOT_TOPIC, SCENE_TOPICS, SERVICES
 
     scene = {topic: L.BaseRendererSceneUpdateTopicSettings(visible=True) for topic in SCENE_TOPICS}
     three_d = L.ThreeDeePanel(title="Seapup (odom, ENU: up is up)", config=L.ThreeDeeConfig(
@@ -44,10 +44,16 @@ def layout():
         service_name=SERVICES[1], request_payload=json.dumps(
             {"enabled": True, "mean_speed": 0.26, "mean_direction": 0.0, "speed_std": 0.0, "direction_std": 0.0,
              "break_time": 0.0}), button_text="set"))
+    profile = L.ServiceCallPanel(title="sensor profile", config=L.ServiceCallConfig(
+        service_name=SERVICES[2], request_payload=json.dumps({"name": "haslar"}), button_text="set"))
     right = L.SplitContainer(direction="column", items=[
         L.SplitItem(proportion=2, content=velocities), L.SplitItem(proportion=2, content=pitches),
         L.SplitItem(proportion=1, content=L.SplitContainer(direction="row", items=[
-            L.SplitItem(content=switch), L.SplitItem(content=current)]))])
+            L.SplitItem(content=switch), L.SplitItem(content=current), L.SplitItem(content=profile)])),
+        L.SplitItem(proportion=1, content=L.SplitContainer(direction="row", items=[
+            L.SplitItem(content=L.ParametersPanel(title="pace and controller")),
+            L.SplitItem(content=L.LogPanel(title="switches and refusals", config=L.LogConfig(
+                topic_to_render=EVENTS_TOPIC)))]))])
     return L.Layout(content=L.SplitContainer(direction="row", items=[
         L.SplitItem(proportion=3, content=three_d), L.SplitItem(proportion=2, content=right)]))
 

@@ -3,7 +3,7 @@ import json
 import re
 from pathlib import Path
 
-from seapup_bringup.live_view_node import PLOT_SCHEMA, PLOT_TOPIC, SCENE_TOPICS, SERVICES
+from seapup_bringup.live_view_node import EVENTS_TOPIC, PLOT_SCHEMA, PLOT_TOPIC, SCENE_TOPICS, SERVICES
 from seapup_bringup.view_layout import layout_json
 
 SHIPPED = Path(__file__).resolve().parents[1] / "config" / "foxglove_layout.json"
@@ -26,7 +26,7 @@ def test_the_shipped_layout_is_generated_from_code():
 def test_every_panel_names_a_channel_field_or_service_the_view_serves():
     panels = [n for n in _walk(json.loads(layout_json())) if n.get("type") == "panel"]
     kinds = {p["panelType"] for p in panels}
-    assert kinds == {"ThreeDee", "Plot", "ServiceCall"}
+    assert kinds == {"ThreeDee", "Plot", "ServiceCall", "Parameters", "Log"}
     three_d = next(p for p in panels if p["panelType"] == "ThreeDee")
     assert set(three_d["config"]["topics"]) == set(SCENE_TOPICS) and three_d["config"]["followTf"] == "base_link"
     plotted = [s["value"] for p in panels if p["panelType"] == "Plot" for s in p["config"]["paths"]]
@@ -36,3 +36,5 @@ def test_every_panel_names_a_channel_field_or_service_the_view_serves():
         assert topic == PLOT_TOPIC and field in PLOT_SCHEMA["properties"], path
     called = [p["config"]["serviceName"] for p in panels if "serviceName" in p.get("config", {})]
     assert sorted(called) == sorted(SERVICES)
+    (log,) = [p for p in panels if p["panelType"] == "Log"]
+    assert log["config"]["topicToRender"] == EVENTS_TOPIC
