@@ -131,7 +131,8 @@ def graph(node_process, ros_context):
     node_process(package="seapup_sim", executable="simulator",
                  args=["--ros-args", "-p", "mode:=realtime", "-p", "real_time_factor:=10.0", "-p", "start_depth:=12.0",
                        "-p", "watchdog_timeout:=1000.0", "-p", "environment.seabed.kind:=slope",
-                       "-p", "environment.seabed.depth:=40.0", "-p", "environment.seabed.gradient:=0.1"])
+                       "-p", "environment.seabed.depth:=40.0", "-p", "environment.seabed.gradient:=0.1",
+                       "-p", "environment.umbilical.enabled:=true", "-p", "environment.current.enabled:=true"])
     node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
     node = rclpy.create_node("truth_probe", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
@@ -200,6 +201,21 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         assert bed.entities[0].frame_id == "odom_ned" and len(mesh.points) > 100
         for point in mesh.points:
             assert point.z == pytest.approx(40.0 + 0.1 * point.x)
+        # the umbilical: the simulator's cable, from the vehicle to the ship at the origin, in odom_ned
+        client.subscribe("/scene/world")
+        world = _decoder(client.channels["/scene/world"])
+        assert await client.pump(lambda: any(len(world.FromString(m).entities[0].lines) == 2
+                                             for _, m in client.messages.get("/scene/world", [])), 20.0)
+        log_ns, payload = next((ns, m) for ns, m in reversed(client.messages["/scene/world"])
+                               if len(world.FromString(m).entities[0].lines) == 2)
+        entity = world.FromString(payload).entities[0]
+        assert entity.frame_id == "odom_ned"
+        cable = np.array([[p.x, p.y, p.z] for p in entity.lines[1].points])
+        assert cable.shape == (20, 3) and np.allclose(cable[-1], [0.0, 0.0, 0.0], atol=1e-6)
+        near = min(truth, key=lambda ns: abs(ns - log_ns))
+        vehicle = truth[near].pose.pose.position
+        assert np.linalg.norm(cable[0] - [vehicle.x, vehicle.y, vehicle.z]) < 1.0   # its attachment, a step ago
+        assert np.sum(np.linalg.norm(np.diff(cable, axis=0), axis=1)) > np.linalg.norm(cable[0])   # slack
         plot = json.loads(client.messages["/plot"][-1][1])
         assert plot["pitch_limit_deg"] == pytest.approx(35.0) and len(plot["blade_pitch_deg"]) == 4
         # a service call through the server takes effect in the graph: the simulator's current

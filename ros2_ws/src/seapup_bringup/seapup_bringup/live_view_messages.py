@@ -86,6 +86,10 @@ def world(parts: dict) -> SceneUpdate:
         lines.append(LinePrimitive(type=LinePrimitiveLineType.LineStrip, pose=_pose(), thickness=0.03,
                                    scale_invariant=False, points=_points(parts["trail"]),
                                    color=Color(r=0.2, g=0.9, b=0.3, a=1.0)))
+    if "cable" in parts:
+        lines.append(LinePrimitive(type=LinePrimitiveLineType.LineStrip, pose=_pose(), thickness=0.025,
+                                   scale_invariant=False, points=_points(parts["cable"]),
+                                   color=Color(r=1.0, g=0.85, b=0.1, a=1.0)))
     current = parts.get("current")
     if current is not None and len(parts["trail"]):
         direction, length = current

@@ -8,7 +8,8 @@ broadcasts as its clock:
 - ``/tf`` (foxglove.FrameTransforms): ``odom`` -> ``base_link`` and the fixed ``odom_ned``, ``base_link_frd``;
 - ``/scene/vehicle`` (foxglove.SceneUpdate, in ``base_link_frd``): the frame, the four thrusters with their
   blade-pitch arrows (full length at the +-35 deg limit), the payloads (the bow camera when fitted);
-- ``/scene/world`` (in ``odom_ned``): the track flown, the current's arrow, the position set point, the
+- ``/scene/world`` (in ``odom_ned``): the track flown, the umbilical (the simulator's cable solution), the
+  current's arrow, the position set point, the
   navigator's estimate (a sphere of its 2-sigma horizontal uncertainty) and the acoustic fixes as they come;
 - ``/scene/seabed``: the environment's seabed around the vehicle (re-sent every few seconds: the server keeps
   nothing for a client that subscribes later);
@@ -30,6 +31,7 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped, \
     Vector3Stamped
 from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path as PathMessage
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from diagnostic_msgs.msg import DiagnosticArray
@@ -39,9 +41,9 @@ from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, run_node
-from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION, POSITION_REFERENCE,
-                                  SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, VELOCITY,
-                                  VELOCITY_REFERENCE)
+from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
+                                  POSITION_REFERENCE, SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY,
+                                  UMBILICAL_SHAPE, VELOCITY, VELOCITY_REFERENCE)
 from seapup_bringup import view_scene
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
@@ -125,7 +127,7 @@ class LiveViewNode(Node):
         self.create_subscription(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
         for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
                             (VELOCITY_REFERENCE, TwistStamped), (NAVIGATION_ODOMETRY, Odometry),
-                            (POSITION_REFERENCE, PoseStamped)):
+                            (POSITION_REFERENCE, PoseStamped), (UMBILICAL_SHAPE, PathMessage)):
             self.create_subscription(kind, topic, lambda msg, t=topic: self._latest.__setitem__(t, msg), STREAM_QOS)
         self.create_subscription(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
         self.switch_client = self.create_client(SwitchController, SWITCH_CONTROLLER_SERVICE)
@@ -247,6 +249,9 @@ class LiveViewNode(Node):
         current = self._latest.get(CURRENT)
         if current is not None:
             world["current"] = view_scene.current_arrow([current.vector.x, current.vector.y, current.vector.z])
+        cable = self._latest.get(UMBILICAL_SHAPE)
+        if cable is not None and len(cable.poses) >= 2:
+            world["cable"] = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in cable.poses])
         goal = self._latest.get(POSITION_REFERENCE)
         if goal is not None:
             world["goal"] = np.array([goal.pose.position.x, goal.pose.position.y, goal.pose.position.z])

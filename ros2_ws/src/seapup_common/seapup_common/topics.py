@@ -11,7 +11,7 @@ fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC
 from __future__ import annotations
 
 __all__ = ["NAMESPACE", "CLOCK", "TF", "TF_STATIC", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
-           "VELOCITY", "IMU", "DEPTH", "CURRENT",
+           "VELOCITY", "IMU", "DEPTH", "CURRENT", "UMBILICAL_SHAPE",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
            "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SET_THRUSTER_EFFICIENCY_SERVICE", "SIMULATOR_PARAMETERS_SERVICE", "SWITCH_CONTROLLER_SERVICE",
@@ -46,6 +46,8 @@ IMU = "/seapup/sensors/imu"
 DEPTH = "/seapup/sensors/depth"
 #: Position fixes.
 POSITION = "/seapup/sensors/position"
+#: The umbilical's shape (odom_ned, vehicle to ship), from a simulator with an umbilical.
+UMBILICAL_SHAPE = "/seapup/umbilical/shape"
 #: The water's velocity at the vehicle (NED), from the simulator.
 CURRENT = "/seapup/environment/current"
 #: Altitude above the seabed.
@@ -83,6 +85,7 @@ TOPIC_TYPES = {
     DEPTH: "seapup_msgs/msg/Depth",
     POSITION: "geometry_msgs/msg/PoseWithCovarianceStamped",
     CURRENT: "geometry_msgs/msg/Vector3Stamped",
+    UMBILICAL_SHAPE: "nav_msgs/msg/Path",
     ALTITUDE: "sensor_msgs/msg/Range",
     SAMPLE_MANIFEST: "seapup_msgs/msg/SampleManifest",
     NAVIGATION_ODOMETRY: "nav_msgs/msg/Odometry",

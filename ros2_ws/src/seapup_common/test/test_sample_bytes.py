@@ -111,6 +111,7 @@ def test_every_sample_message_deserialises_to_what_the_message_builders_make(see
     altitude = Reading(float(rng.uniform(0.5, 20)), 1.0, 0.01) if seed % 2 else Reading.invalid()
     force, wrench, pitch = rng.normal(size=3), rng.normal(size=6), rng.uniform(-0.6, 0.6, 4)
     ranges = dict(field_of_view=0.2, min_range=0.3, max_range=30.0)
+    cable = rng.normal(size=(2 + seed * 6, 3)) * 30   # the umbilical's polyline, of any length
     pairs = [
         (encoder.applied(pitch, t_ns), conv.command_to_msg(Command(pitch), t_ns, frames.FRAME_FRD)),
         (encoder.velocity(velocity, rates, t_ns), conv.velocity_to_msg(velocity, rates, t_ns)),
@@ -123,6 +124,7 @@ def test_every_sample_message_deserialises_to_what_the_message_builders_make(see
         (encoder.vector3_stamped(force, t_ns, frames.FRAME_NED), conv.vector3_stamped(force, t_ns, frames.FRAME_NED)),
         (encoder.wrench_stamped(wrench, t_ns, frames.FRAME_FRD), conv.wrench_stamped(wrench, t_ns, frames.FRAME_FRD)),
         (encoder.transforms_enu(state, t_ns), conv.transforms_enu(state, t_ns)),
+        (encoder.path_ned(cable, t_ns), conv.path_ned(cable, t_ns)),
     ]
     for data, expected in pairs:
         got = deserialize_message(data, type(expected))

@@ -35,6 +35,9 @@ from seapup_sim.vehicle_config import load_vehicle_config
 
 __all__ = ["SimulatorConfig", "SimulatorCore"]
 
+#: Points of the published cable shape (``umbilical/shape``).
+CABLE_POINTS = 20
+
 
 @dataclass
 class SimulatorConfig:
@@ -237,6 +240,12 @@ class SimulatorCore:
         return self.simulation.sensors.profile
 
     # -- outputs ---------------------------------------------------------------
+    def cable_shape(self, points: int = CABLE_POINTS):
+        """The umbilical drawn at the present sample ((points, 3) NED, vehicle to ship:
+        :meth:`seapup_sim.umbilical.Umbilical.shape`), or None without one."""
+        umbilical = self.simulation.umbilical
+        return None if umbilical is None else umbilical.shape(self.simulation.plant.state, points)
+
     def outputs(self) -> dict:
         """Everything published at t_k (SI; NED world, FRD body): the
         :class:`~seapup_sim.simulation.Sample` and the applied blade pitch."""

@@ -55,6 +55,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseWithCovarianceStamped, TwistWithCovarianceStamped,
                                Vector3Stamped, WrenchStamped)
 from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path as PathMessage
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.node import Node
@@ -235,6 +236,7 @@ class SimulatorNode(Node):
         self.pub_odom = pub(Odometry, "odometry", STREAM_QOS)
         self.pub_current = pub(Vector3Stamped, "environment/current", STREAM_QOS)
         self.pub_wrench = pub(WrenchStamped, "umbilical/wrench", STREAM_QOS)
+        self.pub_cable = pub(PathMessage, "umbilical/shape", STREAM_QOS)
         self.pub_manifest = pub(SampleManifest, "sensors/sample", STREAM_QOS)
         self.pub_clock = pub(Clock, CLOCK, STREAM_QOS) if publish_clock else None
         self.pub_tf = pub(TFMessage, TF, TF_QOS) if publish_tf else None
@@ -457,6 +459,9 @@ class SimulatorNode(Node):
             (self.pub_current, encode.vector3_stamped(sample.current_ned, t_ns, NED)),
             (self.pub_wrench, encode.wrench_stamped(sample.umbilical_body, t_ns, FRD)),
             *([(self.pub_tf, encode.transforms_enu(sample.state, t_ns))] if self.pub_tf is not None else [])]
+        cable = self.simulator.cable_shape()
+        if cable is not None:   # a simulation with an umbilical: its shape, to be drawn
+            messages.append((self.pub_cable, encode.path_ned(cable, t_ns)))
         # last: what this sample holds (the acoustic fix comes only at some samples)
         manifest = encode.manifest([publisher.topic_name for publisher, _ in messages], t_ns)
         self._sent = messages + [(self.pub_manifest, manifest)]

@@ -303,6 +303,21 @@ class Umbilical:
             self._guess = (sol.c0, sol.lam)
         self.solution = sol
 
+    def shape(self, state, points: int = 20) -> np.ndarray:
+        """The cable drawn for a vehicle ``state``: (points, 3) NED from the vehicle's attachment to the ship.
+
+        The last equilibrium solved (:attr:`solution`, eq. 2.25-2.27's closed form: the simulation solves it at
+        every physics step, so at most one step before ``state``), from its vehicle end; where the model is
+        bypassed (too little hydrodynamic loading, sec. 3.8) or nothing was solved yet, the straight chord."""
+        if points < 2:
+            raise ValueError(f"a cable shape needs at least 2 points, got {points}")
+        sol = self.solution
+        if sol is not None and not sol.bypassed and sol.e1 is not None:
+            return sol.shape(points)
+        rot = rotation_body_to_ned(state[3], state[4], state[5])
+        end = np.asarray(state[:3], float) + rot @ self.attachment
+        return end + np.outer(np.linspace(0.0, 1.0, points), self.ship - end)
+
     def wrench(self, state, current_ned=None) -> np.ndarray:
         """Body-axis force and moment (6,) of the cable on the vehicle."""
         if self.compiled:

@@ -117,3 +117,22 @@ def test_vehicle_wrench_is_the_body_axis_force_at_the_attachment():
     np.testing.assert_allclose(w[3:], np.cross([0.1, 0.0, -0.2], w[:3]), atol=1e-12)
     assert cable.solution.length == pytest.approx(1.4 * np.linalg.norm(
         state[:3] + rotation_body_to_ned(0, 0.2, 0) @ np.array([0.1, 0.0, -0.2])))
+
+
+def test_the_drawn_cable_runs_from_the_vehicle_s_attachment_to_the_ship_with_the_solved_length():
+    from seapup_sim.vehicle import rotation_body_to_ned
+    params = replace(P, attachment=(0.1, 0.0, -0.2))
+    cable = Umbilical(params, SHIP)
+    state = np.zeros(12)
+    state[2], state[5] = 50.0, 0.4
+    end = state[:3] + rotation_body_to_ned(0.0, 0.0, 0.4) @ np.array([0.1, 0.0, -0.2])
+    straight = cable.shape(state, 11)   # nothing solved yet: the chord
+    np.testing.assert_allclose(straight[[0, -1]], [end, SHIP], atol=1e-12)
+    cable.wrench(state, current_ned=[0.5, 0.0, 0.0])   # a current: the cable bows (eq. 2.25-2.27)
+    bowed = cable.shape(state, 400)
+    np.testing.assert_allclose(bowed[[0, -1]], [end, SHIP], atol=1e-6)   # its end conditions
+    arc = np.sum(np.linalg.norm(np.diff(bowed, axis=0), axis=1))
+    assert arc == pytest.approx(cable.solution.length, rel=1e-4)          # the solved length, 1.4 x the chord
+    assert arc > 1.3 * np.linalg.norm(end - SHIP)
+    with pytest.raises(ValueError):
+        cable.shape(state, 1)

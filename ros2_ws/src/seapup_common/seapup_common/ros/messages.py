@@ -22,7 +22,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseStamped, PoseWithCovarianceStamped, TransformStamped, TwistStamped,
                                TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped)
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import Imu, Range
 from tf2_msgs.msg import TFMessage
 from seapup_msgs.msg import BladePitch, Depth
@@ -36,7 +36,7 @@ __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "altitude_to_msg", "altitude_from_msg", "odometry_ned", "odometry_enu",
            "vector3_stamped", "wrench_stamped", "MeasurementCollector", "SampleFeed",
            "estimate_to_odometry", "estimate_from_odometry", "pose_setpoint_to_msg", "pose_setpoint_from_msg",
-           "reference_to_msg", "reference_from_msg", "diagnostic_array", "transforms_enu", "static_transforms",
+           "reference_to_msg", "reference_from_msg", "diagnostic_array", "transforms_enu", "static_transforms", "path_ned",
            "UNKNOWN_VARIANCE"]
 
 #: Variance that says "this quantity is not measured" (e.g. orientation of an acoustic fix).
@@ -242,6 +242,18 @@ def transforms_enu(state, t_ns: int) -> TFMessage:
     x = np.asarray(state, float)
     q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6]))
     return TFMessage(transforms=[_transform(frames.FRAME_ENU, frames.FRAME_FLU, t_ns, frames.ned_to_enu(x[:3]), q)])
+
+
+def path_ned(points, t_ns: int) -> Path:
+    """A polyline of NED points as ``nav_msgs/Path`` in ``odom_ned`` (every pose stamped t_k, orientation
+    identity): the umbilical's shape."""
+    msg = _header(Path(), t_ns, frames.FRAME_NED)
+    for p in np.asarray(points, float).reshape(-1, 3):
+        pose = _header(PoseStamped(), t_ns, frames.FRAME_NED)
+        _set_xyz(pose.pose.position, p)
+        pose.pose.orientation.w = 1.0
+        msg.poses.append(pose)
+    return msg
 
 
 def static_transforms(t_ns: int) -> TFMessage:

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import Imu, Range
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch, Depth, SampleManifest
@@ -74,6 +74,7 @@ class SampleEncoder:
                         for frame in (frames.FRAME_NED, frames.FRAME_FRD)}
         self._tf = Packer(TFMessage, {"transforms[0].header.frame_id": frames.FRAME_ENU,
                                       "transforms[0].child_frame_id": frames.FRAME_FLU}, {"transforms": 1})
+        self._paths: dict[int, Packer] = {}
         self._clock = Packer(Clock)
         self._manifests: dict[tuple, Restamper] = {}
 
@@ -140,6 +141,20 @@ class SampleEncoder:
         x = np.asarray(state, float)
         q = frames.orientation_ned_frd_to_enu_flu(frames.euler_to_quaternion(*x[3:6])).tolist()
         return self._tf.pack(_stamp(t_ns) + frames.ned_to_enu(x[:3]).tolist() + q)
+
+    def path_ned(self, points, t_ns: int) -> bytes:
+        """:func:`~seapup_common.ros.messages.path_ned`: a polyline in ``odom_ned`` (the umbilical's shape)."""
+        xyz = np.asarray(points, float).reshape(-1, 3)
+        n = len(xyz)
+        if n not in self._paths:
+            strings = {"header.frame_id": frames.FRAME_NED, **{f"poses[{i}].header.frame_id": frames.FRAME_NED
+                                                               for i in range(n)}}
+            self._paths[n] = Packer(Path, strings, {"poses": n})
+        stamp = _stamp(t_ns)
+        values = list(stamp)
+        for p in xyz.tolist():
+            values += stamp + p + [0.0, 0.0, 0.0, 1.0]
+        return self._paths[n].pack(values)
 
     def vector3_stamped(self, vector, t_ns: int, frame_id: str) -> bytes:
         """:func:`~seapup_common.ros.messages.vector3_stamped` (``odom_ned`` or ``base_link_frd``)."""
