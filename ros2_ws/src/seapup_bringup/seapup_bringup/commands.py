@@ -215,6 +215,12 @@ def bench(argv: list[str]) -> int:
             print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
                   f"{g['us_per_step']:.0f} us per step; CPU per step: simulator {g['simulator_cpu_us_per_step']:.0f} "
                   f"us, controller {g['controller_cpu_us_per_step']:.0f} us)", file=out_text)
+        print("graph: the live view's cost (simulator + open_loop at 5 Hz without and with it)...", file=out_text,
+              flush=True)
+        cost = out["graph_view_cost_5hz"] = graph_bench.view_cost()
+        print(f"graph_view_cost_5hz: {cost['with']['rtf']:.1f}x real time with the view (a viewer subscribed to "
+              f"everything; view CPU {cost['with']['view_cpu_us_per_step']:.0f} us per step) against "
+              f"{cost['without']['rtf']:.1f}x without: ratio {cost['ratio']:.2f} (target >= 0.8)", file=out_text)
         rt = out["dds_round_trip_us"]
         # a lockstep sample holds at least one round trip (t_k out, its command back): the graph's ceiling
         rt["lockstep_ceiling_5hz"] = 0.2 / (rt["median_us"] * 1e-6)

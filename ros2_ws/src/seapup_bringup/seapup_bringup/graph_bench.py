@@ -23,7 +23,7 @@ import numpy as np
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
 from seapup_common.topics import CLOCK
 
-__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate"]
+__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate", "view_cost"]
 
 ECHO = """
 import rclpy
@@ -49,13 +49,16 @@ def _context(domain: int):
     return ctx
 
 
-def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp", controller=None) -> dict:
+def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp", controller=None,
+                  view: bool = False) -> dict:
     """Simulated seconds per wall second of simulator + a controller in lockstep.
 
     ``controller``: the controller's command line (default: ``open_loop``
     holding the mains at 0.6 rad). Beside the wall-clock rate, each process's
     CPU time per control step (user + system, from ``/proc``): what a step
-    costs whatever else the machine is doing.
+    costs whatever else the machine is doing. ``view``: with the live view
+    beside the graph and a viewer (:class:`_Viewer`) subscribed to all of its
+    channels (its CPU per step as ``view_cpu_us_per_step``).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -77,8 +80,13 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
         node.create_subscription(Clock, CLOCK, lambda m: stamps.append((time.perf_counter(),
                                  m.clock.sec + m.clock.nanosec * 1e-9)),
                                  QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-        ctl = None
+        ctl = watcher = live = None
         try:
+            if view:
+                port = _free_port()
+                live = NodeProcess([find_executable("seapup_bringup", "live_view"), "--ros-args", "-p",
+                                    f"port:={port}"], env, f"{log_dir}/bench_view.log").start()
+                watcher = _Viewer(port).start()
             deadline = time.monotonic() + 30
             while not stamps and time.monotonic() < deadline:
                 ex.spin_once(timeout_sec=0.05)
@@ -88,13 +96,20 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline and (not stamps or stamps[-1][1] < 1.0):
                 ex.spin_once(timeout_sec=0.05)
+            if watcher is not None and not watcher.receiving.wait(30.0):
+                raise RuntimeError("the benchmark's viewer received nothing from the live view")
+            processes = [simulator, ctl, *([live] if live is not None else [])]
             wall0, sim0 = stamps[-1]
-            cpu0 = [_cpu_s(p.popen.pid) for p in (simulator, ctl)]
+            cpu0 = [_cpu_s(p.popen.pid) for p in processes]
             while time.monotonic() < deadline and stamps[-1][1] - sim0 < sim_seconds:
                 ex.spin_once(timeout_sec=0.05)
             wall1, sim1 = stamps[-1]
-            cpu1 = [_cpu_s(p.popen.pid) for p in (simulator, ctl)]
+            cpu1 = [_cpu_s(p.popen.pid) for p in processes]
         finally:
+            if watcher is not None:
+                watcher.stop()
+            if live is not None:
+                live.stop()
             if ctl is not None:
                 ctl.stop()
             simulator.stop()
@@ -102,10 +117,87 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             node.destroy_node()
             ctx.try_shutdown()
     steps = (sim1 - sim0) / control_period
-    return {"rtf": (sim1 - sim0) / (wall1 - wall0), "steps_per_s": steps / (wall1 - wall0),
-            "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period,
-            "simulator_cpu_us_per_step": 1e6 * (cpu1[0] - cpu0[0]) / steps,
-            "controller_cpu_us_per_step": 1e6 * (cpu1[1] - cpu0[1]) / steps}
+    out = {"rtf": (sim1 - sim0) / (wall1 - wall0), "steps_per_s": steps / (wall1 - wall0),
+           "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period,
+           "simulator_cpu_us_per_step": 1e6 * (cpu1[0] - cpu0[0]) / steps,
+           "controller_cpu_us_per_step": 1e6 * (cpu1[1] - cpu0[1]) / steps}
+    if view:
+        out["view_cpu_us_per_step"] = 1e6 * (cpu1[2] - cpu0[2]) / steps
+    return out
+
+
+def view_cost(blocks: int = 2, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+    """The live view's cost to a lockstep graph at 5 Hz: simulator + ``open_loop`` without and with the view
+    (and a viewer subscribed to everything), in alternating blocks, the best of each; ``ratio`` = with / without
+    (issue 27's target: >= 0.8)."""
+    runs = {"without": [], "with": []}
+    for _ in range(blocks):
+        runs["without"].append(lockstep_rate(0.2, sim_seconds, log_dir))
+        runs["with"].append(lockstep_rate(0.2, sim_seconds, log_dir, view=True))
+    best = {key: max(values, key=lambda r: r["rtf"]) for key, values in runs.items()}
+    return {"without": best["without"], "with": best["with"], "ratio": best["with"]["rtf"] / best["without"]["rtf"],
+            "blocks": blocks}
+
+
+def _free_port() -> int:
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class _Viewer:
+    """A Foxglove WebSocket client on a thread that subscribes to every channel the view advertises and reads
+    everything (what a viewer makes the view do), for :func:`view_cost`."""
+
+    def __init__(self, port: int):
+        import threading
+        self.port, self.frames = port, 0
+        self.receiving = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> "_Viewer":
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+
+    def _run(self) -> None:
+        import asyncio
+        asyncio.run(self._watch())
+
+    async def _watch(self) -> None:
+        import asyncio
+        import json
+        from tornado.websocket import websocket_connect
+        connection = None
+        while connection is None and not self._stop.is_set():
+            try:
+                connection = await websocket_connect(f"ws://127.0.0.1:{self.port}", subprotocols=["foxglove.sdk.v1"])
+            except OSError:
+                await asyncio.sleep(0.2)
+        subscribed = 0
+        while connection is not None and not self._stop.is_set():
+            try:
+                frame = await asyncio.wait_for(connection.read_message(), 0.2)
+            except asyncio.TimeoutError:
+                continue
+            if frame is None:
+                break
+            if isinstance(frame, str):
+                op = json.loads(frame)
+                if op.get("op") == "advertise":
+                    subs = [{"id": subscribed + i, "channelId": c["id"]} for i, c in enumerate(op["channels"])]
+                    subscribed += len(subs)
+                    connection.write_message(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            elif frame[0] == 0x01:
+                self.frames += 1
+                self.receiving.set()
+        if connection is not None:
+            connection.close()
 
 
 def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:

@@ -18,14 +18,17 @@ broadcasts as its clock:
 Services through the server (JSON requests): ``switch_controller`` (``{"activate": "gmv"}`` -> the controller
 manager's switch) and ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's).
 
-A message is built only when a viewer subscribes to its channel (``has_sinks``); the server's per-client
+A message is built only when a viewer subscribes to its channel (``has_sinks``), the scenes at a display's rate
+(:data:`VEHICLE_PERIOD`, :data:`WORLD_PERIOD`: the track has thousands of points); the server's per-client
 queues are bounded and drop the oldest, so a slow or vanished viewer costs the graph nothing.
 """
 from __future__ import annotations
 
 import json
 import logging
+import math
 import threading
+import time
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped, \
@@ -40,7 +43,7 @@ from seapup_msgs.msg import BladePitch, ControllerEstimate
 from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
 from seapup_common.ros import messages as conv
-from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, run_node
+from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY,
                                   UMBILICAL_SHAPE, VELOCITY, VELOCITY_REFERENCE)
@@ -66,6 +69,9 @@ PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
     "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}, "controller": {"type": "string"}}}
 
 _SEABED_PERIOD_NS = 5_000_000_000
+#: Wall seconds between two ``/scene/vehicle`` updates and two ``/scene/world`` updates (the track's thousands of
+#: points): at a display's rate, whatever the lockstep graph's speed. The frames and the plot go at every sample.
+VEHICLE_PERIOD, WORLD_PERIOD = 0.05, 0.2
 _SEABED_KEYS = ("kind", "depth", "gradient", "direction")   # and "points" for a polyline (an empty list is no
 _SEABED_PARAMETERS = tuple(f"environment.seabed.{key}" for key in _SEABED_KEYS)   # parameter at all)
 
@@ -123,22 +129,28 @@ class LiveViewNode(Node):
         self.active_controller = ""
         self._estimates: set[str] = set()   # estimate topics subscribed (found on the graph: their names vary)
         self._t_ns = 0
+        self._world_sent = self._vehicle_sent = -math.inf
         self.samples = 0
-        self.create_subscription(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
+        self._subscribe(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
         for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
                             (VELOCITY_REFERENCE, TwistStamped), (NAVIGATION_ODOMETRY, Odometry),
                             (POSITION_REFERENCE, PoseStamped), (UMBILICAL_SHAPE, PathMessage)):
-            self.create_subscription(kind, topic, lambda msg, t=topic: self._latest.__setitem__(t, msg), STREAM_QOS)
-        self.create_subscription(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
+            self._subscribe(kind, topic, lambda msg, t=topic: self._latest.__setitem__(t, msg), STREAM_QOS)
+        self._subscribe(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
         self.switch_client = self.create_client(SwitchController, SWITCH_CONTROLLER_SERVICE)
         self.current_client = self.create_client(SetCurrent, SET_CURRENT_SERVICE)
         self.profile_client = self.create_client(SetSensorProfile, f"{NAMESPACE}/simulator/set_sensor_profile")
-        self.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RELIABLE_QOS)
+        self._subscribe(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RELIABLE_QOS)
         self.create_timer(2.0, self._find_estimates)
         self.get_logger().info(f"live view: ws://127.0.0.1:{self.server.port} (open it in Foxglove or Lichtblick: "
                                f"{self.server.app_url()})")
 
     # -- the graph -> the viewer -------------------------------------------------------------
+    def _subscribe(self, kind, topic, callback, qos):
+        """A subscription without rclpy's per-subscription event handlers (visited on every executor turn:
+        half of a small node's spin cost, measured for the simulator)."""
+        return self.create_subscription(kind, topic, callback, qos, event_callbacks=QUIET_SUBSCRIPTION)
+
     def _ask_simulator(self) -> None:
         if self._asked is not None or not self._simulator_parameters.services_are_ready():
             return
@@ -209,7 +221,7 @@ class LiveViewNode(Node):
         for topic, types in self.get_topic_names_and_types():
             if topic not in self._estimates and "seapup_msgs/msg/ControllerEstimate" in types:
                 self._estimates.add(topic)
-                self.create_subscription(ControllerEstimate, topic, self._on_estimate, STREAM_QOS)
+                self._subscribe(ControllerEstimate, topic, self._on_estimate, STREAM_QOS)
 
     def _on_estimate(self, msg: ControllerEstimate) -> None:
         if msg.controller != self.active_controller or not self.estimate_channel.has_sinks():
@@ -233,10 +245,13 @@ class LiveViewNode(Node):
             self.tf_channel.log(fm.frame_transforms(view_scene.frame_transforms(state), t_ns), log_time=t_ns)
         applied = self._latest.get(APPLIED)
         pitch = np.asarray(applied.pitch, float) if applied is not None else np.zeros(4)
-        if self.vehicle_channel.has_sinks():
+        now = time.monotonic()
+        if self.vehicle_channel.has_sinks() and now - self._vehicle_sent >= VEHICLE_PERIOD:
+            self._vehicle_sent = now
             self.vehicle_channel.log(fm.vehicle(self.shape, view_scene.thrust_arrows(self.shape, pitch), t_ns),
                                      log_time=t_ns)
-        if self.world_channel.has_sinks():
+        if self.world_channel.has_sinks() and now - self._world_sent >= WORLD_PERIOD:
+            self._world_sent = now   # the track's thousands of points: at a display's rate, not the graph's
             self.world_channel.log(fm.world(self._world(t_ns)), log_time=t_ns)
         if self.seabed_channel.has_sinks() and t_ns - self._seabed_sent_ns >= _SEABED_PERIOD_NS:
             self._seabed_sent_ns = t_ns
