@@ -1,6 +1,6 @@
 """SIL tests of the supervisory hierarchy through ROS, every node in its own process (issue 13).
 
-Graph: ``seapup_bringup/launch/hierarchy.yaml`` in lockstep (simulator, navigator, four
+Graph: ``seapup_bringup/launch/hierarchy.launch.yaml`` in lockstep (simulator, navigator, four
 velocity controllers under the controller manager, position and task controllers).
 """
 import numpy as np
@@ -106,7 +106,7 @@ def test_controller_swap_mid_manoeuvre_is_bumpless(controller_file, tmp_path):  
     assert len(set(stamps)) == len(stamps)
 
 
-#: The manager's four velocity controllers (hierarchy.yaml): the self-tested MFOL fixed and scheduled, and
+#: The manager's four velocity controllers (hierarchy.launch.yaml): the self-tested MFOL fixed and scheduled, and
 #: the self-tuners of ch. 7.
 FOUR = {"mfol_fixed": "mfol", "mfol_scheduled": "mfol", "explicit": "explicit", "gmv": "gmv"}
 

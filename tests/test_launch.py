@@ -64,30 +64,45 @@ def alive(pid):
 
 
 def graph(tmp_path, nodes, arguments=None):
-    path = tmp_path / "graph.yaml"
-    path.write_text(yaml.safe_dump({"arguments": arguments or {}, "nodes": nodes}, sort_keys=False))
+    """A ROS 2 YAML launch file of ``nodes`` (their ``node:`` bodies) and ``arguments`` (name: default)."""
+    path = tmp_path / "graph.launch.yaml"
+    entries = [{"arg": {"name": k, "default": str(v)}} for k, v in (arguments or {}).items()]
+    path.write_text(yaml.safe_dump({"launch": entries + [{"node": n} for n in nodes]}, sort_keys=False))
     return str(path)
 
 
 def test_arguments_are_substituted_and_checked(tmp_path):
-    path = graph(tmp_path, [{"package": "seapup_sim", "executable": "simulator",
-                             "parameters": [{"real_time_factor": "$(arg rtf)", "environment": {"sensors": "ideal"}}]}],
-                 {"rtf": 2.0})
-    (spec,) = load_graph(path, {"rtf": "3.5"})
-    assert spec.parameters == [{"real_time_factor": 3.5, "environment": {"sensors": "ideal"}}]  # typed after substitution
+    path = graph(tmp_path, [{"pkg": "seapup_sim", "exec": "simulator", "param": [
+        {"name": "real_time_factor", "value": "$(var rtf)"},
+        {"name": "environment", "param": [{"name": "sensors", "value": "ideal"}]},
+        {"name": "wait_for_subscribers", "value": "$(var topics)"}]},
+        {"pkg": "seapup_bringup", "exec": "live_view", "if": "$(var view)"}],
+        {"rtf": 2.0, "topics": "[/a, /b]", "view": "false"})
+    (spec,) = load_graph(path, {"rtf": "3.5"})   # the view's condition is false: left out
+    assert spec.parameters == [{"real_time_factor": 3.5, "environment.sensors": "ideal",   # typed after substitution
+                                "wait_for_subscribers": ["/a", "/b"]}]
+    assert [s.executable for s in load_graph(path, {"view": "True"})] == ["simulator", "live_view"]
     with pytest.raises(LaunchError, match="unknown argument 'rate'"):
         load_graph(path, {"rate": "1"})
-    (tmp_path / "bad.yaml").write_text("nodes:\n  - {package: seapup_sim, executable: simulator, colour: red}\n")
-    with pytest.raises(LaunchError, match="unknown key 'colour'"):
-        load_graph(tmp_path / "bad.yaml")
+    with pytest.raises(LaunchError, match="condition must be true or false"):
+        load_graph(path, {"view": "maybe"})
+    bad = tmp_path / "bad.launch.yaml"
+    for text, error in [("launch:\n  - node: {pkg: seapup_sim, exec: simulator, colour: red}\n", "unknown key 'colour'"),
+                        ("launch:\n  - include: {file: x.launch.yaml}\n", "'include' is not supported"),
+                        ("launch:\n  - node: {pkg: seapup_sim, exec: $(eval 1+1)}\n", "not supported here"),
+                        ("launch:\n  - node: {pkg: seapup_sim, exec: $(var nope)}\n", "not declared"),
+                        ("nodes: []\n", "one mapping 'launch:'")]:
+        bad.write_text(text)
+        with pytest.raises(LaunchError, match=error):
+            load_graph(bad)
 
 
 def test_a_required_node_that_dies_stops_the_graph_and_is_named(tmp_path, ros_env):
     path = graph(tmp_path, [
-        {"package": "seapup_sim", "executable": "simulator", "required": True,
-         "parameters": [{"mode": "realtime", "real_time_factor": 1.0}]},
-        {"package": "seapup_control", "executable": "open_loop", "name": "helper",
-         "parameters": [{"lockstep": False}]}])
+        {"pkg": "seapup_sim", "exec": "simulator", "on_exit": "shutdown",
+         "param": [{"name": "mode", "value": "realtime"}, {"name": "real_time_factor", "value": 1.0}]},
+        {"pkg": "seapup_control", "exec": "open_loop", "name": "helper",
+         "param": [{"name": "lockstep", "value": False}]}])
     proc = Launched(ros_env, path, "--json")
     sim = int(proc.wait_for(r"started simulator \(pid (\d+)\)").group(1))
     helper = int(proc.wait_for(r"started helper \(pid (\d+)\)").group(1))
@@ -102,8 +117,8 @@ def test_a_required_node_that_dies_stops_the_graph_and_is_named(tmp_path, ros_en
 
 def test_respawn_up_to_its_limit(tmp_path, ros_env):
     # a node that cannot start (an invalid mode) exits 1 at once: started 1 + 2 times, then the launch ends
-    path = graph(tmp_path, [{"package": "seapup_sim", "executable": "simulator", "respawn": True, "respawn_limit": 2,
-                             "respawn_delay": 0.2, "parameters": [{"mode": "bogus"}]}])
+    path = graph(tmp_path, [{"pkg": "seapup_sim", "exec": "simulator", "respawn": "true", "respawn_max_retries": 2,
+                             "respawn_delay": 0.2, "param": [{"name": "mode", "value": "bogus"}]}])
     proc = Launched(ros_env, path, "--json")
     stdout, _ = proc.finish(120)
     assert proc.returncode == 1
@@ -113,7 +128,7 @@ def test_respawn_up_to_its_limit(tmp_path, ros_env):
 
 
 def test_sigterm_stops_every_node_cleanly(tmp_path, ros_env):
-    proc = Launched(ros_env, "seapup_bringup", "simulator.yaml", "real_time_factor:=2.0")
+    proc = Launched(ros_env, "seapup_bringup", "simulator.launch.yaml", "real_time_factor:=2.0")
     sim = int(proc.wait_for(r"started simulator \(pid (\d+)\)").group(1))
     proc.wait_for(r"simulator ready")
     os.kill(proc.pid, signal.SIGTERM)
@@ -131,7 +146,7 @@ def test_shipped_controller_graph_flies_the_simulator_in_either_mode(tmp_path, r
     from seapup_control.self_test import result_document
     controller = tmp_path / "controller.yaml"
     controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))
-    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.yaml", f"controller_file:={controller}",
+    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.launch.yaml", f"controller_file:={controller}",
                     f"mode:={mode}", "sensors:=ideal", "real_time_factor:=5.0")
     cli = [sys.executable, "-m", "seapup_bringup.cli"]
     publisher = None
@@ -161,3 +176,66 @@ def test_shipped_controller_graph_flies_the_simulator_in_either_mode(tmp_path, r
         os.kill(proc.pid, signal.SIGINT)
         proc.finish(30)
     assert proc.returncode == 0
+
+
+#: ROS 2 Jazzy's YAML launch format, as its frontends read it (launch: the arg action; launch_ros: the node
+#: action's attributes; the substitutions by name), written out here independently of the reader under test.
+ARG_KEYS = {"name", "default", "description"}
+NODE_KEYS = {"pkg", "exec", "name", "namespace", "ros_args", "args", "param", "remap", "output", "respawn",
+             "respawn_delay", "respawn_max_retries", "on_exit", "if", "unless", "launch-prefix", "emulate_tty"}
+SUBSTITUTIONS = {"var", "find-pkg-share", "find-pkg-prefix", "env", "optenv", "dirname", "filename", "eval", "anon",
+                 "command", "find-exec"}
+
+
+def _strings(value):
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, list):
+        for v in value:
+            yield from _strings(v)
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from _strings(v)
+
+
+def _check_params(params, where):
+    assert isinstance(params, list), where
+    for p in params:
+        assert set(p) in ({"name", "value"}, {"name", "param"}, {"from"}), (where, p)
+        if "param" in p:
+            _check_params(p["param"], where)
+
+
+def test_every_shipped_graph_is_a_ros2_yaml_launch_file_and_loads():
+    from ament_index_python.packages import get_package_share_directory
+    from pathlib import Path
+    from seapup_common.processes import find_executable
+    from seapup_common.ros.launch_graph import graph_arguments
+    shipped = sorted((Path(get_package_share_directory("seapup_bringup")) / "launch").glob("*"))
+    assert [p.name for p in shipped] == ["hierarchy.launch.yaml", "identification.launch.yaml",
+                                         "identification_closed_loop.launch.yaml", "self_test.launch.yaml",
+                                         "simulator.launch.yaml", "simulator_controller.launch.yaml"]
+    for path in shipped:
+        document = yaml.safe_load(path.read_text())
+        assert list(document) == ["launch"] and isinstance(document["launch"], list), path.name
+        declared = set()
+        for entry in document["launch"]:
+            (kind, body), = entry.items()
+            assert kind in ("arg", "node"), (path.name, kind)
+            if kind == "arg":
+                assert set(body) <= ARG_KEYS and "name" in body and isinstance(body.get("default", ""), str), body
+                declared.add(body["name"])
+            else:
+                assert set(body) <= NODE_KEYS and {"pkg", "exec"} <= set(body), (path.name, body)
+                _check_params(body.get("param", []), path.name)
+                assert all(set(r) == {"from", "to"} for r in body.get("remap", []))
+                assert body.get("on_exit", "shutdown") == "shutdown"
+            for text in _strings(body):
+                for kind_, rest in re.findall(r"\$\(([a-z-]+)\s*([^)]*)\)", text):
+                    assert kind_ in SUBSTITUTIONS, (path.name, text)
+                    if kind_ == "var":
+                        assert rest.strip() in declared, (path.name, f"$(var {rest}) before its arg")
+        assert set(graph_arguments(path)) == declared
+        arguments = {"controller_file": "/dev/null"} if "controller_file" in declared else {}
+        for spec in load_graph(path, arguments):
+            assert find_executable(spec.package, spec.executable).is_file(), spec.label

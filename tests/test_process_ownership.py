@@ -122,7 +122,7 @@ def test_a_launched_graph_dies_with_the_launcher(tmp_path, ros_env, sig):
     """``./seapup launch`` killed outright (SIGKILL: no handler runs) or by a closed terminal (SIGHUP):
     none of its nodes is left running."""
     from tests.test_launch import Launched
-    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.yaml")
+    proc = Launched(ros_env, "seapup_bringup", "simulator_controller.launch.yaml")
     proc.wait_for(r"started simulator \(pid (\d+)\)")
     proc.wait_for(r"started \S*controller\S* \(pid (\d+)\)")
     nodes = descendants(proc.pid)

@@ -1,7 +1,7 @@
 """An example SIL test to copy: fly the whole hierarchy in separate processes and check the vehicle.
 
 To test your own velocity controller: add it to a copy of
-``seapup_bringup/launch/hierarchy.yaml`` as a lifecycle node publishing on
+``seapup_bringup/launch/hierarchy.launch.yaml`` as a lifecycle node publishing on
 ``/seapup/<name>/thrusters/command``, list it under the controller manager's
 ``controllers``, pass the copy as ``SilGraph(graph=path, ...)`` and switch to
 it with ``sil.switch(activate=[name], deactivate=["mfol_fixed"])``.

@@ -88,7 +88,7 @@ SELF_TEST_TOPICS = (CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETR
 
 
 def _fly_graph(args, out: Path, bag: Path, text) -> dict:
-    """The self-test through the ROS graph in lockstep (``seapup_bringup/launch/self_test.yaml``: simulator
+    """The self-test through the ROS graph in lockstep (``seapup_bringup/launch/self_test.launch.yaml``: simulator
     and self_test action server) in the SIL harness, recorded to ``bag``; this process is the action client.
 
     Raises
@@ -108,7 +108,7 @@ def _fly_graph(args, out: Path, bag: Path, text) -> dict:
     arguments = {"vehicle": args.config, "control_period": period, "physics_step": min(PHYSICS_STEP, period),
                  "start_depth": 50.0, "result_dir": str(out.resolve()), "command_subscribers": 3,
                  "sample_subscribers": 1, "wait_for_subscribers": str(waits)}
-    with SilGraph("seapup_bringup self_test.yaml", arguments, out_dir=out, record=typed(*SELF_TEST_TOPICS),
+    with SilGraph("seapup_bringup self_test.launch.yaml", arguments, out_dir=out, record=typed(*SELF_TEST_TOPICS),
                   ready_status=None) as sil:
         print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
               f"(domain {sil.env['ROS_DOMAIN_ID']}); output in {out}", file=text, flush=True)

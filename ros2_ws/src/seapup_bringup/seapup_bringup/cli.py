@@ -240,8 +240,8 @@ def _ros2_verb(name: str, summary: str, usage_text: str):
     command(name, summary, usage_text)(run)
 
 
-@command("launch", "start a graph of nodes from YAML, as 'ros2 launch' (Ctrl-C stops them all)",
-         "GRAPH.yaml|PKG FILE [name:=value ...] [--show-args]")
+@command("launch", "start a graph from a ROS 2 YAML launch file, as 'ros2 launch' (Ctrl-C stops them all)",
+         "GRAPH.launch.yaml|PKG FILE [name:=value ...] [--show-args] [--view [--view-port P]] [--rate R]")
 def _launch(argv: list[str]) -> int:
     from seapup_bringup.launch import launch
     return launch(argv)

@@ -1,6 +1,6 @@
 """``./seapup demo``: the mission -- the thesis's supervisory hierarchy (sec. 4.2, fig. 4.3) flying the Seapup.
 
-Starts the whole graph (``seapup_bringup/launch/hierarchy.yaml`` in lockstep,
+Starts the whole graph (``seapup_bringup/launch/hierarchy.launch.yaml`` in lockstep,
 faster than real time, every node its own process, plus the recorder) with
 :class:`seapup_bringup.sil.SilGraph`, then flies, through ROS only:
 
@@ -47,7 +47,7 @@ __all__ = ["MISSION", "main", "fly_mission"]
 #: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
 MISSION = "mission.yaml"
 
-#: The simulator's handshake topics (hierarchy.yaml's wait_for_subscribers) are recorded untyped: the
+#: The simulator's handshake topics (hierarchy.launch.yaml's wait_for_subscribers) are recorded untyped: the
 #: recorder then subscribes once it has seen their publisher, so the simulator still waits for the
 #: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
 #: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
@@ -468,7 +468,7 @@ RMS [m/s] (truth against the reference): before the fouling / fouled under the s
 self-tuner from <code>tune_in</code> s after the switch.</p></section>
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
 <section id="configuration"><h2>Configuration</h2>
-<p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.yaml</code>, from
+<p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.launch.yaml</code>, from
 <code>seapup_bringup/config/mission.yaml</code>):</p><table><tbody>{graph}</tbody></table>
 <p>The mission:</p><pre>{esc(yaml.safe_dump(config["mission"], sort_keys=False))}</pre></section>
 </body></html>

@@ -5,7 +5,7 @@ a task of :mod:`seapup_control.tasks`, the
 :class:`~seapup_control.position_control.PositionController` and a velocity
 controller made by name (:func:`seapup_common.controllers.create_controller`)
 -- with the same parameters (the nodes' YAML files) and the same timing as
-the lockstep graph of ``seapup_bringup/launch/hierarchy.yaml``: the task's
+the lockstep graph of ``seapup_bringup/launch/hierarchy.launch.yaml``: the task's
 setpoint from the estimate at t_k is used by the position controller from
 t_{k+1} on (stamped t_k + T), and the velocity reference it makes at t_k is
 stamped t_k + reference_delay x T into the velocity controller's

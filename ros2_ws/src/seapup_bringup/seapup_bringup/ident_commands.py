@@ -2,10 +2,10 @@
 
 - ``experiment``: the identification experiments of sec. 6.5 in SIL, recorded to a bag under
   ``bags/`` next to the identifier's own run bag: open loop (sec. 6.5.1-6.5.4, graph
-  ``seapup_bringup/launch/identification.yaml``: simulator in lockstep, nonlinear or linearised,
+  ``seapup_bringup/launch/identification.launch.yaml``: simulator in lockstep, nonlinear or linearised,
   ``open_loop`` holding a PRBS of +-amplitude about the hover setting on every thruster, clock 10
   samples at 5 Hz, optionally the current) or closed loop (sec. 6.5.5,
-  ``identification_closed_loop.yaml``: the fixed-gain self-tested controller following a
+  ``identification_closed_loop.launch.yaml``: the fixed-gain self-tested controller following a
   square-wave reference from ``reference_schedule``), the ``identifier`` node estimating online;
 - ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics) or a CSV file,
   as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
@@ -414,9 +414,9 @@ def _experiment(args, text) -> dict:
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
                  "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD)}
     if args.closed_loop:
-        graph, excitation = "seapup_bringup identification_closed_loop.yaml", _closed_loop_excitation(args, out, text)
+        graph, excitation = "seapup_bringup identification_closed_loop.launch.yaml", _closed_loop_excitation(args, out, text)
     else:
-        graph, excitation = "seapup_bringup identification.yaml", _prbs_excitation(args)
+        graph, excitation = "seapup_bringup identification.launch.yaml", _prbs_excitation(args)
     arguments.update(excitation.pop("arguments"))
     # the first sample waits for every reader of it -- the graph's own (the identifier: it once started
     # after a loaded run had ended, and estimated nothing), the recorder's and this process's probe's
@@ -450,11 +450,8 @@ def _experiment(args, text) -> dict:
 def _graph_listeners(graph: str) -> list[str]:
     """The simulator topics the nodes of ``graph`` ("PACKAGE FILE") must hear from the first sample on:
     its ``wait_for_subscribers`` argument's default."""
-    import yaml
-
-    from seapup_common.ros.launch_graph import find_graph
-    default = yaml.safe_load(find_graph(*graph.split()).read_text())["arguments"]["wait_for_subscribers"]
-    return list(yaml.safe_load(default))
+    from seapup_common.ros.launch_graph import argument_value, find_graph, graph_arguments
+    return list(argument_value(graph_arguments(find_graph(*graph.split()))["wait_for_subscribers"]))
 
 
 def experiment_samples(duration: float, period: float) -> int:

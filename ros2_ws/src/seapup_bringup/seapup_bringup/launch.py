@@ -1,28 +1,11 @@
-"""``./seapup launch``: start a graph of nodes from a YAML description (what ``ros2 launch`` does).
+"""``./seapup launch``: start a graph of nodes from a ROS 2 YAML launch file (what ``ros2 launch`` does).
 
-There is no launch wheel. A graph file lists nodes and their defaults::
-
-    arguments:              # defaults; override with name:=value on the command line
-      mode: realtime
-    nodes:
-      - package: seapup_sim
-        executable: simulator
-        name: simulator         # optional: remaps the node name (__node)
-        namespace: /seapup      # optional: remaps the namespace (__ns)
-        parameters:             # mappings (nested = dotted names) and/or parameter files
-          - {mode: $(arg mode)}
-          - $(find seapup_sim)/config/simulator.yaml
-        remappings: {thrusters/command: /other/command}
-        args: []                # extra command-line arguments before --ros-args
-        required: true          # its exit stops the graph, exit 1 naming it
-        respawn: false          # restart it when it exits ...
-        respawn_limit: 3        # ... at most this many times
-        respawn_delay: 1.0      # [s]
-
-Substitutions, in the file's text before it is read as YAML (so ``true`` or
-``5.0`` keep their types): ``$(arg NAME)`` and ``$(find PACKAGE)`` (its share
-directory). An argument without a default and not given, or one given that
-the file does not declare, is an error that starts nothing.
+There is no launch wheel: the file is read by :mod:`seapup_common.ros.launch_graph` (the format's rules
+and the part of it supported are in its docstring), so the shipped ``*.launch.yaml`` graphs start the same
+way here and under ``ros2 launch`` on a system ROS 2. Arguments are given as ``name:=value``; an argument
+without a default and not given, or one given that the file does not declare, is an error that starts
+nothing. A node with ``on_exit: shutdown`` is required: its exit stops the graph, exit 1 naming it;
+``respawn`` restarts a node after ``respawn_delay`` s, at most ``respawn_max_retries`` times.
 
 Each node runs in its own process group on the current ROS domain (loopback
 discovery), its output prefixed with ``[name]``. Ctrl-C or SIGTERM stops every
@@ -169,8 +152,9 @@ def launch(argv: list[str]) -> int:
     import argparse
     from seapup_bringup.view import add_view_arguments, check_port, view_node, view_url
     parser = argparse.ArgumentParser(prog="./seapup launch", description="start a graph of nodes, as 'ros2 launch'",
-                                     epilog="Graphs shipped: seapup_bringup simulator.yaml, "
-                                            "seapup_bringup simulator_controller.yaml. --json [FILE] writes the "
+                                     epilog="Graphs shipped (ROS 2 YAML launch files): seapup_bringup "
+                                            "simulator.launch.yaml, "
+                                            "seapup_bringup simulator_controller.launch.yaml. --json [FILE] writes the "
                                             "nodes started and how they ended.")
     parser.add_argument("graph", nargs="+", help="GRAPH.yaml, or PACKAGE FILE, then name:=value arguments")
     parser.add_argument("--show-args", action="store_true", help="print the graph's arguments and exit")

@@ -1,7 +1,7 @@
 """Software-in-the-loop harness: fly a graph of nodes on a private ROS domain and get the logs as arrays.
 
 A test (or a script) describes the graph with a graph file (the format of
-``./seapup launch``; default: ``seapup_bringup hierarchy.yaml``, the whole
+``./seapup launch``; default: ``seapup_bringup hierarchy.launch.yaml``, the whole
 supervisory hierarchy in lockstep), then drives it with goals and service
 calls; every node runs in its own process, exactly as on a vehicle::
 
@@ -14,7 +14,7 @@ calls; every node runs in its own process, exactly as on a vehicle::
         sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
 
 **Paced driving.** A lockstep graph that declares
-an ``end_time`` argument for its simulator (``hierarchy.yaml`` does) is
+an ``end_time`` argument for its simulator (``hierarchy.launch.yaml`` does) is
 *held*: the simulator stops at the first sample at or after ``start_at``
 and the harness lets it run on in chunks of ``chunk`` simulated seconds,
 holding it at each chunk's end (the simulator's run-time ``end_time``).
@@ -148,7 +148,7 @@ class SilGraph:
         Nodes started with the graph's own (the live view of ``./seapup demo --view``).
     """
 
-    def __init__(self, graph="seapup_bringup hierarchy.yaml", arguments: dict | None = None, *,
+    def __init__(self, graph="seapup_bringup hierarchy.launch.yaml", arguments: dict | None = None, *,
                  out_dir, record: list[str] | None = None, ready_timeout: float = 120.0,
                  ready_status: str | tuple[str, ...] | None = ("seapup/task_controller",
                                                                 "seapup/position_controller"),
@@ -190,7 +190,8 @@ class SilGraph:
         from rclpy.executors import SingleThreadedExecutor
 
         from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-        from seapup_common.ros.launch_graph import command_line, find_graph, graph_arguments, load_graph
+        from seapup_common.ros.launch_graph import (argument_value, command_line, find_graph, graph_arguments,
+                                                    load_graph)
 
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._lease = DomainLease()
@@ -206,7 +207,7 @@ class SilGraph:
             elif "start_held" in declared:  # held at t_0 itself (end_time 0 means "run on")
                 self.arguments["start_held"] = "true"
         if "wait_for_subscribers" in declared and "wait_for_subscribers" not in self.arguments:
-            self._count_own_listeners(declared["wait_for_subscribers"])
+            self._count_own_listeners(argument_value(declared["wait_for_subscribers"]))
         specs = load_graph(graph_file, self.arguments)
         self._context = Context()
         rclpy.init(context=self._context, domain_id=domain)

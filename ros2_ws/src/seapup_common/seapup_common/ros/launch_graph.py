@@ -1,24 +1,55 @@
-"""Graph files: the YAML description of a set of nodes that ``./seapup launch`` and the SIL harness start.
+"""Graph files in ROS 2's YAML launch format: what ``./seapup launch`` and the SIL harness start.
 
-A graph file lists nodes and their defaults (the format is documented in
-:mod:`seapup_bringup.launch`); :func:`load_graph` reads one with its
-``$(arg NAME)`` / ``$(find PACKAGE)`` substitutions into :class:`NodeSpec`
-objects and :func:`command_line` turns a spec into the node's command
-(executable, ``--ros-args`` with name, namespace, parameters, remappings).
-Shared by the launcher (seapup_bringup) and the SIL harness
+The shipped graphs (``seapup_bringup/launch/*.launch.yaml``) are ordinary ROS 2 launch files, so on a system
+ROS 2 ``ros2 launch seapup_bringup hierarchy.launch.yaml`` starts the same nodes. Without the ``launch``
+wheels, :func:`load_graph` reads the subset of the format they use, by the format's rules::
+
+    launch:
+      - arg: {name: mode, default: lockstep, description: "..."}   # a string; NAME:=VALUE overrides it
+      - node:
+          pkg: seapup_sim
+          exec: simulator
+          name: simulator                 # optional (__node)
+          namespace: /seapup              # optional (__ns)
+          args: "--flag value"            # optional: the node's own arguments, before --ros-args
+          param:
+            - {name: mode, value: $(var mode)}
+            - {name: environment, param: [{name: sensors, value: baseline}]}   # nested: environment.sensors
+            - {from: $(find-pkg-share seapup_sim)/config/simulator.yaml}
+          remap:
+            - {from: thrusters/command, to: /seapup/mfol_fixed/thrusters/command}
+          on_exit: shutdown               # its exit stops the graph (launch's Shutdown action)
+          respawn: "true"                 # restart it when it exits ...
+          respawn_delay: 1.0              # ... after this many seconds ...
+          respawn_max_retries: 3          # ... at most this many times (launch's ExecuteProcess, Iron and later)
+          if: $(var view)                 # (or unless:) started only if the condition is true
+
+Substitutions in any string: ``$(var NAME)``, ``$(find-pkg-share PACKAGE)``, ``$(env NAME [DEFAULT])`` and
+``$(dirname)``; a parameter value that holds a substitution is read as YAML once substituted (``true``,
+``5.0`` and ``[a, b]`` keep their types), as launch_ros does. Conditions take ``true``/``false`` (and ``1``/``0``),
+case-insensitively. Anything else of the format (``include``, ``group``, ``let``, ``executable``, other
+substitutions) is refused with a one-line :class:`LaunchError` naming it: it starts nothing.
+
+Each :class:`NodeSpec` becomes a command by :func:`command_line` (executable, ``--ros-args`` with the
+name, namespace, parameters and remappings). Shared by the launcher (seapup_bringup) and the SIL harness
 (:mod:`seapup_bringup.sil`), so both read the same files the same way.
 """
 from __future__ import annotations
 
+import os
 import re
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
-__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "graph_arguments"]
+__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "graph_arguments",
+           "argument_value"]
 
-_SUBSTITUTION = re.compile(r"\$\((arg|find) ([A-Za-z0-9_./-]+)\)")
+_SUBSTITUTION = re.compile(r"\$\(([a-z-]+)((?:\s+[^()\s]+)*)\s*\)")
+_NODE_KEYS = {"pkg", "exec", "name", "namespace", "param", "remap", "args", "on_exit", "respawn", "respawn_delay",
+              "respawn_max_retries", "if", "unless", "output"}
 
 
 class LaunchError(ValueError):
@@ -27,18 +58,18 @@ class LaunchError(ValueError):
 
 @dataclass
 class NodeSpec:
-    """One node of a graph (see the module docstring for the keys)."""
+    """One node of a graph: its package, executable and how to start it."""
 
     package: str
     executable: str
     name: str = ""
     namespace: str = ""
-    parameters: list = field(default_factory=list)
+    parameters: list = field(default_factory=list)   # mappings (nested: dotted names) and parameter files
     remappings: dict = field(default_factory=dict)
     args: list = field(default_factory=list)
-    required: bool = False
+    required: bool = False      # on_exit: shutdown
     respawn: bool = False
-    respawn_limit: int = 0
+    respawn_limit: int = 0      # respawn_max_retries (0 with respawn: no limit)
     respawn_delay: float = 1.0
 
     @property
@@ -51,7 +82,7 @@ def _share(package: str) -> str:
     try:
         return get_package_share_directory(package)
     except PackageNotFoundError:
-        raise LaunchError(f"$(find {package}): no package {package!r} on AMENT_PREFIX_PATH") from None
+        raise LaunchError(f"$(find-pkg-share {package}): no package {package!r} on AMENT_PREFIX_PATH") from None
 
 
 def find_graph(spec: str, file_name: str | None = None) -> Path:
@@ -67,55 +98,178 @@ def find_graph(spec: str, file_name: str | None = None) -> Path:
     return path
 
 
-def graph_arguments(path) -> dict:
-    """The arguments a graph file declares, with their defaults."""
+def _entries(path) -> list[tuple[str, dict]]:
+    """The file's ``launch:`` list as (kind, body) pairs."""
     try:
-        head = yaml.safe_load(_SUBSTITUTION.sub("0", Path(path).read_text())) or {}
+        document = yaml.safe_load(Path(path).read_text()) or {}
     except yaml.YAMLError as exc:
         raise LaunchError(f"{path}: not YAML: {exc}") from None
-    declared = head.get("arguments") or {}
-    if not isinstance(declared, dict):
-        raise LaunchError(f"{path}: 'arguments' must be a mapping of names to defaults")
+    if not isinstance(document, dict) or set(document) != {"launch"} or not isinstance(document["launch"], list):
+        raise LaunchError(f"{path}: a ROS 2 YAML launch file is one mapping 'launch:' holding a list")
+    entries = []
+    for i, entry in enumerate(document["launch"]):
+        if not isinstance(entry, dict) or len(entry) != 1:
+            raise LaunchError(f"{path}: launch entry {i} must be a mapping of one action (arg, node)")
+        (kind, body), = entry.items()
+        if kind not in ("arg", "node"):
+            raise LaunchError(f"{path}: launch entry {i}: the action {kind!r} is not supported here (arg, node)")
+        if not isinstance(body, dict):
+            raise LaunchError(f"{path}: launch entry {i}: {kind} must be a mapping")
+        entries.append((kind, body))
+    return entries
+
+
+def graph_arguments(path) -> dict:
+    """The arguments a graph file declares (``arg``), with their defaults as strings (None: no default)."""
+    declared = {}
+    for kind, body in _entries(path):
+        if kind == "arg":
+            if "name" not in body or set(body) - {"name", "default", "description"}:
+                raise LaunchError(f"{path}: arg {body.get('name', '?')!r}: keys are name, default, description")
+            default = body.get("default")
+            declared[str(body["name"])] = None if default is None else _text(default)
     return declared
 
 
+def argument_value(text: str):
+    """An argument's string as the value it stands for (YAML: ``[a, b]`` a list, ``2.0`` a float)."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def _text(value) -> str:
+    """A scalar as launch holds it: a string (YAML booleans lower-case, as written in ROS files)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return yaml.safe_dump(value, default_flow_style=True).strip()
+    return str(value)
+
+
+class _Substituter:
+    def __init__(self, path: Path, values: dict):
+        self.path, self.values = path, values
+
+    def __call__(self, value):
+        """``value`` with its substitutions made; a string that held one comes back as text (``typed``: read it
+        as YAML when a parameter's value)."""
+        if isinstance(value, list):
+            return [self(v) for v in value]
+        if isinstance(value, dict):
+            return {k: self(v) for k, v in value.items()}
+        if not isinstance(value, str) or "$(" not in value:
+            return value
+        text = _SUBSTITUTION.sub(self._one, value)
+        if "$(" in text:
+            raise LaunchError(f"{self.path}: cannot read the substitution in {value!r}")
+        return text
+
+    def _one(self, match) -> str:
+        kind, words = match.group(1), match.group(2).split()
+        if kind == "var" and len(words) == 1:
+            if words[0] not in self.values:
+                raise LaunchError(f"{self.path}: $(var {words[0]}) is not declared by an arg")
+            if self.values[words[0]] is None:
+                raise LaunchError(f"{self.path}: argument {words[0]!r} has no default: give {words[0]}:=VALUE")
+            return self.values[words[0]]
+        if kind == "find-pkg-share" and len(words) == 1:
+            return _share(words[0])
+        if kind == "env" and len(words) in (1, 2):
+            if words[0] in os.environ:
+                return os.environ[words[0]]
+            if len(words) == 2:
+                return words[1]
+            raise LaunchError(f"{self.path}: $(env {words[0]}): not set and no default")
+        if kind == "dirname" and not words:
+            return str(self.path.resolve().parent)
+        raise LaunchError(f"{self.path}: the substitution $({kind}{' ' if words else ''}{' '.join(words)}) is not "
+                          f"supported here (var, find-pkg-share, env, dirname)")
+
+
+def _condition(value, what: str) -> bool:
+    text = _text(value).strip().lower()
+    if text in ("true", "1"):
+        return True
+    if text in ("false", "0"):
+        return False
+    raise LaunchError(f"{what}: a condition must be true or false, got {value!r}")
+
+
+def _parameters(items, substitute, what: str, prefix: str = "") -> list:
+    """``param:`` entries as NodeSpec parameters: one mapping of (dotted) names, and the files in order."""
+    if not isinstance(items, list):
+        raise LaunchError(f"{what}: param must be a list")
+    values, out = {}, []
+    for item in items:
+        if not isinstance(item, dict):
+            raise LaunchError(f"{what}: each param is a mapping (name and value, name and param, or from)")
+        if set(item) == {"from"}:
+            if prefix:
+                raise LaunchError(f"{what}: a parameter file cannot be nested under {prefix[:-1]!r}")
+            out.append(substitute(item["from"]))
+        elif set(item) == {"name", "value"}:
+            value = substitute(item["value"])
+            typed = isinstance(item["value"], str) and "$(" in item["value"]
+            values[prefix + str(item["name"])] = argument_value(value) if typed else value
+        elif set(item) == {"name", "param"}:
+            nested = _parameters(item["param"], substitute, what, f"{prefix}{item['name']}.")
+            values.update(nested[0] if nested else {})
+        else:
+            raise LaunchError(f"{what}: param keys are name and value, name and param, or from; got {sorted(item)}")
+    return ([values] if values else []) + out
+
+
+def _node(body: dict, substitute, path, index: int) -> NodeSpec | None:
+    what = f"{path}: node {body.get('name') or body.get('exec') or index}"
+    unknown = sorted(set(body) - _NODE_KEYS)
+    if unknown:
+        raise LaunchError(f"{what}: unknown key {unknown[0]!r} (keys: {', '.join(sorted(_NODE_KEYS))})")
+    if "pkg" not in body or "exec" not in body:
+        raise LaunchError(f"{what}: a node needs pkg and exec")
+    if "if" in body and not _condition(substitute(body["if"]), what):
+        return None
+    if "unless" in body and _condition(substitute(body["unless"]), what):
+        return None
+    remaps = body.get("remap") or []
+    if not isinstance(remaps, list) or not all(isinstance(r, dict) and set(r) == {"from", "to"} for r in remaps):
+        raise LaunchError(f"{what}: remap is a list of {{from, to}}")
+    on_exit = substitute(body.get("on_exit", ""))
+    if on_exit not in ("", "shutdown"):
+        raise LaunchError(f"{what}: on_exit {on_exit!r} is not supported (shutdown)")
+    try:
+        spec = NodeSpec(package=str(substitute(body["pkg"])), executable=str(substitute(body["exec"])),
+                        name=str(substitute(body.get("name", ""))), namespace=str(substitute(body.get("namespace", ""))),
+                        parameters=_parameters(body.get("param") or [], substitute, what),
+                        remappings={str(substitute(r["from"])): str(substitute(r["to"])) for r in remaps},
+                        args=shlex.split(str(substitute(body.get("args", "")))), required=on_exit == "shutdown",
+                        respawn=_condition(substitute(body.get("respawn", False)), what),
+                        respawn_limit=int(substitute(body.get("respawn_max_retries", 0))),
+                        respawn_delay=float(substitute(body.get("respawn_delay", 1.0))))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, LaunchError):
+            raise
+        raise LaunchError(f"{what}: {exc}") from None
+    if spec.respawn_limit < 0 or spec.respawn_delay < 0:
+        raise LaunchError(f"{what}: respawn_max_retries and respawn_delay must be >= 0")
+    return spec
+
+
 def load_graph(path, arguments: dict[str, str] | None = None) -> list[NodeSpec]:
-    """The nodes of a graph file with its arguments substituted (``arguments`` override the defaults)."""
-    text = Path(path).read_text()
+    """The nodes of a graph file with its arguments substituted (``arguments`` override the defaults);
+    nodes whose condition is false are left out."""
+    path = Path(path)
     declared = graph_arguments(path)
-    given = dict(arguments or {})
+    given = {k: _text(v) for k, v in (arguments or {}).items()}
     unknown = sorted(set(given) - set(declared))
     if unknown:
         raise LaunchError(f"{path}: unknown argument {unknown[0]!r} (declared: {', '.join(declared) or 'none'})")
-    values = {k: ("" if v is None else str(v)) for k, v in declared.items()}
-    values.update(given)
-
-    def substitute(match):
-        kind, name = match.groups()
-        if kind == "find":
-            return _share(name)
-        if name not in values:
-            raise LaunchError(f"{path}: $(arg {name}) is not declared under 'arguments'")
-        return values[name]
-    body = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
-    graph = yaml.safe_load(_SUBSTITUTION.sub(substitute, body)) or {}
-    nodes = graph.get("nodes")
-    if not isinstance(nodes, list) or not nodes:
-        raise LaunchError(f"{path}: 'nodes' must be a non-empty list")
-    specs = []
-    allowed = set(NodeSpec.__dataclass_fields__)
-    for i, entry in enumerate(nodes):
-        if not isinstance(entry, dict) or not {"package", "executable"} <= set(entry):
-            raise LaunchError(f"{path}: node {i} needs 'package' and 'executable'")
-        extra = sorted(set(entry) - allowed)
-        if extra:
-            raise LaunchError(f"{path}: node {i}: unknown key {extra[0]!r} (keys: {', '.join(sorted(allowed))})")
-        spec = NodeSpec(**entry)
-        if not isinstance(spec.parameters, list):
-            spec.parameters = [spec.parameters]
-        if spec.respawn_limit < 0 or spec.respawn_delay < 0:
-            raise LaunchError(f"{path}: node {spec.label}: respawn_limit and respawn_delay must be >= 0")
-        specs.append(spec)
+    substitute = _Substituter(path, {**declared, **given})
+    specs = [spec for i, (kind, body) in enumerate(_entries(path)) if kind == "node"
+             for spec in [_node(body, substitute, path, i)] if spec is not None]
+    if not specs:
+        raise LaunchError(f"{path}: no node to start")
     labels = [s.label for s in specs]
     if len(set(labels)) != len(labels):
         raise LaunchError(f"{path}: two nodes named {next(x for x in labels if labels.count(x) > 1)!r}")
