@@ -226,8 +226,10 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         # bad input: a clear failure, nothing changed
         client.call("set_current", {"mean_speed": "fast"}, call_id=8)
         client.call("switch_controller", {"activate": "mfol", "bogus": 1}, call_id=9)
-        assert await client.pump(lambda: len(client.failures) >= 2, 15.0)
-        assert "finite number" in client.failures[0]["message"] and "unknown keys" in client.failures[1]["message"]
+        client.call("goto", {"x": 5.0, "y": 1.0}, call_id=10)
+        assert await client.pump(lambda: len(client.failures) >= 3, 15.0)
+        said = {f["callId"]: f["message"] for f in client.failures}
+        assert "finite number" in said[8] and "unknown keys" in said[9] and "missing z" in said[10]
         # the server's parameters: the simulator's pace, set through the viewer, is the simulator's parameter
         client.connection.write_message(json.dumps({"op": "setParameters", "id": "pace", "parameters": [
             {"name": "lockstep_pace", "value": 3.0, "type": "float64"}]}))

@@ -16,7 +16,9 @@ broadcasts as its clock:
 - ``/plot`` (JSON): body velocities (measured and reference), blade pitches [deg] and the limit.
 
 Services through the server (JSON requests): ``switch_controller`` (``{"activate": "gmv"}`` -> the controller
-manager's switch) and ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's).
+manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's),
+``set_sensor_profile`` (``{"name": "haslar"}``) and ``goto`` (``{"x": 10, "y": 0, "z": 30}`` -> a goal of the
+task controller). Parameters: ``lockstep_pace`` (the simulator's) and ``controller`` (setting it switches).
 
 A message is built only when a viewer subscribes to its channel (``has_sinks``), the scenes at a display's rate
 (:data:`VEHICLE_PERIOD`, :data:`WORLD_PERIOD`: the track has thousands of points); the server's per-client
@@ -40,13 +42,14 @@ from rclpy.node import Node
 from diagnostic_msgs.msg import DiagnosticArray
 from foxglove.websocket import ServerListener
 from seapup_msgs.msg import BladePitch, ControllerEstimate
+from seapup_msgs.action import Goto
 from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY,
-                                  UMBILICAL_SHAPE, VELOCITY, VELOCITY_REFERENCE)
+                                  UMBILICAL_SHAPE, VELOCITY, VELOCITY_REFERENCE, task_action)
 from seapup_bringup import view_scene
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
@@ -56,7 +59,9 @@ __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", 
 SCENE_TOPICS = ("/scene/vehicle", "/scene/world", "/scene/seabed")
 PLOT_TOPIC, TF_TOPIC = "/plot", "/tf"
 #: The server's services.
-SERVICES = ("switch_controller", "set_current", "set_sensor_profile")
+SERVICES = ("switch_controller", "set_current", "set_sensor_profile", "goto")
+#: A goto request's keys (seapup_msgs/action/Goto's goal; all but x, y, z optional).
+GOTO_KEYS = ("x", "y", "z", "yaw", "speed", "tolerance", "yaw_tolerance", "timeout", "preempt")
 #: The server's parameters: the simulator's lockstep pace and the active velocity controller (setting it
 #: switches).
 VIEW_PARAMETERS = ("lockstep_pace", "controller")
@@ -111,6 +116,7 @@ class LiveViewNode(Node):
         self._simulator_parameters = AsyncParameterClient(self, f"{NAMESPACE}/simulator")
         self._asked = None
         self._pace = 0.0
+        self._goto_client = None
         self._ask_timer = self.create_timer(1.0, self._ask_simulator)
         self.trail = view_scene.Trail()
         self._latest: dict = {}
@@ -307,7 +313,11 @@ class LiveViewNode(Node):
                 response=result), handler=self._set_current),
             foxglove.Service(SERVICES[2], schema=foxglove.ServiceSchema(
                 "seapup.SetSensorProfile", request=schema("seapup.Profile", {"name": {"type": "string"}}),
-                response=result), handler=self._set_profile)]
+                response=result), handler=self._set_profile),
+            foxglove.Service(SERVICES[3], schema=foxglove.ServiceSchema(
+                "seapup.Goto", request=schema("seapup.GotoGoal", {k: {"type": "boolean" if k == "preempt" else "number"}
+                                                                  for k in GOTO_KEYS}),
+                response=result), handler=self._goto)]
 
     def _switch(self, request) -> bytes:
         body = _json_object(request.payload, {"activate"})
@@ -336,6 +346,36 @@ class LiveViewNode(Node):
             raise ValueError("set_sensor_profile needs {\"name\": \"ideal|baseline|haslar\"}")
         response = self._call(self.profile_client, SetSensorProfile.Request(name=name))
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
+
+    def _goto(self, request) -> bytes:
+        """Send the task controller a goto goal (odom_ned, metres, radians); the answer says whether it was
+        accepted (the task then flies; its progress is the view's track and ``/events``)."""
+        from rclpy.action import ActionClient
+        body = _json_object(request.payload, set(GOTO_KEYS))
+        missing = [k for k in ("x", "y", "z") if k not in body]
+        if missing:
+            raise ValueError(f"goto needs x, y, z (odom_ned, m); missing {', '.join(missing)}")
+        goal = Goto.Goal()
+        for key, value in body.items():
+            if key == "preempt":
+                if not isinstance(value, bool):
+                    raise ValueError(f"goto: preempt must be true or false, got {value!r}")
+                goal.preempt = value
+            elif isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise ValueError(f"goto: {key} must be a finite number, got {value!r}")
+            else:
+                setattr(goal, key, float(value))
+        if self._goto_client is None:
+            self._goto_client = ActionClient(self, Goto, task_action("goto"))
+        if not self._goto_client.wait_for_server(timeout_sec=5.0):
+            raise RuntimeError(f"{task_action('goto')} is not on the graph (no task controller)")
+        done = threading.Event()
+        future = self._goto_client.send_goal_async(goal)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(5.0):
+            raise RuntimeError("the task controller did not answer the goal in 5 s")
+        accepted = bool(future.result().accepted)
+        return json.dumps({"ok": accepted, "message": "goal accepted" if accepted else "goal refused"}).encode()
 
     def viewer_parameters(self) -> dict:
         """The server's parameters: the simulator's pace (as last read) and the active controller."""

@@ -46,10 +46,14 @@ def layout():
              "break_time": 0.0}), button_text="set"))
     profile = L.ServiceCallPanel(title="sensor profile", config=L.ServiceCallConfig(
         service_name=SERVICES[2], request_payload=json.dumps({"name": "haslar"}), button_text="set"))
+    goto = L.ServiceCallPanel(title="goto", config=L.ServiceCallConfig(
+        service_name=SERVICES[3], request_payload=json.dumps({"x": 10.0, "y": 0.0, "z": 30.0, "yaw": 0.0}),
+        button_text="go"))
     right = L.SplitContainer(direction="column", items=[
         L.SplitItem(proportion=2, content=velocities), L.SplitItem(proportion=2, content=pitches),
         L.SplitItem(proportion=1, content=L.SplitContainer(direction="row", items=[
-            L.SplitItem(content=switch), L.SplitItem(content=current), L.SplitItem(content=profile)])),
+            L.SplitItem(content=switch), L.SplitItem(content=current), L.SplitItem(content=profile),
+            L.SplitItem(content=goto)])),
         L.SplitItem(proportion=1, content=L.SplitContainer(direction="row", items=[
             L.SplitItem(content=L.ParametersPanel(title="pace and controller")),
             L.SplitItem(content=L.LogPanel(title="switches and refusals", config=L.LogConfig(
