@@ -178,7 +178,7 @@ def bench(argv: list[str]) -> int:
     out["model_umbilical"]["extra_percent"] = 100.0 * (per_cable / per_step - 1.0)
     if not args.no_campaign:
         from seapup_bringup.campaign_commands import campaign_rates
-        print("campaign: 32 fixed-gain runs on a LocalCluster of 1, then 2 worker processes...", file=out_text,
+        print("campaign: 128 fixed-gain runs in tasks of 32 on a LocalCluster of 1, then 2 worker processes...", file=out_text,
               flush=True)
         out["campaign"] = campaign_rates()
     t0 = time.perf_counter()

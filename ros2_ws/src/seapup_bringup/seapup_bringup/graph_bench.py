@@ -126,7 +126,7 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     return out
 
 
-def view_cost(blocks: int = 2, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+def view_cost(blocks: int = 3, sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
     """The live view's cost to a lockstep graph at 5 Hz: simulator + ``open_loop`` without and with the view
     (and a viewer subscribed to everything), in alternating blocks, the best of each; ``ratio`` = with / without
     (issue 27's target: >= 0.8)."""

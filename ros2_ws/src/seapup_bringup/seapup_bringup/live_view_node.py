@@ -3,7 +3,7 @@
 A shell over :mod:`seapup_bringup.view_scene` (the geometry) and the ``foxglove-sdk`` server (its own
 threads: nothing here waits for a viewer). It subscribes to the graph's topics and, at each sample of the
 simulator's truth, logs to the server, stamped with the sample's (sim) time, which the server also
-broadcasts as its clock:
+broadcasts as its clock (at a display's rate: every sample while the graph runs at up to 10x real time):
 
 - ``/tf`` (foxglove.FrameTransforms): ``odom`` -> ``base_link`` and the fixed ``odom_ned``, ``base_link_frd``;
 - ``/scene/vehicle`` (foxglove.SceneUpdate, in ``base_link_frd``): the frame, the four thrusters with their
@@ -13,7 +13,7 @@ broadcasts as its clock:
   navigator's estimate (a sphere of its 2-sigma horizontal uncertainty) and the acoustic fixes as they come;
 - ``/scene/seabed``: the environment's seabed around the vehicle (re-sent every few seconds: the server keeps
   nothing for a client that subscribes later);
-- ``/plot`` (JSON): body velocities (measured and reference), blade pitches [deg] and the limit.
+- ``/plot`` (JSON): the true body velocities against the references, blade pitches [deg] and the limit.
 
 Services through the server (JSON requests): ``switch_controller`` (``{"activate": "gmv"}`` -> the controller
 manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's),
@@ -21,7 +21,8 @@ manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}
 task controller). Parameters: ``lockstep_pace`` (the simulator's) and ``controller`` (setting it switches).
 
 A message is built only when a viewer subscribes to its channel (``has_sinks``), the scenes at a display's rate
-(:data:`VEHICLE_PERIOD`, :data:`WORLD_PERIOD`: the track has thousands of points); the server's per-client
+(:data:`DISPLAY_PERIOD`, :data:`VEHICLE_PERIOD`, :data:`WORLD_PERIOD`; the per-sample topics are taken as bytes
+and read only when shown); the server's per-client
 queues are bounded and drop the oldest, so a slow or vanished viewer costs the graph nothing.
 """
 from __future__ import annotations
@@ -33,12 +34,14 @@ import threading
 import time
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped, \
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, \
     Vector3Stamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMessage
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from diagnostic_msgs.msg import DiagnosticArray
 from foxglove.websocket import ServerListener
 from seapup_msgs.msg import BladePitch, ControllerEstimate
@@ -49,7 +52,7 @@ from seapup_common.ros import messages as conv
 from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY,
-                                  UMBILICAL_SHAPE, VELOCITY, VELOCITY_REFERENCE, task_action)
+                                  UMBILICAL_SHAPE, VELOCITY_REFERENCE, task_action)
 from seapup_bringup import view_scene
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
@@ -74,10 +77,12 @@ PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
     "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}, "controller": {"type": "string"}}}
 
 _SEABED_PERIOD_NS = 5_000_000_000
-#: Wall seconds between two ``/scene/vehicle`` updates and two ``/scene/world`` updates (the track's thousands of
-#: points): at a display's rate, whatever the lockstep graph's speed. The frames and the plot go at every sample.
-VEHICLE_PERIOD, WORLD_PERIOD = 0.05, 0.2
+#: Wall seconds between two samples shown (frames, plot, server time: every sample of a graph at up to 10x real time
+#: at 5 Hz), two ``/scene/vehicle`` updates and two ``/scene/world`` updates (the track's thousands of points): a
+#: display's rates, whatever the lockstep graph's speed (it can run at hundreds of times real time).
+DISPLAY_PERIOD, VEHICLE_PERIOD, WORLD_PERIOD = 0.02, 0.05, 0.2
 _SEABED_KEYS = ("kind", "depth", "gradient", "direction")   # and "points" for a polyline (an empty list is no
+_SIMULATOR_GET_PARAMETERS = f"{NAMESPACE}/simulator/get_parameters"
 _SEABED_PARAMETERS = tuple(f"environment.seabed.{key}" for key in _SEABED_KEYS)   # parameter at all)
 
 
@@ -91,7 +96,9 @@ def _state_from_truth(msg: Odometry) -> np.ndarray:
 
 class LiveViewNode(Node):
     def __init__(self, **kwargs):
-        super().__init__("live_view", **kwargs)
+        # no parameter services of its own: every service and client is one more entity that rclpy's executor
+        # visits at each turn, and the view's turns come at the graph's sample rate
+        super().__init__("live_view", start_parameter_services=False, **kwargs)
         self.declare_parameter("port", 8765, ParameterDescriptor(
             description="the WebSocket server's port on 127.0.0.1 (0: any free port, logged)", read_only=True,
             integer_range=[IntegerRange(from_value=0, to_value=65535)]))
@@ -112,8 +119,8 @@ class LiveViewNode(Node):
         env_file = self.get_parameter("environment_file").value
         self.seabed = load_environment(env_file or None).seabed
         # what the graph's simulator flies (its read-only parameters), once it is on the graph
-        from rclpy.parameter_client import AsyncParameterClient
-        self._simulator_parameters = AsyncParameterClient(self, f"{NAMESPACE}/simulator")
+        self._service_clients: dict = {}   # ROS service clients, made at their first use (see __init__'s note)
+        self._service_clients_lock = threading.Lock()
         self._asked = None
         self._pace = 0.0
         self._goto_client = None
@@ -137,15 +144,18 @@ class LiveViewNode(Node):
         self._t_ns = 0
         self._world_sent = self._vehicle_sent = -math.inf
         self.samples = 0
-        self._subscribe(Odometry, TRUTH_ODOMETRY, self._on_truth, STREAM_QOS)
-        for topic, kind in ((APPLIED, BladePitch), (CURRENT, Vector3Stamped), (VELOCITY, TwistWithCovarianceStamped),
-                            (VELOCITY_REFERENCE, TwistStamped), (NAVIGATION_ODOMETRY, Odometry),
-                            (POSITION_REFERENCE, PoseStamped), (UMBILICAL_SHAPE, PathMessage)):
-            self._subscribe(kind, topic, lambda msg, t=topic: self._latest.__setitem__(t, msg), STREAM_QOS)
+        # the per-sample topics are taken as bytes and read only when shown (at most every DISPLAY_PERIOD)
+        self._types = {TRUTH_ODOMETRY: Odometry, APPLIED: BladePitch, CURRENT: Vector3Stamped,
+                       VELOCITY_REFERENCE: TwistStamped,
+                       NAVIGATION_ODOMETRY: Odometry, POSITION_REFERENCE: PoseStamped, UMBILICAL_SHAPE: PathMessage}
+        self._raw: dict = {}
+        self._shown_raw = None        # the truth sample last shown
+        self._shown_at = -math.inf
+        for topic, kind in self._types.items():
+            callback = self._on_truth if topic == TRUTH_ODOMETRY else (lambda raw, t=topic: self._raw.__setitem__(t, raw))
+            self.create_subscription(kind, topic, callback, STREAM_QOS, raw=True, event_callbacks=QUIET_SUBSCRIPTION)
+        self.create_timer(DISPLAY_PERIOD, self._show_pending)
         self._subscribe(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
-        self.switch_client = self.create_client(SwitchController, SWITCH_CONTROLLER_SERVICE)
-        self.current_client = self.create_client(SetCurrent, SET_CURRENT_SERVICE)
-        self.profile_client = self.create_client(SetSensorProfile, f"{NAMESPACE}/simulator/set_sensor_profile")
         self._subscribe(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RELIABLE_QOS)
         self.create_timer(2.0, self._find_estimates)
         self.get_logger().info(f"live view: ws://127.0.0.1:{self.server.port} (open it in Foxglove or Lichtblick: "
@@ -158,11 +168,12 @@ class LiveViewNode(Node):
         return self.create_subscription(kind, topic, callback, qos, event_callbacks=QUIET_SUBSCRIPTION)
 
     def _ask_simulator(self) -> None:
-        if self._asked is not None or not self._simulator_parameters.services_are_ready():
+        getter = self._client(GetParameters, _SIMULATOR_GET_PARAMETERS)
+        if self._asked is not None or not getter.service_is_ready():
             return
-        self._simulator_parameters.get_parameters(["lockstep_pace"], callback=self._on_pace)
-        self._asked = self._simulator_parameters.get_parameters(["vehicle", *_SEABED_PARAMETERS],
-                                                                 callback=self._on_simulator_parameters)
+        getter.call_async(GetParameters.Request(names=["lockstep_pace"])).add_done_callback(self._on_pace)
+        self._asked = getter.call_async(GetParameters.Request(names=["vehicle", *_SEABED_PARAMETERS]))
+        self._asked.add_done_callback(self._on_simulator_parameters)
 
     def _on_pace(self, future) -> None:
         from rclpy.parameter import parameter_value_to_python
@@ -197,8 +208,9 @@ class LiveViewNode(Node):
                 raise ValueError(f"{len(values)} of {1 + len(_SEABED_KEYS)} parameters answered")
             vehicle, seabed = values[0], dict(zip(_SEABED_KEYS, values[1:]))
             if seabed["kind"] == "polyline":
-                self._simulator_parameters.get_parameters(["environment.seabed.points"],
-                                                          callback=lambda f: self._on_points(f, vehicle, seabed))
+                self._client(GetParameters, _SIMULATOR_GET_PARAMETERS).call_async(
+                    GetParameters.Request(names=["environment.seabed.points"])).add_done_callback(
+                    lambda f: self._on_points(f, vehicle, seabed))
                 return
             self._draw(vehicle, seabed)
         except Exception as exc:  # noqa: BLE001 - a foreign simulator: keep drawing the defaults
@@ -237,19 +249,49 @@ class LiveViewNode(Node):
                                    "frozen": msg.frozen, **{name: value for name, value in zip(msg.names, msg.values)
                                                             if np.isfinite(value)}}, log_time=t_ns)
 
-    def _on_truth(self, msg: Odometry) -> None:
+    def _decoded(self, topic: str):
+        """The newest message of ``topic`` (None before the first), read from its bytes once."""
+        raw = self._raw.get(topic)
+        if raw is None:
+            return None
+        cached = self._latest.get(topic)
+        if cached is None or cached[0] is not raw:
+            try:
+                cached = (raw, deserialize_message(raw, self._types[topic]))
+            except Exception:  # noqa: BLE001 - a malformed message from a foreign publisher: not drawn
+                return None
+            self._latest[topic] = cached
+        return cached[1]
+
+    def _on_truth(self, raw: bytes) -> None:
+        """A sample: shown now if the display is due (the graph may run far faster than a display redraws)."""
+        self._raw[TRUTH_ODOMETRY] = raw
+        self.samples += 1
+        if time.monotonic() - self._shown_at >= DISPLAY_PERIOD:
+            self._show()
+
+    def _show_pending(self) -> None:
+        """The newest sample once the graph paused (held, or ended) before it was shown."""
+        if self._raw.get(TRUTH_ODOMETRY) is not None and self._raw[TRUTH_ODOMETRY] is not self._shown_raw:
+            self._show()
+
+    def _show(self) -> None:
+        self._shown_at = time.monotonic()
+        self._shown_raw = self._raw[TRUTH_ODOMETRY]
+        msg = self._decoded(TRUTH_ODOMETRY)
+        if msg is None:
+            return
         t_ns = conv.stamp_to_ns(msg.header.stamp)
         self._t_ns = t_ns
         state = _state_from_truth(msg)
         if not np.all(np.isfinite(state)):
             return
-        self.samples += 1
         self.trail.add(state[:3])
         self.server.broadcast_time(t_ns)
         from seapup_bringup import live_view_messages as fm
         if self.tf_channel.has_sinks():
             self.tf_channel.log(fm.frame_transforms(view_scene.frame_transforms(state), t_ns), log_time=t_ns)
-        applied = self._latest.get(APPLIED)
+        applied = self._decoded(APPLIED)
         pitch = np.asarray(applied.pitch, float) if applied is not None else np.zeros(4)
         now = time.monotonic()
         if self.vehicle_channel.has_sinks() and now - self._vehicle_sent >= VEHICLE_PERIOD:
@@ -263,34 +305,33 @@ class LiveViewNode(Node):
             self._seabed_sent_ns = t_ns
             self.seabed_channel.log(fm.seabed(*view_scene.seabed_grid(self.seabed, state[:3]), t_ns), log_time=t_ns)
         if self.plot_channel.has_sinks():
-            self.plot_channel.log(self._plot(t_ns, pitch), log_time=t_ns)
+            self.plot_channel.log(self._plot(t_ns, pitch, state), log_time=t_ns)
 
     def _world(self, t_ns: int) -> dict:
         world = {"t_ns": t_ns, "trail": self.trail.points(), "fixes": list(self._fixes)}
-        current = self._latest.get(CURRENT)
+        current = self._decoded(CURRENT)
         if current is not None:
             world["current"] = view_scene.current_arrow([current.vector.x, current.vector.y, current.vector.z])
-        cable = self._latest.get(UMBILICAL_SHAPE)
+        cable = self._decoded(UMBILICAL_SHAPE)
         if cable is not None and len(cable.poses) >= 2:
             world["cable"] = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in cable.poses])
-        goal = self._latest.get(POSITION_REFERENCE)
+        goal = self._decoded(POSITION_REFERENCE)
         if goal is not None:
             world["goal"] = np.array([goal.pose.position.x, goal.pose.position.y, goal.pose.position.z])
-        estimate = self._latest.get(NAVIGATION_ODOMETRY)
+        estimate = self._decoded(NAVIGATION_ODOMETRY)
         if estimate is not None:
             e = conv.estimate_from_odometry(estimate)
             world["estimate"] = (np.asarray(e.position, float),
                                  2.0 * float(np.sqrt(np.max(np.diag(e.position_cov)[:2]))))
         return world
 
-    def _plot(self, t_ns: int, pitch: np.ndarray) -> dict:
+    def _plot(self, t_ns: int, pitch: np.ndarray, state: np.ndarray) -> dict:
+        """The plot sample: the true body velocities (u, v, w, r: what the vehicle does, from the truth already
+        read, so no instrument topic costs the graph a reader) against the velocity controllers' reference."""
         plot = {"t": t_ns * 1e-9, "blade_pitch_deg": np.degrees(pitch).tolist(),
-                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit)), "controller": self.active_controller}
-        measured = self._latest.get(VELOCITY)
-        if measured is not None:
-            v, w = measured.twist.twist.linear, measured.twist.twist.angular
-            plot["velocity"] = [v.x, v.y, v.z, w.z]
-        reference = self._latest.get(VELOCITY_REFERENCE)
+                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit)), "controller": self.active_controller,
+                "velocity": [float(state[6]), float(state[7]), float(state[8]), float(state[11])]}
+        reference = self._decoded(VELOCITY_REFERENCE)
         if reference is not None:
             v, w = reference.twist.linear, reference.twist.angular
             plot["reference"] = [v.x, v.y, v.z, w.z]
@@ -325,7 +366,7 @@ class LiveViewNode(Node):
         if not isinstance(name, str) or not name:
             raise ValueError("switch_controller needs {\"activate\": \"<controller name>\"}")
         ros = SwitchController.Request(activate_controllers=[name], strictness=SwitchController.Request.STRICT)
-        response = self._call(self.switch_client, ros)
+        response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), ros)
         return json.dumps({"ok": bool(response.ok), "message": response.message}).encode()
 
     def _set_current(self, request) -> bytes:
@@ -337,14 +378,15 @@ class LiveViewNode(Node):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
                 raise ValueError(f"set_current: {key} must be a finite number, got {value!r}")
             setattr(ros, key, float(value))
-        response = self._call(self.current_client, ros)
+        response = self._call(self._client(SetCurrent, SET_CURRENT_SERVICE), ros)
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
 
     def _set_profile(self, request) -> bytes:
         name = _json_object(request.payload, {"name"}).get("name")
         if not isinstance(name, str) or not name:
             raise ValueError("set_sensor_profile needs {\"name\": \"ideal|baseline|haslar\"}")
-        response = self._call(self.profile_client, SetSensorProfile.Request(name=name))
+        response = self._call(self._client(SetSensorProfile, f"{NAMESPACE}/simulator/set_sensor_profile"),
+                              SetSensorProfile.Request(name=name))
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
 
     def _goto(self, request) -> bytes:
@@ -387,22 +429,28 @@ class LiveViewNode(Node):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value < 1e4):
                 raise ValueError(f"lockstep_pace must be a number in [0, 10000), got {value!r}")
             from rclpy.parameter import Parameter
-            done = threading.Event()
-            future = self._simulator_parameters.set_parameters([Parameter("lockstep_pace", value=float(value))])
-            future.add_done_callback(lambda _: done.set())
-            if not done.wait(5.0) or not future.result().results[0].successful:
-                raise RuntimeError("the simulator did not take lockstep_pace")
+            request = SetParameters.Request(parameters=[Parameter("lockstep_pace", value=float(value)).to_parameter_msg()])
+            response = self._call(self._client(SetParameters, f"{NAMESPACE}/simulator/set_parameters"), request)
+            if not response.results[0].successful:
+                raise RuntimeError(f"the simulator refused lockstep_pace: {response.results[0].reason}")
             self._pace = float(value)
         elif name == "controller":
             if not isinstance(value, str) or not value:
                 raise ValueError(f"controller must be a controller's name, got {value!r}")
-            response = self._call(self.switch_client, SwitchController.Request(
+            response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), SwitchController.Request(
                 activate_controllers=[value], strictness=SwitchController.Request.STRICT))
             if not response.ok:
                 raise RuntimeError(f"switch to {value} refused: {response.message}")
             self.active_controller = value
         else:
             raise ValueError(f"no parameter {name!r} (parameters: {', '.join(VIEW_PARAMETERS)})")
+
+    def _client(self, kind, name: str):
+        """The service client of ``name``, made at its first use (from any thread)."""
+        with self._service_clients_lock:
+            if name not in self._service_clients:
+                self._service_clients[name] = self.create_client(kind, name)
+            return self._service_clients[name]
 
     def _call(self, client, request, timeout: float = 5.0):
         """A ROS service call from the server's thread: the node's executor completes it."""

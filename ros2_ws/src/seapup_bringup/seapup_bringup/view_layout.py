@@ -28,7 +28,7 @@ def layout():
     velocity_series = []
     for i, axis in enumerate(VELOCITY_AXES):
         velocity_series += [
-            L.PlotSeries(value=f"{PLOT_TOPIC}.velocity[{i}]", label=f"{axis} measured", color=colours[i]),
+            L.PlotSeries(value=f"{PLOT_TOPIC}.velocity[{i}]", label=f"{axis} true", color=colours[i]),
             L.PlotSeries(value=f"{PLOT_TOPIC}.reference[{i}]", label=f"{axis} reference", color=colours[i],
                          line_style="dashed")]
     velocities = L.PlotPanel(title="body velocities vs references (m/s, rad/s)",
