@@ -254,23 +254,66 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
     asyncio.run(scenario())
 
 
-def test_a_client_killed_mid_stream_leaves_the_view_serving(graph):
-    port, executor, truth = graph
+def test_a_stalled_then_killed_client_leaves_a_lockstep_graph_stepping(node_process, ros_context):
+    """A viewer that subscribes to everything and never reads, then dies without a close handshake: the lockstep
+    graph (simulator + open_loop, each sample waiting for its command) goes on sample after sample with no
+    lockstep time-out, and a new viewer is served the newest samples in order."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    port = _free_port()
+    node_process(package="seapup_sim", executable="simulator",
+                 args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", "watchdog_timeout:=1000.0",
+                       "-p", "diagnostics_period:=0.2"])
+    node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
+    node = rclpy.create_node("rate_probe", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    stamps, status = [], {}
+    node.create_subscription(Odometry, "/seapup/truth/odometry",
+                             lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+
+    def on_diagnostics(msg):
+        for s in msg.status:
+            if s.name == "seapup/simulator":
+                status.update({kv.key: kv.value for kv in s.values})
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
 
     async def scenario():
-        first = await _watch(port, executor, truth)
-        first.connection.stream.close()    # the TCP connection dropped without a close handshake: a crashed viewer
-        second = await Client.connect(port)
-        assert await second.pump(lambda: "/tf" in second.channels, 20.0)
-        second.subscribe("/tf")
-        start = time.monotonic()
-        assert await second.pump(lambda: len(second.messages.get("/tf", [])) >= 20, 30.0)
-        stamps = [ns for ns, _ in second.messages["/tf"]]
-        assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
-        second.connection.close()
-        return time.monotonic() - start
+        stalled = await Client.connect(port)
+        assert await stalled.pump(lambda: "/scene/world" in stalled.channels, 20.0)
+        stalled.subscribe(*stalled.channels)   # ... and never reads again
+        node_process(package="seapup_control", executable="open_loop",
+                     args=["--ros-args", "-p", "lockstep:=true", "-p", "pitches:=[0.6, 0.6, 0.0, 0.0]"])
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and len(stamps) < 500:
+            await asyncio.sleep(0.1)
+        stalled.connection.stream.close()   # killed: no close handshake
+        before = len(stamps)
+        while time.monotonic() < deadline and len(stamps) < before + 500:
+            await asyncio.sleep(0.1)
+        assert len(stamps) >= before + 500, "the lockstep graph stalled after the viewer died"
+        fresh = await Client.connect(port)
+        assert await fresh.pump(lambda: "/tf" in fresh.channels, 20.0)
+        fresh.subscribe("/tf")
+        assert await fresh.pump(lambda: len(fresh.messages.get("/tf", [])) >= 20, 30.0)
+        served = [ns for ns, _ in fresh.messages["/tf"]]
+        assert served == sorted(served) and len(set(served)) == len(served) and served[0] >= stamps[before]
+        fresh.connection.close()
 
-    asyncio.run(scenario())
+    try:
+        asyncio.run(scenario())
+        assert sorted(stamps) == stamps and len(set(stamps)) == len(stamps)
+        assert all(b - a == 200_000_000 for a, b in zip(stamps, stamps[1:]))   # sample after sample, none lost
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline and "lockstep_timeouts" not in status:
+            time.sleep(0.1)
+        assert status.get("lockstep_timeouts") == "0", status
+    finally:
+        executor.shutdown()
+        spinner.join(5.0)
+        node.destroy_node()
 
 
 def test_a_replayed_bag_plays_into_the_view_with_its_recorded_poses(node_process, ros_env, tmp_path):
