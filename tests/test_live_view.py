@@ -344,3 +344,46 @@ def test_a_replayed_bag_plays_into_the_view_with_its_recorded_poses(node_process
         client.connection.close()
 
     asyncio.run(scenario())
+
+
+def test_launch_with_the_view_paces_the_graph_and_serves_a_self_tuner_s_estimate(tmp_path, ros_env):
+    """``./seapup launch ... --view --rate 5``: the shipped controller graph with the GMV self-tuner (ch. 7) in
+    lockstep, paced to 5x real time; the view serves its estimate, and the graph's time never runs ahead of
+    the pace."""
+    import subprocess
+    import sys
+    import yaml
+    from seapup_control.self_test import result_document
+    from seapup_runs.self_test import fly_self_test
+    controller = tmp_path / "controller.yaml"
+    controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))
+    port = _free_port()
+    launch = subprocess.Popen([sys.executable, "-m", "seapup_bringup.cli", "launch", "seapup_bringup",
+                               "simulator_controller.launch.yaml", f"controller_file:={controller}",
+                               "controller_type:=gmv", "mode:=lockstep", "sensors:=ideal", "--view", "--view-port",
+                               str(port), "--rate", "5"], env=ros_env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+    async def scenario():
+        client = await Client.connect(port, timeout=60.0)
+        assert await client.pump(lambda: {"/tf", "/estimate"} <= set(client.channels), 30.0)
+        client.subscribe("/tf", "/estimate")
+        assert await client.pump(lambda: client.messages.get("/estimate") and len(client.messages.get("/tf", [])) > 5,
+                                 60.0)
+        estimate = json.loads(client.messages["/estimate"][-1][1])
+        assert estimate["controller"] == "velocity_controller" and estimate["mode"] in ("commissioning", "adaptive",
+                                                                                          "fallback")
+        t0, wall0 = client.messages["/tf"][-1][0], time.monotonic()
+        await client.pump(lambda: False, 4.0)
+        t1, wall1 = client.messages["/tf"][-1][0], time.monotonic()
+        assert 0 < (t1 - t0) * 1e-9 <= 5.0 * (wall1 - wall0) + 0.5   # paced: never faster than 5x real time
+        client.connection.close()
+
+    try:
+        asyncio.run(scenario())
+    finally:
+        import os
+        import signal
+        os.killpg(launch.pid, signal.SIGINT)
+        _, err = launch.communicate(timeout=60)
+    assert f"live view at ws://127.0.0.1:{port}" in err

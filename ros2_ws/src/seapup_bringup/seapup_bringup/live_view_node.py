@@ -242,8 +242,8 @@ class LiveViewNode(Node):
                 self._subscribe(ControllerEstimate, topic, self._on_estimate, STREAM_QOS)
 
     def _on_estimate(self, msg: ControllerEstimate) -> None:
-        if msg.controller != self.active_controller or not self.estimate_channel.has_sinks():
-            return
+        if (self.active_controller and msg.controller != self.active_controller) or not self.estimate_channel.has_sinks():
+            return   # (a graph without a controller manager: whichever self-tuner estimates)
         t_ns = conv.stamp_to_ns(msg.header.stamp)
         self.estimate_channel.log({"t": t_ns * 1e-9, "controller": msg.controller, "mode": msg.mode,
                                    "frozen": msg.frozen, **{name: value for name, value in zip(msg.names, msg.values)
