@@ -110,7 +110,8 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
     controller_file.write_text(yaml.safe_dump(dict(mfol.controller.document)))
     toy = dict(toy_package.parameters)
     common = {"lockstep": True, "applied_wait": 0.25}
-    graph = {"nodes": [
+    from seapup_common.ros.launch_graph import launch_document
+    graph = launch_document([
         {"package": "seapup_sim", "executable": "simulator", "required": True,
          "parameters": [{"mode": "lockstep", "start_depth": 30.0, "lockstep_timeout": 10.0,
                          "environment": {"sensors": "ideal"},
@@ -125,8 +126,8 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
          "remappings": {"thrusters/command": "/seapup/toy/thrusters/command"}},
         {"package": "seapup_control", "executable": "controller_manager", "required": True,
          "parameters": [{"controllers": ["mfol_fixed", "toy"], "types": ["mfol", "toy_proportional"],
-                         "fallback": "mfol_fixed", "initial": "mfol_fixed", "command_deadline": 0.5}]}]}
-    path = tmp_path / "swap.yaml"
+                         "fallback": "mfol_fixed", "initial": "mfol_fixed", "command_deadline": 0.5}]}])
+    path = tmp_path / "swap.launch.yaml"
     path.write_text(yaml.safe_dump(graph, sort_keys=False))
     with SilGraph(path, out_dir=tmp_path / "logs", ready_status=None, instruments=True) as sil:
         sil.run_for(4.0)

@@ -73,7 +73,7 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
     spec = design(spec)
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="seapup_run_"))
     out.mkdir(parents=True, exist_ok=True)
-    graph = out / "graph.yaml"
+    graph = out / "graph.launch.yaml"
     listeners = 2 if record else 1  # the probe and the recorder: the simulator waits for both before t = 0
     graph.write_text(yaml.safe_dump(graph_document(spec, _write_documents(spec, out), listeners=listeners),
                                     sort_keys=False))

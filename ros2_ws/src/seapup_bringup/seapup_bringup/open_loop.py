@@ -82,10 +82,11 @@ def graph_document(duration: float, plan) -> dict:
     pitches = [float(x) for _, row in plan for x in row]
     schedule = {"lockstep": True, "times": schedule_times(duration, plan), "pitches": pitches,
                 "wait_for_subscribers": 3}
-    return {"nodes": [{"package": "seapup_sim", "executable": "simulator", "required": True,
-                       "parameters": [simulator]},
-                      {"package": "seapup_control", "executable": "open_loop", "required": True,
-                       "parameters": [schedule]}]}
+    from seapup_common.ros.launch_graph import launch_document
+    return launch_document([{"package": "seapup_sim", "executable": "simulator", "required": True,
+                             "parameters": [simulator]},
+                            {"package": "seapup_control", "executable": "open_loop", "required": True,
+                             "parameters": [schedule]}])
 
 
 def _simulator_status(diags: list) -> dict:
@@ -101,7 +102,7 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     numbers, or None if the graph failed (the reason printed)."""
     from seapup_bringup.sil import SilError, SilGraph
 
-    graph = out / "graph.yaml"
+    graph = out / "graph.launch.yaml"
     graph.write_text(yaml.safe_dump(graph_document(args.duration, plan), sort_keys=False))
     steady = {"real_time_factor_measured", "control_steps_per_wall_second"}
 

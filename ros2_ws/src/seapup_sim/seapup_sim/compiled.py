@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_batch", "rhs",
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_checked", "rk4_batch", "rhs",
            "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "WORK", "RK4_SCRATCH"]
 
 _JIT = dict(cache=True, nogil=True)
@@ -296,6 +296,25 @@ def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, us
 
 
 @njit(**_JIT)
+def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+                efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
+                envelope, new, pitch_end):
+    """:func:`rk4`, then what :meth:`seapup_sim.integrator.VehicleIntegrator.step` does with the new state, in the
+    same call: the envelope check (:func:`seapup_sim.integrator.divergence`: a non-finite value, or one beyond
+    ``envelope``) and the roll and yaw wrap to [-pi, pi). Returns -1, or the index of the first state out of the
+    envelope (``new`` then holds the step unwrapped, for the caller's message)."""
+    _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
+              pitch_end, np.empty(RK4_SCRATCH))
+    for i in range(12):
+        if not math.isfinite(new[i]) or abs(new[i]) > envelope[i]:
+            return i
+    new[3] = (new[3] + math.pi) % (2 * math.pi) - math.pi
+    new[5] = (new[5] + math.pi) % (2 * math.pi) - math.pi
+    return -1
+
+
+@njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, active,
               new, pitch_end):
@@ -509,6 +528,8 @@ def warm() -> None:
     model = VehicleModel(load_vehicle_config("baseline"))
     packed = pack(model)
     rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
+    rk4_checked(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, _NONE3, False, _NONE6, False, True,
+                model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
     polar_to_ned(np.zeros(2), np.zeros(2), np.zeros((2, 3)))
     cos_product(np.zeros(2), np.zeros(2), np.zeros(2))

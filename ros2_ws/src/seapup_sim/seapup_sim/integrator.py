@@ -50,6 +50,19 @@ def default_backend() -> str:
     return "compiled" if choice == "compiled" and importlib.util.find_spec("numba") is not None else "numpy"
 
 
+_NONE3, _NONE6 = np.zeros(3), np.zeros(6)
+
+
+def _command(command, limit: float) -> np.ndarray:
+    """A blade-pitch command for the kernels: :func:`~seapup_common.blade_pitch.check_blade_pitch`'s result, with
+    a fast path for the usual case (four finite float64 values within the limit, returned as they are)."""
+    if type(command) is np.ndarray and command.dtype == np.float64 and command.shape == (4,):
+        a, b, c, d = command.tolist()
+        if -limit <= a <= limit and -limit <= b <= limit and -limit <= c <= limit and -limit <= d <= limit:
+            return command if command.flags.c_contiguous else np.ascontiguousarray(command)
+    return check_blade_pitch(command, limit)[0]
+
+
 def divergence(state: np.ndarray, t: float) -> str:
     """Why ``state`` (12,) at time ``t`` must not be stored (non-finite or outside :data:`ENVELOPE`), or ''."""
     bad = ~np.isfinite(state) | (np.abs(state) > ENVELOPE)
@@ -98,7 +111,7 @@ class VehicleIntegrator:
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
         self.backend = backend
-        self._packed = (None, None)  # (the model's parts it was packed from, the packed arrays)
+        self._packed = (None, None)  # ((the model, its revision) it was packed from, the packed arrays)
         self.model = model
         self.dt = float(dt)
         self.steps = 0  # time is steps * dt: no drift from repeated addition
@@ -129,25 +142,20 @@ class VehicleIntegrator:
         return self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
 
     def _compiled_arrays(self):
-        """The model packed for the kernels, re-packed when it was reconfigured (configure() rebuilds
-        its parts; the thrusters' efficiency is read at every step)."""
+        """The model packed for the kernels, re-packed when it was reconfigured (its ``revision``: configure()
+        rebuilds its parts) or replaced; the thrusters' efficiency is read at every step."""
         model = self.model
-        parts = (model.m_rigid, model.m_added, model.m_inv, model.hydro, model.thrusters, model.weight,
-                 model.buoyancy, model._hydrostatic_arm)
-        if self._packed[0] is None or any(a is not b for a, b in zip(parts, self._packed[0])):
+        key = (model, model.revision)
+        if self._packed[0] != key:
             from seapup_sim import compiled
-            self._packed = (parts, compiled.pack(model))
+            self._packed = (key, compiled.pack(model))
         return self._packed[1]
 
     def step(self, command, current_ned=None, external=None) -> np.ndarray:
         """Advance one step with ``command`` [rad] held; return the new state (copy)."""
-        command, _ = check_blade_pitch(command, self.model.pitch_limit)
         if self.compiled:
-            from seapup_sim import compiled
-            new, pitch = compiled.rk4_step(self._compiled_arrays(), self.model.thrusters.efficiency, self.state,
-                                           self.pitch, command, self.model.actuator_time_constant, self.dt,
-                                           current_ned, external, self.thrusters_on)
-            return self._accept(new, pitch)
+            return self._step_compiled(_command(command, self.model.pitch_limit), current_ned, external)
+        command, _ = check_blade_pitch(command, self.model.pitch_limit)
         t0 = self.t
         model, on = self.model, self.thrusters_on
         # the lagged pitch at rk4_step's three distinct stage times (computed the
@@ -160,6 +168,26 @@ class VehicleIntegrator:
             return model.derivatives(x, stage_pitch[t], current_ned, external, on)
 
         return self._accept(rk4_step(f, t0, self.state, self.dt), stage_pitch[t0 + dt])
+
+    def _step_compiled(self, command: np.ndarray, current_ned, external) -> np.ndarray:
+        """:meth:`step` by one kernel call (:func:`seapup_sim.compiled.rk4_checked`: the step, its check and the
+        angle wrap), the same arithmetic as :func:`seapup_sim.compiled.rk4_step` then :meth:`_accept`."""
+        from seapup_sim import compiled
+        new, pitch = np.empty(12), np.empty(4)
+        bad = compiled.rk4_checked(
+            np.ascontiguousarray(self.state, dtype=np.float64), np.ascontiguousarray(self.pitch, dtype=np.float64),
+            command, float(self.model.actuator_time_constant), self.dt,
+            _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
+            current_ned is not None,
+            _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
+            bool(self.thrusters_on), np.ascontiguousarray(self.model.thrusters.efficiency, dtype=np.float64),
+            *self._compiled_arrays(), ENVELOPE, new, pitch)
+        if bad >= 0:
+            raise DivergenceError(divergence(new, self.t + self.dt))
+        self.pitch = pitch
+        self.state = new
+        self.steps += 1
+        return new.copy()
 
     def _accept(self, new: np.ndarray, pitch: np.ndarray) -> np.ndarray:
         self._check(new, self.t + self.dt)

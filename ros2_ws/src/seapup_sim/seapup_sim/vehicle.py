@@ -206,6 +206,8 @@ class VehicleModel:
         self.pitch_limit = BLADE_PITCH_LIMIT  # the Seapup's blades (seapup_common/data/interface.yaml)
         self.actuator_time_constant = th.number("actuator_time_constant", lo=0.0)
         self.config = raw
+        #: counts configure() calls: a packed copy of the model (the compiled kernels') is stale when it changed
+        self.revision = getattr(self, "revision", 0) + 1
 
     # -- force terms ------------------------------------------------------
     def rigid_coriolis(self, nu: np.ndarray) -> np.ndarray:

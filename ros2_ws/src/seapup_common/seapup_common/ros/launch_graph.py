@@ -45,7 +45,7 @@ from pathlib import Path
 import yaml
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "graph_arguments",
-           "argument_value"]
+           "argument_value", "launch_document"]
 
 _SUBSTITUTION = re.compile(r"\$\(([a-z-]+)((?:\s+[^()\s]+)*)\s*\)")
 _NODE_KEYS = {"pkg", "exec", "name", "namespace", "param", "remap", "args", "on_exit", "respawn", "respawn_delay",
@@ -274,6 +274,40 @@ def load_graph(path, arguments: dict[str, str] | None = None) -> list[NodeSpec]:
     if len(set(labels)) != len(labels):
         raise LaunchError(f"{path}: two nodes named {next(x for x in labels if labels.count(x) > 1)!r}")
     return specs
+
+
+def launch_document(nodes, arguments: dict | None = None) -> dict:
+    """A ROS 2 YAML launch document (dump it with ``yaml.safe_dump``) of ``nodes`` -- :class:`NodeSpec` objects or
+    mappings of their fields -- and ``arguments`` (name: default): what a run or a harness writes for
+    :func:`load_graph` (and ``ros2 launch``) to start; nested parameter mappings become nested ``param``."""
+    def entries(mapping: dict) -> list:
+        return [{"name": str(k), "param": entries(v)} if isinstance(v, dict) else {"name": str(k), "value": v}
+                for k, v in mapping.items()]
+    document = [{"arg": {"name": str(k), "default": _text(v)}} for k, v in (arguments or {}).items()]
+    for node in nodes:
+        spec = node if isinstance(node, NodeSpec) else NodeSpec(**node)
+        body: dict = {"pkg": spec.package, "exec": spec.executable}
+        if spec.name:
+            body["name"] = spec.name
+        if spec.namespace:
+            body["namespace"] = spec.namespace
+        params = []
+        for item in spec.parameters if isinstance(spec.parameters, list) else [spec.parameters]:
+            params += entries(item) if isinstance(item, dict) else [{"from": str(item)}]
+        if params:
+            body["param"] = params
+        if spec.remappings:
+            body["remap"] = [{"from": str(a), "to": str(b)} for a, b in spec.remappings.items()]
+        if spec.args:
+            body["args"] = shlex.join(str(a) for a in spec.args)
+        if spec.required:
+            body["on_exit"] = "shutdown"
+        if spec.respawn:
+            body.update({"respawn": "true", "respawn_delay": float(spec.respawn_delay)})
+            if spec.respawn_limit:
+                body["respawn_max_retries"] = int(spec.respawn_limit)
+        document.append({"node": body})
+    return {"launch": document}
 
 
 def _flatten(mapping: dict, prefix: str = "") -> dict:
