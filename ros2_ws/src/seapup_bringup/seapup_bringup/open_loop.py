@@ -82,7 +82,7 @@ def graph_document(duration: float, plan) -> dict:
     pitches = [float(x) for _, row in plan for x in row]
     schedule = {"lockstep": True, "times": schedule_times(duration, plan), "pitches": pitches,
                 "wait_for_subscribers": 3}
-    from seapup_common.ros.launch_graph import launch_document
+    from seapup_common.launch_format import launch_document
     return launch_document([{"package": "seapup_sim", "executable": "simulator", "required": True,
                              "parameters": [simulator]},
                             {"package": "seapup_control", "executable": "open_loop", "required": True,

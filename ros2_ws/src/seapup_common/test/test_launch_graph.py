@@ -1,7 +1,8 @@
 """launch_document writes what load_graph reads: a graph written by a run or a harness starts the same commands."""
 import yaml
 
-from seapup_common.ros.launch_graph import NodeSpec, _flatten, launch_document, load_graph
+from seapup_common.launch_format import NodeSpec, launch_document
+from seapup_common.ros.launch_graph import _flatten, load_graph
 
 
 def test_a_written_document_loads_back_to_the_same_nodes(tmp_path):

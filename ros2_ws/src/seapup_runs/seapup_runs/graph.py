@@ -68,7 +68,7 @@ def controller_nodes(spec: RunSpec, files: list[str], listeners: int = 0) -> lis
 
 def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60.0, listeners: int = 1) -> dict:
     """The graph of a run (see the module docstring), as a ROS 2 YAML launch document
-    (:func:`seapup_common.ros.launch_graph.launch_document`).
+    (:func:`seapup_common.launch_format.launch_document`).
 
     ``files``: each controller's design-document path (:func:`controller_nodes`); ``listeners``: how
     many subscribers besides the graph's own nodes (a harness's probe, a recorder) listen to every
@@ -101,7 +101,7 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
     references = {"lockstep": True, "sample_period": spec.control_period, "times": [row[0] for row in steps],
                   "references": [float(v) for row in steps for v in row[1:]], "period": 0.0,
                   "wait_for_subscribers": len(spec.controller_timeline()) + int(listeners)}
-    from seapup_common.ros.launch_graph import launch_document
+    from seapup_common.launch_format import launch_document
     return launch_document([{"package": "seapup_sim", "executable": "simulator", "required": True,
                              "parameters": [simulator]},
                             *controller_nodes(spec, files, listeners),

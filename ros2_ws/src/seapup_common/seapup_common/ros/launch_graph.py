@@ -39,10 +39,11 @@ from __future__ import annotations
 import os
 import re
 import shlex
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
+
+from seapup_common.launch_format import NodeSpec, argument_text, argument_value, launch_document
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "graph_arguments",
            "argument_value", "launch_document"]
@@ -54,27 +55,6 @@ _NODE_KEYS = {"pkg", "exec", "name", "namespace", "param", "remap", "args", "on_
 
 class LaunchError(ValueError):
     """A graph file that cannot be started (the reason names the node, argument or key)."""
-
-
-@dataclass
-class NodeSpec:
-    """One node of a graph: its package, executable and how to start it."""
-
-    package: str
-    executable: str
-    name: str = ""
-    namespace: str = ""
-    parameters: list = field(default_factory=list)   # mappings (nested: dotted names) and parameter files
-    remappings: dict = field(default_factory=dict)
-    args: list = field(default_factory=list)
-    required: bool = False      # on_exit: shutdown
-    respawn: bool = False
-    respawn_limit: int = 0      # respawn_max_retries (0 with respawn: no limit)
-    respawn_delay: float = 1.0
-
-    @property
-    def label(self) -> str:
-        return self.name or self.executable
 
 
 def _share(package: str) -> str:
@@ -127,25 +107,8 @@ def graph_arguments(path) -> dict:
             if "name" not in body or set(body) - {"name", "default", "description"}:
                 raise LaunchError(f"{path}: arg {body.get('name', '?')!r}: keys are name, default, description")
             default = body.get("default")
-            declared[str(body["name"])] = None if default is None else _text(default)
+            declared[str(body["name"])] = None if default is None else argument_text(default)
     return declared
-
-
-def argument_value(text: str):
-    """An argument's string as the value it stands for (YAML: ``[a, b]`` a list, ``2.0`` a float)."""
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text
-
-
-def _text(value) -> str:
-    """A scalar as launch holds it: a string (YAML booleans lower-case, as written in ROS files)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, dict)):
-        return yaml.safe_dump(value, default_flow_style=True).strip()
-    return str(value)
 
 
 class _Substituter:
@@ -189,7 +152,7 @@ class _Substituter:
 
 
 def _condition(value, what: str) -> bool:
-    text = _text(value).strip().lower()
+    text = argument_text(value).strip().lower()
     if text in ("true", "1"):
         return True
     if text in ("false", "0"):
@@ -261,7 +224,7 @@ def load_graph(path, arguments: dict[str, str] | None = None) -> list[NodeSpec]:
     nodes whose condition is false are left out."""
     path = Path(path)
     declared = graph_arguments(path)
-    given = {k: _text(v) for k, v in (arguments or {}).items()}
+    given = {k: argument_text(v) for k, v in (arguments or {}).items()}
     unknown = sorted(set(given) - set(declared))
     if unknown:
         raise LaunchError(f"{path}: unknown argument {unknown[0]!r} (declared: {', '.join(declared) or 'none'})")
@@ -274,40 +237,6 @@ def load_graph(path, arguments: dict[str, str] | None = None) -> list[NodeSpec]:
     if len(set(labels)) != len(labels):
         raise LaunchError(f"{path}: two nodes named {next(x for x in labels if labels.count(x) > 1)!r}")
     return specs
-
-
-def launch_document(nodes, arguments: dict | None = None) -> dict:
-    """A ROS 2 YAML launch document (dump it with ``yaml.safe_dump``) of ``nodes`` -- :class:`NodeSpec` objects or
-    mappings of their fields -- and ``arguments`` (name: default): what a run or a harness writes for
-    :func:`load_graph` (and ``ros2 launch``) to start; nested parameter mappings become nested ``param``."""
-    def entries(mapping: dict) -> list:
-        return [{"name": str(k), "param": entries(v)} if isinstance(v, dict) else {"name": str(k), "value": v}
-                for k, v in mapping.items()]
-    document = [{"arg": {"name": str(k), "default": _text(v)}} for k, v in (arguments or {}).items()]
-    for node in nodes:
-        spec = node if isinstance(node, NodeSpec) else NodeSpec(**node)
-        body: dict = {"pkg": spec.package, "exec": spec.executable}
-        if spec.name:
-            body["name"] = spec.name
-        if spec.namespace:
-            body["namespace"] = spec.namespace
-        params = []
-        for item in spec.parameters if isinstance(spec.parameters, list) else [spec.parameters]:
-            params += entries(item) if isinstance(item, dict) else [{"from": str(item)}]
-        if params:
-            body["param"] = params
-        if spec.remappings:
-            body["remap"] = [{"from": str(a), "to": str(b)} for a, b in spec.remappings.items()]
-        if spec.args:
-            body["args"] = shlex.join(str(a) for a in spec.args)
-        if spec.required:
-            body["on_exit"] = "shutdown"
-        if spec.respawn:
-            body.update({"respawn": "true", "respawn_delay": float(spec.respawn_delay)})
-            if spec.respawn_limit:
-                body["respawn_max_retries"] = int(spec.respawn_limit)
-        document.append({"node": body})
-    return {"launch": document}
 
 
 def _flatten(mapping: dict, prefix: str = "") -> dict:
