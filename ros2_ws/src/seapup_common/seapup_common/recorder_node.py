@@ -202,9 +202,13 @@ class RecorderNode(Node):
         log_ns = self.get_clock().now().nanoseconds
         if self.sim_time:
             at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))
+            stamp = header_stamp_ns(raw) if self.stamped.get(topic) else None
             if at_receipt is not None:
                 log_ns = at_receipt
-            stamp = header_stamp_ns(raw) if self.stamped.get(topic) else None
+            elif stamp is not None:
+                # received before the first /clock sample this recorder heard: the node's clock is the /clock of
+                # when the callback runs (seen 1.4 s of graph time later on a busy start); the stamp is the time
+                log_ns = stamp
             if stamp is not None and log_ns < stamp <= log_ns + self.max_stamp_lead_ns:
                 self._graph_floor_ns = max(self._graph_floor_ns, stamp)
             log_ns = max(log_ns, self._graph_floor_ns)
