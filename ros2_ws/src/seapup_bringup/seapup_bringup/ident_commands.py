@@ -431,12 +431,13 @@ def _experiment(args, text) -> dict:
               f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
         _fly_to_end(sil, args.duration)
         bag = sil.bag
-    stamps = _recorded_samples(bag)
-    if stamps != [round(k * EXPERIMENT_PERIOD * 1e9) for k in range(samples + 1)]:
-        raise ValueError(f"{bag}: the truth holds {len(stamps)} samples"
-                         + (f", t = {stamps[0] * 1e-9:g} .. {stamps[-1] * 1e-9:g} s" if stamps else "")
-                         + f"; the experiment asked for the {samples + 1} samples t = 0 .. {args.duration:g} s "
-                         f"(missing or extra samples: the recorder's log is {out / 'recorder.log'})")
+    expected = [round(k * EXPERIMENT_PERIOD * 1e9) for k in range(samples + 1)]
+    for topic, stamps in _recorded_samples(bag).items():   # every per-sample topic whole, not the truth alone
+        if stamps != expected:
+            raise ValueError(f"{bag}: {topic} holds {len(stamps)} samples"
+                             + (f", t = {stamps[0] * 1e-9:g} .. {stamps[-1] * 1e-9:g} s" if stamps else "")
+                             + f"; the experiment asked for the {samples + 1} samples t = 0 .. {args.duration:g} s "
+                             f"(missing or extra samples: the recorder's log is {out / 'recorder.log'})")
     doc = {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method, "orders": orders,
            "duration": args.duration, "sample_period": EXPERIMENT_PERIOD, "samples": samples + 1,
            "dynamics": args.dynamics, "current": args.current, "sensors": args.sensors, **excitation}
@@ -478,15 +479,17 @@ def _stamp(msg) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
-def _recorded_samples(bag) -> list[int]:
-    """The truth's sample stamps in a bag [ns], in the order recorded."""
-    from nav_msgs.msg import Odometry
-    from rclpy.serialization import deserialize_message
+#: The simulator's topics an identification bag must hold at every sample (what ``orders``/``compare`` read).
+PER_SAMPLE = (TRUTH_ODOMETRY, VELOCITY, IMU, DEPTH, APPLIED)
 
-    from seapup_common.bag import read_bag
-    from seapup_common.ros.messages import stamp_to_ns
-    return [stamp_to_ns(deserialize_message(m.cdr, Odometry).header.stamp)
-            for m in read_bag(bag, [TRUTH_ODOMETRY])]
+
+def _recorded_samples(bag) -> dict[str, list[int]]:
+    """Each of :data:`PER_SAMPLE`'s sample stamps in a bag [ns], in the order recorded."""
+    from seapup_common.bag import header_stamp_ns, read_bag
+    stamps: dict[str, list[int]] = {topic: [] for topic in PER_SAMPLE}
+    for message in read_bag(bag, list(PER_SAMPLE)):
+        stamps[message.topic].append(header_stamp_ns(message.cdr))
+    return stamps
 
 
 def _prbs_excitation(args) -> dict:

@@ -289,13 +289,15 @@ def _drain(executor, node, budget: float = 1.5) -> None:
         pass
 
 
-def _await_acknowledgements(node, budget: float = 0.5) -> None:
+def _await_acknowledgements(node, budget: float = 3.0) -> None:
     """Give reliable subscribers up to ``budget`` seconds to acknowledge what was published.
 
     A process that exits right after publishing (a controller stopped just after
     its last command) would otherwise take an unacknowledged message with it: a
     subscriber that lost the first transmission never gets the resend, while
-    another (a recorder) did receive it.
+    another (a recorder) did receive it. On a loaded machine a lockstep graph stopped at its end can be
+    seconds of samples ahead of a recorder's acknowledgements (an identification bag lost its last 14
+    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged.
     """
     deadline = time.monotonic() + budget
     try:
