@@ -206,6 +206,7 @@ class SimulatorNode(Node):
         self._held_at_start = bool(p["start_held"])  # until end_time is set at run time
         self._answered_ns: int | None = None  # lockstep: the sample whose command has come
         self._encoder = SampleEncoder()
+        self.ack_budget = 3.0   # at its stop, wait this long for readers (a recorder) to acknowledge the last samples
         self._pacer = Pacer(p["lockstep_pace"])
         self._pace_timer = None  # a paced sample waiting for its wall time
         self._sent: list = []  # the current sample's (publisher, message or its bytes) pairs, for a republish

@@ -289,7 +289,7 @@ def _drain(executor, node, budget: float = 1.5) -> None:
         pass
 
 
-def _await_acknowledgements(node, budget: float = 3.0) -> None:
+def _await_acknowledgements(node, budget: float | None = None) -> None:
     """Give reliable subscribers up to ``budget`` seconds to acknowledge what was published.
 
     A process that exits right after publishing (a controller stopped just after
@@ -297,16 +297,22 @@ def _await_acknowledgements(node, budget: float = 3.0) -> None:
     subscriber that lost the first transmission never gets the resend, while
     another (a recorder) did receive it. On a loaded machine a lockstep graph stopped at its end can be
     seconds of samples ahead of a recorder's acknowledgements (an identification bag lost its last 14
-    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged.
+    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged. ``budget``: the
+    node's ``ack_budget`` if it sets one (the simulator, whose samples are what a bag records), else 0.5 s.
     """
+    budget = float(getattr(node, "ack_budget", 0.5)) if budget is None else budget
     deadline = time.monotonic() + budget
+    step = Duration(nanoseconds=100_000_000)
     try:
         for publisher in list(node.publishers):
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return
-            if publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
-                publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+            if publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE or \
+                    publisher.topic_name in ("/parameter_events", "/rosout"):   # rclpy's own: every node hears them
+                continue
+            # in short waits, and only while a subscriber is still there: one that is shutting down too (a
+            # graph stopped all at once) never acknowledges, and waiting for it cost every stop the budget
+            while time.monotonic() < deadline and publisher.get_subscription_count() > 0:
+                if publisher.wait_for_all_acked(step):
+                    break
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
 
