@@ -27,6 +27,7 @@ queues are bounded and drop the oldest, so a slow or vanished viewer costs the g
 """
 from __future__ import annotations
 
+import collections
 import json
 import logging
 import math
@@ -48,6 +49,7 @@ from seapup_msgs.msg import BladePitch, ControllerEstimate
 from seapup_msgs.action import Goto
 from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
+from seapup_common import frames
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
@@ -88,7 +90,6 @@ _SEABED_PARAMETERS = tuple(f"environment.seabed.{key}" for key in _SEABED_KEYS) 
 
 def _state_from_truth(msg: Odometry) -> np.ndarray:
     p, q = msg.pose.pose.position, msg.pose.pose.orientation
-    from seapup_common import frames
     angles = frames.quaternion_to_euler([q.x, q.y, q.z, q.w])
     v, w = msg.twist.twist.linear, msg.twist.twist.angular
     return np.array([p.x, p.y, p.z, *angles, v.x, v.y, v.z, w.x, w.y, w.z], float)
@@ -127,7 +128,7 @@ class LiveViewNode(Node):
         self._ask_timer = self.create_timer(1.0, self._ask_simulator)
         self.trail = view_scene.Trail()
         self._latest: dict = {}
-        self._fixes: list = []
+        self._fixes = collections.deque(maxlen=50)   # the newest acoustic fixes
         self._seabed_sent_ns = -_SEABED_PERIOD_NS
         self.server = foxglove.start_server(
             name="seapup", host="127.0.0.1", port=int(self.get_parameter("port").value),
@@ -220,7 +221,7 @@ class LiveViewNode(Node):
 
     def _on_fix(self, msg: PoseWithCovarianceStamped) -> None:
         p = msg.pose.pose.position
-        self._fixes = (self._fixes + [(p.x, p.y, p.z)])[-50:]
+        self._fixes.append((p.x, p.y, p.z))
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
