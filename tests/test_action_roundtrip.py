@@ -89,3 +89,44 @@ def test_a_goal_whose_answer_was_lost_is_adopted_not_sent_twice(ros_context, spi
     assert result.result().status == 4 and result.result().result.message == "stepped by 0.14"
     assert len(ran) == 1
     executor.shutdown()
+
+
+def test_a_service_answer_lost_is_asked_again_and_the_second_answer_returned(ros_context, spin):
+    """The same lost answer on a service ("failed to send response (timeout)": the simulator set the thruster
+    efficiency, the caller waited forever): call_idempotent asks again and returns the answer that came,
+    leaving no request pending; a service that never answers is a clear error after its attempts."""
+    import pytest
+    from rclpy.task import Future
+    from seapup_msgs.srv import SetThrusterEfficiency
+
+    from seapup_common.ros.graph import ServiceNotAnswered, call_idempotent
+    server_node = rclpy.create_node("simulator", context=ros_context)
+    client_node = rclpy.create_node("caller", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(server_node)
+    executor.add_node(client_node)
+    heard = []
+
+    def serve(request, response):
+        heard.append(list(request.efficiency))
+        response.success, response.message = True, f"request {len(heard)}"
+        return response
+    server_node.create_service(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency", serve)
+    client = client_node.create_client(SetThrusterEfficiency, "/seapup/simulator/set_thruster_efficiency")
+    original, calls = client.call_async, []
+
+    def first_answer_lost(request):
+        future = original(request)
+        calls.append(future)
+        return Future() if len(calls) == 1 else future   # the server does the first; its answer is lost
+    client.call_async = first_answer_lost
+    request = SetThrusterEfficiency.Request(efficiency=[0.0, 1.0, 1.0, 1.0])
+    response = call_idempotent(executor, client, request, response_timeout=1.0, attempts=3)
+    assert response.success and response.message == "request 2"
+    assert heard == [[0.0, 1.0, 1.0, 1.0]] * 2 and len(calls) == 2
+    assert spin(executor, calls[0].done, 2.0)   # the first answer came to its own future, not the caller's
+    client.call_async = lambda request: Future()   # now nothing is ever answered
+    with pytest.raises(ServiceNotAnswered, match="did not answer 2 requests"):
+        call_idempotent(executor, client, request, response_timeout=0.3, attempts=2)
+    assert not client._pending_requests
+    executor.shutdown()

@@ -78,7 +78,12 @@ def test_the_command_refuses_a_bad_file_and_an_unreachable_scheduler_with_one_li
     assert proc.returncode == 1 and proc.stderr.strip().count("\n") == 0 and "submarine" in proc.stderr
     good = _file(tmp_path)
     proc = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "campaign", str(good), "--out",
-                           str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True,
-                          env=env, timeout=180)
+                           str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "3"],
+                          capture_output=True, text=True, env=env, timeout=180)
     assert proc.returncode == 1 and "no Dask scheduler at tcp://127.0.0.1:9" in proc.stderr
     assert "Traceback" not in proc.stderr
+    proc = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "campaign", str(good), "--out",
+                           str(tmp_path / "y"), "--connect-timeout", "nan"], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert proc.returncode == 2 and "--connect-timeout" in proc.stderr and proc.stderr.strip().count("\n") == 0
+    assert not (tmp_path / "y").exists()   # refused: nothing written

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import Odometry, Path as PathMessage
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from tornado.websocket import websocket_connect
@@ -137,13 +137,18 @@ def graph(node_process, ros_context):
     node = rclpy.create_node("truth_probe", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    truth = {}
+    truth, cables = {}, {}
     node.create_subscription(Odometry, "/seapup/truth/odometry",
                              lambda m: truth.__setitem__(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m),
                              QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    node.create_subscription(PathMessage, "/seapup/umbilical/shape",   # the simulator's own cable, per stamp
+                             lambda m: cables.__setitem__(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec,
+                                                          np.array([[p.pose.position.x, p.pose.position.y,
+                                                                     p.pose.position.z] for p in m.poses])),
+                             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     spinner = threading.Thread(target=executor.spin, daemon=True)   # truth arrives while the client reads
     spinner.start()
-    yield port, executor, truth
+    yield port, executor, truth, cables
     executor.shutdown()
     spinner.join(5.0)
     node.destroy_node()
@@ -164,7 +169,7 @@ async def _watch(port, executor, truth):
 
 
 def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps(graph):
-    port, executor, truth = graph
+    port, executor, truth, cables = graph
 
     async def scenario():
         client = await _watch(port, executor, truth)
@@ -212,10 +217,14 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         assert entity.frame_id == "odom_ned"
         cable = np.array([[p.x, p.y, p.z] for p in entity.lines[1].points])
         assert cable.shape == (20, 3) and np.allclose(cable[-1], [0.0, 0.0, 0.0], atol=1e-6)
+        # drawn as the simulator solved it: equal to a shape it published at a stamp no later than the drawing
+        assert any(ns <= log_ns and np.allclose(cable, published, rtol=0.0, atol=1e-9)
+                   for ns, published in list(cables.items())), "the view's cable is none the simulator published"
         near = min(truth, key=lambda ns: abs(ns - log_ns))
         vehicle = truth[near].pose.pose.position
         assert np.linalg.norm(cable[0] - [vehicle.x, vehicle.y, vehicle.z]) < 1.0   # its attachment, a step ago
-        assert np.sum(np.linalg.norm(np.diff(cable, axis=0), axis=1)) > np.linalg.norm(cable[0])   # slack
+        # never shorter than its chord: a catenary, or the straight chord where the model is bypassed (sec. 3.8)
+        assert np.sum(np.linalg.norm(np.diff(cable, axis=0), axis=1)) >= np.linalg.norm(cable[0]) * (1 - 1e-12)
         plot = json.loads(client.messages["/plot"][-1][1])
         assert plot["pitch_limit_deg"] == pytest.approx(35.0) and len(plot["blade_pitch_deg"]) == 4
         # a service call through the server takes effect in the graph: the simulator's current

@@ -17,6 +17,7 @@ from rcl_interfaces.srv import SetParameters
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.srv import Reset, SetCurrent
 
+from seapup_common.ros.graph import call_idempotent
 from seapup_common.ros.node import SERVICE_QOS
 from tests.test_simulator_node import Probe, command, finite, start_simulator
 
@@ -32,10 +33,8 @@ def param(name, value):
 
 def set_param(probe, name, value):
     client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
-    assert probe.spin(client.service_is_ready, 10.0)
-    fut = client.call_async(SetParameters.Request(parameters=[param(name, value)]))
-    assert probe.spin(fut.done, 10.0)
-    return fut.result().results[0]
+    return call_idempotent(probe.executor, client, SetParameters.Request(parameters=[param(name, value)]),
+                           ready_timeout=10.0, response_timeout=10.0, attempts=2).results[0]
 
 
 def current(**kw):

@@ -29,6 +29,7 @@ from seapup_msgs.srv import Reset, SetConfiguration, SetSensorProfile, SetThrust
 from tf2_msgs.msg import TFMessage
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT as LIMIT
+from seapup_common.ros.graph import call_idempotent
 from seapup_control.profiles import OpenLoop, PitchProfile
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.simulation import Simulation
@@ -67,11 +68,8 @@ class Probe:
         return {}
 
     def call(self, srv_type, name, request, timeout=10.0):
-        client = self.node.create_client(srv_type, name)
-        assert self.spin(client.service_is_ready, timeout), f"{name} not available"
-        future = client.call_async(request)
-        assert self.spin(future.done, timeout)
-        return future.result()
+        client = self.node.create_client(srv_type, name)   # (the services called here are sets and queries)
+        return call_idempotent(self.executor, client, request, ready_timeout=timeout, response_timeout=timeout)
 
     def close(self):
         self.executor.shutdown()

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
 import sys
@@ -31,6 +32,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("spec", type=Path, help="the campaign file (YAML; see docs/campaigns.md) or a shipped "
                    "campaign's name (controller-robustness, adaptive-500)")
     p.add_argument("--scheduler", help="address of an existing Dask scheduler (default: a LocalCluster here)")
+    p.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
+                   help="seconds to keep trying to reach --scheduler (default 30)")
     p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the CPUs)")
     p.add_argument("--out", type=Path, default=None, help="output directory (default runs/campaigns/NAME)")
     p.add_argument("--resume", action="store_true", help="keep the finished tasks of an interrupted campaign")
@@ -50,6 +53,10 @@ def campaign_command(argv: list[str]) -> int:
     if args.limit is not None and args.limit < 1:
         print("seapup: error: --limit must be >= 1", file=sys.stderr)
         return 2
+    if not math.isfinite(args.connect_timeout) or args.connect_timeout <= 0:
+        print(f"seapup: error: --connect-timeout must be a positive number of seconds, got {args.connect_timeout}",
+              file=sys.stderr)
+        return 2
     try:
         campaign = load_campaign(args.spec)
     except CampaignError as exc:
@@ -58,7 +65,7 @@ def campaign_command(argv: list[str]) -> int:
     out = args.out or Path(os.environ.get("SEAPUP_ROOT", ".")) / "runs" / "campaigns" / campaign.name
     try:
         summary = run_campaign(campaign, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                               limit=args.limit, text=text)
+                               limit=args.limit, text=text, connect_timeout=args.connect_timeout)
     except CampaignError as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1
@@ -66,17 +73,17 @@ def campaign_command(argv: list[str]) -> int:
     return 0 if summary["runs"] else 1
 
 
-def _client(scheduler: str | None, workers: int | None):
+def _client(scheduler: str | None, workers: int | None, connect_timeout: float = 30.0):
     """A Dask client: to ``scheduler``, or to a LocalCluster of single-threaded worker processes that end
     with this process (its scheduler lives here; workers give up on a lost scheduler after 10 s)."""
     import dask
     from distributed import Client, LocalCluster
-    dask.config.set({"distributed.worker.daemon": False, "distributed.comm.timeouts.connect": "30s",
+    dask.config.set({"distributed.worker.daemon": False, "distributed.comm.timeouts.connect": f"{connect_timeout}s",
                      "distributed.logging.distributed": "error"})
     if scheduler:
         from seapup_runs.campaign import CampaignError
         try:
-            return Client(scheduler, timeout="30s"), None
+            return Client(scheduler, timeout=f"{connect_timeout}s"), None
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
     cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
@@ -85,7 +92,7 @@ def _client(scheduler: str | None, workers: int | None):
 
 
 def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int | None = None,
-                 resume: bool = False, limit: int | None = None, text=None) -> dict:
+                 resume: bool = False, limit: int | None = None, text=None, connect_timeout: float = 30.0) -> dict:
     """Fly ``campaign`` into ``out`` (see the module docstring); the JSON summary."""
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -115,7 +122,7 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
           f"{f'; {reused} tasks already done' if reused else ''}", file=text, flush=True)
     where = scheduler or "a LocalCluster"
     if todo:
-        client, cluster = _client(scheduler, workers)
+        client, cluster = _client(scheduler, workers, connect_timeout)
         try:
             from distributed import as_completed
             n_workers = len(client.scheduler_info().get("workers", {}))

@@ -72,6 +72,14 @@ INSTRUMENTS = ("velocity", "imu", "depth", "position")
 #: The logged topics a graph publishes once per control sample: :meth:`SilGraph.catch_up` waits until
 #: each has reached the same time.
 SAMPLED = ("truth", "estimate", "reference", "setpoint", "command", "applied")
+#: The instruments published at every sample (the acoustic fixes come at some samples only): caught up
+#: with :data:`SAMPLED` when instruments are logged (a command heard before its sample's velocity was seen).
+SAMPLED_INSTRUMENTS = ("velocity", "imu", "depth")
+#: The simulator's per-sample topics: published at a sample before any node answers it, so a log that has
+#: heard an answer to sample k (:data:`_ANSWERS`, stamped with the sample's stamp) must have them at k too
+#: (caught up exactly, not within the slack).
+_SIMULATOR_SAMPLED = ("truth", "applied") + SAMPLED_INSTRUMENTS
+_ANSWERS = ("command", "estimate")
 
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 #: The logged topics the simulator publishes: a sample it publishes again (to a node that joined while the
@@ -358,8 +366,10 @@ class SilGraph:
         return bool(predicate())
 
     def catch_up(self, target: float | None = None, stall: float = 2.0, slack: float = 0.25) -> None:
-        """Spin until every per-sample topic heard so far (:data:`SAMPLED`) has reached ``target`` [s
-        simulated] within ``slack`` (default target: the newest stamp heard on any of them).
+        """Spin until every per-sample topic heard so far (:data:`SAMPLED`, and :data:`SAMPLED_INSTRUMENTS`
+        when the instruments are logged) has reached ``target`` [s simulated] within ``slack`` (default
+        target: the newest stamp heard on any of them), and the simulator's own topics, exactly, every
+        sample a node has been heard answering (a command or an estimate).
 
         The probe is not waited for by the graph: on a loaded machine it takes its messages seconds of
         simulated time behind the nodes, one topic further behind than another (seen: setpoints at
@@ -367,13 +377,19 @@ class SilGraph:
         Gives up when no log has grown for ``stall`` wall seconds (the graph stopped)."""
         def last(name):
             return self._stamp(self.log[name][-1])
-        live = [name for name in SAMPLED if self.log[name]]
+        sampled = SAMPLED + (SAMPLED_INSTRUMENTS if self.instruments else ())
+        live = [name for name in sampled if self.log[name]]
         if not live:
             return
         if target is None:
             target = max(last(name) for name in live)
         sizes, moved = None, time.monotonic()
-        while any(last(name) < target - slack for name in live):
+        answered = [last(name) for name in _ANSWERS if name in live]
+        answered_to = min(target, max(answered)) if answered else -math.inf
+
+        def behind(name):
+            return last(name) < target - slack or (name in _SIMULATOR_SAMPLED and last(name) < answered_to - 1e-6)
+        while any(behind(name) for name in live):
             now = [len(self.log[name]) for name in live]
             if now != sizes:
                 sizes, moved = now, time.monotonic()
@@ -401,10 +417,16 @@ class SilGraph:
     def _set_end(self, end_time: float) -> None:
         from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
         from rcl_interfaces.srv import SetParameters
+
+        from seapup_common.ros.graph import ServiceNotAnswered, call_idempotent
         request = SetParameters.Request(parameters=[Parameter(name="end_time", value=ParameterValue(
             type=ParameterType.PARAMETER_DOUBLE, double_value=float(end_time)))])
-        future = self._end_client.call_async(request)
-        if not self.spin_until(future.done, 10.0) or not future.result().results[0].successful:
+        try:   # a set: asked again if its answer is lost
+            answer = call_idempotent(self._executor, self._end_client, request, ready_timeout=10.0,
+                                     response_timeout=4.0, attempts=3)
+        except ServiceNotAnswered:
+            answer = None
+        if answer is None or not answer.results[0].successful:
             raise SilError(f"the simulator did not take end_time {end_time:g} s{self._dead()}")
 
     def _settle(self, until: float, timeout: float, done=None, stall: float = 2.0) -> str:

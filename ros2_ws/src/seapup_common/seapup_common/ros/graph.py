@@ -8,6 +8,9 @@
 - :func:`send_goal`: an action goal that survives discovery races (a goal
   request sent while the server has not yet matched the client is lost
   without a trace; it is sent again).
+- :func:`call_idempotent`: a service call whose request may safely be made
+  twice, sent again when its answer does not come (the same discovery race
+  on the response path).
 - :func:`qos_to_rosbag2` and :func:`adapted_qos`: the offered QoS of a topic's
   publishers in rosbag2's metadata keys, and the subscription QoS rosbag2
   would choose for them (reliable only if every publisher is reliable,
@@ -17,7 +20,8 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos", "send_goal", "GoalNotAnswered", "spin_until"]
+__all__ = ["SubscriberGate", "qos_to_rosbag2", "adapted_qos", "send_goal", "GoalNotAnswered", "spin_until",
+           "call_idempotent", "ServiceNotAnswered"]
 
 _INT64_MAX = 2**63 - 1
 
@@ -174,3 +178,32 @@ def _taken_goal(executor, client, goal_id, wait: float = 2.0):
     handle = ClientGoalHandle(client, goal_id, client._action_type.Impl.SendGoalService.Response(accepted=True))
     client._goal_handles[wanted] = weakref.ref(handle)   # status, feedback and result reach it as any
     return handle
+
+
+class ServiceNotAnswered(RuntimeError):
+    """A service that never became ready or never answered."""
+
+
+def call_idempotent(executor, client, request, *, ready_timeout: float = 30.0, response_timeout: float = 5.0,
+                    attempts: int = 4):
+    """Call a service whose request may be made more than once (a set, a query) and return the response.
+
+    ``service_is_ready`` says the client has matched the server; the server may not yet have matched the
+    client's response reader, and then drops its answer ("failed to send response (timeout)", seen on a
+    loaded machine: the server did the work, the caller waits forever). A request unanswered within
+    ``response_timeout`` s is therefore sent again, up to ``attempts`` times. Not for requests that must not
+    happen twice (a switch, a goal: :func:`send_goal` handles those).
+
+    Raises
+    ------
+    ServiceNotAnswered
+        If the server never became ready or never answered.
+    """
+    if not spin_until(executor, client.service_is_ready, ready_timeout):
+        raise ServiceNotAnswered(f"no service {client.srv_name!r} within {ready_timeout:g} s")
+    for _ in range(attempts):
+        future = client.call_async(request)
+        if spin_until(executor, future.done, response_timeout):
+            return future.result()
+        client.remove_pending_request(future)
+    raise ServiceNotAnswered(f"the service {client.srv_name!r} did not answer {attempts} requests")
