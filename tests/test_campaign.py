@@ -81,7 +81,7 @@ def test_the_command_refuses_a_bad_file_and_an_unreachable_scheduler_with_one_li
                            str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "3"],
                           capture_output=True, text=True, env=env, timeout=180)
     assert proc.returncode == 1 and "no Dask scheduler at tcp://127.0.0.1:9" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "x").exists()   # nothing written
     proc = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "campaign", str(good), "--out",
                            str(tmp_path / "y"), "--connect-timeout", "nan"], capture_output=True, text=True,
                           env=env, timeout=120)

@@ -107,9 +107,17 @@ def test_cancel_leaves_the_vehicle_hovering_under_the_best_controller(ros_contex
     assert answer.status == GoalStatus.STATUS_CANCELED and "cancel" in answer.result.message
     assert not answer.result.success and len(answer.result.surge_speeds) == 1  # cycle 1's controller
     count = len(client.commands)
-    assert client.spin(lambda: len(client.commands) > count + 50, 30.0)  # still answering: hovering
-    last = np.array([c.pitch for c in client.commands[-10:]])
-    np.testing.assert_allclose(last.mean(axis=0), HOVER, atol=np.radians(3.0))
+
+    def hovering():   # the newest ten commands hold hover (this client reads its queue behind a lockstep graph:
+        # under load, what it takes first after the result can be steps commanded before the cancel)
+        last = np.array([c.pitch for c in client.commands[-10:]])
+        return np.allclose(last.mean(axis=0), HOVER, atol=np.radians(3.0))
+    assert client.spin(lambda: len(client.commands) > count + 50 and hovering(), 60.0), \
+        np.degrees([c.pitch for c in client.commands[-10:]])
+    stamps = [c.header.stamp.sec + 1e-9 * c.header.stamp.nanosec for c in client.commands[count:]]
+    assert np.all(np.diff(stamps) > 0)   # still answering, sample after sample
+    later = len(client.commands)
+    assert client.spin(lambda: len(client.commands) > later + 20, 20.0) and hovering()   # and it stays there
 
 
 def test_failures_abort_with_the_reason(ros_context, node_process, spin, tmp_path):

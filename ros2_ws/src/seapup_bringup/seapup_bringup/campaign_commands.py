@@ -109,21 +109,22 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
     if resume and previous is not None and previous.get("digest") != digest:
         raise CampaignError(f"{out} holds another campaign (or a changed file or --limit): resume needs the same; "
                             "choose another --out or drop --resume")
-    if not resume and out.exists():
-        for stale in (parts, out / "worst"):
-            shutil.rmtree(stale, ignore_errors=True)
-    parts.mkdir(parents=True, exist_ok=True)
-    manifest.write_text(json.dumps({"name": campaign.name, "digest": digest, "runs": len(rows),
-                                    "tasks": len(groups), "runs_per_task": campaign.runs_per_task,
-                                    "source": campaign.source}, indent=1, default=str))
-    todo = [k for k in range(len(groups)) if not (parts / f"task-{k:05d}.parquet").is_file()]
+    todo = [k for k in range(len(groups)) if not (resume and (parts / f"task-{k:05d}.parquet").is_file())]
     reused = len(groups) - len(todo)
-    print(f"campaign {campaign.name}: {len(rows)} runs in {len(groups)} tasks of up to {campaign.runs_per_task}"
-          f"{f'; {reused} tasks already done' if reused else ''}", file=text, flush=True)
     where = scheduler or "a LocalCluster"
-    if todo:
-        client, cluster = _client(scheduler, workers, connect_timeout)
-        try:
+    # the cluster first: a scheduler that cannot be reached leaves the output directory as it was
+    client, cluster = _client(scheduler, workers, connect_timeout) if todo else (None, None)
+    try:
+        if not resume and out.exists():
+            for stale in (parts, out / "worst"):
+                shutil.rmtree(stale, ignore_errors=True)
+        parts.mkdir(parents=True, exist_ok=True)
+        manifest.write_text(json.dumps({"name": campaign.name, "digest": digest, "runs": len(rows),
+                                        "tasks": len(groups), "runs_per_task": campaign.runs_per_task,
+                                        "source": campaign.source}, indent=1, default=str))
+        print(f"campaign {campaign.name}: {len(rows)} runs in {len(groups)} tasks of up to {campaign.runs_per_task}"
+              f"{f'; {reused} tasks already done' if reused else ''}", file=text, flush=True)
+        if client is not None:
             from distributed import as_completed
             n_workers = len(client.scheduler_info().get("workers", {}))
             print(f"flying on {where} ({n_workers} workers)...", file=text, flush=True)
@@ -136,10 +137,11 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
                 (parts / f"task-{k:05d}.parquet.tmp").replace(parts / f"task-{k:05d}.parquet")
                 done += 1
                 progress("campaign", done / len(todo), stream=text)
-        finally:
+    finally:
+        if client is not None:
             client.close()
-            if cluster is not None:
-                cluster.close()
+        if cluster is not None:
+            cluster.close()
     table = _concat([pq.read_table(parts / f"task-{k:05d}.parquet") for k in range(len(groups))])
     pq.write_table(table, out / "results.parquet")
     records = table.to_pylist()
