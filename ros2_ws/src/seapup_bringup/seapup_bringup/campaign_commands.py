@@ -245,7 +245,7 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
     return page, worst
 
 
-def campaign_rates(runs: int = 128, worker_counts=(1, 2), per_task: int = 32) -> dict:
+def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) -> dict:
     """The benchmark of a campaign's throughput (``./seapup bench``): ``runs`` fixed-gain MFOL runs (eq. 4.11,
     schedule off) of square-inspection with the baseline sensors, each its own seed, in tasks of ``per_task``
     (each task's runs flown as one batch, :mod:`seapup_runs.batch_runner`), on a

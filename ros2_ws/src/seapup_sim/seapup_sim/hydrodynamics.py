@@ -25,6 +25,7 @@ and for negative damping without evaluating the model (thesis sec. 3.4-3.5).
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -81,7 +82,17 @@ def parse_term(name: str, coefficient: float) -> HydroTerm:
         For an unknown axis, an empty or malformed velocity part, or a
         non-finite coefficient.
     """
-    if "_" not in name:
+    axis, signed, absolute = _parse_name(name)
+    if not np.isfinite(coefficient):
+        raise HydroTermError(f"{name!r}: coefficient {coefficient!r} is not finite")
+    return HydroTerm(name, axis, signed, absolute, float(coefficient))
+
+
+@functools.lru_cache(maxsize=4096)
+def _parse_name(name: str) -> tuple[int, tuple[int, ...], tuple[int, ...]]:
+    """(axis, signed factors, absolute factors) of a derivative's name: parsed once per name (every vehicle
+    model built -- thousands in a campaign -- parses the same few dozen)."""
+    if not isinstance(name, str) or "_" not in name:
         raise HydroTermError(f"{name!r}: expected <axis>_<velocities>, e.g. 'X_u|u|'")
     axis_name, velocities = name.split("_", 1)
     axis_name = "K" if axis_name == "L" else axis_name
@@ -98,9 +109,7 @@ def parse_term(name: str, coefficient: float) -> HydroTerm:
         pos = m.end()
     if pos != len(velocities) or not (signed or absolute):
         raise HydroTermError(f"{name!r}: velocity part must be a product of u v w p q r and |u|..|r|")
-    if not np.isfinite(coefficient):
-        raise HydroTermError(f"{name!r}: coefficient {coefficient!r} is not finite")
-    return HydroTerm(name, AXES.index(axis_name), tuple(signed), tuple(absolute), float(coefficient))
+    return AXES.index(axis_name), tuple(signed), tuple(absolute)
 
 
 class HydroTable:

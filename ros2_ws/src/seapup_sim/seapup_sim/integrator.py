@@ -23,6 +23,7 @@ are tested against, and the path of any model that overrides ``derivatives``
 """
 from __future__ import annotations
 
+import functools
 import importlib.util
 import os
 
@@ -47,7 +48,13 @@ def default_backend() -> str:
     choice = os.environ.get("SEAPUP_PLANT", "").strip().lower() or "compiled"
     if choice not in BACKENDS:
         raise ValueError(f"SEAPUP_PLANT must be one of {', '.join(BACKENDS)}, got {choice!r}")
-    return "compiled" if choice == "compiled" and importlib.util.find_spec("numba") is not None else "numpy"
+    return "compiled" if choice == "compiled" and _numba_installed() else "numpy"
+
+
+@functools.cache
+def _numba_installed() -> bool:
+    """Whether numba can be imported (looked up once: every integrator built asks)."""
+    return importlib.util.find_spec("numba") is not None
 
 
 _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
