@@ -11,7 +11,7 @@ random states, inputs and every shipped configuration (``test/test_compiled.py``
 
 Decisions:
 
-- one kernel call is one physics step: of one vehicle (:func:`rk4`), or of N vehicles (or a contiguous part
+- one kernel call is one physics step: of one vehicle (:func:`rk4_checked`), or of N vehicles (or a contiguous part
   of them, on one of several threads), each by the same single-vehicle kernel (:func:`rk4_batch`, :class:`seapup_sim.batch.BatchPlant`: vehicle i equals the
   vehicle stepped alone, bit for bit). The other work between physics steps -- the current's
   Gauss-Markov update (eq. 2.29), configuration events -- stays in
@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_step", "rk4", "rk4_checked", "rk4_batch", "rhs",
+__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
            "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "WORK", "RK4_SCRATCH"]
 
 _JIT = dict(cache=True, nogil=True)
@@ -244,7 +244,8 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
 def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
               pitch_end, buf):
-    """:func:`rk4` with its scratch ``buf`` (:data:`RK4_SCRATCH` floats) given."""
+    """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and ``pitch_end``, with its
+    scratch ``buf`` (:data:`RK4_SCRATCH` floats) given."""
     p0, ph, p1 = buf[0:4], buf[4:8], buf[8:12]
     k1, k2, k3, k4, xs = buf[12:24], buf[24:36], buf[36:48], buf[48:60], buf[60:72]
     work = buf[72:]
@@ -285,21 +286,10 @@ RK4_SCRATCH = 12 + 5 * 12 + WORK
 
 
 @njit(**_JIT)
-def rk4(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-        efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
-        pitch_end):
-    """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and
-    ``pitch_end`` (the envelope check and the angle wrap stay with the caller)."""
-    _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
-              pitch_end, np.empty(RK4_SCRATCH))
-
-
-@njit(**_JIT)
 def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
                 efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
                 envelope, new, pitch_end):
-    """:func:`rk4`, then what :meth:`seapup_sim.integrator.VehicleIntegrator.step` does with the new state, in the
+    """One physics step (:func:`_rk4_into`), then what :meth:`seapup_sim.integrator.VehicleIntegrator.step` does with the new state, in the
     same call: the envelope check (:func:`seapup_sim.integrator.divergence`: a non-finite value, or one beyond
     ``envelope``) and the roll and yaw wrap to [-pi, pi). Returns -1, or the index of the first state out of the
     envelope (``new`` then holds the step unwrapped, for the caller's message)."""
@@ -318,7 +308,7 @@ def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, exte
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, active,
               new, pitch_end):
-    """:func:`rk4` for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
+    """The physics step (:func:`_rk4_into`) for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
     flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
     a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads may step
     disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
@@ -506,20 +496,6 @@ def derivatives(packed: Packed, efficiency, state, pitch, current_ned=None, exte
     return out
 
 
-def rk4_step(packed: Packed, efficiency, state, pitch, command, tau_actuator: float, dt: float,
-             current_ned=None, external=None, thrusters_on: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """One physics step (:meth:`VehicleIntegrator.step` before its checks): the new state and the
-    applied blade pitches at its end."""
-    new, pitch_end = np.empty(12), np.empty(4)
-    rk4(np.ascontiguousarray(state, dtype=np.float64), np.ascontiguousarray(pitch, dtype=np.float64),
-        np.ascontiguousarray(command, dtype=np.float64), float(tau_actuator), float(dt),
-        _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
-        current_ned is not None,
-        _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
-        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, new, pitch_end)
-    return new, pitch_end
-
-
 def warm() -> None:
     """Compile (or load from the cache) every kernel with the argument types the integrator uses.
     ``./seapup setup`` runs this after building seapup_sim, so no test or node compiles them itself."""
@@ -527,7 +503,6 @@ def warm() -> None:
     from seapup_sim.vehicle_config import load_vehicle_config
     model = VehicleModel(load_vehicle_config("baseline"))
     packed = pack(model)
-    rk4_step(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1)
     rk4_checked(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, _NONE3, False, _NONE6, False, True,
                 model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))

@@ -178,7 +178,7 @@ class VehicleIntegrator:
 
     def _step_compiled(self, command: np.ndarray, current_ned, external) -> np.ndarray:
         """:meth:`step` by one kernel call (:func:`seapup_sim.compiled.rk4_checked`: the step, its check and the
-        angle wrap), the same arithmetic as :func:`seapup_sim.compiled.rk4_step` then :meth:`_accept`."""
+        angle wrap), the same arithmetic as the reference's step then :meth:`_accept`."""
         from seapup_sim import compiled
         new, pitch = np.empty(12), np.empty(4)
         bad = compiled.rk4_checked(
