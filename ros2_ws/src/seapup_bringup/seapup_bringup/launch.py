@@ -5,7 +5,8 @@ and the part of it supported are in its docstring), so the shipped ``*.launch.ya
 way here and under ``ros2 launch`` on a system ROS 2. Arguments are given as ``name:=value``; an argument
 without a default and not given, or one given that the file does not declare, is an error that starts
 nothing. A node with ``on_exit: shutdown`` is required: its exit stops the graph, exit 1 naming it;
-``respawn`` restarts a node after ``respawn_delay`` s, at most ``respawn_max_retries`` times.
+``respawn`` restarts a node after ``respawn_delay`` s, at most ``respawn_max_retries`` times (-1 or left out:
+no limit, as launch).
 
 Each node runs in its own process group on the current ROS domain (loopback
 discovery), its output prefixed with ``[name]``. Ctrl-C or SIGTERM stops every
@@ -76,7 +77,8 @@ class Launch:
         node.starts += 1
         node.restart_at = None
         self.say("launch", f"started {node.spec.label} (pid {node.popen.pid})"
-                 + (f", respawn {node.starts - 1} of {node.spec.respawn_limit}" if node.starts > 1 else ""))
+                 + (f", respawn {node.starts - 1} of "
+                    f"{node.spec.respawn_limit if node.spec.respawn_limit >= 0 else 'no limit'}" if node.starts > 1 else ""))
 
         def pump(popen=node.popen, label=node.spec.label):
             for raw in iter(popen.stdout.readline, b""):
@@ -120,7 +122,7 @@ class Launch:
                         self.request_stop(f"required node {node.spec.label} exited with {code}")
                         failed.append(node.spec.label)
                         break
-                    if node.spec.respawn and node.starts <= node.spec.respawn_limit:
+                    if node.spec.respawn and (node.spec.respawn_limit < 0 or node.starts <= node.spec.respawn_limit):
                         node.reported = False
                         node.restart_at = time.monotonic() + node.spec.respawn_delay
                         alive = True

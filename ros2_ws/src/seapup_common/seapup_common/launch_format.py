@@ -24,7 +24,7 @@ class NodeSpec:
     args: list = field(default_factory=list)
     required: bool = False      # on_exit: shutdown
     respawn: bool = False
-    respawn_limit: int = 0      # respawn_max_retries (0 with respawn: no limit)
+    respawn_limit: int = -1     # respawn_max_retries (-1, launch's default: no limit)
     respawn_delay: float = 1.0
 
     @property
@@ -77,7 +77,7 @@ def launch_document(nodes, arguments: dict | None = None) -> dict:
             body["on_exit"] = "shutdown"
         if spec.respawn:
             body.update({"respawn": "true", "respawn_delay": float(spec.respawn_delay)})
-            if spec.respawn_limit:
+            if spec.respawn_limit >= 0:   # left out: no limit, as launch reads it
                 body["respawn_max_retries"] = int(spec.respawn_limit)
         document.append({"node": body})
     return {"launch": document}

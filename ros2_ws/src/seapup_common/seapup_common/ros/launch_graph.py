@@ -21,7 +21,8 @@ wheels, :func:`load_graph` reads the subset of the format they use, by the forma
           on_exit: shutdown               # its exit stops the graph (launch's Shutdown action)
           respawn: "true"                 # restart it when it exits ...
           respawn_delay: 1.0              # ... after this many seconds ...
-          respawn_max_retries: 3          # ... at most this many times (launch's ExecuteProcess, Iron and later)
+          respawn_max_retries: 3          # ... at most this many times (launch's ExecuteProcess, Iron and later;
+                                          # -1 or left out: no limit)
           if: $(var view)                 # (or unless:) started only if the condition is true
 
 Substitutions in any string: ``$(var NAME)``, ``$(find-pkg-share PACKAGE)``, ``$(env NAME [DEFAULT])`` and
@@ -208,14 +209,14 @@ def _node(body: dict, substitute, path, index: int) -> NodeSpec | None:
                         remappings={str(substitute(r["from"])): str(substitute(r["to"])) for r in remaps},
                         args=shlex.split(str(substitute(body.get("args", "")))), required=on_exit == "shutdown",
                         respawn=_condition(substitute(body.get("respawn", False)), what),
-                        respawn_limit=int(substitute(body.get("respawn_max_retries", 0))),
+                        respawn_limit=int(substitute(body.get("respawn_max_retries", -1))),
                         respawn_delay=float(substitute(body.get("respawn_delay", 1.0))))
     except (TypeError, ValueError) as exc:
         if isinstance(exc, LaunchError):
             raise
         raise LaunchError(f"{what}: {exc}") from None
-    if spec.respawn_limit < 0 or spec.respawn_delay < 0:
-        raise LaunchError(f"{what}: respawn_max_retries and respawn_delay must be >= 0")
+    if spec.respawn_limit < -1 or spec.respawn_delay < 0:
+        raise LaunchError(f"{what}: respawn_max_retries must be >= -1 (-1: no limit) and respawn_delay >= 0")
     return spec
 
 
