@@ -53,8 +53,9 @@ from seapup_common import frames
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
-                                  POSITION_REFERENCE, SET_CURRENT_SERVICE, SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY,
-                                  UMBILICAL_SHAPE, VELOCITY_REFERENCE, task_action)
+                                  POSITION_REFERENCE, SET_CURRENT_SERVICE, SIMULATOR_PARAMETERS_SERVICE,
+                                  SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, UMBILICAL_SHAPE, VELOCITY_REFERENCE,
+                                  task_action)
 from seapup_bringup import view_scene
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
@@ -408,8 +409,9 @@ class LiveViewNode(Node):
                 raise ValueError(f"goto: {key} must be a finite number, got {value!r}")
             else:
                 setattr(goal, key, float(value))
-        if self._goto_client is None:
-            self._goto_client = ActionClient(self, Goto, task_action("goto"))
+        with self._service_clients_lock:   # made at its first use, from any of the server's threads
+            if self._goto_client is None:
+                self._goto_client = ActionClient(self, Goto, task_action("goto"))
         if not self._goto_client.wait_for_server(timeout_sec=5.0):
             raise RuntimeError(f"{task_action('goto')} is not on the graph (no task controller)")
         done = threading.Event()
@@ -431,7 +433,7 @@ class LiveViewNode(Node):
                 raise ValueError(f"lockstep_pace must be a number in [0, 10000), got {value!r}")
             from rclpy.parameter import Parameter
             request = SetParameters.Request(parameters=[Parameter("lockstep_pace", value=float(value)).to_parameter_msg()])
-            response = self._call(self._client(SetParameters, f"{NAMESPACE}/simulator/set_parameters"), request)
+            response = self._call(self._client(SetParameters, SIMULATOR_PARAMETERS_SERVICE), request)
             if not response.results[0].successful:
                 raise RuntimeError(f"the simulator refused lockstep_pace: {response.results[0].reason}")
             self._pace = float(value)

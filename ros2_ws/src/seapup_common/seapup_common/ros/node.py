@@ -289,18 +289,18 @@ def _drain(executor, node, budget: float = 1.5) -> None:
         pass
 
 
-def _await_acknowledgements(node, budget: float | None = None) -> None:
-    """Give reliable subscribers up to ``budget`` seconds to acknowledge what was published.
+def _await_acknowledgements(node) -> None:
+    """Give reliable subscribers a few seconds (the budget below) to acknowledge what was published.
 
     A process that exits right after publishing (a controller stopped just after
     its last command) would otherwise take an unacknowledged message with it: a
     subscriber that lost the first transmission never gets the resend, while
     another (a recorder) did receive it. On a loaded machine a lockstep graph stopped at its end can be
     seconds of samples ahead of a recorder's acknowledgements (an identification bag lost its last 14
-    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged. ``budget``: the
+    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged. The budget: the
     node's ``ack_budget`` if it sets one (the simulator, whose samples are what a bag records), else 0.5 s.
     """
-    budget = float(getattr(node, "ack_budget", 0.5)) if budget is None else budget
+    budget = float(getattr(node, "ack_budget", 0.5))
     deadline = time.monotonic() + budget
     step = Duration(nanoseconds=100_000_000)
     try:
