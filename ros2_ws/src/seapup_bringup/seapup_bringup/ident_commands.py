@@ -421,8 +421,7 @@ def _experiment(args, text) -> dict:
     # the first sample waits for every reader of it -- the graph's own (the identifier: it once started
     # after a loaded run had ended, and estimated nothing), the recorder's and this process's probe's
     # (truth, applied pitch): a run that ends at end_time never publishes them again for a late reader
-    arguments["wait_for_subscribers"] = str(_graph_listeners(graph) + [VELOCITY, IMU, DEPTH, APPLIED, TRUTH_ODOMETRY]
-                                            + [TRUTH_ODOMETRY, APPLIED])
+    arguments["wait_for_subscribers"] = str(_graph_listeners(graph) + list(PER_SAMPLE) + [TRUTH_ODOMETRY, APPLIED])
     record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
                    *([VELOCITY_REFERENCE] if args.closed_loop else []))
     arguments["command_subscribers"] = 3  # the first command waits for the simulator, the recorder and the probe
