@@ -52,11 +52,11 @@ class Client:
         self.parameters: list = []
 
     @classmethod
-    async def connect(cls, port: int, timeout: float = 20.0):
+    async def connect(cls, port: int, timeout: float = 20.0, subprotocols=("foxglove.sdk.v1",)):
         deadline = time.monotonic() + timeout
         while True:
             try:
-                return cls(await websocket_connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"]))
+                return cls(await websocket_connect(f"ws://127.0.0.1:{port}", subprotocols=list(subprotocols)))
             except OSError:
                 if time.monotonic() > deadline:
                     raise
@@ -239,12 +239,18 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         assert await client.pump(lambda: len(client.failures) >= 3, 15.0)
         said = {f["callId"]: f["message"] for f in client.failures}
         assert "finite number" in said[8] and "unknown keys" in said[9] and "missing z" in said[10]
-        # the server's parameters: the simulator's pace, set through the viewer, is the simulator's parameter
+        # the server's parameters: the simulator's pace, set through the viewer, is the simulator's parameter; the
+        # set is answered at once (the value before it) and carried out off the server's thread, its new value
+        # published to the viewers subscribed to it
+        client.connection.write_message(json.dumps({"op": "subscribeParameterUpdates",
+                                                    "parameterNames": ["lockstep_pace"]}))
         client.connection.write_message(json.dumps({"op": "setParameters", "id": "pace", "parameters": [
             {"name": "lockstep_pace", "value": 3.0, "type": "float64"}]}))
-        assert await client.pump(lambda: any(p.get("id") == "pace" for p in client.parameters), 15.0)
+        pace = {"name": "lockstep_pace", "value": 3.0, "type": "float64"}
+        assert await client.pump(lambda: any(p.get("id") == "pace" for p in client.parameters)
+                                 and any("id" not in p and pace in p["parameters"] for p in client.parameters), 15.0)
         reply = next(p for p in client.parameters if p.get("id") == "pace")
-        assert reply["parameters"] == [{"name": "lockstep_pace", "value": 3.0, "type": "float64"}]
+        assert [p["name"] for p in reply["parameters"]] == ["lockstep_pace"]
         assert _simulator_parameter(executor, "lockstep_pace") == 3.0
         client.subscribe("/events")
         await client.pump(lambda: False, 0.5)   # the subscription is taken asynchronously
@@ -254,11 +260,53 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
                                  and client.messages.get("/events"), 15.0)
         said = _decoder(client.channels["/events"]).FromString(client.messages["/events"][-1][1])
         level = said.DESCRIPTOR.fields_by_name["level"].enum_type.values_by_number[said.level].name
-        assert "refused: lockstep_pace" in said.message and level == "ERROR"
+        assert "refused (" in said.message and "lockstep_pace must be in [0, 10000], got -1" in said.message
+        assert level == "ERROR"
         assert next(p for p in client.parameters if p.get("id") == "bad")["parameters"][0]["value"] == 3.0
         assert _simulator_parameter(executor, "lockstep_pace") == 3.0
         client.connection.close()
         return len(client.messages["/tf"])
+
+    asyncio.run(scenario())
+
+
+def test_seapup_view_as_documented_serves_a_legacy_client_and_refuses_hostile_requests_without_blocking(
+        node_process, ros_env):
+    """``./seapup view --port P`` (docs/live-view.md; it passed an empty ``environment_file:=``, which rcl refused)
+    serves a client offering only ``foxglove.websocket.v1`` (Lichtblick; the SDK alone answers it 400). Hostile
+    requests are refused with one line each, counted on ``/events``, before anything reaches the graph (there is
+    none here): a set naming ``controller`` 40 times (it held the server's thread 5 s per value, so a new viewer got
+    no handshake for minutes), ``enabled: "false"`` (it switched the current on) and a NUL in a profile's name."""
+    repo = Path(__file__).resolve().parents[1]
+    port = _free_port()
+    node_process([str(repo / "seapup"), "view", "--port", str(port)], name="view")
+
+    async def scenario():
+        client = await Client.connect(port, subprotocols=["foxglove.websocket.v1"])
+        assert client.connection.selected_subprotocol == "foxglove.websocket.v1"
+        assert await client.pump(lambda: "/events" in client.channels and "set_current" in client.services, 20.0)
+        client.subscribe("/events")
+        await client.pump(lambda: False, 0.5)   # the subscription is taken asynchronously
+        client.connection.write_message(json.dumps({"op": "setParameters", "id": "many", "parameters": [
+            {"name": "controller", "value": f"c{i}"} for i in range(40)]}))
+        client.call("set_current", {"enabled": "false"}, call_id=1)
+        client.call("set_sensor_profile", {"name": "haslar\u0000x"}, call_id=2)
+        # a viewer arriving now is served (the set was refused on the server's thread, not carried out there)
+        other = await Client.connect(port)
+        assert await other.pump(lambda: other.info is not None, 20.0)
+        other.connection.close()
+        assert await client.pump(lambda: len(client.failures) >= 2 and len(client.messages.get("/events", [])) >= 3
+                                 and any(p.get("id") == "many" for p in client.parameters), 20.0)
+        said = {f["callId"]: f["message"] for f in client.failures}
+        assert said[1] == 'refused: set_current: enabled must be true or false (a JSON boolean), got "false"'
+        assert said[2].startswith("refused: set_sensor_profile: name holds the unprintable character U+0000")
+        log = _decoder(client.channels["/events"])
+        events = [log.FromString(m).message for _, m in client.messages["/events"]]
+        assert any(e.startswith("refused (") and "40 parameters in one request, at most 2" in e for e in events)
+        assert sorted(int(e.split("(")[1].split()[0]) for e in events) == [1, 2, 3]   # each counted once
+        reply = next(p for p in client.parameters if p.get("id") == "many")
+        assert {"name": "controller", "value": ""} in reply["parameters"]   # unchanged
+        client.connection.close()
 
     asyncio.run(scenario())
 

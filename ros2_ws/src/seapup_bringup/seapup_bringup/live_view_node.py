@@ -19,6 +19,14 @@ Services through the server (JSON requests): ``switch_controller`` (``{"activate
 manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's),
 ``set_sensor_profile`` (``{"name": "haslar"}``) and ``goto`` (``{"x": 10, "y": 0, "z": 30}`` -> a goal of the
 task controller). Parameters: ``lockstep_pace`` (the simulator's) and ``controller`` (setting it switches).
+Every payload and parameter value is checked first (:mod:`seapup_bringup.view_requests`); a refusal is one line,
+said on ``/events`` with the count of refusals so far, and nothing reaches the graph. A parameter set never holds
+the server's thread: it is checked there, carried out on the view's own worker (one at a time), and its new value
+published to the viewers subscribed to it; at most :data:`MAX_CALLS_IN_FLIGHT` service calls wait on the graph
+at once.
+
+The port is served through :class:`seapup_bringup.view_relay.Relay`, so clients offering ``foxglove.sdk.v1`` and
+clients offering only ``foxglove.websocket.v1`` (Lichtblick) are both served.
 
 A message is built only when a viewer subscribes to its channel (``has_sinks``), the scenes at a display's rate
 (:data:`DISPLAY_PERIOD`, :data:`VEHICLE_PERIOD`, :data:`WORLD_PERIOD`; the per-sample topics are taken as bytes
@@ -28,6 +36,7 @@ queues are bounded and drop the oldest, so a slow or vanished viewer costs the g
 from __future__ import annotations
 
 import collections
+import concurrent.futures
 import json
 import logging
 import math
@@ -39,7 +48,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamp
     Vector3Stamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMessage
-from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, ParameterType
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
@@ -57,20 +66,19 @@ from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVI
                                   SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, UMBILICAL_SHAPE, VELOCITY_REFERENCE,
                                   task_action)
 from seapup_bringup import view_scene
+from seapup_bringup.view_requests import GOTO_KEYS, VIEW_PARAMETERS, ViewRequestError
+from seapup_bringup import view_requests
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
-           "VIEW_PARAMETERS", "EVENTS_TOPIC", "ESTIMATE_TOPIC"]
+           "VIEW_PARAMETERS", "EVENTS_TOPIC", "ESTIMATE_TOPIC", "MAX_CALLS_IN_FLIGHT"]
 
 #: The server's channels: the scene (SceneUpdate), the plot (JSON), the frames (FrameTransforms).
 SCENE_TOPICS = ("/scene/vehicle", "/scene/world", "/scene/seabed")
 PLOT_TOPIC, TF_TOPIC = "/plot", "/tf"
 #: The server's services.
 SERVICES = ("switch_controller", "set_current", "set_sensor_profile", "goto")
-#: A goto request's keys (seapup_msgs/action/Goto's goal; all but x, y, z optional).
-GOTO_KEYS = ("x", "y", "z", "yaw", "speed", "tolerance", "yaw_tolerance", "timeout", "preempt")
-#: The server's parameters: the simulator's lockstep pace and the active velocity controller (setting it
-#: switches).
-VIEW_PARAMETERS = ("lockstep_pace", "controller")
+#: Viewer service calls waiting on the graph at once (each waits at most 5 s, a goto 10 s); the next is refused.
+MAX_CALLS_IN_FLIGHT = 4
 #: The server's other channels: controller switches and refusals (foxglove.Log), the self-tuners' estimates.
 EVENTS_TOPIC, ESTIMATE_TOPIC = "/events", "/estimate"
 
@@ -107,8 +115,9 @@ class LiveViewNode(Node):
         self.declare_parameter("vehicle", "baseline", ParameterDescriptor(
             description="vehicle configuration drawn until the simulator's own is read", read_only=True))
         self.declare_parameter("environment_file", "", ParameterDescriptor(
-            description="environment overrides (YAML; '' = default): the seabed drawn until the simulator's own "
-                        "is read", read_only=True))
+            type=ParameterType.PARAMETER_STRING, read_only=True,
+            description="environment overrides (YAML; '' or empty = the default environment): the seabed drawn "
+                        "until the simulator's own is read"))
         import foxglove
         from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
         from foxglove.websocket import Capability
@@ -126,15 +135,32 @@ class LiveViewNode(Node):
         self._asked = None
         self._pace = 0.0
         self._goto_client = None
+        self.refusals = 0   # viewer requests refused (said on /events with this count)
+        self._refusals_lock = threading.Lock()
+        self._calls = threading.BoundedSemaphore(MAX_CALLS_IN_FLIGHT)   # viewer service calls waiting on the graph
+        # parameter sets are carried out here, one at a time, never on the server's thread
+        self._parameter_worker = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="view-parameters")
+        self._parameter_change = None
+        self._parameter_lock = threading.Lock()
         self._ask_timer = self.create_timer(1.0, self._ask_simulator)
         self.trail = view_scene.Trail()
         self._latest: dict = {}
         self._fixes = collections.deque(maxlen=50)   # the newest acoustic fixes
         self._seabed_sent_ns = -_SEABED_PERIOD_NS
-        self.server = foxglove.start_server(
-            name="seapup", host="127.0.0.1", port=int(self.get_parameter("port").value),
+        self.server = foxglove.start_server(   # on a private port: viewers come through the relay
+            name="seapup", host="127.0.0.1", port=0,
             capabilities=[Capability.Time, Capability.Parameters], services=self._viewer_services(foxglove),
             supported_encodings=["json"], server_listener=_Listener(self))
+        from seapup_bringup.view_relay import Relay
+        port = int(self.get_parameter("port").value)
+        try:
+            self.relay = Relay(port, self.server.port).start()
+        except OSError as exc:
+            self.server.stop()
+            self._parameter_worker.shutdown(wait=False)
+            raise RuntimeError(f"port {port} on 127.0.0.1 cannot be served ({exc.strerror or exc}): "
+                               f"another view? choose another port") from None
+        self.port = self.relay.port
         self.tf_channel = FrameTransformsChannel(TF_TOPIC)
         self.vehicle_channel, self.world_channel, self.seabed_channel = (SceneUpdateChannel(t) for t in SCENE_TOPICS)
         self.plot_channel = foxglove.Channel(PLOT_TOPIC, schema=PLOT_SCHEMA)
@@ -160,8 +186,11 @@ class LiveViewNode(Node):
         self._subscribe(PoseWithCovarianceStamped, POSITION, self._on_fix, STREAM_QOS)
         self._subscribe(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, RELIABLE_QOS)
         self.create_timer(2.0, self._find_estimates)
-        self.get_logger().info(f"live view: ws://127.0.0.1:{self.server.port} (open it in Foxglove or Lichtblick: "
-                               f"{self.server.app_url()})")
+        from urllib.parse import quote
+        app_url = (self.server.app_url() or "").replace(quote(f"ws://127.0.0.1:{self.server.port}", safe=""),
+                                                         quote(f"ws://127.0.0.1:{self.port}", safe=""))
+        self.get_logger().info(f"live view: ws://127.0.0.1:{self.port} (open it in Foxglove or Lichtblick: "
+                               f"{app_url})")
 
     # -- the graph -> the viewer -------------------------------------------------------------
     def _subscribe(self, kind, topic, callback, qos):
@@ -343,72 +372,67 @@ class LiveViewNode(Node):
     def _viewer_services(self, foxglove) -> list:
         def schema(name, properties):
             return foxglove.MessageSchema(encoding="json", schema=foxglove.Schema(
-                name=name, encoding="jsonschema", data=json.dumps({"type": "object", "properties": properties}).encode()))
+                name=name, encoding="jsonschema", data=json.dumps({"type": "object", "properties": properties,
+                                                                   "additionalProperties": False}).encode()))
         result = schema("seapup.Result", {"ok": {"type": "boolean"}, "message": {"type": "string"}})
+        name = {"type": "string", "minLength": 1, "maxLength": view_requests.MAX_NAME_LENGTH}
         return [
             foxglove.Service(SERVICES[0], schema=foxglove.ServiceSchema(
-                "seapup.SwitchController", request=schema("seapup.Switch", {"activate": {"type": "string"}}),
-                response=result), handler=self._switch),
+                "seapup.SwitchController", request=schema("seapup.Switch", {"activate": name}),
+                response=result), handler=self._served(SERVICES[0], self._switch)),
             foxglove.Service(SERVICES[1], schema=foxglove.ServiceSchema(
                 "seapup.SetCurrent", request=schema("seapup.Current", {
-                    k: {"type": "number"} for k in ("mean_speed", "mean_direction", "speed_std", "direction_std",
-                                                    "break_time")} | {"enabled": {"type": "boolean"}}),
-                response=result), handler=self._set_current),
+                    k: {"type": "number"} for k in view_requests.CURRENT_KEYS[1:]} | {"enabled": {"type": "boolean"}}),
+                response=result), handler=self._served(SERVICES[1], self._set_current)),
             foxglove.Service(SERVICES[2], schema=foxglove.ServiceSchema(
-                "seapup.SetSensorProfile", request=schema("seapup.Profile", {"name": {"type": "string"}}),
-                response=result), handler=self._set_profile),
+                "seapup.SetSensorProfile", request=schema("seapup.Profile", {"name": name}),
+                response=result), handler=self._served(SERVICES[2], self._set_profile)),
             foxglove.Service(SERVICES[3], schema=foxglove.ServiceSchema(
                 "seapup.Goto", request=schema("seapup.GotoGoal", {k: {"type": "boolean" if k == "preempt" else "number"}
                                                                   for k in GOTO_KEYS}),
-                response=result), handler=self._goto)]
+                response=result), handler=self._served(SERVICES[3], self._goto))]
 
-    def _switch(self, request) -> bytes:
-        body = _json_object(request.payload, {"activate"})
-        name = body.get("activate")
-        if not isinstance(name, str) or not name:
-            raise ValueError("switch_controller needs {\"activate\": \"<controller name>\"}")
+    def _served(self, service: str, handler):
+        """``handler`` as the server calls it (on its threads): the payload checked first, at most
+        :data:`MAX_CALLS_IN_FLIGHT` calls waiting on the graph; any refusal said and counted, and answered with
+        its one line (the app shows it as the call's failure)."""
+        def serve(request) -> bytes:
+            try:
+                if not self._calls.acquire(blocking=False):
+                    raise ViewRequestError(f"{service}: busy ({MAX_CALLS_IN_FLIGHT} viewer requests already wait on "
+                                           f"the graph): try again")
+                try:
+                    return handler(request.payload)
+                finally:
+                    self._calls.release()
+            except Exception as exc:  # noqa: BLE001 - refused (bad payload, or the graph said no): one line
+                text = _one_line(exc)
+                self.refused(text)
+                raise _Refused(text) from None
+        return serve
+
+    def _switch(self, payload: bytes) -> bytes:
+        name = view_requests.switch_request(payload)
         ros = SwitchController.Request(activate_controllers=[name], strictness=SwitchController.Request.STRICT)
         response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), ros)
         return json.dumps({"ok": bool(response.ok), "message": response.message}).encode()
 
-    def _set_current(self, request) -> bytes:
-        keys = {"enabled", "mean_speed", "mean_direction", "speed_std", "direction_std", "break_time"}
-        body = _json_object(request.payload, keys)
-        ros = SetCurrent.Request(enabled=bool(body.get("enabled", True)))
-        for key in keys - {"enabled"}:
-            value = body.get(key, 0.0)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise ValueError(f"set_current: {key} must be a finite number, got {value!r}")
-            setattr(ros, key, float(value))
+    def _set_current(self, payload: bytes) -> bytes:
+        ros = SetCurrent.Request(**view_requests.current_request(payload))
         response = self._call(self._client(SetCurrent, SET_CURRENT_SERVICE), ros)
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
 
-    def _set_profile(self, request) -> bytes:
-        name = _json_object(request.payload, {"name"}).get("name")
-        if not isinstance(name, str) or not name:
-            raise ValueError("set_sensor_profile needs {\"name\": \"ideal|baseline|haslar\"}")
+    def _set_profile(self, payload: bytes) -> bytes:
+        name = view_requests.profile_request(payload)
         response = self._call(self._client(SetSensorProfile, f"{NAMESPACE}/simulator/set_sensor_profile"),
                               SetSensorProfile.Request(name=name))
         return json.dumps({"ok": bool(response.success), "message": response.message}).encode()
 
-    def _goto(self, request) -> bytes:
+    def _goto(self, payload: bytes) -> bytes:
         """Send the task controller a goto goal (odom_ned, metres, radians); the answer says whether it was
         accepted (the task then flies; its progress is the view's track and ``/events``)."""
         from rclpy.action import ActionClient
-        body = _json_object(request.payload, set(GOTO_KEYS))
-        missing = [k for k in ("x", "y", "z") if k not in body]
-        if missing:
-            raise ValueError(f"goto needs x, y, z (odom_ned, m); missing {', '.join(missing)}")
-        goal = Goto.Goal()
-        for key, value in body.items():
-            if key == "preempt":
-                if not isinstance(value, bool):
-                    raise ValueError(f"goto: preempt must be true or false, got {value!r}")
-                goal.preempt = value
-            elif isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise ValueError(f"goto: {key} must be a finite number, got {value!r}")
-            else:
-                setattr(goal, key, float(value))
+        goal = Goto.Goal(**view_requests.goto_request(payload))
         with self._service_clients_lock:   # made at its first use, from any of the server's threads
             if self._goto_client is None:
                 self._goto_client = ActionClient(self, Goto, task_action("goto"))
@@ -426,11 +450,35 @@ class LiveViewNode(Node):
         """The server's parameters: the simulator's pace (as last read) and the active controller."""
         return {"lockstep_pace": float(self._pace), "controller": self.active_controller}
 
+    def request_parameters(self, parameters: list) -> None:
+        """A viewer's checked parameter set (:func:`view_requests.parameter_request`), handed to the view's worker;
+        returns at once (it is called on the server's thread, which serves every viewer).
+
+        Raises
+        ------
+        ViewRequestError
+            A parameter set is still being carried out (one at a time: a viewer cannot queue up work).
+        """
+        with self._parameter_lock:
+            if self._parameter_change is not None and not self._parameter_change.done():
+                raise ViewRequestError("setParameters: a parameter change is still being carried out: try again")
+            self._parameter_change = self._parameter_worker.submit(self._apply_parameters, parameters)
+
+    def _apply_parameters(self, parameters: list) -> None:
+        """On the worker: each parameter carried out in the graph (a refusal said, the value kept); then the values
+        published to the viewers subscribed to them."""
+        for name, value in parameters:
+            try:
+                self.set_viewer_parameter(name, value)
+            except Exception as exc:  # noqa: BLE001 - refused by the graph: said, nothing changed
+                self.refused(f"{name}: {_one_line(exc)}")
+        from foxglove import Parameter
+        values = self.viewer_parameters()
+        self.server.publish_parameter_values([Parameter(name, value=values[name]) for name, _ in parameters])
+
     def set_viewer_parameter(self, name: str, value) -> None:
-        """A viewer set a parameter: carried out in the graph (raises with one line if refused)."""
+        """A checked parameter value carried out in the graph (raises with one line if the graph refuses)."""
         if name == "lockstep_pace":
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 <= value < 1e4):
-                raise ValueError(f"lockstep_pace must be a number in [0, 10000), got {value!r}")
             from rclpy.parameter import Parameter
             request = SetParameters.Request(parameters=[Parameter("lockstep_pace", value=float(value)).to_parameter_msg()])
             response = self._call(self._client(SetParameters, SIMULATOR_PARAMETERS_SERVICE), request)
@@ -438,15 +486,13 @@ class LiveViewNode(Node):
                 raise RuntimeError(f"the simulator refused lockstep_pace: {response.results[0].reason}")
             self._pace = float(value)
         elif name == "controller":
-            if not isinstance(value, str) or not value:
-                raise ValueError(f"controller must be a controller's name, got {value!r}")
             response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), SwitchController.Request(
                 activate_controllers=[value], strictness=SwitchController.Request.STRICT))
             if not response.ok:
                 raise RuntimeError(f"switch to {value} refused: {response.message}")
             self.active_controller = value
         else:
-            raise ValueError(f"no parameter {name!r} (parameters: {', '.join(VIEW_PARAMETERS)})")
+            raise ViewRequestError(f"no parameter {name!r} (parameters: {', '.join(VIEW_PARAMETERS)})")
 
     def _client(self, kind, name: str):
         """The service client of ``name``, made at its first use (from any thread)."""
@@ -456,7 +502,7 @@ class LiveViewNode(Node):
             return self._service_clients[name]
 
     def _call(self, client, request, timeout: float = 5.0):
-        """A ROS service call from the server's thread: the node's executor completes it."""
+        """A ROS service call from a server or worker thread: the node's executor completes it."""
         if not client.wait_for_service(timeout_sec=timeout):
             raise RuntimeError(f"{client.srv_name} is not on the graph")
         done = threading.Event()
@@ -467,19 +513,26 @@ class LiveViewNode(Node):
         return future.result()
 
     def refused(self, text: str) -> None:
-        """A viewer's request the graph did not take: logged, and said on ``/events``."""
-        self.get_logger().warn(f"viewer request refused: {text}")
+        """A viewer's request the view or the graph did not take: counted, logged, and said on ``/events``."""
+        with self._refusals_lock:
+            self.refusals += 1
+            count = self.refusals
+        self.get_logger().warn(f"viewer request refused ({count} so far): {text}")
         from seapup_bringup import live_view_messages as fm
-        self.events_channel.log(fm.event(f"refused: {text}", self._t_ns, error=True), log_time=self._t_ns)
+        self.events_channel.log(fm.event(f"refused ({count} so far): {text}", self._t_ns, error=True),
+                                log_time=self._t_ns)
 
     def destroy_node(self):
+        self.relay.stop()
         self.server.stop()
+        self._parameter_worker.shutdown(wait=False, cancel_futures=True)
         return super().destroy_node()
 
 
 class _Listener(ServerListener):
-    """The server's parameter requests (its threads), carried out by the node; a refusal is logged on
-    ``/events`` and the parameter keeps its value. (The other callbacks: the SDK's defaults.)"""
+    """The server's parameter requests (on the server's thread, which serves every viewer: nothing here waits).
+    A set is checked here and carried out by the node's worker; its answer carries the values before the change,
+    and the new values follow as a parameter update. A refusal is said on ``/events`` and changes nothing."""
 
     def __init__(self, node: "LiveViewNode"):
         self.node = node
@@ -487,36 +540,44 @@ class _Listener(ServerListener):
     def _parameters(self, names):
         from foxglove import Parameter
         values = self.node.viewer_parameters()
-        return [Parameter(name, value=values[name]) for name in (names or VIEW_PARAMETERS) if name in values]
+        wanted = set(names) & set(VIEW_PARAMETERS) if names else set(VIEW_PARAMETERS)
+        return [Parameter(name, value=values[name]) for name in VIEW_PARAMETERS if name in wanted]
 
     def on_get_parameters(self, client, param_names, request_id=None):
         return self._parameters(param_names)
 
     def on_set_parameters(self, client, parameters, request_id=None):
-        for parameter in parameters:
-            try:
-                self.node.set_viewer_parameter(parameter.name, parameter.get_value())
-            except Exception as exc:  # noqa: BLE001 - refused: said, nothing changed
-                self.node.refused(f"{parameter.name}: {exc}")
-        return self._parameters([p.name for p in parameters])
+        try:
+            checked = view_requests.parameter_request(
+                parameters if len(parameters) > view_requests.MAX_PARAMETERS_PER_REQUEST
+                else [(p.name, p.get_value()) for p in parameters])
+            self.node.request_parameters(checked)
+        except ViewRequestError as exc:   # refused: said, nothing changed
+            self.node.refused(str(exc))
+        except Exception as exc:  # noqa: BLE001 - a value the server could not convert: refused, one line
+            self.node.refused(f"setParameters: {_one_line(exc)}")
+        return self._parameters([p.name for p in parameters] if len(parameters) <= len(VIEW_PARAMETERS)
+                                else VIEW_PARAMETERS)
 
 
-def _json_object(payload: bytes, allowed: set) -> dict:
-    """A service request's JSON object, refusing what is not one and keys not asked for (one line each)."""
-    try:
-        body = json.loads(bytes(payload).decode() or "{}")
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"the request is not JSON: {exc}") from None
-    if not isinstance(body, dict):
-        raise ValueError("the request must be a JSON object")
-    unknown = sorted(set(body) - allowed)
-    if unknown:
-        raise ValueError(f"unknown keys {unknown} (allowed: {sorted(allowed)})")
-    return body
+class _Refused(ValueError):
+    """A service call's failure as the viewer reads it: the SDK writes ``<__qualname__>: <message>``, so
+    ``refused: <the reason>`` rather than an exception's name."""
+
+
+_Refused.__qualname__ = "refused"
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception as the one line a viewer reads: its message (its type's name only when it has none)."""
+    text = " ".join(str(exc).split())
+    return text[:300] if text else type(exc).__name__
 
 
 def main(args=None) -> int:
-    return run_node(LiveViewNode, args)
+    import sys
+    from seapup_bringup.view import ros_arguments
+    return run_node(LiveViewNode, ros_arguments(list(sys.argv if args is None else args)))
 
 
 if __name__ == "__main__":
