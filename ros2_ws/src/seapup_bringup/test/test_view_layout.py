@@ -38,3 +38,15 @@ def test_every_panel_names_a_channel_field_or_service_the_view_serves():
     assert sorted(called) == sorted(SERVICES)
     (log,) = [p for p in panels if p["panelType"] == "Log"]
     assert log["config"]["topicToRender"] == EVENTS_TOPIC
+
+
+def test_every_service_button_sends_a_request_the_view_accepts():
+    """A button's payload passes the view's own checks (``view_requests``): no shipped button is refused."""
+    from seapup_bringup import view_requests
+    check = dict(zip(SERVICES, (view_requests.switch_request, view_requests.current_request,
+                                view_requests.profile_request, view_requests.goto_request)))
+    panels = [n for n in _walk(json.loads(layout_json())) if n.get("type") == "panel"]
+    buttons = [p["config"] for p in panels if "serviceName" in p.get("config", {})]
+    assert len(buttons) == len(SERVICES)
+    for button in buttons:
+        check[button["serviceName"]](button["requestPayload"].encode())
