@@ -196,6 +196,10 @@ def _layout(data: dict, where: str) -> tuple[dict, int, dict, object]:
         draws = random.get("draws")
         if not isinstance(draws, dict) or not draws or not all(isinstance(k, str) and k.strip(".+") for k in draws):
             raise CampaignError(f"{where}: random needs count >= 1 and draws (a dotted path: a distribution)")
+        both = sorted(set(grid) & set(draws))
+        if both:
+            raise CampaignError(f"{where}: {_short(both)} both in grid and in random.draws: one would silently "
+                                "replace the other; give each path once")
         seed = random.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
             raise CampaignError(f"{where}: random.seed must be an integer in [0, 2^63), got {_short(seed)}")

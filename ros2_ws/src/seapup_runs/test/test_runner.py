@@ -102,8 +102,10 @@ def test_a_result_round_trips_through_json_with_every_number():
 def test_unknown_metrics_and_undesigned_controllers_are_refused():
     with pytest.raises(RunSpecError, match="needs a design document"):
         run(RunSpec(duration=1.0, controller=ControllerSpec("mfol")))
+    with pytest.raises(RunSpecError, match=r"unknown metric\(s\) \['no_such_metric'\]"):   # before anything flies
+        RunSpec(duration=1.0, metrics=("no_such_metric",))
     result = run(RunSpec(duration=1.0, controller=ControllerSpec("hold")))
-    result.spec = RunSpec(duration=1.0, metrics=("no_such_metric",))
+    object.__setattr__(result.spec, "metrics", ("no_such_metric",))    # past the spec's check: compute's own
     with pytest.raises(MetricError, match="unknown metric 'no_such_metric'"):
         compute(result)
 
