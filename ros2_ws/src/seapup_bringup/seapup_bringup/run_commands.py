@@ -25,10 +25,13 @@ def _load_spec(path: Path):
     1 MiB, no duplicated key, no ``!!python`` tag), an empty or comment-only file refused, then checked
     (:meth:`RunSpec.from_dict`, whose messages are prefixed with the file)."""
     from seapup_common.input_files import load_yaml_file
+    from seapup_runs.metrics import check_names
     from seapup_runs.spec import RunSpec, RunSpecError
     data = load_yaml_file(path, "spec")
     try:
-        return RunSpec.from_dict(data)
+        spec = RunSpec.from_dict(data)
+        check_names(spec.metrics)   # before either transport flies it
+        return spec
     except (RunSpecError, ValueError) as exc:
         raise RunSpecError(f"{path}: {exc}") from None
 

@@ -249,7 +249,9 @@ def _check(spec: RunSpec) -> None:
     """What a run spec leaves to flight time, checked before a campaign flies thousands: the vehicles and
     the controllers' names."""
     from seapup_common.controllers import controller_type
+    from seapup_runs.metrics import check_names
     from seapup_sim.vehicle_config import available_configs
+    check_names(spec.metrics)
     vehicles = [spec.vehicle] + [e.detail for e in spec.events if e.kind == "configuration"]
     for vehicle in vehicles:
         if vehicle not in available_configs():

@@ -247,6 +247,7 @@ def test_the_campaign_cap_is_the_product_of_the_counts_and_can_be_raised(monkeyp
     ({"base": {"scenario": "square-surge", "rate_hz": 0}}, "base.rate_hz must be a number in"),
     ({"base": {"scenario": "square-surge", "schedule": "no"}}, "base.schedule is true or false"),
     ({"base": {"scenario": ["square-surge"]}}, "base.scenario is a name"),
+    ({"base": {"spec": {**BASE["spec"], "metrics": ["nope"]}}}, r"run 0 .*unknown metric\(s\) \['nope'\]"),
 ])
 def test_hostile_campaign_values_get_a_reason_not_an_exception_s_words(change, message):
     """Before issue 40: numpy's 'scale < 0' and 'low >= high', OverflowError, AttributeError ('list' object has

@@ -102,12 +102,18 @@ def test_a_result_round_trips_through_json_with_every_number():
 def test_unknown_metrics_and_undesigned_controllers_are_refused():
     with pytest.raises(RunSpecError, match="needs a design document"):
         run(RunSpec(duration=1.0, controller=ControllerSpec("mfol")))
-    with pytest.raises(RunSpecError, match=r"unknown metric\(s\) \['no_such_metric'\]"):   # before anything flies
-        RunSpec(duration=1.0, metrics=("no_such_metric",))
     result = run(RunSpec(duration=1.0, controller=ControllerSpec("hold")))
-    object.__setattr__(result.spec, "metrics", ("no_such_metric",))    # past the spec's check: compute's own
+    result.spec = RunSpec(duration=1.0, metrics=("no_such_metric",))
     with pytest.raises(MetricError, match="unknown metric 'no_such_metric'"):
         compute(result)
+
+
+def test_an_unknown_metric_is_refused_before_the_run_flies(monkeypatch):
+    """Before issue 40 ``fly`` flew the whole run (and its self-test) and then refused the metric's name."""
+    import seapup_runs.runner as runner
+    monkeypatch.setattr(runner, "design", lambda *a, **k: pytest.fail("flew a run whose metric is unknown"))
+    with pytest.raises(MetricError, match=r"unknown metric\(s\) \['no_such_metric'\]; known: step_response"):
+        run(RunSpec(duration=1.0, metrics=("no_such_metric",)))
 
 
 @pytest.mark.parametrize("event, message", [
