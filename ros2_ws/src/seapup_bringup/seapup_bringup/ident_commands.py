@@ -133,7 +133,7 @@ def _check_csv(path: Path) -> None:
 
     from seapup_common.input_files import read_text
     text = read_text(path, "data")   # InputFileError (a ValueError): too large, not UTF-8, a NUL byte
-    cells = text.count(",") + text.count("\n") + 1
+    cells = text.count(",") + text.count("\n") + (not text.endswith("\n"))   # a line has one cell more than commas
     if cells > MAX_CSV_CELLS:
         raise ValueError(f"{path}: about {cells:,} cells, more than the {MAX_CSV_CELLS:,} a CSV record may have "
                          "(docs/limits.md)")
