@@ -13,7 +13,7 @@ import threading
 
 import pytest
 
-#: Far above what a refusing process needs (~100 MB: Python, numpy and the command's imports), far below the
+#: Far above what a refusing process needs (~35-150 MB: Python, numpy and the command's imports), far below the
 #: gigabytes an unbounded read or expansion reaches.
 RSS_BOUND_MB = 600
 #: A refusal is arithmetic on a few numbers after the imports (~1 s of CPU); a loaded machine does not add CPU.
@@ -79,3 +79,12 @@ def test_a_campaign_of_ten_million_runs_is_refused_from_its_counts(tmp_path):
     assert lines[0].startswith("seapup: error: huge: 1e+07 runs (10 a x 10 b x 10 c") and "100,000" in lines[0]
     assert rss_mb < RSS_BOUND_MB and cpu_s < CPU_BOUND_S, (rss_mb, cpu_s)
     assert not (tmp_path / "out").exists()
+
+
+def test_fly_of_a_start_outside_the_envelope_says_why_not_the_exception_s_name(tmp_path):
+    """Before issue 40: 'seapup fly: error: DivergenceError: state z = ...'."""
+    spec = tmp_path / "deep.yaml"
+    spec.write_text("start_state: [0, 0, 100000.0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\nduration: 1.0\n")
+    code, lines, _, _ = _seapup(tmp_path, "fly", spec)
+    assert code == 1 and len(lines) == 1, lines
+    assert lines[0].startswith("seapup: error: state z = ") and "outside the valid envelope" in lines[0]
