@@ -3,6 +3,7 @@
 Truth: the same runs flown directly in this process by seapup_runs.runner (the table must hold exactly their
 metrics), the campaign file's own expansion, and the files a resumed campaign leaves untouched.
 """
+import io
 import json
 import math
 import os
@@ -54,12 +55,21 @@ def test_a_campaign_on_a_local_cluster_writes_every_run_s_metrics_and_resumes(tm
     worst = summary["worst"]
     assert len(worst) == 2 and worst[0]["pitch_deg.peak"] >= worst[1]["pitch_deg.peak"]
     assert RunSpec.from_dict(json.loads(open(worst[0]["spec"]).read())).vehicle in ("baseline", "camera")
-    # interrupted: one task's part is lost; --resume flies only it, and the table is the same
+    # interrupted: one task's part is lost and another's cut short (a corrupt Parquet file); --resume says so in
+    # one line and flies only those two, and the table is the same
     (out / "parts" / "task-00002.parquet").unlink()
-    before = {p.name: p.stat().st_mtime_ns for p in (out / "parts").iterdir()}
-    again = run_campaign(campaign, out, workers=1, resume=True)
-    assert again["tasks_reused"] == 3 and again["runs"] == 4
+    corrupt = out / "parts" / "task-00001.parquet"
+    corrupt.write_bytes(corrupt.read_bytes()[:40])
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "parts").iterdir() if p != corrupt}
+    said = io.StringIO()
+    again = run_campaign(campaign, out, workers=1, resume=True, text=said)
+    assert again["tasks_reused"] == 2 and again["runs"] == 4
+    assert [line for line in said.getvalue().splitlines() if "task-00001" in line] == [
+        line for line in said.getvalue().splitlines() if line.startswith("task-00001.parquet: unreadable (")]
+    assert "task-00001.parquet: unreadable" in said.getvalue()
     assert all((out / "parts" / name).stat().st_mtime_ns == t for name, t in before.items())
+    # resuming converges: nothing left to fly the second time
+    assert run_campaign(campaign, out, workers=1, resume=True, text=io.StringIO())["tasks_reused"] == 4
     timed = ("wall_s", "cpu_s")   # the re-flown task's own timings differ, nothing else
     resumed = pq.read_table(out / "results.parquet").to_pylist()
     assert [sorted(r) for r in resumed] == [sorted(r) for r in table]

@@ -257,3 +257,24 @@ def test_an_experiment_ends_at_its_duration_in_graph_time(tmp_path, ros_env):
         assert fit.returncode == 0, fit.stdout + fit.stderr
         assert json.loads((tmp_path / "fit.json").read_text())["scope"]["samples"] == 50
         assert "data: 50 samples, t = 0 .. 9.8 s" in fit.stdout and "note:" not in fit.stdout
+
+
+@pytest.mark.unit
+def test_a_csv_source_is_read_bounded_and_refused_in_one_line(tmp_path, monkeypatch):
+    """Issue 40: a row longer than the header ended in numpy's 'inhomogeneous shape'; /dev/zero was read whole."""
+    from seapup_bringup import ident_commands
+    from seapup_bringup.ident_commands import load_source
+    ragged = tmp_path / "ragged.csv"
+    ragged.write_text("t,y1,u1\n0,1,2\n0.2,1,2,3,4\n")
+    with pytest.raises(ValueError, match=r"ragged.csv: row 3 has 5 cells, more than the header's 3$"):
+        load_source(str(ragged), None, None, "velocities")
+    zero = tmp_path / "zero.csv"
+    zero.symlink_to("/dev/zero")
+    with pytest.raises(ValueError, match="zero.csv: larger than 64 MiB"):
+        load_source(str(zero), None, None, "velocities")
+    good = tmp_path / "good.csv"
+    good.write_text("t,y1,u1\n" + "".join(f"{k * 0.2:.1f},{k % 3},{k % 2}\n" for k in range(10)))
+    assert load_source(str(good), None, None, "velocities").y.shape == (10, 1)
+    monkeypatch.setattr(ident_commands, "MAX_CSV_CELLS", 20)     # 11 lines x 3 columns: 33 cells
+    with pytest.raises(ValueError, match="about 33 cells, more than the 20 a CSV record may have"):
+        load_source(str(good), None, None, "velocities")

@@ -105,11 +105,12 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
     digest = f"{campaign.digest}-{len(rows)}"
     parts = out / "parts"
     manifest = out / "campaign.json"
-    previous = json.loads(manifest.read_text()) if manifest.is_file() else None
+    previous = _manifest(manifest) if resume and manifest.is_file() else None
     if resume and previous is not None and previous.get("digest") != digest:
         raise CampaignError(f"{out} holds another campaign (or a changed file or --limit): resume needs the same; "
                             "choose another --out or drop --resume")
-    todo = [k for k in range(len(groups)) if not (resume and (parts / f"task-{k:05d}.parquet").is_file())]
+    todo = [k for k in range(len(groups)) if not (resume and _part_done(parts / f"task-{k:05d}.parquet", groups[k],
+                                                                        text))]
     reused = len(groups) - len(todo)
     where = scheduler or "a LocalCluster"
     # the cluster first: a scheduler that cannot be reached leaves the output directory as it was
@@ -157,6 +158,40 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
     for r in errors[:5]:
         print(f"  run {r['index']}: {r['error']}", file=text)
     return summary
+
+
+def _manifest(path: Path) -> dict:
+    """``OUT/campaign.json`` as written by an earlier run (bounded, as data); one line if it is not that."""
+    from seapup_common.input_files import InputFileError, read_text
+    from seapup_runs.campaign import CampaignError
+    try:
+        previous = json.loads(read_text(path, "data"))
+    except (InputFileError, ValueError, RecursionError) as exc:
+        reason = exc if isinstance(exc, InputFileError) else f"{path}: not JSON"
+        raise CampaignError(f"{reason}: cannot resume from it; choose another --out or drop --resume") from None
+    if not isinstance(previous, dict):
+        raise CampaignError(f"{path}: not a campaign manifest: cannot resume from it; choose another --out or drop "
+                            "--resume")
+    return previous
+
+
+def _part_done(path: Path, group: list[dict], text) -> bool:
+    """Whether the task's part is on disk whole: a Parquet table holding exactly the task's runs. A part that is
+    not (cut short, corrupted, another task's) is said in one line and flown again, so resuming converges."""
+    if not path.is_file():
+        return False
+    import pyarrow.parquet as pq
+    try:
+        indices = pq.read_table(path, columns=["index"]).column("index").to_pylist()
+    except Exception as exc:   # pyarrow raises ArrowInvalid, OSError, KeyError... for a damaged file
+        reason = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        print(f"{path.name}: unreadable ({reason}); flying its {len(group)} runs again", file=text, flush=True)
+        return False
+    if sorted(indices) != [row["index"] for row in group]:
+        print(f"{path.name}: holds runs {indices[:3]}... not the task's {len(group)}; flying them again", file=text,
+              flush=True)
+        return False
+    return True
 
 
 def _columns_safe(records: list[dict]) -> list[dict]:

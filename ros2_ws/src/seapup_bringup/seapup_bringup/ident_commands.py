@@ -105,16 +105,47 @@ def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
     return IdentificationData(y, u, np.array(stamps) * 1e-9, tuple(outputs), THRUSTER_NAMES)
 
 
+#: The most cells (rows x columns) a CSV record may have: parsing holds each cell as a string before it becomes
+#: a float, about 60 bytes a cell, so 4 x 10^6 cells are ~0.25 GB at most. A thesis experiment (60 s at 20 Hz,
+#: a dozen columns) is ~1.4 x 10^4 cells; the cap is over 4 hours of such a record.
+MAX_CSV_CELLS = 4 * 10**6
+
+
 def load_source(source: str, outputs: str | None, inputs: str | None, output_set: str):
-    """A bag directory (metadata.yaml) or a CSV file."""
+    """A bag directory (metadata.yaml) or a CSV file (read bounded: :mod:`seapup_common.input_files`' data
+    limit, at most :data:`MAX_CSV_CELLS` cells, no row longer than the header)."""
     from seapup_ident.identify import read_csv
     path = Path(source)
     if path.is_dir():
         names = tuple(outputs.split(",")) if outputs else OUTPUT_SETS[output_set]
         return bag_data(path, names)
     if path.suffix.lower() == ".csv":
+        _check_csv(path)
         return read_csv(path, outputs.split(",") if outputs else None, inputs.split(",") if inputs else None)
     raise ValueError(f"{source}: neither a bag directory nor a .csv file")
+
+
+def _check_csv(path: Path) -> None:
+    """Refuse a CSV file that is too large, not text, has too many cells or a row longer than its header, in one
+    line, before :func:`seapup_ident.identify.read_csv` builds anything from it."""
+    import csv
+    import io
+
+    from seapup_common.input_files import read_text
+    text = read_text(path, "data")   # InputFileError (a ValueError): too large, not UTF-8, a NUL byte
+    cells = text.count(",") + text.count("\n") + (not text.endswith("\n"))   # a line has one cell more than commas
+    if cells > MAX_CSV_CELLS:
+        raise ValueError(f"{path}: about {cells:,} cells, more than the {MAX_CSV_CELLS:,} a CSV record may have "
+                         "(docs/limits.md)")
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""))
+        width = None
+        for line, row in enumerate(reader, 1):
+            width = len(row) if width is None else width
+            if len(row) > width:
+                raise ValueError(f"{path}: row {line} has {len(row)} cells, more than the header's {width}")
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not CSV ({exc})") from None
 
 
 def experiment_record(source) -> dict | None:
@@ -124,9 +155,12 @@ def experiment_record(source) -> dict | None:
     record = path.parent / EXPERIMENT_RECORD
     if not (path.is_dir() and record.is_file()):
         return None
+    from seapup_common.input_files import read_text
     try:
-        doc = json.loads(record.read_text())
-    except (OSError, ValueError):
+        doc = json.loads(read_text(record, "data"))   # InputFileError is a ValueError
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(doc, dict):
         return None
     named = [Path(doc[key]).resolve() for key in ("bag", "identifier_bag") if isinstance(doc.get(key), str)]
     return doc if path.resolve() in named and isinstance(doc.get("duration"), (int, float)) else None

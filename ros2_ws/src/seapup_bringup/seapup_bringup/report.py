@@ -224,7 +224,8 @@ def readme_block(document: dict) -> str:
 
 def update_readme(path: Path, document: dict) -> bool:
     """Replace the generated block of ``path``; True if it changed. ValueError without the markers."""
-    text = path.read_text()
+    from seapup_common.input_files import read_text
+    text = read_text(path, "data")
     if README_BEGIN not in text or README_END not in text:
         raise ValueError(f"{path} has no generated block ({README_BEGIN!r} ... {README_END!r})")
     head, rest = text.split(README_BEGIN, 1)

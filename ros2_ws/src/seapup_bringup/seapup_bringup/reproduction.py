@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_common.input_files import read_text
 from seapup_common.jsondata import jsonable
 
 __all__ = ["code_version", "run_key", "execute", "run_all", "default_cache", "ReproductionError"]
@@ -227,7 +228,7 @@ def _ident_command(argv: list) -> dict:
             code = ident_main([*map(str, argv), "--json", str(document)])
         if code != 0 or not document.is_file():
             raise ReproductionError(f"./seapup ident {' '.join(map(str, argv))} failed: {text.getvalue()[-400:]}")
-        return json.loads(document.read_text())
+        return json.loads(read_text(document, "data"))
 
 
 def _identification(description: dict, out: Path) -> tuple[dict, list]:
@@ -377,7 +378,7 @@ def run_all(runs: dict, cache: Path, jobs: int = 1, use_cache: bool = True, prog
     for name, description in runs.items():
         directory = cache / run_key(name, description, version)
         if use_cache and (directory / "run.json").is_file():
-            out[name] = {**json.loads((directory / "run.json").read_text()), "directory": str(directory),
+            out[name] = {**json.loads(read_text(directory / "run.json", "data")), "directory": str(directory),
                          "cached": True}
         else:
             todo[name] = (description, directory)

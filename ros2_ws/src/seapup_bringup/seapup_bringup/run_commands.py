@@ -14,7 +14,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 
@@ -22,12 +21,19 @@ __all__ = ["fly", "controllers"]
 
 
 def _load_spec(path: Path):
+    """The run spec in ``path``: read bounded and parsed strictly (:mod:`seapup_common.input_files`: at most
+    1 MiB, no duplicated key, no ``!!python`` tag), an empty or comment-only file refused, then checked
+    (:meth:`RunSpec.from_dict`, whose messages are prefixed with the file)."""
+    from seapup_common.input_files import load_yaml_file
+    from seapup_runs.metrics import check_names
     from seapup_runs.spec import RunSpec, RunSpecError
+    data = load_yaml_file(path, "spec")
     try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
+        spec = RunSpec.from_dict(data)
+        check_names(spec.metrics)   # before either transport flies it
+        return spec
+    except (RunSpecError, ValueError) as exc:
         raise RunSpecError(f"{path}: {exc}") from None
-    return RunSpec.from_dict(data or {})
 
 
 def _summary(result, text) -> None:
@@ -52,6 +58,7 @@ def fly(argv: list[str]) -> int:
     from seapup_common.controllers import ControllerRegistryError
     from seapup_runs.runner import DesignFailed, run
     from seapup_runs.spec import RunSpecError
+    from seapup_sim.integrator import DivergenceError
     from seapup_sim.vehicle_config import ConfigError
 
     parser = argparse.ArgumentParser(prog="./seapup fly", description=__doc__.splitlines()[0])
@@ -69,7 +76,8 @@ def fly(argv: list[str]) -> int:
             result = run_on_graph(spec, out_dir=args.out, progress=lambda f: progress(spec.name, f))
         else:
             result = run(spec, progress=lambda f: progress(spec.name, f))
-    except (RunSpecError, ControllerRegistryError, ConfigError, DesignFailed, ValueError, SilError) as exc:
+    except (RunSpecError, ControllerRegistryError, ConfigError, DesignFailed, ValueError, SilError,
+            DivergenceError) as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1
     _summary(result, text)

@@ -172,7 +172,8 @@ def scenario_command(argv: list[str]) -> int:
         else:
             result = run(spec, progress=lambda f: progress(args.name, f))
     except (KeyError, ValueError, ConfigError, RunSpecError, ControllerRegistryError, DesignFailed, SilError) as exc:
-        print(f"seapup: error: {str(exc).strip(chr(39))}", file=sys.stderr)
+        reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc   # a KeyError's str() is quoted
+        print(f"seapup: error: {reason}", file=sys.stderr)
         return 1
     print_scenario(result, text)
     if args.plots:
@@ -182,16 +183,20 @@ def scenario_command(argv: list[str]) -> int:
 
 
 def _parameters(items: list[str]) -> dict:
-    """``--param key=value`` as a mapping, each value read as YAML (0.95, true, [1, 2]); the controller type
-    checks names and types when the run is made."""
-    import yaml
+    """``--param key=value`` as a mapping, each value read as strict YAML (0.95, true, [1, 2]:
+    :func:`seapup_common.input_files.parse_yaml`, safe tags only, bounded depth); a key given twice is refused.
+    The controller type checks names and types when the run is made."""
+    from seapup_common.input_files import InputFileError, parse_yaml
     out = {}
     for item in items:
         key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ValueError(f"--param needs KEY=VALUE, got {item!r}")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--param needs KEY=VALUE, got {item[:80]!r}")
+        if key in out:
+            raise ValueError(f"--param {key[:80]} is given twice")
         try:
-            out[key.strip()] = yaml.safe_load(value)
-        except yaml.YAMLError:
-            raise ValueError(f"--param {key.strip()}: cannot read {value!r}") from None
+            out[key] = parse_yaml(value, f"--param {key[:80]}")
+        except InputFileError as exc:
+            raise ValueError(str(exc)) from None
     return out

@@ -26,7 +26,6 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 __all__ = ["ConfigError", "merge", "load_yaml", "parsed_yaml", "ConfigView", "nearest"]
 
@@ -85,28 +84,33 @@ def _nearest(key, options, path: str = "") -> str:
 #: Parsed files by (resolved path, modification time, size): a batch of runs reads the same few
 #: configurations thousands of times; an edited file is parsed again.
 _PARSED: dict = {}
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def parsed_yaml(path: str | Path, *, shared: bool = False):
-    """The YAML document in ``path``, a fresh copy: parsed once per version of the file (libyaml's loader).
+    """The YAML document in ``path``, a fresh copy: parsed once per version of the file, bounded and
+    strictly (:mod:`seapup_common.input_files`: at most 1 MiB, no duplicated key, safe tags only).
     ``shared``: the cached document itself, not a copy, for a caller that only reads it.
 
     Raises
     ------
     ConfigError
-        If the file is unreadable or not YAML.
+        If the file is missing, unreadable, too large, or not strict YAML (one line naming the file).
     """
+    from seapup_common.input_files import InputFileError, parse_yaml, read_text
     path = Path(path)
     try:
         stat = path.stat()
-        key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)   # abspath: no system call per read
-        if key not in _PARSED:
-            if len(_PARSED) > 256:
-                _PARSED.clear()
-            _PARSED[key] = yaml.load(path.read_text(), Loader=_LOADER)
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read configuration {path}: {exc}") from exc
+    except OSError as exc:
+        raise ConfigError(f"cannot read configuration {path}: {exc.strerror or exc}") from None
+    key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)   # abspath: no system call per read
+    if key not in _PARSED:
+        try:
+            document = parse_yaml(read_text(path, "config"), str(path))
+        except InputFileError as exc:
+            raise ConfigError(f"cannot read configuration {exc}") from None
+        if len(_PARSED) > 256:
+            _PARSED.clear()
+        _PARSED[key] = document
     return _PARSED[key] if shared else copy.deepcopy(_PARSED[key])
 
 
@@ -209,7 +213,10 @@ class ConfigView(Mapping):
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
             raise self.error(key, f"must be a number, got {value!r}")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:   # an integer beyond a float's range
+            value = math.inf
         low_ok = value > lo if lo_open else value >= lo
         if not (math.isfinite(value) and low_ok and value <= hi):
             bracket = "(" if lo_open else "["
@@ -229,10 +236,16 @@ class ConfigView(Mapping):
                hi: float = math.inf) -> np.ndarray:
         """A 1-D array of finite reals (exactly ``n`` of them if given), each in [lo, hi]."""
         value = self._get(key, default)
+        if isinstance(value, np.ndarray):
+            value = value.tolist()
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, (bool, np.bool_))
+                for v in value):   # numbers only: no '0.2' strings, no booleans, no nested lists
+            raise self.error(key, f"must be a list of numbers, got {value!r}"[:300])
         try:
             arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise self.error(key, f"must be a list of numbers, got {value!r}") from None
+        except OverflowError:   # an integer beyond a float's range
+            arr = np.full(len(value), np.inf)
         if arr.ndim != 1 or (n is not None and arr.size != n):
             raise self.error(key, f"needs {n if n is not None else 'a list of'} numbers, got {value!r}")
         if not np.all(np.isfinite(arr)) or np.any(arr < lo) or np.any(arr > hi):

@@ -29,7 +29,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable
 
-import yaml
 
 from seapup_common.contract import ContractError, HoldCommand, VelocityController
 
@@ -97,6 +96,13 @@ class ControllerType:
         return out
 
 
+def _finite(value) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:   # an integer beyond a float's range
+        return False
+
+
 def _coerce(kind: str, name: str, value, default):
     """``value`` as the type of ``default`` (bool, int, float, str, list of floats), or raise."""
     where = f"controller {kind!r} parameter {name!r}"
@@ -105,8 +111,8 @@ def _coerce(kind: str, name: str, value, default):
             return value
         raise ControllerRegistryError(f"{where} must be true or false, got {value!r}")
     if isinstance(default, (int, float)) and not isinstance(default, bool):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
-            raise ControllerRegistryError(f"{where} must be a finite number, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
+            raise ControllerRegistryError(f"{where} must be a finite number, got {value!r}"[:300])
         if isinstance(default, int):
             if not float(value).is_integer():
                 raise ControllerRegistryError(f"{where} must be a whole number, got {value!r}")
@@ -117,10 +123,13 @@ def _coerce(kind: str, name: str, value, default):
             raise ControllerRegistryError(f"{where} must be a string, got {value!r}")
         return value
     if isinstance(default, (list, tuple)):
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            raise ControllerRegistryError(f"{where} must be a list of numbers, got {value!r}"[:300])
         try:
             values = [float(v) for v in value]
-        except (TypeError, ValueError):
-            raise ControllerRegistryError(f"{where} must be a list of numbers, got {value!r}") from None
+        except OverflowError:
+            raise ControllerRegistryError(f"{where} must be finite numbers") from None
         if not all(math.isfinite(v) for v in values):
             raise ControllerRegistryError(f"{where} must be finite, got {values}")
         if default and len(values) != len(default):
@@ -178,10 +187,11 @@ class ControllerSpec:
             return self.document
         if not self.file:
             return None
-        try:
-            document = yaml.safe_load(Path(self.file).read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise ControllerRegistryError(f"controller file {self.file!r}: {exc}") from None
+        from seapup_common.input_files import InputFileError, load_yaml_file
+        try:   # bounded and strict: at most 1 MiB, no duplicated key, no !!python tag
+            document = load_yaml_file(self.file, "config")
+        except InputFileError as exc:
+            raise ControllerRegistryError(f"controller file {exc}") from None
         if not isinstance(document, Mapping):
             raise ControllerRegistryError(f"controller file {self.file!r} is not a YAML mapping")
         return document

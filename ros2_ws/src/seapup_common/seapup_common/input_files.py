@@ -26,8 +26,8 @@ from pathlib import Path
 
 import yaml
 
-__all__ = ["InputFileError", "LIMITS", "MAX_DEPTH", "MAX_NODES", "limit_for", "read_text", "parse_yaml",
-           "load_yaml_file"]
+__all__ = ["InputFileError", "LIMITS", "MAX_DEPTH", "MAX_NODES", "limit_for", "env_limit", "read_text",
+           "parse_yaml", "load_yaml_file"]
 
 #: The largest file of each kind, in bytes: far above anything seapup ships (its largest YAML file,
 #: the thesis targets, is about 0.1 MB) and far below what would strain a machine.
@@ -70,6 +70,23 @@ def limit_for(kind: str) -> int:
     if value <= 0:
         raise InputFileError(f"{ENV_LIMIT} must be a positive number of bytes, got {text!r}")
     return value
+
+
+def env_limit(name: str, default: int) -> int:
+    """A count limit: ``default``, or the positive integer in the environment variable ``name`` when set
+    (how a user raises one of seapup's stated caps: ``docs/limits.md``).
+
+    Raises
+    ------
+    InputFileError
+        If the variable is set to anything but a positive integer.
+    """
+    text = os.environ.get(name, "").strip()
+    if not text:
+        return default
+    if not text.isdigit() or int(text) <= 0:
+        raise InputFileError(f"{name} must be a positive integer, got {text!r}")
+    return int(text)
 
 
 def _size_text(n: int) -> str:

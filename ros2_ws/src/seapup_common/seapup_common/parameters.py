@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
 __all__ = ["ParameterFileError", "load_node_parameters"]
 
 
@@ -36,11 +34,12 @@ def load_node_parameters(path: str | Path, node_name: str) -> dict:
     ParameterFileError
         If the file is unreadable, not a mapping, or has no section for the node.
     """
+    from seapup_common.input_files import InputFileError, load_yaml_file
     path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ParameterFileError(f"cannot read parameter file {path}: {exc}") from exc
+    try:   # bounded and strict: at most 1 MiB, no duplicated key, safe tags only, not empty
+        document = load_yaml_file(path, "config")
+    except InputFileError as exc:
+        raise ParameterFileError(f"cannot read parameter file {exc}") from None
     if not isinstance(document, dict):
         raise ParameterFileError(f"{path}: top level must be a mapping of node names")
     merged: dict = {}

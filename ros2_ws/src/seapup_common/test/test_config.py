@@ -98,3 +98,36 @@ def test_a_parsed_file_is_read_once_per_version_and_handed_out_as_a_copy(tmp_pat
         parsed_yaml(f)
     with pytest.raises(ConfigError, match="cannot read configuration"):
         parsed_yaml(tmp_path / "missing.yaml")
+
+
+# -- bounded and strict reading (issue 40) -------------------------------------------------------------------
+@pytest.mark.parametrize("text, match", [
+    ("mass: 1\nmass: 2\n", r"duplicate key 'mass' \(first at line 1\)"),              # kept the last one
+    ("x: !!python/object/apply:os.system [echo]\n", "a tag that is not plain data"),
+    ("[" * 200 + "]" * 200 + "\n", "nested deeper than 64 levels"),
+])
+def test_a_configuration_file_is_parsed_strictly(tmp_path, text, match):
+    path = tmp_path / "vehicle.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=f"cannot read configuration {path}: .*{match}") as caught:
+        parsed_yaml(path)
+    assert "\n" not in str(caught.value)
+
+
+def test_a_configuration_file_is_read_with_a_bound(tmp_path):
+    for path, why in (("/dev/zero", "larger than 1 MiB"), (tmp_path, "is a directory"),
+                      (tmp_path / "none.yaml", "No such file")):
+        with pytest.raises(ConfigError, match=why):
+            parsed_yaml(path)
+
+
+def test_numbers_in_a_configuration_are_yaml_numbers_not_text():
+    view = ConfigView({"v": ["1", "2", "3"], "b": [True, 0, 0], "n": 10**400, "w": [10**400, 0.0]}, "f.yaml")
+    with pytest.raises(ConfigError, match="f.yaml: v: must be a list of numbers, got \\['1'"):
+        view.vector("v", 3)                                        # was converted to [1.0, 2.0, 3.0]
+    with pytest.raises(ConfigError, match="b: must be a list of numbers"):
+        view.vector("b", 3)
+    with pytest.raises(ConfigError, match="outside the allowed range"):
+        view.number("n")                                           # was an OverflowError
+    with pytest.raises(ConfigError, match="outside the allowed range"):
+        view.vector("w", 2)

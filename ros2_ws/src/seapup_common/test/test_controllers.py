@@ -142,3 +142,20 @@ def test_specs_are_plain_data():
     again = ControllerSpec.from_dict(yaml.safe_load(yaml.safe_dump(spec.to_dict())))
     assert again == spec and pickle.loads(pickle.dumps(spec)) == spec
     assert ControllerSpec.from_dict("hold") == ControllerSpec("hold")
+
+
+def test_a_controller_file_is_read_bounded_and_strictly(tmp_path):
+    """Issue 40: ``file: /dev/zero`` ended in a bare MemoryError; a duplicated key kept the last value."""
+    with pytest.raises(ControllerRegistryError, match="controller file /dev/zero: larger than 1 MiB"):
+        ControllerSpec("hold", file="/dev/zero").load_document()
+    doc = tmp_path / "design.yaml"
+    doc.write_text("gains: 1\ngains: 2\n")
+    with pytest.raises(ControllerRegistryError, match="duplicate key 'gains'"):
+        ControllerSpec("hold", file=str(doc)).load_document()
+
+
+@pytest.mark.parametrize("value", ["[0.1, 0.1, 0.0, 0.0]", "0.1000", [True, 0.0, 0.0, 0.0], [10**400, 0, 0, 0]])
+def test_a_list_parameter_takes_numbers_only(value):
+    """A string was iterated character by character into floats; a bool counted as 1.0."""
+    with pytest.raises(ControllerRegistryError, match="blade_pitch"):
+        controllers.controller_type("hold").complete({"blade_pitch": value})

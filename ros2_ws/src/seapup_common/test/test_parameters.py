@@ -47,3 +47,16 @@ def test_blade_limit_has_one_place():
     for package, node in (("seapup_sim", "simulator"), ("seapup_control", "open_loop")):
         path = Path(get_package_share_directory(package)) / "config" / f"{node}.yaml"
         assert "blade_pitch_limit" not in load_node_parameters(path, node)
+
+
+def test_a_parameter_file_is_read_bounded_and_strictly(tmp_path):
+    """Issue 40: a duplicated parameter kept the last value; /dev/zero was read without a limit."""
+    f = tmp_path / "p.yaml"
+    f.write_text("n:\n  ros__parameters: {a: 1, a: 2}\n")
+    with pytest.raises(ParameterFileError, match=r"duplicate key 'a'"):
+        load_node_parameters(f, "n")
+    with pytest.raises(ParameterFileError, match="larger than 1 MiB"):
+        load_node_parameters("/dev/zero", "n")
+    f.write_text("# nothing\n")
+    with pytest.raises(ParameterFileError, match="is empty"):
+        load_node_parameters(f, "n")

@@ -65,6 +65,11 @@ THESIS_SCALE_Y = np.array([1.0, 1.0, 1.0, 180.0 / math.pi])
 THESIS_SCALE_U = 180.0 / math.pi
 
 
+#: The highest model order a GMV self-tuner takes: four times the thesis's largest (2, sec. 7.6.1); the
+#: estimator's covariance is (8 n + 5)^2 a law, so an order of 10^6 would ask for terabytes.
+MAX_ORDER = 8
+
+
 class GMVSelfTuner(SelfTuner):
     """Koivo's implicit self-tuner (see the module docstring).
 
@@ -93,8 +98,8 @@ class GMVSelfTuner(SelfTuner):
             raise DesignError("B0^-1 must be a finite 4 x 4 matrix")
         if not (math.isfinite(weighting) and weighting >= 0):
             raise DesignError(f"lambda must be a finite number >= 0, got {weighting!r}")
-        if int(order) != order or order < 1:
-            raise DesignError(f"order must be a whole number >= 1, got {order!r}")
+        if int(order) != order or not 1 <= order <= MAX_ORDER:
+            raise DesignError(f"order must be a whole number in [1, {MAX_ORDER}], got {order!r}")
         self.weighting, self.order = float(weighting), int(order)
         # G0 = B_1 + lambda I in thesis units (outputs m/s, deg/s; inputs deg)
         self.G0 = THESIS_SCALE_Y[:, None] * b0inv / THESIS_SCALE_U + self.weighting * np.eye(4)

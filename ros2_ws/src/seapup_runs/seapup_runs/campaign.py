@@ -25,8 +25,9 @@ the sampling rate (ch. 5, 7) -- and answers with one run each. A campaign answer
 or, for the randomised self-tuner runs of :mod:`seapup_runs.randomised`, ``randomised: {count: 500, first: 0}``
 in place of ``base``/``grid``/``random``/``seeds``.
 
-:func:`load_campaign` checks a file (unknown keys, distributions, and every run spec it expands into, before any
-run is flown); :func:`expand` lists the runs (the same file, the same runs, in the same order); :func:`fly_rows`
+:func:`load_campaign` checks a file (read bounded and strict: at most 1 MiB, no duplicated key; unknown keys,
+distributions, the number of runs -- :func:`run_count`, at most :data:`MAX_CAMPAIGN_RUNS`, computed from the file's
+counts before anything is expanded -- and every run spec it expands into, before any run is flown); :func:`expand` lists the runs (the same file, the same runs, in the same order); :func:`fly_rows`
 flies a task's runs in the calling process -- a Dask worker's -- and returns one flat row each: the run's index,
 its parameters, status (``ok`` or ``error`` with the reason: a failed run is a result, not a crash), wall and
 CPU time, every scalar metric, and what the run's cores logged (``log_lines``, and the first lines in ``log``: a
@@ -48,13 +49,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from seapup_common import CORE_LOGGERS
-from seapup_runs.spec import RunSpec, RunSpecError
+from seapup_common.input_files import InputFileError, env_limit, load_yaml_file
+from seapup_runs.spec import RunSpec, RunSpecError, number_hint
 
 __all__ = ["CampaignError", "Campaign", "shipped", "load_campaign", "campaign_from_dict", "expand", "tasks", "fly_rows",
-           "flatten", "DISTRIBUTIONS"]
+           "flatten", "DISTRIBUTIONS", "MAX_CAMPAIGN_RUNS", "run_count", "max_campaign_runs"]
+
+#: The most runs a campaign may expand into (grid product x random count x seeds, before ``--limit``).
+#: Every run is expanded and its spec checked before the first flies, at about 0.4 ms of CPU and 3 KB of
+#: memory a run, so 10^5 runs are about 40 s and 0.3 GB before flying -- and flying them at ~0.1-1 s of CPU
+#: each is hours to a day on a workstation. ``$SEAPUP_MAX_CAMPAIGN_RUNS`` raises it (docs/limits.md).
+MAX_CAMPAIGN_RUNS = 10**5
+ENV_MAX_CAMPAIGN_RUNS = "SEAPUP_MAX_CAMPAIGN_RUNS"
+#: The longest campaign name (it names the output directory).
+MAX_NAME_LENGTH = 100
 
 _KEYS = {"name", "doc", "base", "grid", "random", "seeds", "runs_per_task", "randomised", "summary", "metrics"}
 _SUMMARY_KEYS = {"metrics", "worst_by", "worst", "worst_highest"}
@@ -95,34 +105,46 @@ def load_campaign(path: str | Path) -> Campaign:
     path = Path(path)
     if not path.exists() and str(path) in shipped():
         path = shipped()[str(path)]
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise CampaignError(f"{path}: {str(exc).splitlines()[0]}") from None
+    try:   # bounded and strict: at most 1 MiB, no duplicated key, no !!python tag, not empty
+        data = load_yaml_file(path, "spec")
+    except InputFileError as exc:
+        raise CampaignError(str(exc)) from None
     return campaign_from_dict(data, str(path))
+
+
+def max_campaign_runs() -> int:
+    """:data:`MAX_CAMPAIGN_RUNS`, or ``$SEAPUP_MAX_CAMPAIGN_RUNS`` when set."""
+    try:
+        return env_limit(ENV_MAX_CAMPAIGN_RUNS, MAX_CAMPAIGN_RUNS)
+    except InputFileError as exc:
+        raise CampaignError(str(exc)) from None
 
 
 def campaign_from_dict(data, where: str = "campaign") -> Campaign:
     """A campaign from its parsed YAML (see the module docstring); every run it expands into is checked."""
     if not isinstance(data, dict):
         raise CampaignError(f"{where}: a campaign is a mapping")
-    unknown = sorted(set(data) - _KEYS)
+    unknown = sorted(map(str, set(data) - _KEYS))
     if unknown:
-        raise CampaignError(f"{where}: unknown key(s) {unknown}; known: {', '.join(sorted(_KEYS))}")
-    name = str(data.get("name") or "")
-    if not name or not all(c.isalnum() or c in "-_." for c in name):
-        raise CampaignError(f"{where}: name must be a non-empty word of letters, digits, '-', '_' or '.'")
+        raise CampaignError(f"{where}: unknown key(s) {_short(unknown)}; known: {', '.join(sorted(_KEYS))}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name or len(name) > MAX_NAME_LENGTH \
+            or not all(c.isalnum() or c in "-_." for c in name) or name.strip(".") == "":
+        raise CampaignError(f"{where}: name must be a non-empty word of letters, digits, '-', '_' or '.' "
+                            f"(at most {MAX_NAME_LENGTH} characters)")
+    doc = data.get("doc") or ""
+    if not isinstance(doc, str):
+        raise CampaignError(f"{where}: doc must be text, got {_short(doc)}")
     per_task = data.get("runs_per_task", 20)
     if isinstance(per_task, bool) or not isinstance(per_task, int) or per_task < 1:
-        raise CampaignError(f"{where}: runs_per_task must be an integer >= 1, got {per_task!r}")
-    summary = data.get("summary") or {}
-    if not isinstance(summary, dict) or set(summary) - _SUMMARY_KEYS:
-        raise CampaignError(f"{where}: summary takes {', '.join(sorted(_SUMMARY_KEYS))}")
+        raise CampaignError(f"{where}: runs_per_task must be an integer >= 1, got {_short(per_task)}")
+    summary = _summary(data.get("summary") or {}, where)
     if ("randomised" in data) == ("base" in data):
         raise CampaignError(f"{where}: give either base (with grid, random, seeds) or randomised")
     if "randomised" in data and set(data) & {"grid", "random", "seeds"}:
         raise CampaignError(f"{where}: randomised runs draw everything themselves: no grid, random or seeds")
-    campaign = Campaign(name, str(data.get("doc") or ""), copy.deepcopy(data), per_task, dict(summary))
+    campaign = Campaign(name, doc, copy.deepcopy(data), per_task, summary)
+    run_count(campaign)   # refused above the cap here, from the counts alone: nothing expanded yet
     rows = expand(campaign)
     if not rows:
         raise CampaignError(f"{where}: the campaign has no runs")
@@ -130,16 +152,106 @@ def campaign_from_dict(data, where: str = "campaign") -> Campaign:
         try:
             _check(RunSpec.from_dict(row["spec"]))
         except (RunSpecError, KeyError, TypeError, ValueError) as exc:
-            raise CampaignError(f"{where}: run {row['index']} ({_label(row['parameters'])}): "
-                                f"{str(exc).strip(chr(39))}") from None
+            reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+            raise CampaignError(f"{where}: run {row['index']} ({_label(row['parameters'])}): {reason}") from None
     return campaign
+
+
+def _summary(summary, where: str) -> dict:
+    """The summary section, typed: what the page shows is checked before anything flies."""
+    if not isinstance(summary, dict) or set(summary) - _SUMMARY_KEYS:
+        raise CampaignError(f"{where}: summary takes {', '.join(sorted(_SUMMARY_KEYS))}")
+    metrics = summary.get("metrics", [])
+    if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
+        raise CampaignError(f"{where}: summary.metrics is a list of metric names, got {_short(metrics)}")
+    if not isinstance(summary.get("worst_by", ""), str):
+        raise CampaignError(f"{where}: summary.worst_by is a metric name, got {_short(summary['worst_by'])}")
+    worst = summary.get("worst", 5)
+    if isinstance(worst, bool) or not isinstance(worst, int) or not 0 <= worst <= 1000:
+        raise CampaignError(f"{where}: summary.worst is an integer in [0, 1000], got {_short(worst)}")
+    if not isinstance(summary.get("worst_highest", True), bool):
+        raise CampaignError(f"{where}: summary.worst_highest is true or false, got {_short(summary['worst_highest'])}")
+    return dict(summary)
+
+
+def _count(value, what: str, where: str, low: int = 1) -> int:
+    """An integer count >= ``low`` (a YAML integer: not a string, a float or a bool)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise CampaignError(f"{where}: {what} must be an integer >= {low}, got {_short(value)}{number_hint(value)}")
+    return value
+
+
+def _layout(data: dict, where: str) -> tuple[dict, int, dict, object]:
+    """The grid, the random count, the draws and the seeds of a base campaign, checked (not expanded)."""
+    grid = data.get("grid") or {}
+    if not isinstance(grid, dict) or not all(isinstance(k, str) and k.strip(".+") and isinstance(v, list) and v
+                                             for k, v in grid.items()):
+        raise CampaignError(f"{where}: grid maps a dotted path to a non-empty list of values")
+    random = data.get("random") or {}
+    if not isinstance(random, dict) or set(random) - {"count", "seed", "draws"}:
+        raise CampaignError(f"{where}: random takes count, seed, draws")
+    count, draws = 1, {}
+    if random:
+        count = _count(random.get("count"), "random.count", where)
+        draws = random.get("draws")
+        if not isinstance(draws, dict) or not draws or not all(isinstance(k, str) and k.strip(".+") for k in draws):
+            raise CampaignError(f"{where}: random needs count >= 1 and draws (a dotted path: a distribution)")
+        both = sorted(set(grid) & set(draws))
+        if both:
+            raise CampaignError(f"{where}: {_short(both)} both in grid and in random.draws: one would silently "
+                                "replace the other; give each path once")
+        seed = random.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+            raise CampaignError(f"{where}: random.seed must be an integer in [0, 2^63), got {_short(seed)}")
+    seeds = data.get("seeds", 1)
+    if isinstance(seeds, list):
+        if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**31 for s in seeds):
+            raise CampaignError(f"{where}: seeds is a count >= 1 or a list of seeds in [0, 2^31)")
+    elif isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise CampaignError(f"{where}: seeds is a count >= 1 or a list of seeds in [0, 2^31), got "
+                            f"{_short(seeds)}{number_hint(seeds)}")
+    return grid, count, draws, seeds
+
+
+def run_count(campaign: Campaign) -> int:
+    """How many runs the campaign expands into (before ``--limit``), from its counts alone -- the grid's list
+    lengths, the random count and the seeds -- with nothing expanded or drawn.
+
+    Raises
+    ------
+    CampaignError
+        On a malformed count, or more than :func:`max_campaign_runs` runs (:data:`MAX_CAMPAIGN_RUNS`).
+    """
+    data, where = campaign.source, campaign.name
+    if "randomised" in data:
+        r = data["randomised"]
+        if not isinstance(r, dict) or set(r) - {"count", "first", "controllers"}:
+            raise CampaignError(f"{where}: randomised takes count, first, controllers")
+        total = _count(r.get("count"), "randomised.count", where)
+        first = r.get("first", 0)
+        if isinstance(first, bool) or not isinstance(first, int) or not 0 <= first < 2**63:
+            raise CampaignError(f"{where}: randomised.first must be an integer in [0, 2^63), got {_short(first)}")
+        what = "randomised.count"
+    else:
+        grid, count, _, seeds = _layout(data, where)
+        total = math.prod(len(v) for v in grid.values()) * count * (len(seeds) if isinstance(seeds, list) else seeds)
+        what = " x ".join([f"{len(v)} {k}" for k, v in grid.items()] + ([f"random.count {count}"] if count > 1 else [])
+                          + [f"{len(seeds) if isinstance(seeds, list) else seeds} seeds"])
+    cap = max_campaign_runs()
+    if total > cap:
+        raise CampaignError(f"{where}: {total:.3g} runs ({what}), more than the {cap:,} a campaign may have "
+                            f"(docs/limits.md; set {ENV_MAX_CAMPAIGN_RUNS} to allow more; --limit flies a part of a "
+                            "campaign, it does not shrink it)")
+    return total
 
 
 def _check(spec: RunSpec) -> None:
     """What a run spec leaves to flight time, checked before a campaign flies thousands: the vehicles and
     the controllers' names."""
     from seapup_common.controllers import controller_type
+    from seapup_runs.metrics import check_names
     from seapup_sim.vehicle_config import available_configs
+    check_names(spec.metrics)
     vehicles = [spec.vehicle] + [e.detail for e in spec.events if e.kind == "configuration"]
     for vehicle in vehicles:
         if vehicle not in available_configs():
@@ -172,9 +284,18 @@ def _base_spec(base, where: str) -> dict:
     if extra:
         raise CampaignError(f"{where}: base takes scenario, rate_hz, sensors, vehicle, controller, schedule; "
                             f"not {sorted(extra)}")
+    for key in ("scenario", "vehicle", "controller"):
+        if key in base and not isinstance(base[key], str):
+            raise CampaignError(f"{where}: base.{key} is a name, got {_short(base[key])}")
+    if not isinstance(base.get("schedule", False), bool):
+        raise CampaignError(f"{where}: base.schedule is true or false, got {_short(base['schedule'])}")
+    rate = base.get("rate_hz", 5.0)
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate <= 1000:
+        raise CampaignError(f"{where}: base.rate_hz must be a number in (0, 1000] Hz, got {_short(rate)}"
+                            f"{number_hint(rate)}")
     try:
-        spec = scenario_spec(str(base["scenario"]), vehicle=str(base.get("vehicle", "baseline")),
-                             rate=float(base.get("rate_hz", 5.0)), schedule=base.get("schedule"),
+        spec = scenario_spec(base["scenario"], vehicle=base.get("vehicle", "baseline"),
+                             rate=float(rate), schedule=base.get("schedule"),
                              controller=str(base.get("controller", "mfol")), sensors=base.get("sensors"))
     except (KeyError, RunSpecError, ValueError) as exc:
         raise CampaignError(f"{where}: base: {str(exc).strip(chr(39))}") from None
@@ -195,7 +316,11 @@ def _set(spec: dict, path: str, value, where: str) -> None:
     append = path.endswith("+")
     keys = path.rstrip("+").split(".")
     node = spec
+    if not all(keys):
+        raise CampaignError(f"{where}: {path}: an empty key in the dotted path")
     for key in keys[:-1]:
+        if not isinstance(node, dict):
+            raise CampaignError(f"{where}: {path}: {key} is inside a value that is not a mapping in the run spec")
         if not isinstance(node.get(key), dict):
             if key in node and node[key] is not None:
                 raise CampaignError(f"{where}: {path}: {key} is not a mapping in the run spec")
@@ -205,13 +330,22 @@ def _set(spec: dict, path: str, value, where: str) -> None:
     value = copy.deepcopy(value)
     if append:
         items = value if isinstance(value, list) else [value]
-        node[last] = list(node.get(last) or []) + items
+        existing = node.get(last) or []
+        if not isinstance(existing, list):
+            raise CampaignError(f"{where}: {path}: {last} is not a list in the run spec (\"+\" appends to a list)")
+        node[last] = list(existing) + items
         if last == "events":
-            node[last].sort(key=lambda e: float(e.get("time", 0.0)) if isinstance(e, dict) else 0.0)
+            node[last].sort(key=_event_time)
     elif isinstance(value, dict) and isinstance(node.get(last), dict):
         node[last] = {**node[last], **value}      # a mapping merges into the spec's (environment.current ...)
     else:
         node[last] = value
+
+
+def _event_time(event) -> float:
+    """An event's time for ordering (the spec check refuses a bad one with its own message)."""
+    t = event.get("time", 0.0) if isinstance(event, dict) else 0.0
+    return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else 0.0
 
 
 def _draw(rng: np.random.Generator, spec, where: str):
@@ -222,19 +356,37 @@ def _draw(rng: np.random.Generator, spec, where: str):
         if not isinstance(args, list) or not args:
             raise CampaignError(f"{where}: choice takes a non-empty list")
         return copy.deepcopy(args[int(rng.integers(len(args)))])
-    if not isinstance(args, list) or len(args) != 2 or not all(isinstance(a, (int, float)) and math.isfinite(a)
-                                                                 for a in args):
-        raise CampaignError(f"{where}: {kind} takes two finite numbers, got {args!r}")
+    _draw_arguments(kind, args, where)
     lo, hi = float(args[0]), float(args[1])
     if kind == "uniform":
         return float(rng.uniform(lo, hi))
     if kind == "normal":
         return float(rng.normal(lo, hi))
     if kind == "integers":
-        return int(rng.integers(int(lo), int(hi) + 1))
-    if lo <= 0 or hi <= 0:
-        raise CampaignError(f"{where}: loguniform takes two positive numbers, got {args!r}")
+        return int(rng.integers(int(args[0]), int(args[1]) + 1))
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _draw_arguments(kind: str, args, where: str) -> None:
+    """Refuse what numpy would refuse with its own words (``scale < 0``, ``low >= high``, an overflow)."""
+    def finite(a) -> bool:
+        try:
+            return isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a)
+        except OverflowError:
+            return False
+    if not isinstance(args, list) or len(args) != 2 or not all(finite(a) for a in args):
+        raise CampaignError(f"{where}: {kind} takes two finite numbers, got {_short(args)}")
+    lo, hi = float(args[0]), float(args[1])
+    if kind == "uniform" and not (lo <= hi and math.isfinite(hi - lo)):
+        raise CampaignError(f"{where}: uniform takes [low, high] with low <= high and a finite width, got {_short(args)}")
+    if kind == "normal" and not hi >= 0:
+        raise CampaignError(f"{where}: normal takes [mean, standard deviation >= 0], got {_short(args)}")
+    if kind == "integers" and not (all(isinstance(a, int) for a in args) and -2**62 <= args[0] <= args[1] < 2**62):
+        raise CampaignError(f"{where}: integers takes two integers [low, high], low <= high, within +-2^62 "
+                            f"(both included), got {_short(args)}")
+    if kind == "loguniform" and not (0 < lo <= hi):
+        raise CampaignError(f"{where}: loguniform takes two positive numbers [low, high], low <= high, got "
+                            f"{_short(args)}")
 
 
 def expand(campaign: Campaign) -> list[dict]:
@@ -244,13 +396,13 @@ def expand(campaign: Campaign) -> list[dict]:
     data, where = campaign.source, campaign.name
     if "randomised" in data:
         from seapup_runs.randomised import random_adaptive_spec
+        count = run_count(campaign)
         r = data["randomised"]
-        if not isinstance(r, dict) or set(r) - {"count", "first", "controllers"}:
-            raise CampaignError(f"{where}: randomised takes count, first, controllers")
-        count, first = r.get("count"), r.get("first", 0)
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1 or not isinstance(first, int) or first < 0:
-            raise CampaignError(f"{where}: randomised.count must be >= 1 and first >= 0 (integers)")
-        laws = tuple(r.get("controllers") or ("explicit", "gmv"))
+        first = r.get("first", 0)
+        laws = r.get("controllers") or ("explicit", "gmv")
+        if not isinstance(laws, (list, tuple)) or not all(isinstance(law, str) for law in laws):
+            raise CampaignError(f"{where}: randomised.controllers is a list of laws (explicit, gmv), got {_short(laws)}")
+        laws = tuple(laws)
         rows = []
         for k in range(count):
             try:
@@ -260,31 +412,19 @@ def expand(campaign: Campaign) -> list[dict]:
             rows.append({"index": k, "parameters": {"controller.type": spec["controller"]["type"],
                                                     "number": first + k}, "spec": spec})
         return rows
+    run_count(campaign)   # the counts checked and the total capped before anything is built
+    grid, count, draws, seeds = _layout(data, where)
     base = _base_spec(data["base"], where)
     base.pop("physics_step", None)   # derived from the control period, which a campaign may vary
-    grid = data.get("grid") or {}
-    if not isinstance(grid, dict) or not all(isinstance(v, list) and v for v in grid.values()):
-        raise CampaignError(f"{where}: grid maps a dotted path to a non-empty list of values")
-    random = data.get("random") or {}
-    if not isinstance(random, dict) or set(random) - {"count", "seed", "draws"}:
-        raise CampaignError(f"{where}: random takes count, seed, draws")
-    count = random.get("count", 1 if not random else None)
-    draws = random.get("draws") or {}
-    if random and (isinstance(count, bool) or not isinstance(count, int) or count < 1 or not isinstance(draws, dict)
-                   or not draws):
-        raise CampaignError(f"{where}: random needs count >= 1 and draws (a dotted path: a distribution)")
-    seeds = data.get("seeds", 1)
-    if isinstance(seeds, int) and not isinstance(seeds, bool) and seeds >= 1:
+    if isinstance(seeds, int):
         # the replicates' seeds: from the campaign's name, so two campaigns do not share their noise
         seed_list = [int(s) % 2**31 for s in np.random.SeedSequence(_hash_text(campaign.name)).generate_state(seeds)]
-    elif isinstance(seeds, list) and seeds and all(isinstance(s, int) and 0 <= s < 2**31 for s in seeds):
-        seed_list = [int(s) for s in seeds]
     else:
-        raise CampaignError(f"{where}: seeds is a count >= 1 or a list of seeds in [0, 2^31)")
-    rng = np.random.default_rng(int(random.get("seed", 0)))
+        seed_list = [int(s) for s in seeds]
+    rng = np.random.default_rng(int((data.get("random") or {}).get("seed", 0)))
     rows = []
     for point in itertools.product(*grid.values()):
-        for _ in range(count or 1):
+        for _ in range(count):
             drawn = {path: _draw(rng, d, f"{where}: random.draws.{path}") for path, d in draws.items()}
             for seed in seed_list:
                 parameters = {**dict(zip(grid, point)), **drawn, "seed": seed}

@@ -32,8 +32,8 @@ from seapup_control.response_metrics import (MetricError, limit_cycle, overshoot
 from seapup_runs.adaptive_metrics import adaptive
 from seapup_runs.result import REFERENCE_NAMES, RunResult
 
-__all__ = ["METRICS", "compute", "step_response", "MetricError", "settled_window", "settle_floors", "STEADY_ERROR_PCT",
-           "interaction_limits"]
+__all__ = ["METRICS", "compute", "check_names", "step_response", "MetricError", "settled_window", "settle_floors",
+           "STEADY_ERROR_PCT", "interaction_limits"]
 
 #: A steady-state error is *seen* when the final value misses its reference by more than this [% of the
 #: reference]: an integral controller ends at zero error, and fig. 5.19's error is one a reader sees on a plot
@@ -171,6 +171,20 @@ def _good_response(outputs: dict, span: float) -> dict:
 
 #: Metric extractors by name: ``name(result) -> dict``.
 METRICS: dict[str, Callable[[RunResult], dict]] = {"step_response": step_response, "adaptive": adaptive}
+
+
+def check_names(names) -> None:
+    """Refuse a name not in :data:`METRICS` -- before a run flies (:func:`seapup_runs.runner.run`, a campaign's
+    check, ``./seapup fly``), not after.
+
+    Raises
+    ------
+    MetricError
+        Naming the unknown metric(s) and the known ones.
+    """
+    unknown = [name for name in names if name not in METRICS]
+    if unknown:
+        raise MetricError(f"unknown metric(s) {unknown}; known: {', '.join(METRICS)}"[:400])
 
 
 def compute(result: RunResult) -> dict:

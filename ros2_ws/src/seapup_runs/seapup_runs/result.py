@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_common.input_files import InputFileError, read_text
 from seapup_common.jsondata import jsonable
-from seapup_runs.spec import RunSpec
+from seapup_runs.spec import RunSpec, RunSpecError
 
 __all__ = ["RunResultError", "Series", "RunResult", "TRUTH_NAMES", "STATE_INDEX", "MEASURED_NAMES",
            "REFERENCE_NAMES", "FORMAT", "jsonable"]
@@ -174,8 +175,17 @@ class RunResult:
         """From JSON text or a file path."""
         text = source
         if isinstance(source, Path) or (isinstance(source, str) and not source.lstrip().startswith("{")):
-            text = Path(source).read_text()
+            try:   # bounded: at most the data limit (docs/limits.md), UTF-8 text
+                text = read_text(source, "data")
+            except InputFileError as exc:
+                raise RunResultError(str(exc)) from None
         try:
-            return cls.from_dict(json.loads(text))
+            data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise RunResultError(f"not JSON: {exc}") from None
+        except RecursionError:
+            raise RunResultError("not a seapup run result: nested too deeply") from None
+        try:
+            return cls.from_dict(data)
+        except RunSpecError as exc:
+            raise RunResultError(f"its spec: {exc}") from None

@@ -29,7 +29,7 @@ import numpy as np
 
 from seapup_common.contract import Command, MEASUREMENT_FIELDS
 from seapup_common.controllers import create_controller
-from seapup_runs.metrics import compute
+from seapup_runs.metrics import check_names, compute
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec, RunSpecError
 
@@ -138,6 +138,7 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
     """
     from seapup_sim.simulation import Simulation
 
+    check_names(spec.metrics)   # before the self-test and the flight, not after them
     spec = design(spec)
     simulation = Simulation.from_config(spec.vehicle, spec.environment, seed=spec.seed, dt=spec.physics_step,
                                  control_period=spec.control_period, events=simulation_events(spec),

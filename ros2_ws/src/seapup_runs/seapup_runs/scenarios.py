@@ -16,6 +16,8 @@ the case's sensors (noise-free unless it says), measured by the
 """
 from __future__ import annotations
 
+import math
+
 from importlib import resources
 from pathlib import Path
 
@@ -58,10 +60,14 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         A thesis design at another rate than 5 Hz.
     """
     cases = scenarios()
-    if name not in cases:
-        raise KeyError(f"no scenario {name!r}; known: {', '.join(cases)}")
+    if not isinstance(name, str) or name not in cases:
+        raise KeyError(f"no scenario {str(name)[:60]!r}; known: {', '.join(cases)}")
     case = cases[name]
-    scheduled = bool(case.get("schedule", False)) if schedule is None else bool(schedule)
+    if schedule is not None and not isinstance(schedule, bool):
+        raise RunSpecError(f"schedule is true or false, got {str(schedule)[:60]!r}")
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+        raise RunSpecError(f"the rate must be a positive number of Hz, got {str(rate)[:60]!r}")
+    scheduled = bool(case.get("schedule", False)) if schedule is None else schedule
     period = 1.0 / float(rate)
     environment: dict = {"sensors": sensors or case.get("sensors", "ideal")}
     events = [RunEvent(float(e["time"]), e["kind"], e.get("detail")) for e in case.get("events") or ()]

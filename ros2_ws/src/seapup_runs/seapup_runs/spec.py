@@ -14,21 +14,32 @@ given, and a controller whose design document is missing gets it from the
 run's :class:`SelfTestDesign` (the self-test flown first, as the thesis
 designs once on the baseline vehicle and then changes the vehicle, sec. 5.5).
 
+A spec is checked strictly and at once, before anything is allocated for it: numbers must be numbers
+(a YAML string such as ``'0.2'`` is refused, and a bool is not a number), finite and in range; unknown
+keys are refused; and a run's size is bounded -- at most :data:`MAX_RUN_SAMPLES` control samples and
+:data:`MAX_PHYSICS_STEPS` physics steps (``docs/limits.md``; ``$SEAPUP_MAX_RUN_SAMPLES`` and
+``$SEAPUP_MAX_PHYSICS_STEPS`` raise them), computed from the duration and the periods before a sample
+is flown or a row of its log allocated.
+
 Units SI and radians; positions in ``odom_ned``, velocities in ``base_link_frd``.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Reference
 from seapup_common.controllers import ControllerSpec
+from seapup_common.input_files import InputFileError, env_limit
 
 __all__ = ["RunSpecError", "PHYSICS_STEP", "ReferenceSteps", "RunEvent", "SelfTestDesign", "RunSpec",
-           "EVENT_KINDS", "CURRENT_FIELDS"]
+           "EVENT_KINDS", "CURRENT_FIELDS", "MAX_RUN_SAMPLES", "MAX_PHYSICS_STEPS", "MAX_OPERATING_POINTS",
+           "MAX_NAME_LENGTH", "max_run_samples", "max_physics_steps", "number_hint"]
 
 #: The RK4 physics step of the thesis's simulation [s] (sec. 3.2).
 PHYSICS_STEP = 0.1
@@ -36,26 +47,98 @@ PHYSICS_STEP = 0.1
 EVENT_KINDS = ("current", "configuration", "thruster_efficiency", "controller")
 #: The Gauss-Markov current's parameters (eq. 2.30-2.33) a current event or override carries.
 CURRENT_FIELDS = ("mean_speed", "speed_std", "mean_direction", "direction_std", "break_time")
+#: The most control samples a run may have (duration / control period). A run's log holds about 40
+#: float64 values a sample (truth, measured, reference, command, applied), so 10^6 samples are about
+#: 0.3 GB of arrays (and several times that as JSON) and a few minutes of CPU in this process
+#: (~0.1 ms a sample); that is 55 hours at 5 Hz, far beyond the thesis's longest run (minutes).
+#: ``$SEAPUP_MAX_RUN_SAMPLES`` raises it.
+MAX_RUN_SAMPLES = 10**6
+#: The most RK4 physics steps a run may have (duration / physics step): 10^6 samples of the 0.1 s step
+#: at 1 Hz control. ``$SEAPUP_MAX_PHYSICS_STEPS`` raises it.
+MAX_PHYSICS_STEPS = 10**7
+#: The most operating points a self-test design flies (one self-test each; the thesis uses two).
+MAX_OPERATING_POINTS = 16
+#: The longest name or vehicle configuration name (a name is used in file names and on plots).
+MAX_NAME_LENGTH = 200
+ENV_MAX_RUN_SAMPLES = "SEAPUP_MAX_RUN_SAMPLES"
+ENV_MAX_PHYSICS_STEPS = "SEAPUP_MAX_PHYSICS_STEPS"
 
 
 class RunSpecError(ValueError):
     """A run specification that cannot be flown (the message names the key and what is allowed)."""
 
 
+def max_run_samples() -> int:
+    """:data:`MAX_RUN_SAMPLES`, or ``$SEAPUP_MAX_RUN_SAMPLES`` when set."""
+    return _env_cap(ENV_MAX_RUN_SAMPLES, MAX_RUN_SAMPLES)
+
+
+def max_physics_steps() -> int:
+    """:data:`MAX_PHYSICS_STEPS`, or ``$SEAPUP_MAX_PHYSICS_STEPS`` when set."""
+    return _env_cap(ENV_MAX_PHYSICS_STEPS, MAX_PHYSICS_STEPS)
+
+
+def _env_cap(name: str, default: int) -> int:
+    try:
+        return env_limit(name, default)
+    except InputFileError as exc:
+        raise RunSpecError(str(exc)) from None
+
+
+def _short(value) -> str:
+    """``repr(value)`` cut to 60 characters (a message quotes what was given, not a megabyte of it)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _finite(value, what: str) -> float:
+    """``value`` as a float if it is a finite number: a YAML/JSON number (int or float), never a string
+    (``'0.2'``) or a bool."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise RunSpecError(f"{what} must be a number, got {_short(value)}{number_hint(value)}")
     try:
         number = float(value)
-    except (TypeError, ValueError):
-        raise RunSpecError(f"{what} must be a number, got {value!r}") from None
-    if isinstance(value, bool) or not math.isfinite(number):
-        raise RunSpecError(f"{what} must be a finite number, got {value!r}")
+    except OverflowError:    # an integer beyond a float's range
+        raise RunSpecError(f"{what} must be a finite number, got {_short(value)}") from None
+    if not math.isfinite(number):
+        raise RunSpecError(f"{what} must be a finite number, got {_short(value)}")
     return number
+
+
+def number_hint(value) -> str:
+    """Why a string that reads as a number is not one: quoted, or YAML 1.1's exponent rule (``1e8`` and
+    ``1.0e8`` are text; ``1.0e+8`` is a number)."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        float(value)
+    except ValueError:
+        return ""
+    return " (text, not a number: unquote it; YAML reads an exponent as a number only with a dot and a sign, 1.0e+8)"
+
+
+def _numbers(values, what: str, size: int | None = None) -> tuple:
+    """A list (or tuple or 1-D array) of finite numbers, of ``size`` when given (the length checked first)."""
+    if isinstance(values, np.ndarray):
+        values = values.tolist() if values.ndim == 1 else values
+    if not isinstance(values, (list, tuple)):
+        raise RunSpecError(f"{what} must be a list of numbers, got {_short(values)}")
+    if size is not None and len(values) != size:
+        raise RunSpecError(f"{what} needs {size} values, got {len(values)}")
+    return tuple(_finite(v, what) for v in values)
+
+
+def _name(value, what: str) -> str:
+    if not isinstance(value, str) or not value or len(value) > MAX_NAME_LENGTH:
+        raise RunSpecError(f"{what} must be a non-empty string of at most {MAX_NAME_LENGTH} characters, "
+                           f"got {_short(value)}")
+    return value
 
 
 def _refuse_unknown(data: Mapping, known, what: str) -> None:
     if not isinstance(data, Mapping):
-        raise RunSpecError(f"{what} must be a mapping, got {data!r}")
-    unknown = sorted(set(data) - set(known))
+        raise RunSpecError(f"{what} must be a mapping, got {_short(data)}")
+    unknown = sorted(map(str, set(data) - set(known)))
     if unknown:
         raise RunSpecError(f"unknown {what} key(s) {unknown}; known: {', '.join(known)}")
 
@@ -76,15 +159,16 @@ class ReferenceSteps:
     steps: tuple = ((0.0, (0.0, 0.0, 0.0, 0.0)),)
 
     def __post_init__(self):
+        if not isinstance(self.steps, (list, tuple)):
+            raise RunSpecError(f"a reference profile is a list of steps, got {_short(self.steps)}")
         steps = []
         for i, step in enumerate(self.steps):
-            try:
-                t, value = step
-                value = tuple(_finite(v, f"reference step {i} value") for v in value)
-            except (TypeError, ValueError) as exc:
-                raise RunSpecError(f"reference step {i} must be (time, (u, v, w, r)): {exc}") from None
-            if len(value) != 4:
+            if not isinstance(step, (list, tuple)) or len(step) != 2:
+                raise RunSpecError(f"reference step {i} must be (time, (u, v, w, r)), got {_short(step)}")
+            t, value = step
+            if isinstance(value, (list, tuple)) and len(value) != 4:
                 raise RunSpecError(f"reference step {i} needs 4 values (u, v, w, r), got {len(value)}")
+            value = _numbers(value, f"reference step {i} value", 4)
             steps.append((_finite(t, f"reference step {i} time"), value))
         if not steps:
             raise RunSpecError("a reference profile needs at least one step")
@@ -92,14 +176,12 @@ class ReferenceSteps:
         if times != sorted(times) or len(set(times)) != len(times):
             raise RunSpecError(f"reference step times must be strictly increasing, got {times}")
         object.__setattr__(self, "steps", tuple(steps))
+        object.__setattr__(self, "_times", tuple(t - 1e-9 for t in times))
 
     def at(self, t: float) -> Reference:
-        """The reference in force at time ``t`` [s]."""
-        value = self.steps[0][1]
-        for start, v in self.steps:
-            if t >= start - 1e-9:
-                value = v
-        return Reference(value)
+        """The reference in force at time ``t`` [s] (a binary search: a long profile costs a log per sample)."""
+        k = bisect.bisect_right(self._times, t)
+        return Reference(self.steps[max(k - 1, 0)][1])
 
     def to_list(self) -> list:
         return [[t, *v] for t, v in self.steps]
@@ -107,10 +189,9 @@ class ReferenceSteps:
     @classmethod
     def from_list(cls, rows) -> "ReferenceSteps":
         """From ``[[t, u, v, w, r], ...]``."""
-        try:
-            return cls(tuple((row[0], tuple(row[1:])) for row in rows))
-        except (TypeError, IndexError, KeyError):
-            raise RunSpecError(f"a reference profile is a list of [t, u, v, w, r] rows, got {rows!r}") from None
+        if not isinstance(rows, (list, tuple)) or not all(isinstance(row, (list, tuple)) and row for row in rows):
+            raise RunSpecError(f"a reference profile is a list of [t, u, v, w, r] rows, got {_short(rows)}")
+        return cls(tuple((row[0], tuple(row[1:])) for row in rows))
 
 
 def _current_detail(detail) -> dict | None:
@@ -143,18 +224,18 @@ class RunEvent:
         if time < 0:
             raise RunSpecError(f"event time must be >= 0 s, got {time}")
         object.__setattr__(self, "time", time)
-        if self.kind not in EVENT_KINDS:
-            raise RunSpecError(f"unknown event kind {self.kind!r}; known: {', '.join(EVENT_KINDS)}")
+        if not isinstance(self.kind, str) or self.kind not in EVENT_KINDS:
+            raise RunSpecError(f"unknown event kind {_short(self.kind)}; known: {', '.join(EVENT_KINDS)}")
         detail = self.detail
         if self.kind == "current":
             detail = _current_detail(detail)
         elif self.kind == "configuration":
-            if not isinstance(detail, str) or not detail:
-                raise RunSpecError(f"a configuration event names a vehicle configuration, got {detail!r}")
+            if not isinstance(detail, str) or not detail or len(detail) > MAX_NAME_LENGTH:
+                raise RunSpecError(f"a configuration event names a vehicle configuration, got {_short(detail)}")
         elif self.kind == "thruster_efficiency":
-            detail = tuple(_finite(v, "thruster efficiency") for v in (detail or ()))
-            if len(detail) != 4:
+            if isinstance(detail, (list, tuple)) and len(detail) != 4:
                 raise RunSpecError(f"a thruster_efficiency event needs 4 factors, got {len(detail)}")
+            detail = _numbers(detail, "thruster efficiency", 4)
         else:
             detail = detail if isinstance(detail, ControllerSpec) else ControllerSpec.from_dict(detail)
         object.__setattr__(self, "detail", detail)
@@ -189,12 +270,14 @@ class SelfTestDesign:
     start_depth: float = 50.0
 
     def __post_init__(self):
-        points = tuple(_finite(v, "operating point") for v in self.operating_points)
-        if not points:
-            raise RunSpecError("a self-test needs at least one operating point")
+        _name(self.vehicle, "self-test vehicle")
+        if isinstance(self.operating_points, (list, tuple)) and not 1 <= len(self.operating_points) <= MAX_OPERATING_POINTS:
+            raise RunSpecError(f"a self-test needs 1 to {MAX_OPERATING_POINTS} operating points (one self-test each), "
+                               f"got {len(self.operating_points)}")
+        points = _numbers(self.operating_points, "operating point")
         object.__setattr__(self, "operating_points", points)
-        if self.mode not in ("realistic", "artificial"):
-            raise RunSpecError(f"self-test mode must be realistic or artificial, got {self.mode!r}")
+        if not isinstance(self.mode, str) or self.mode not in ("realistic", "artificial"):
+            raise RunSpecError(f"self-test mode must be realistic or artificial, got {_short(self.mode)}")
         object.__setattr__(self, "start_depth", _finite(self.start_depth, "self-test start depth"))
 
     def to_dict(self) -> dict:
@@ -204,14 +287,14 @@ class SelfTestDesign:
     @classmethod
     def from_dict(cls, data: Mapping) -> "SelfTestDesign":
         _refuse_unknown(data, ("vehicle", "operating_points", "mode", "start_depth"), "design")
-        return cls(**{k: (tuple(v) if k == "operating_points" else v) for k, v in data.items()})
+        return cls(**dict(data))
 
 
 def _frozen_mapping(value, what: str) -> dict:
     if value is None:
         return {}
     if not isinstance(value, Mapping):
-        raise RunSpecError(f"{what} must be a mapping, got {value!r}")
+        raise RunSpecError(f"{what} must be a mapping, got {_short(value)}")
     return {str(k): (_frozen_mapping(v, what) if isinstance(v, Mapping) else v) for k, v in value.items()}
 
 
@@ -270,22 +353,25 @@ class RunSpec:
     metrics: tuple = ()
 
     def __post_init__(self):
+        _name(self.name, "name")
+        _name(self.vehicle, "vehicle")
         period = _finite(self.control_period, "control_period")
         if period <= 0:
             raise RunSpecError(f"control_period must be > 0 s, got {period}")
         steps = period / min(PHYSICS_STEP, period)
-        if abs(steps - round(steps)) > 1e-9:
+        if not steps < 2**53 or abs(steps - round(steps)) > 1e-9:
             raise RunSpecError(f"control_period {period} s must be a whole number of {PHYSICS_STEP} s physics steps "
                                "(or shorter than one)")
         duration = _finite(self.duration, "duration")
         if duration <= 0:
             raise RunSpecError(f"duration must be > 0 s, got {duration}")
+        _check_size(duration, period)
         if abs(duration / period - round(duration / period)) > 1e-6:
             raise RunSpecError(f"duration {duration} s must be a whole number of control periods ({period} s)")
-        if self.dynamics not in ("nonlinear", "linearised"):
-            raise RunSpecError(f"dynamics must be nonlinear or linearised, got {self.dynamics!r}")
+        if not isinstance(self.dynamics, str) or self.dynamics not in ("nonlinear", "linearised"):
+            raise RunSpecError(f"dynamics must be nonlinear or linearised, got {_short(self.dynamics)}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**31:
-            raise RunSpecError(f"seed must be an integer in [0, 2^31), got {self.seed!r}")
+            raise RunSpecError(f"seed must be an integer in [0, 2^31), got {_short(self.seed)}")
         object.__setattr__(self, "control_period", period)
         object.__setattr__(self, "duration", duration)
         object.__setattr__(self, "seed", int(self.seed))
@@ -294,17 +380,21 @@ class RunSpec:
         for name, size in (("start_state", 12), ("start_pitch", 4)):
             value = getattr(self, name)
             if value is not None:
-                value = tuple(_finite(v, name) for v in value)
-                if len(value) != size:
-                    raise RunSpecError(f"{name} needs {size} values, got {len(value)}")
-                object.__setattr__(self, name, value)
+                object.__setattr__(self, name, _numbers(value, name, size))
+        if self.start_pitch is not None and max(abs(v) for v in self.start_pitch) > BLADE_PITCH_LIMIT:
+            raise RunSpecError(f"start_pitch must be within +-{BLADE_PITCH_LIMIT:.4g} rad (the blade pitch limit), "
+                               f"got {list(self.start_pitch)}")
         if not isinstance(self.controller, ControllerSpec):
             object.__setattr__(self, "controller", ControllerSpec.from_dict(self.controller))
         if not isinstance(self.reference, ReferenceSteps):
             object.__setattr__(self, "reference", ReferenceSteps.from_list(self.reference))
+        if self.design is not None and not isinstance(self.design, SelfTestDesign):
+            object.__setattr__(self, "design", SelfTestDesign.from_dict(self.design))
+        if not isinstance(self.events, (list, tuple)):
+            raise RunSpecError(f"events must be a list of events, got {_short(self.events)}")
         events = tuple(e if isinstance(e, RunEvent) else RunEvent.from_dict(e) for e in self.events)
         object.__setattr__(self, "events", tuple(sorted(events, key=lambda e: e.time)))
-        object.__setattr__(self, "metrics", tuple(self.metrics))
+        object.__setattr__(self, "metrics", _metric_names(self.metrics))
 
     # -- derived, once -----------------------------------------------------------------------
     @property
@@ -368,13 +458,38 @@ class RunSpec:
         known = [f for f in cls.__dataclass_fields__] + ["physics_step"]
         _refuse_unknown(data, known, "run spec")
         values = {k: v for k, v in data.items() if k != "physics_step"}
-        if values.get("design") is not None:
-            values["design"] = SelfTestDesign.from_dict(values["design"])
         for name in ("events", "metrics"):
-            if name in values:
-                values[name] = tuple(values[name] or ())
+            if values.get(name) is None and name in values:
+                values[name] = ()
         spec = cls(**values)
-        if "physics_step" in data and abs(float(data["physics_step"]) - spec.physics_step) > 1e-12:
+        if "physics_step" in data and abs(_finite(data["physics_step"], "physics_step") - spec.physics_step) > 1e-12:
             raise RunSpecError(f"physics_step {data['physics_step']} disagrees with the derived "
                                f"{spec.physics_step} s (min(0.1 s, T))")
         return spec
+
+
+def _check_size(duration: float, period: float) -> None:
+    """Refuse a run of more than :func:`max_run_samples` control samples or :func:`max_physics_steps`
+    physics steps, or of less than one sample: arithmetic on the two numbers, before anything is allocated."""
+    samples = duration / period
+    physics = duration / min(PHYSICS_STEP, period)
+    if samples < 0.5:
+        raise RunSpecError(f"duration {duration:g} s is shorter than one control period ({period:g} s)")
+    cap = max_run_samples()
+    if not samples <= cap:
+        raise RunSpecError(f"duration {duration:g} s at a {period:g} s control period is {samples:.3g} control samples, "
+                           f"more than the {cap:,} a run may have (docs/limits.md; set "
+                           f"{ENV_MAX_RUN_SAMPLES} to allow more)")
+    cap = max_physics_steps()
+    if not physics <= cap:
+        raise RunSpecError(f"duration {duration:g} s is {physics:.3g} physics steps of {min(PHYSICS_STEP, period):g} s, "
+                           f"more than the {cap:,} a run may have (docs/limits.md; set "
+                           f"{ENV_MAX_PHYSICS_STEPS} to allow more)")
+
+
+def _metric_names(names) -> tuple:
+    """The metric extractors' names, typed (a list of strings); the names themselves are checked against the
+    registry (:func:`seapup_runs.metrics.check_names`, which imports this module) before a run flies."""
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise RunSpecError(f"metrics must be a list of metric names, got {_short(names)}")
+    return tuple(names)

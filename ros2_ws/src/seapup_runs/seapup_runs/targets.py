@@ -22,7 +22,8 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import yaml
+
+from seapup_common.input_files import InputFileError, load_yaml_file
 
 __all__ = ["Target", "Tolerance", "Score", "TargetsError", "STATUSES", "CHAPTERS", "TARGETS_FILE",
            "load_targets", "load_document", "runs_of", "score", "score_all", "summarise", "lookup",
@@ -198,10 +199,10 @@ def _tolerance(spec, named: dict, where: str) -> Tolerance:
 def load_document(path: str | Path | None = None) -> dict:
     """The targets file as parsed YAML (``units``, ``runs``, ``tolerances``, ``targets``)."""
     path = Path(path) if path is not None else TARGETS_FILE
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise TargetsError(f"{path}: {exc}") from None
+    try:   # bounded and strict: at most 1 MiB, no duplicated key (a target given twice), safe tags only
+        doc = load_yaml_file(path, "config")
+    except InputFileError as exc:
+        raise TargetsError(str(exc)) from None
     if not isinstance(doc, dict) or doc.get("schema") != 1:
         raise TargetsError(f"{path}: not a thesis targets file (schema: 1)")
     unknown = set(doc) - {"schema", "units", "runs", "tolerances", "targets"}

@@ -4,6 +4,7 @@ Truth: the run specs built by hand from the same base and values, the randomised
 seapup_runs.randomised, and runs flown directly by seapup_runs.runner.
 """
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -181,3 +182,90 @@ def test_flatten_keeps_scalars_and_short_numeric_lists():
     flat = cp.flatten({"a": {"b": 1, "c": True, "d": "x", "e": [1, 2], "f": list(range(9)), "g": None},
                        "h": np.float64(2.5)})
     assert flat == {"a.b": 1.0, "a.c": True, "a.d": "x", "a.e.0": 1.0, "a.e.1": 2.0, "h": 2.5}
+
+
+# -- bounded and strict (issue 40) ---------------------------------------------------------------------------
+TEN = list(range(10))
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("change, runs", [
+    ({"grid": {k: TEN for k in "abcdefg"}, "random": None, "seeds": 1}, r"1e\+07 runs \(10 a x 10 b"),
+    ({"grid": None, "random": None, "seeds": 10_000_000}, r"1e\+07 runs \(10000000 seeds\)"),
+    ({"grid": None, "random": {"count": 100_000_000, "draws": {"start_depth": {"uniform": [1.0, 2.0]}}}},
+     r"2e\+08 runs \(random.count 100000000 x 2 seeds\)"),
+    ({"base": None, "grid": None, "random": None, "seeds": None, "randomised": {"count": 100_000_000}},
+     r"1e\+08 runs \(randomised.count\)"),
+])
+def test_a_campaign_too_large_is_refused_from_its_counts_before_anything_is_expanded(monkeypatch, change, runs):
+    """Before issue 40 each of these expanded every run first: no answer in 30-120 s and 1.5-2.6 GB."""
+    import time
+    doc = {k: v for k, v in _doc(**change).items() if v is not None}
+    for name in ("_base_spec", "_draw", "RunSpec"):
+        monkeypatch.setattr(cp, name, lambda *a, **k: pytest.fail("expanded before the count was checked"))
+    monkeypatch.setattr("seapup_runs.randomised.random_adaptive_spec", lambda *a, **k: pytest.fail("expanded"))
+    cpu = time.process_time()
+    with pytest.raises(cp.CampaignError, match=runs + ".*more than the 100,000 a campaign may have") as caught:
+        cp.campaign_from_dict(doc)
+    assert time.process_time() - cpu < 1.0 and "SEAPUP_MAX_CAMPAIGN_RUNS" in str(caught.value)
+
+
+@pytest.mark.unit
+def test_the_campaign_cap_is_the_product_of_the_counts_and_can_be_raised(monkeypatch):
+    doc = _doc()                                                     # 2 x 3 grid, 2 draws, 2 seeds: 24 runs
+    assert cp.run_count(cp.Campaign("trial", "", doc)) == 24 == len(cp.expand(cp.campaign_from_dict(doc)))
+    monkeypatch.setenv("SEAPUP_MAX_CAMPAIGN_RUNS", "23")
+    with pytest.raises(cp.CampaignError, match=r"24 runs \(2 vehicle x 3 control_period x random.count 2 x 2 seeds"):
+        cp.campaign_from_dict(doc)
+    monkeypatch.setenv("SEAPUP_MAX_CAMPAIGN_RUNS", "24")
+    assert len(cp.expand(cp.campaign_from_dict(doc))) == 24
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("change, message", [
+    ({"seeds": "1e7"}, r"seeds is a count .*got 1e7 \(text, not a number"),
+    ({"seeds": [1, True]}, "seeds is a count"),
+    ({"random": {"count": "1e8", "draws": {"seed": {"integers": [0, 1]}}}}, "random.count must be an integer"),
+    ({"random": {"count": 1, "seed": "abc", "draws": {"seed": {"integers": [0, 1]}}}}, "random.seed must be"),
+    ({"random": {"count": 1, "draws": {"start_depth": {"normal": [0, -1]}}}}, r"normal takes \[mean, standard"),
+    ({"random": {"count": 1, "draws": {"seed": {"integers": [0, 1e300]}}}}, "integers takes two integers"),
+    ({"random": {"count": 1, "draws": {"seed": {"integers": [5, 1]}}}}, "low <= high"),
+    ({"random": {"count": 1, "draws": {"start_depth": {"uniform": [-1e308, 1e308]}}}}, "a finite width"),
+    ({"random": {"count": 1, "draws": {"start_depth": {"uniform": [0, 10**400]}}}}, "two finite numbers"),
+    ({"grid": {"reference.0": [1]}}, "reference is not a mapping"),
+    ({"grid": {"reference.0.1": [1]}}, "not a mapping"),
+    ({"grid": {"name+": ["x"]}}, r"name is not a list in the run spec"),
+    ({"grid": {"events+": [[{"time": "abc", "kind": "configuration", "detail": "camera"}]]}, "random": {}},
+     "event time must be a number, got 'abc'$"),
+    ({"grid": {"events+": [[]]}}, r'\["events\+"\] both in grid and in random.draws'),
+    ({"summary": {"worst": "abc"}}, "summary.worst is an integer"),
+    ({"summary": {"metrics": "abc"}}, "summary.metrics is a list"),
+    ({"name": {"a": 1}}, "name must be"),
+    ({"name": ".."}, "name must be"),
+    ({"doc": ["x"]}, "doc must be text"),
+    ({"base": {"scenario": "square-surge", "rate_hz": "5"}}, "base.rate_hz must be a number"),
+    ({"base": {"scenario": "square-surge", "rate_hz": 0}}, "base.rate_hz must be a number in"),
+    ({"base": {"scenario": "square-surge", "schedule": "no"}}, "base.schedule is true or false"),
+    ({"base": {"scenario": ["square-surge"]}}, "base.scenario is a name"),
+    ({"base": {"spec": {**BASE["spec"], "metrics": ["nope"]}}}, r"run 0 .*unknown metric\(s\) \['nope'\]"),
+])
+def test_hostile_campaign_values_get_a_reason_not_an_exception_s_words(change, message):
+    """Before issue 40: numpy's 'scale < 0' and 'low >= high', OverflowError, AttributeError ('list' object has
+    no attribute 'get'), a string seed count converted or a ValueError from int('abc') after the flights."""
+    with pytest.raises(cp.CampaignError, match=message) as caught:
+        cp.campaign_from_dict(_doc(**change))
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.unit
+def test_a_campaign_file_is_read_bounded_and_strictly(tmp_path):
+    dup = tmp_path / "dup.yaml"
+    dup.write_text("name: a\nname: b\nbase: {scenario: square-surge}\n")
+    with pytest.raises(cp.CampaignError, match="duplicate key 'name'"):
+        cp.load_campaign(dup)
+    for path, why in ((tmp_path / "empty.yaml", "is empty"), ("/dev/zero", "larger than 1 MiB"),
+                      (tmp_path, "is a directory")):
+        if isinstance(path, Path) and path.suffix:
+            path.write_text("# nothing but a comment\n")
+        with pytest.raises(cp.CampaignError, match=why):
+            cp.load_campaign(path)

@@ -108,6 +108,14 @@ def test_unknown_metrics_and_undesigned_controllers_are_refused():
         compute(result)
 
 
+def test_an_unknown_metric_is_refused_before_the_run_flies(monkeypatch):
+    """Before issue 40 ``fly`` flew the whole run (and its self-test) and then refused the metric's name."""
+    import seapup_runs.runner as runner
+    monkeypatch.setattr(runner, "design", lambda *a, **k: pytest.fail("flew a run whose metric is unknown"))
+    with pytest.raises(MetricError, match=r"unknown metric\(s\) \['no_such_metric'\]; known: step_response"):
+        run(RunSpec(duration=1.0, metrics=("no_such_metric",)))
+
+
 @pytest.mark.parametrize("event, message", [
     ({"time": 1.0, "kind": "configuration", "detail": "submarine"}, "configuration event at 1 s"),
     ({"time": 1.0, "kind": "current", "detail": {"mean_speed": 50.0, "speed_std": 0.0, "mean_direction": 0.0,
