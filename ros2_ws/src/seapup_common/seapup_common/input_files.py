@@ -22,6 +22,7 @@ Errors are :class:`InputFileError` (a :class:`ValueError`), whose message names 
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 
 import yaml
@@ -120,6 +121,13 @@ def read_text(path: str | Path, kind: str = "config", *, limit: int | None = Non
     limit = limit_for(kind) if limit is None else int(limit)
     if path.is_dir():
         raise InputFileError(f"{path}: is a directory, not a file")
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        mode = 0
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        # opening a pipe with no writer blocks for ever: refused by its kind, before it is opened
+        raise InputFileError(f"{path}: is a {'pipe' if stat.S_ISFIFO(mode) else 'socket'}, not a file")
     try:
         with open(path, "rb") as handle:
             data = handle.read(limit + 1)

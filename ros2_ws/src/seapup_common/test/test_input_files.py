@@ -111,3 +111,11 @@ def test_plain_documents_load_as_safe_load(tmp_path):
     got, want = parse_yaml(text), yaml.safe_load(text)
     assert got.keys() == want.keys() and got["c"] == want["c"] and got["a"] == 1
     assert got["b"][:2] == [1.5, math.inf] and math.isnan(got["b"][2]) and got["b"][3:] == [True, None, "x"]
+
+
+def test_a_pipe_is_refused_without_opening_it(tmp_path):
+    import os
+    fifo = tmp_path / "spec.yaml"
+    os.mkfifo(fifo)   # no writer: an open() would block for ever
+    with pytest.raises(InputFileError, match="is a pipe"):
+        read_text(fifo, "spec")
