@@ -43,7 +43,8 @@ from seapup_msgs.msg import Depth, SampleManifest
 from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, each_one_of,
+                                    run_node)
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
 
@@ -62,7 +63,8 @@ class NavigatorNode(Node):
             "q_walk": (0.0, 1e3), "velocity_std": (1e-6, 10.0), "fix_std": (1e-3, 1e3), "depth_std": (1e-4, 1e3),
             "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6),
             "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6),
-            "manifest_patience": (1, 1000)})
+            "manifest_patience": (1, 1000)},
+            allowed={"sample_topics": each_one_of(*_TOPICS, empty=False, unique=True)})
         shell = {key: p.pop(key) for key in SHELL_PARAMETERS}   # the rest is the filter's
         self.sample_topics = set(shell["sample_topics"])
         self.manifest_patience = int(shell["manifest_patience"])

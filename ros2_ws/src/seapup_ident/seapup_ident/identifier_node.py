@@ -27,11 +27,12 @@ from seapup_common.bag import BagWriter, make_typestore
 from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.recorder_node import project_msg_files
 from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, each_one_of,
+                                    one_of, path_or_empty, run_node)
 from seapup_common.topics import APPLIED, IDENTIFIED_MODEL, IMU, NAMESPACE, TOPIC_TYPES, VELOCITY
 from seapup_ident.armax import ArmaxOrders
-from seapup_ident.online import OnlineIdentifier
-from seapup_ident.recursive import DataError, Forgetting
+from seapup_ident.online import OUTPUTS, OnlineIdentifier
+from seapup_ident.recursive import METHODS, DataError, Forgetting
 
 __all__ = ["IdentifierNode", "main"]
 
@@ -46,7 +47,9 @@ class IdentifierNode(Node):
         p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier", ranges={
             "orders": (0, 20), "lambda0": (0.0, 1.0), "alpha": (0.0, 1.0), "forgetting": (0.0, 1.0),
             "p0": (1e-6, 1e12), "rpem_filter_k0": (0.0, 1.0), "rpem_filter_gamma": (0.0, 1.0),
-            "sample_period": (0.01, 10.0)})
+            "sample_period": (0.01, 10.0)}, allowed={
+            "method": one_of(*METHODS), "outputs": each_one_of(*OUTPUTS, empty=False, unique=True),
+            "bag_path": path_or_empty("the bag directory to create (must not exist); 'none': no bag")})
         outputs = list(p["outputs"])
         na, nb, nc = (int(v) for v in p["orders"])
         forgetting = Forgetting(float(p["forgetting"])) if p["forgetting"] > 0 else \
