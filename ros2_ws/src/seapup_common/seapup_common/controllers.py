@@ -30,9 +30,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import ContractError, HoldCommand, VelocityController
 
-__all__ = ["ENTRY_POINT_GROUP", "ControllerRegistryError", "ControllerType", "ControllerSpec", "register_controller",
+__all__ = ["ENTRY_POINT_GROUP", "ControllerRegistryError", "Ranged", "ControllerType", "ControllerSpec", "register_controller",
            "controller_type", "available_controllers", "create_controller", "HOLD_TYPE"]
 
 #: The entry-point group packages register their control laws in.
@@ -41,6 +42,38 @@ ENTRY_POINT_GROUP = "seapup.velocity_controllers"
 
 class ControllerRegistryError(ValueError):
     """An unknown controller type, unknown or malformed parameters, or a design document it cannot use."""
+
+
+@dataclass(frozen=True)
+class Ranged:
+    """A law parameter's default with the range it may take (a number, or each number of a list) and why.
+
+    Declared in place of the bare default in :attr:`ControllerType.parameters`, so the range sits next to
+    the default it bounds::
+
+        {"forgetting": Ranged(0.999, 0.9, 1.0, "eq. 6.13: lambda in (0, 1]; ...")}
+
+    Parameters
+    ----------
+    default : number or list
+        The default (its type is the type accepted).
+    low, high : float
+        The closed interval allowed; NaN and inf are never allowed.
+    source : str
+        Where the range comes from (a thesis section, a physical bound, a choice and its reason).
+    """
+
+    default: Any
+    low: float
+    high: float
+    source: str
+
+    def __post_init__(self):
+        if not (math.isfinite(self.low) and math.isfinite(self.high) and self.low <= self.high):
+            raise ControllerRegistryError(f"a parameter range is two finite numbers low <= high, got "
+                                          f"[{self.low!r}, {self.high!r}]")
+        if not self.source:
+            raise ControllerRegistryError("a parameter range says where it comes from (source)")
 
 
 @dataclass(frozen=True)
@@ -67,6 +100,14 @@ class ControllerType:
     needs_applied : bool
         The law estimates from the blade pitch actually applied over each interval, so a lockstep
         transport must deliver it before the sample is answered (see :mod:`seapup_common.lockstep`).
+
+    Attributes
+    ----------
+    ranges : mapping
+        ``name: (low, high)`` of each parameter declared :class:`Ranged` (for a list: of each element);
+        :meth:`complete` and the velocity controller node refuse a value outside it.
+    sources : mapping
+        ``name: source`` of each range.
     """
 
     name: str
@@ -75,6 +116,23 @@ class ControllerType:
     description: str = ""
     needs_document: bool = False
     needs_applied: bool = False
+    ranges: Mapping = field(default_factory=dict, compare=False)
+    sources: Mapping = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        defaults, ranges, sources = {}, dict(self.ranges), dict(self.sources)
+        for name, value in dict(self.parameters).items():
+            if isinstance(value, Ranged):
+                defaults[name] = value.default
+                ranges[name], sources[name] = (float(value.low), float(value.high)), value.source
+            else:
+                defaults[name] = value
+        object.__setattr__(self, "parameters", types.MappingProxyType(defaults))
+        object.__setattr__(self, "ranges", types.MappingProxyType(ranges))
+        object.__setattr__(self, "sources", types.MappingProxyType(sources))
+        for name, default in defaults.items():
+            if name in ranges:
+                _within(self.name, name, default, ranges[name])
 
     def complete(self, parameters: Mapping | None) -> dict:
         """The parameters with defaults filled in; unknown names or wrong types refused.
@@ -93,6 +151,8 @@ class ControllerType:
         out = dict(self.parameters)
         for name, value in given.items():
             out[name] = _coerce(self.name, name, value, self.parameters[name])
+            if name in self.ranges:
+                _within(self.name, name, out[name], self.ranges[name])
         return out
 
 
@@ -101,6 +161,15 @@ def _finite(value) -> bool:
         return math.isfinite(float(value))
     except OverflowError:   # an integer beyond a float's range
         return False
+
+
+def _within(kind: str, name: str, value, bounds) -> None:
+    """Raise unless ``value`` (each element of a list) is finite and within ``bounds``."""
+    lo, hi = bounds
+    for v in value if isinstance(value, (list, tuple)) else [value]:
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not (_finite(v) and lo <= v <= hi):
+            raise ControllerRegistryError(f"controller {kind!r} parameter {name!r} = {value!r} refused: it must be "
+                                          f"finite and within [{lo:g}, {hi:g}]")
 
 
 def _coerce(kind: str, name: str, value, default):
@@ -334,6 +403,7 @@ def _hold(parameters: dict, document, sample_period: float | None) -> HoldComman
 
 #: Hold one blade-pitch setting (an open loop; :class:`~seapup_common.contract.HoldCommand`): four pitches
 #: [rad], or none to hold what is applied when it starts.
-HOLD_TYPE = ControllerType("hold", _hold, types.MappingProxyType({"blade_pitch": []}),
+HOLD_TYPE = ControllerType("hold", _hold, types.MappingProxyType({
+    "blade_pitch": Ranged([], -BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT, "the blade-pitch limit, +/-35 deg (sec. 3.1)")}),
                            "hold one blade-pitch setting [rad] (open loop); blade_pitch [] (the default): the one "
                            "applied when it starts")

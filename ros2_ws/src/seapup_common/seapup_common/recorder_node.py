@@ -45,7 +45,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
-from seapup_common.ros.node import declare_from_package_file, run_node
+from seapup_common.ros.node import declare_from_package_file, path_or_empty, regular_expression, run_node, topic_names
 from seapup_common.topics import CLOCK
 
 __all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "default_bag_path"]
@@ -88,7 +88,9 @@ class RecorderNode(Node):
         }, section="recorder", ranges={"flush_interval": (0.0, 3600.0), "max_bag_size": (0, 2**62),
                                        "max_bag_duration": (0.0, 1e7), "max_stamp_lead": (0.0, 3600.0),
                                        "max_stamp_jump": (0.0, 1e7),
-                                       "max_duration": (0.0, 1e7), "discovery_period": (0.01, 60.0)})
+                                       "max_duration": (0.0, 1e7), "discovery_period": (0.01, 60.0)},
+            allowed={"topics": topic_names(typed=True), "exclude": regular_expression(),
+                     "bag_path": path_or_empty("the bag directory to create (must not exist)")})
         entries = [t for t in p["topics"] if t]
         self.record_all = bool(p["all"])
         self.exclude = re.compile(p["exclude"]) if p["exclude"] else None

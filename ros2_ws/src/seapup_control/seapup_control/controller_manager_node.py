@@ -50,8 +50,9 @@ from seapup_msgs.srv import ListControllers, SwitchController
 
 from seapup_common.ros.messages import diagnostic_array, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
+from seapup_common.controllers import available_controllers
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
-                                    run_node, stop_requested)
+                                    run_node, stop_requested, text, topic_names)
 from seapup_common.topics import DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 from seapup_control.controller_manager import ControllerManagerCore, SwitchError
 
@@ -74,6 +75,36 @@ class _TransitionProblem:
         return self.message
 
 
+def _node_names(value) -> str:
+    from rclpy.exceptions import InvalidNodeNameException
+    from rclpy.validate_node_name import validate_node_name
+    for name in [value] if isinstance(value, str) else list(value):
+        if name == "":
+            continue
+        try:
+            validate_node_name(name)
+        except InvalidNodeNameException:
+            return f"{name!r} is not a node name (letters, digits and _, not starting with a digit)"
+    return ""
+
+
+def _command_topic(value: str) -> str:
+    if "{name}" not in value:
+        return "it must contain {name} (each controller's node name)"
+    return topic_names().test(value.replace("{name}", "x"))
+
+
+#: The allowed values of the manager's string parameters: node names (the managed controllers, the fallback,
+#: the initial one; "" for none), registered law types, and the command topic pattern.
+ALLOWED = {"controllers": text("velocity_controller node names in /seapup", _node_names),
+           "types": text("registered controller types (./seapup controllers), one per controller, or none",
+                         lambda v: next((f"{t!r} is not a registered type ({', '.join(available_controllers())})"
+                                         for t in v if t not in available_controllers()), "")),
+           "command_topic": text("a topic name containing {name}", _command_topic),
+           "fallback": text("one of controllers", _node_names),
+           "initial": text("one of controllers, or empty (none until a switch)", _node_names)}
+
+
 class ControllerManagerNode(Node):
     """rclpy shell around :class:`ControllerManagerCore` (see the module docstring)."""
 
@@ -82,7 +113,7 @@ class ControllerManagerNode(Node):
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",
                                       ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0),
                                               "liveness_timeout": (0.0, 60.0),
-                                              "wait_for_subscribers": (0, 100)})
+                                              "wait_for_subscribers": (0, 100)}, allowed=ALLOWED)
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
             raise ValueError(f"types: {len(types)} given for {len(names)} controllers")

@@ -51,7 +51,7 @@ import types
 import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.controllers import ControllerType
+from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains, design
 from seapup_control.mfol_controller import GainSchedule
 from seapup_control.self_tuning import OUTPUTS, TUNER_PARAMETERS, SelfTuner, TunerJacket, jacket_from
@@ -198,7 +198,11 @@ def create_explicit(parameters: dict, document, sample_period: float | None) -> 
 
 #: The explicit self-tuner (registered as ``explicit``).
 EXPLICIT_TYPE = ControllerType(
-    "explicit", create_explicit, types.MappingProxyType({**TUNER_PARAMETERS, "max_pole": 1.3}),
+    "explicit", create_explicit, types.MappingProxyType({
+        **TUNER_PARAMETERS,
+        "max_pole": Ranged(1.3, 1.0, 10.0, "|z| of an estimated open-loop pole (sec. 7.3's sanity rule): the "
+                                           "vehicle is open-loop stable, |z| < 1; below 1 a sound estimate is "
+                                           "refused, beyond 10 (x10 per sample) none ever is")}),
     "explicit self-tuner (sec. 7.3): square-root RLS on a first-order model of u, v, w, r, the two-term law "
     "redesigned each sample; commissioned by and falling back to a self-test's fixed gains",
     needs_document=True, needs_applied=True)

@@ -52,7 +52,7 @@ from collections import deque
 import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.controllers import ControllerType
+from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
 from seapup_control.mfol_controller import GainSchedule
 from seapup_control.self_tuning import OUTPUTS, TUNER_PARAMETERS, SelfTuner, TunerJacket, jacket_from
@@ -187,7 +187,12 @@ def create_gmv(parameters: dict, document, sample_period: float | None) -> GMVSe
 
 #: Koivo's implicit GMV self-tuner (registered as ``gmv``).
 GMV_TYPE = ControllerType(
-    "gmv", create_gmv, types.MappingProxyType({"lambda": 0.001, "order": 2, **TUNER_PARAMETERS}),
+    "gmv", create_gmv, types.MappingProxyType({
+        "lambda": Ranged(0.001, 0.0, 10.0, "eq. 7.5's weighting of du: >= 0; the thesis flies 0 to 0.1 "
+                                           "(sec. 7.6), 100 x that is the bound"),
+        "order": Ranged(2, 1, MAX_ORDER, "the predictor's order: sec. 7.6.2 flies 1 and 2; each adds 4 x 4 "
+                                         "parameters per output to estimate (MAX_ORDER)"),
+        **TUNER_PARAMETERS}),
     "Koivo's implicit GMV self-tuner (sec. 7.5, eq. 7.5): the predictor of y(t+1) - r(t) + lambda du(t) estimated "
     "by square-root RLS and set to zero; lambda the one knob; commissioned by a self-test's fixed gains",
     needs_document=True, needs_applied=True)

@@ -46,7 +46,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
-from seapup_common.controllers import ControllerType
+from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
 
 __all__ = ["GainSchedule", "MFOLController", "BatchMFOL", "ControllerState", "MFOL_TYPE", "create_mfol"]
@@ -367,8 +367,10 @@ def create_mfol(parameters: dict, document, sample_period: float | None) -> MFOL
 
 #: Owens and Chotai's two-term controller, fixed-gain or gain-scheduled (registered as ``mfol``).
 MFOL_TYPE = ControllerType(
-    "mfol", create_mfol, types.MappingProxyType({"schedule": True, "blade_pitch_limit": BLADE_PITCH_LIMIT,
-                                                 "anti_windup": True}),
+    "mfol", create_mfol, types.MappingProxyType({
+        "schedule": True, "anti_windup": True,
+        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
+                                    "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's")}),
     "Owens-Chotai two-term PI (eq. 4.11, 5.6) from a self-test's controller file; schedule: gain-scheduled on "
     "surge speed (sec. 4.6); anti_windup: false for the thesis's law as written (its integrators run on "
     "while a thruster saturates)", needs_document=True)

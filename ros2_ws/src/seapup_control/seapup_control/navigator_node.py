@@ -16,7 +16,9 @@ reading that never comes is taken after ``manifest_patience`` complete
 samples, the earlier ones first. Without a manifest (a vehicle's
 instruments): when the readings of ``sample_topics`` stamped t_k have all
 arrived, or when a later velocity reading comes first. Non-finite or
-malformed readings are rejected and counted, never fused (a rejected reading
+malformed readings, and readings in another frame than their instrument's (``base_link_frd`` for the
+velocity and IMU, ``odom_ned`` for the fix and the depth: :mod:`seapup_common.ros.messages`), are rejected
+and counted, never fused (a rejected reading
 has arrived, for completeness); ``/diagnostics`` (``seapup/navigator``)
 carries the counts, the estimate's standard deviation and the estimate publisher's
 matched readers (``subscribers:/seapup/navigation/odometry``).
@@ -43,7 +45,8 @@ from seapup_msgs.msg import Depth, SampleManifest
 from seapup_common.contract import ContractError
 from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import MeasurementCollector, diagnostic_array, estimate_to_odometry, stamp_to_ns
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, each_one_of,
+                                    run_node)
 from seapup_common.topics import DIAGNOSTICS, NAMESPACE
 from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
 
@@ -62,7 +65,8 @@ class NavigatorNode(Node):
             "q_walk": (0.0, 1e3), "velocity_std": (1e-6, 10.0), "fix_std": (1e-3, 1e3), "depth_std": (1e-4, 1e3),
             "initial_std": (1e-3, 1e4), "gate_probability": (0.5, 1.0 - 1e-12), "coast_inflation": (1.0, 1e6),
             "max_speed": (0.01, 100.0), "depth_range": (-1e3, 1.2e4), "reacquire_after": (0, 10**6),
-            "manifest_patience": (1, 1000)})
+            "manifest_patience": (1, 1000)},
+            allowed={"sample_topics": each_one_of(*_TOPICS, empty=False, unique=True)})
         shell = {key: p.pop(key) for key in SHELL_PARAMETERS}   # the rest is the filter's
         self.sample_topics = set(shell["sample_topics"])
         self.manifest_patience = int(shell["manifest_patience"])
@@ -72,7 +76,8 @@ class NavigatorNode(Node):
                              f"{', '.join(_TOPICS)}")
         self.navigator = Navigator(NavigatorParams.from_mapping(p))
         self.collector = MeasurementCollector()
-        self.rejected = 0
+        self.rejected = 0                       # sensor readings refused (stamp, frame, finite, unit quaternion)
+        self.rejected_manifests = 0             # manifests refused (stamp far from the graph's time)
         self._arrived: dict[int, set] = {}  # sample stamp -> topics heard for it
         self._processed_ns: int | None = None
         self._manifests: dict[int, set] = {}  # sample stamp -> the readings the simulator published for it
@@ -127,20 +132,26 @@ class NavigatorNode(Node):
     def _hold(self, name: str, t_ns: int, msg) -> None:
         """Keep a reading for its sample (the collector takes it when the sample is processed: a later
         sample's reading arriving first must not replace it)."""
-        if self._processed_ns is not None and t_ns <= self._processed_ns:
-            return  # late: its sample was processed without it
         try:
             MeasurementCollector.readings(msg)  # checked now, kept by the collector when its sample is processed
-            self._held.setdefault(t_ns, {})[name] = msg
-        except (ContractError, ValueError) as exc:
+        except (ContractError, ValueError) as exc:   # counted whether or not its sample is still open
             self.rejected += 1
             self.get_logger().warn(f"{name} reading rejected: {exc}", throttle_duration_sec=2.0)
+            msg = None
+        if self._processed_ns is not None and t_ns <= self._processed_ns:
+            return  # late: its sample was processed without it
+        if msg is not None:
+            self._held.setdefault(t_ns, {})[name] = msg
         self._arrived.setdefault(t_ns, set()).add(name)   # a rejected reading came too: no waiting for it
         self._complete()
 
     def _on_manifest(self, msg: SampleManifest) -> None:
         t_ns = stamp_to_ns(msg.header.stamp)
-        if (self._processed_ns is not None and t_ns <= self._processed_ns) or not self.stamps.accept(t_ns):
+        if not self.stamps.accept(t_ns):
+            self.rejected_manifests += 1
+            self.get_logger().warn(f"manifest rejected: {self.stamps.why(t_ns)}", throttle_duration_sec=2.0)
+            return
+        if self._processed_ns is not None and t_ns <= self._processed_ns:
             return
         self._manifested = True
         self._manifests[t_ns] = {self._topic_names[t] for t in msg.topics if t in self._topic_names}
@@ -197,7 +208,8 @@ class NavigatorNode(Node):
     def _diagnose(self) -> None:
         self._check_readers()  # the count reported is the one the newest estimate has reached
         estimate = self.navigator.estimate()
-        values = {**self.navigator.counts, "rejected_readings": self.rejected, "forced_samples": self.forced_samples,
+        values = {**self.navigator.counts, "rejected_readings": self.rejected,
+                  "rejected_manifests": self.rejected_manifests, "forced_samples": self.forced_samples,
                   "samples_by": "manifest" if self._manifested else "sample_topics", "repeated_estimates": self.repeated,
                   f"subscribers:{self.publisher.topic_name}": self._readers,
                   "horizontal_std": estimate.horizontal_std if estimate else math.nan,

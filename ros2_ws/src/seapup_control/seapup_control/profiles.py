@@ -17,7 +17,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
-from seapup_common.controllers import ControllerType
+from seapup_common.controllers import ControllerType, Ranged
 
 __all__ = ["ProfileError", "PitchProfile", "OpenLoop", "ReferenceProfile", "OPEN_LOOP_TYPE"]
 
@@ -188,5 +188,10 @@ def _open_loop(parameters: dict, document, sample_period: float | None) -> OpenL
 #: start, ``pitches`` [rad] four per time (``BladePitch`` order), ``blade_pitch_limit`` [rad].
 OPEN_LOOP_TYPE = ControllerType(
     "open_loop", _open_loop,
-    types.MappingProxyType({"times": [], "pitches": [], "blade_pitch_limit": BLADE_PITCH_LIMIT}),
+    types.MappingProxyType({
+        "times": Ranged([], 0.0, 1e6, "[s] from the controller's start: not before it; 1e6 s (11 days) bounds "
+                                      "a schedule"),
+        "pitches": Ranged([], -BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT, "the blade-pitch limit, +/-35 deg (sec. 3.1)"),
+        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
+                                    "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's")}),
     "blade pitches held between switching times from its start (open loop, sec. 3.3)")

@@ -45,7 +45,7 @@ from seapup_common.ros.messages import MeasurementCollector, SampleFeed, ns_to_s
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
-                                    destroy_actions, run_node)
+                                    destroy_actions, path_or_empty, run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
@@ -74,7 +74,8 @@ class SelfTestNode(Node):
         super().__init__("self_test", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test", ranges={
             "no_data_timeout": (0.1, 3600.0), "wait_for_command_subscribers": (0, 100),
-            "wait_for_sample_subscribers": (0, 100)})
+            "wait_for_sample_subscribers": (0, 100)},
+            allowed={"result_dir": path_or_empty("the directory the result files are written into")})
         self.lockstep = bool(p["lockstep"])
         self.hover_after = bool(p["hover_after"])
         root = Path(os.environ.get("SEAPUP_ROOT", "."))

@@ -29,6 +29,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
+from seapup_common.controllers import Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
 
 __all__ = ["TunerJacket", "SelfTuner", "OUTPUTS", "MODES", "TUNER_PARAMETERS", "jacket_from"]
@@ -63,10 +64,26 @@ class TunerJacket:
                                   f"got {value!r}")
 
 
-#: The settings every self-tuner's registered type takes (SI, radians but the excitation in degrees).
-TUNER_PARAMETERS = {"forgetting": 0.999, "p0": 1e4, "commissioning_samples": 5,
-                    "set_point_band": [0.005, 0.005, 0.005, 0.005], "excitation_deg": 0.05, "max_trace_growth": 10.0,
-                    "min_rcond": 1e-4, "blade_pitch_limit": BLADE_PITCH_LIMIT}
+#: The settings every self-tuner's registered type takes (SI, radians but the excitation in degrees), each
+#: with the range a node or a run specification may set it to and where that range comes from.
+TUNER_PARAMETERS = {
+    "forgetting": Ranged(0.999, 0.9, 1.0, "eq. 6.13: lambda in (0, 1]; below 0.9 the memory 1/(1 - lambda) is "
+                                          "under 10 samples, fewer than the 9 parameters per output of the "
+                                          "explicit model (sec. 7.3), so the estimate is not determined"),
+    "p0": Ranged(1e4, 1e-3, 1e10, "eq. 6.16, P(0) = p0 I; sec. 6.3's 100 / E{y^2} is 1e2 at 1 m/s and 1e8 at "
+                                  "1 mm/s: two decades beyond either end"),
+    "commissioning_samples": Ranged(5, 1, 100_000, "sec. 7.4.1: five; at least one (the estimator's first "
+                                                   "sample), at most 100000 (5.5 h at 5 Hz)"),
+    "set_point_band": Ranged([0.005, 0.005, 0.005, 0.005], 0.0, 1.0,
+                             "|e| [m/s, rad/s]: 1 is beyond the vehicle's speeds (0.7 m/s, sec. 5.3.1)"),
+    "excitation_deg": Ranged(0.05, 0.0, 70.0, "a blade-pitch move [deg]: at most the whole travel, 2 x 35 deg "
+                                              "(sec. 3.1)"),
+    "max_trace_growth": Ranged(10.0, 1.0, 1e12, "trace P over trace P(0): below 1 the law would fall back at "
+                                                "once; 1e12: never in practice (inf is refused)"),
+    "min_rcond": Ranged(1e-4, 0.0, 1.0, "a reciprocal condition number lies in [0, 1] by definition"),
+    "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
+                                "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's"),
+}
 
 
 def jacket_from(parameters: dict) -> TunerJacket:

@@ -56,8 +56,10 @@ jacket's reason and counts) after every sample it answers.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -69,14 +71,15 @@ from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch, ControllerEstimate
 
 from seapup_common.contract import Command, ContractError, StampedReferences
-from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
+from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, available_controllers,
+                                       controller_type, create_controller)
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
 from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg,
                                         diagnostic_array, ns_to_stamp, reference_from_msg, stamp_to_ns)
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
-                                    QosWatch, declare_from_package_file, declare_mapping,
-                                    refuse_invalid_transitions, run_node)
+                                    QosWatch, declare_from_package_file, declare_guarded, one_of,
+                                    refuse_invalid_transitions, run_node, text)
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 
@@ -88,6 +91,33 @@ RANGES = {"sample_period": (0.0, 10.0), "applied_wait": (0.0, 600.0), "reference
           "reference_stream": (0.0, 3600.0), "first_reference_wait": (0.0, 600.0), "start_at": (0.0, 1e9),
           "stop_at": (0.0, 1e9), "reference_horizon": (0.0, 1e9), "wait_for_subscribers": (0, 100),
           "diagnostics_every": (1, 10**6)}
+
+
+def allowed_values() -> dict:
+    """The allowed values of the node's string parameters (:class:`~seapup_common.ros.node.Allowed`)."""
+    def readable(path: str) -> str:
+        return "" if not path or Path(path).is_file() else "no such file (a self-test's controller file, or empty)"
+    return {"controller_type": one_of(*available_controllers()),
+            "controller_file": text("a controller file (YAML, read on configure), or empty", readable)}
+
+
+def law_ranges(kind) -> dict:
+    """The range of each numeric parameter of a law: its declared one (:class:`~seapup_common.controllers.Ranged`),
+    else (a package's law that declares none) any finite number."""
+    return {name: kind.ranges.get(name, (-math.inf, math.inf)) for name, default in kind.parameters.items()
+            if isinstance(default, (int, float, list, tuple)) and not isinstance(default, bool)}
+
+
+def law_descriptors(kind) -> dict:
+    """A descriptor per law parameter: its range's source as the description."""
+    from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+    out = {}
+    for name, default in kind.parameters.items():
+        source = kind.sources.get(name, "a parameter of the law")
+        out[name] = ParameterDescriptor(description=f"{kind.name}: {source}")
+        if isinstance(default, (list, tuple)) and not default:
+            out[name].type = ParameterType.PARAMETER_DOUBLE_ARRAY
+    return out
 
 
 class VelocityControllerNode(LifecycleNode):
@@ -104,7 +134,7 @@ class VelocityControllerNode(LifecycleNode):
     def __init__(self, name: str = "velocity_controller", default_type: str = "mfol", **kwargs):
         super().__init__(name, namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "velocity_controller.yaml",
-                                           section="velocity_controller", ranges=RANGES)
+                                           section="velocity_controller", ranges=RANGES, allowed=allowed_values())
         if default_type != self.p["controller_type"] and not self._overridden("controller_type"):
             self.set_parameters([self._parameter("controller_type", default_type)])
         self.kind = controller_type(self.get_parameter("controller_type").value)  # unknown: the node refuses to start
@@ -112,10 +142,12 @@ class VelocityControllerNode(LifecycleNode):
         if clash:
             raise ControllerRegistryError(f"controller type {self.kind.name!r} parameters {clash} clash with the "
                                           "node's own")
-        self.law_parameters = declare_mapping(self, "", dict(self.kind.parameters))
+        self.add_on_set_parameters_callback(self._law_is_fixed)
+        self.law_parameters = declare_guarded(self, dict(self.kind.parameters), law_descriptors(self.kind),
+                                              law_ranges(self.kind), where=f"controller type {self.kind.name!r}")
         self.controller = None
-        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "skipped_samples": 0,
-                       "late_references": 0, "late_applied": 0}
+        self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "rejected_applied": 0,
+                       "skipped_samples": 0, "late_references": 0, "late_applied": 0}
         self.references = StampedReferences()
         self.applied: np.ndarray | None = None      # the latest applied blade pitch heard
         self._applied_at: dict[int, np.ndarray] = {}  # applied pitch by sample stamp (the last few)
@@ -127,6 +159,16 @@ class VelocityControllerNode(LifecycleNode):
                 self.trigger_activate()
             else:
                 self.get_logger().error("autostart: not activated, the configuration failed (see above)")
+
+    def _law_is_fixed(self, parameters):
+        """``controller_type`` is read once, at start: another law needs another node."""
+        from rcl_interfaces.msg import SetParametersResult
+        for parameter in parameters:
+            if parameter.name == "controller_type" and parameter.value != self.kind.name:
+                return SetParametersResult(successful=False, reason=(
+                    f"controller_type = {parameter.value!r} refused: it is fixed at start ({self.kind.name}); "
+                    "start another velocity_controller for another law"))
+        return SetParametersResult(successful=True)
 
     def _overridden(self, name: str) -> bool:
         return name in self._parameter_overrides
@@ -257,8 +299,10 @@ class VelocityControllerNode(LifecycleNode):
     def _on_applied(self, msg: BladePitch) -> None:
         try:
             command = command_from_msg(msg)
-        except ValueError:
-            return  # the simulator never publishes such; nothing to start from
+        except ValueError as exc:  # the simulator never publishes such: counted, nothing to start from
+            self.counts["rejected_applied"] += 1
+            self.get_logger().warn(f"applied blade pitch rejected: {exc}", throttle_duration_sec=2.0)
+            return
         self.applied = command.blade_pitch
         t_ns = stamp_to_ns(msg.header.stamp)
         self._applied_at[t_ns] = command.blade_pitch
@@ -365,7 +409,8 @@ class VelocityControllerNode(LifecycleNode):
         values = {"controller_type": self.kind.name, **self.counts, **law,
                   "reference": self.references.current.velocity.tolist(),
                   "references_waiting": self.references.waiting}
-        rejected = self.counts["rejected_references"] + self.counts["rejected_measurements"]
+        rejected = (self.counts["rejected_references"] + self.counts["rejected_measurements"]
+                    + self.counts["rejected_applied"])
         saturated = any(law.get("saturated", ()))
         fallen_back = law.get("mode") == "fallback"   # a self-tuner's jacket refused its estimate (ch. 7)
         qos = self._qos_watch.problems()

@@ -7,8 +7,10 @@ the input u(t_k) held over the interval, see :mod:`seapup_ident.online`),
 runs the estimator chosen by its parameters (``config/identifier.yaml``) on every complete
 sample, publishes the model on ``/seapup/identifier/model`` (``seapup_msgs/IdentifiedModel``) and
 records the run -- the readings it used and each published model -- into an MCAP bag, so
-``./seapup ident fit BAG`` with the same settings gives the same model. Non-finite readings are
-refused, counted and logged; the estimate never sees them.
+``./seapup ident fit BAG`` with the same settings gives the same model. Non-finite readings, readings in
+another frame than their instrument's and non-unit quaternions are refused, counted and logged; the estimate
+never sees them. The model's ``rejected`` and ``/diagnostics`` (``seapup/identifier``, every second) count
+every refused reading: by its message's checks here and by the core.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
@@ -26,12 +29,14 @@ from sensor_msgs.msg import Imu
 from seapup_common.bag import BagWriter, make_typestore
 from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.recorder_node import project_msg_files
-from seapup_common.ros.messages import attitude_from_imu, stamp_to_ns, velocity_from_msg
-from seapup_common.ros.node import COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
-from seapup_common.topics import APPLIED, IDENTIFIED_MODEL, IMU, NAMESPACE, TOPIC_TYPES, VELOCITY
+from seapup_common.contract import ContractError
+from seapup_common.ros.messages import attitude_from_imu, diagnostic_array, stamp_to_ns, velocity_from_msg
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, each_one_of,
+                                    one_of, path_or_empty, run_node)
+from seapup_common.topics import APPLIED, DIAGNOSTICS, IDENTIFIED_MODEL, IMU, NAMESPACE, TOPIC_TYPES, VELOCITY
 from seapup_ident.armax import ArmaxOrders
-from seapup_ident.online import OnlineIdentifier
-from seapup_ident.recursive import DataError, Forgetting
+from seapup_ident.online import OUTPUTS, OnlineIdentifier
+from seapup_ident.recursive import METHODS, DataError, Forgetting
 
 __all__ = ["IdentifierNode", "main"]
 
@@ -46,7 +51,9 @@ class IdentifierNode(Node):
         p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier", ranges={
             "orders": (0, 20), "lambda0": (0.0, 1.0), "alpha": (0.0, 1.0), "forgetting": (0.0, 1.0),
             "p0": (1e-6, 1e12), "rpem_filter_k0": (0.0, 1.0), "rpem_filter_gamma": (0.0, 1.0),
-            "sample_period": (0.01, 10.0)})
+            "sample_period": (0.01, 10.0)}, allowed={
+            "method": one_of(*METHODS), "outputs": each_one_of(*OUTPUTS, empty=False, unique=True),
+            "bag_path": path_or_empty("the bag directory to create (must not exist); 'none': no bag")})
         outputs = list(p["outputs"])
         na, nb, nc = (int(v) for v in p["orders"])
         forgetting = Forgetting(float(p["forgetting"])) if p["forgetting"] > 0 else \
@@ -57,6 +64,10 @@ class IdentifierNode(Node):
                                      forgetting=forgetting, p0=float(p["p0"]), sample_period=float(p["sample_period"]),
                                      filter_weakening=weakening)
         self.publisher = self.create_publisher(IdentifiedModel, IDENTIFIED_MODEL, STREAM_QOS)
+        self.refused = 0                   # readings refused by their message's checks (the core counts its own)
+        self._latest_ns = 0                # the newest sample used: the diagnostics' stamp (the graph's time)
+        self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
+        self.create_timer(1.0, self._diagnose)
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
         self.drain_on_shutdown = True      # run_node takes the readings already received before closing
@@ -81,20 +92,14 @@ class IdentifierNode(Node):
 
     def _on_reading(self, kind: str, msg) -> None:
         stamp = stamp_to_ns(msg.header.stamp)
+        try:   # the message's own checks (frame, finite, unit quaternion): refused here, counted here
+            values = self._values(kind, msg)
+        except (ContractError, DataError, ValueError) as exc:
+            self.refused += 1
+            self.get_logger().warn(f"{kind} reading refused: {exc}", throttle_duration_sec=2.0)
+            return
         try:
-            if kind == "velocity":
-                velocity, rates = velocity_from_msg(msg)
-                if not (velocity.valid and rates.valid):
-                    raise DataError("invalid velocity or rate reading")
-                values = [*velocity.value, rates.value[2]]
-            elif kind == "attitude":
-                attitude = attitude_from_imu(msg)
-                if not attitude.valid:
-                    raise DataError("invalid attitude reading")
-                values = attitude.value[:2]
-            else:
-                values = list(msg.pitch)
-            used = self.core.add(kind, stamp, values)
+            used = self.core.add(kind, stamp, values)   # the core counts what it refuses (counts["rejected"])
         except (DataError, ValueError) as exc:
             self.get_logger().warn(f"{kind} reading refused: {exc}", throttle_duration_sec=2.0)
             return
@@ -102,6 +107,30 @@ class IdentifierNode(Node):
             self._held.setdefault(stamp, {})[kind] = serialize_message(msg)
         for sample in used:
             self._publish(sample)
+
+    @staticmethod
+    def _values(kind: str, msg) -> list:
+        if kind == "velocity":
+            velocity, rates = velocity_from_msg(msg)
+            if not (velocity.valid and rates.valid):
+                raise DataError("invalid velocity or rate reading")
+            return [*velocity.value, rates.value[2]]
+        if kind == "attitude":
+            attitude = attitude_from_imu(msg)
+            if not attitude.valid:
+                raise DataError("invalid attitude reading")
+            return list(attitude.value[:2])
+        return list(msg.pitch)
+
+    def rejected(self) -> int:
+        """Every reading refused: by its message's checks here, and by the core."""
+        return self.refused + self.core.counts["rejected"]
+
+    def _diagnose(self) -> None:
+        counts = {**self.core.counts, "refused_messages": self.refused, "rejected_readings": self.rejected()}
+        level = DiagnosticStatus.WARN if self.rejected() else DiagnosticStatus.OK
+        self.diagnostics.publish(diagnostic_array("seapup/identifier", level, "identifying", counts,
+                                                  self._latest_ns, hardware_id="seapup_ident"))
 
     def _publish(self, used) -> None:
         o, est = self.core.orders, self.core.estimator
@@ -114,7 +143,8 @@ class IdentifierNode(Node):
         msg.covariance_trace = est.trace.tolist()
         msg.prediction_error = used.prediction_error.tolist()
         msg.forgetting = float(est.forgetting.value)
-        msg.samples, msg.rejected = self.core.counts["used"], self.core.counts["rejected"]
+        msg.samples, msg.rejected = self.core.counts["used"], self.rejected()
+        self._latest_ns = max(self._latest_ns, used.stamp_ns)
         self.publisher.publish(msg)
         if self.bag is not None:
             for stamp in [s for s in self._held if s < used.stamp_ns]:

@@ -75,12 +75,14 @@ from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.sample_bytes import SampleEncoder
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
-                                    SERVICE_QOS, TF_QOS, TF_STATIC_QOS, QosWatch, declare_from_package_file, declare_mapping, run_node)
+                                    SERVICE_QOS, TF_QOS, TF_STATIC_QOS, QosWatch, declare_from_package_file, declare_guarded,
+                                    flatten, one_of, run_node, text, topic_names)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import default_environment_mapping, load_environment
 from seapup_sim.sensors import sensor_profiles
 from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
+from seapup_sim.linearised import DYNAMICS
 from seapup_sim.vehicle_config import available_configs
 
 __all__ = ["SimulatorNode", "main"]
@@ -93,29 +95,65 @@ def _float_range(lo, hi, description, read_only=False):
                                floating_point_range=[FloatingPointRange(from_value=lo, to_value=hi)])
 
 
+#: The allowed range of each numeric ``environment.*`` parameter (read-only: given at start). The environment's
+#: own validation (:func:`~seapup_sim.environment_config.load_environment`, ``environment/limits.yaml``) is the
+#: finer check; these bound what it is given and show in ``./seapup param describe``.
+ENVIRONMENT_RANGES = {
+    "current.mean_speed": (0.0, 3.0), "current.speed_std": (0.0, 3.0),        # limits.yaml current.speed_max
+    "current.mean_direction": (-2 * math.pi, 2 * math.pi), "current.direction_std": (0.0, math.pi),
+    "current.break_time": (0.1, 1e5),                                          # limits.yaml current.break_time
+    "umbilical.ship_ned": (-1e4, 1e4),            # [m] limits.yaml start_state.horizontal_max
+    "umbilical.diameter": (1e-3, 1.0),            # [m] a cable, not a riser
+    "umbilical.still_water_drag_coefficient": (0.0, 10.0), "umbilical.strumming_factor": (1.0, 10.0),
+    "umbilical.weight_per_length": (-1e3, 1e3),   # [N/m] in water, buoyant (negative) or heavy
+    "umbilical.length_ratio": (1.0, 10.0),        # a cable at least as long as the straight line
+    "umbilical.attachment": (-10.0, 10.0),        # [m] body axes: on the vehicle (about 1 m long)
+    "umbilical.min_flow": (1e-6, 1.0), "umbilical.max_gravity_ratio": (0.0, 1.0),
+    "seabed.depth": (0.0, 11000.0),               # [m] the deepest ocean
+    "seabed.gradient": (-10.0, 10.0), "seabed.direction": (-2 * math.pi, 2 * math.pi),
+    "seabed.points": (-1e5, 1e5),                 # [m] distance and depth pairs
+}
+
+
 def _environment_overrides(node) -> dict:
-    """Declare ``environment_file`` and every ``environment.*`` leaf; return the
-    environment mapping they give (validated by :func:`load_environment`)."""
-    node.declare_parameter("environment_file", "", ParameterDescriptor(
-        description="YAML of environment overrides merged over environment/default.yaml", read_only=True))
+    """Declare ``environment_file`` and every ``environment.*`` leaf (read-only, ranged, strings with their
+    allowed values); return the environment mapping they give (validated by :func:`load_environment`)."""
+    declare_guarded(node, {"environment_file": ""}, {"environment_file": ParameterDescriptor(
+        description="YAML of environment overrides merged over environment/default.yaml", read_only=True)},
+        allowed={"environment_file": text("a YAML file of environment overrides, or empty",
+                                          lambda v: "" if not v or Path(v).is_file() else "no such file")})
     defaults = default_environment_mapping()
     path = node.get_parameter("environment_file").value
     if path:
         defaults = merge(defaults, load_yaml(path), strict=f"{Path(path).name} over environment/default.yaml")
-    ro = ParameterDescriptor(read_only=True, description="environment (see environment/default.yaml); "
-                                                         "services change the current and sensors at run time")
-    flat = {}
+    flat = flatten(defaults)
+    descriptors = {name: ParameterDescriptor(read_only=True, description="environment (see environment/default.yaml);"
+                                             " services change the current and sensors at run time")
+                   for name in flat}
+    if not flat.get("seabed.points"):
+        descriptors["seabed.points"].type = ParameterType.PARAMETER_DOUBLE_ARRAY
+    allowed = {"seabed.kind": one_of("flat", "slope", "polyline"), "sensors": one_of(*sensor_profiles())}
+    declared = declare_guarded(node, {f"environment.{k}": v for k, v in flat.items()},
+                               {f"environment.{k}": d for k, d in descriptors.items()},
+                               {f"environment.{k}": r for k, r in ENVIRONMENT_RANGES.items() if k in flat},
+                               {f"environment.{k}": a for k, a in allowed.items() if k in flat},
+                               where="environment")
+    out: dict = {}
+    for name, value in declared.items():
+        *parents, leaf = name.split(".")[1:]
+        level = out
+        for key in parents:
+            level = level.setdefault(key, {})
+        level[leaf] = value
+    return out
 
-    def leaves(mapping, prefix=""):
-        for key, value in mapping.items():
-            name = f"{prefix}.{key}" if prefix else key
-            if isinstance(value, dict):
-                leaves(value, name)
-            else:
-                flat[name] = ro
-    leaves(defaults)
-    return declare_mapping(node, "environment", defaults, flat)
 
+def _events_problem(value: str) -> str:
+    try:
+        _events_parameter(value)
+    except ValueError as exc:
+        return str(exc).splitlines()[0]
+    return ""
 
 
 def _events_parameter(text: str) -> list:
@@ -168,7 +206,11 @@ class SimulatorNode(Node):
                                                        "before the first sample", **ro),
             "events": ParameterDescriptor(description="scheduled changes, YAML list of {time, kind, detail} "
                                                       "(configuration, thruster_efficiency, current)", **ro),
-        }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="simulator")
+        }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="simulator", allowed={
+            "mode": one_of("lockstep", "realtime"), "vehicle": one_of(*available_configs()),
+            "dynamics": one_of(*DYNAMICS), "watchdog_action": one_of("hover", "neutral"),
+            "wait_for_subscribers": topic_names(), "events": text("YAML text: a list of {time, kind, detail}",
+                                                                   _events_problem)})
         if p["mode"] not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {p['mode']!r}")
         self.mode = p["mode"]

@@ -76,6 +76,14 @@ def _set_quaternion(target, q) -> None:
     target.x, target.y, target.z, target.w = (float(x) for x in q)
 
 
+def _check_frame(msg, expected: str, what: str) -> None:
+    """Refuse a sensor reading in any frame but the one its instrument publishes in (the simulator's, REP-105 and
+    REP-156: body readings in ``base_link_frd``, positions and depths in ``odom_ned``): a reading in ``map``,
+    ``odom`` or ``odom_enu`` would be fused with the wrong axes or sign."""
+    if msg.header.frame_id != expected:
+        raise ContractError(f"{what} must be in {expected}, got frame {msg.header.frame_id!r}")
+
+
 def _diag3(cov, offset: int = 0) -> np.ndarray:
     c = np.asarray(cov, float).reshape(int(round(math.sqrt(len(cov)))), -1)
     return np.diag(c)[offset:offset + 3].copy()
@@ -109,8 +117,7 @@ def velocity_to_msg(velocity: Reading, rates: Reading, t_ns: int) -> TwistWithCo
 
 def velocity_from_msg(msg: TwistWithCovarianceStamped) -> tuple[Reading, Reading]:
     """(velocity, rates) readings of a twist in base_link_frd."""
-    if msg.header.frame_id not in ("", frames.FRAME_FRD):
-        raise ContractError(f"velocity must be in {frames.FRAME_FRD}, got frame {msg.header.frame_id!r}")
+    _check_frame(msg, frames.FRAME_FRD, "velocity")
     t = stamp_to_ns(msg.header.stamp) * 1e-9
     var = np.diag(np.asarray(msg.twist.covariance, float).reshape(6, 6))
     m = Measurement.build(t, velocity=_xyz(msg.twist.twist.linear), rates=_xyz(msg.twist.twist.angular),
@@ -134,6 +141,7 @@ def imu_to_msg(attitude: Reading, rates: Reading, specific_force, t_ns: int) -> 
 
 def attitude_from_imu(msg: Imu) -> Reading:
     """Euler angles (phi, theta, psi) of an Imu's orientation (base_link_frd in odom_ned)."""
+    _check_frame(msg, frames.FRAME_FRD, "IMU reading")
     q = _quaternion(msg.orientation)
     if not np.all(np.isfinite(q)) or not 0.5 < np.linalg.norm(q) < 1.5:
         raise ContractError(f"IMU orientation is not a unit quaternion: {q.tolist()}")
@@ -155,8 +163,7 @@ def position_to_msg(position: Reading, t_ns: int) -> PoseWithCovarianceStamped:
 
 def position_from_msg(msg: PoseWithCovarianceStamped) -> Reading:
     """The position reading of an acoustic fix in odom_ned."""
-    if msg.header.frame_id not in ("", frames.FRAME_NED):
-        raise ContractError(f"position fix must be in {frames.FRAME_NED}, got {msg.header.frame_id!r}")
+    _check_frame(msg, frames.FRAME_NED, "position fix")
     t = stamp_to_ns(msg.header.stamp) * 1e-9
     m = Measurement.build(t, position=_xyz(msg.pose.pose.position),
                           variances={"position": _diag3(msg.pose.covariance)})
@@ -170,6 +177,8 @@ def depth_to_msg(depth: Reading, t_ns: int) -> Depth:
 
 
 def depth_from_msg(msg: Depth) -> Reading:
+    """The depth reading (ContractError in another frame than odom_ned or not finite)."""
+    _check_frame(msg, frames.FRAME_NED, "depth")
     m = Measurement.build(stamp_to_ns(msg.header.stamp) * 1e-9, depth=msg.depth,
                           variances={"depth": msg.variance})
     return m.depth

@@ -15,13 +15,15 @@ import signal
 import sys
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 import rclpy
 from ament_index_python.packages import get_package_share_directory
 from rcl_interfaces.msg import ParameterType
 from rclpy.duration import Duration
-from rclpy.exceptions import ParameterUninitializedException
+from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
@@ -31,7 +33,9 @@ from rclpy.signals import SignalHandlerOptions
 from seapup_common import CORE_LOGGERS  # noqa: F401 - the cores' loggers, routed to the node's (re-exported)
 from seapup_common.parameters import load_node_parameters
 
-__all__ = ["run_node", "declare_from_package_file", "declare_mapping", "flatten", "RosLogHandler",
+__all__ = ["run_node", "declare_from_package_file", "declare_guarded", "declare_mapping", "flatten", "RosLogHandler",
+           "ParameterGuard", "Allowed", "one_of", "each_one_of", "text", "topic_names", "regular_expression",
+           "path_or_empty",
            "refuse_invalid_transitions", "stop_requested", "QUIET_PUBLISHER", "QUIET_SUBSCRIPTION",
            "QosWatch", "RELIABLE_QOS", "COMMAND_QOS", "TF_QOS", "TF_STATIC_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
@@ -159,22 +163,144 @@ def _range_of(descriptor) -> tuple | None:
     return None
 
 
+def _is_text(value) -> bool:
+    """A string or a list of strings (a string array parameter)."""
+    if isinstance(value, (list, tuple)):
+        return bool(value) and all(isinstance(v, str) for v in value)
+    return isinstance(value, str)
+
+
+@dataclass(frozen=True)
+class Allowed:
+    """The values a string (or string-array) parameter may take: said in words (the descriptor's
+    ``additional_constraints``, so ``./seapup param describe`` shows it) and checked by ``test``
+    (``test(value) -> ""`` when allowed, else the reason, which names what is allowed).
+
+    Build one with :func:`one_of`, :func:`each_one_of` or :func:`text`.
+    """
+
+    constraint: str
+    test: Callable[[Any], str]
+
+    def problem(self, name: str, value) -> str:
+        values = value.tolist() if hasattr(value, "tolist") else value
+        if isinstance(values, (list, tuple)) and len(values) > MAX_TEXT_ITEMS:
+            return f"{name}: {len(values)} entries refused: at most {MAX_TEXT_ITEMS}"
+        for v in values if isinstance(values, (list, tuple)) else [values]:
+            if isinstance(v, str) and (len(v) > MAX_TEXT_LENGTH or "\0" in v):
+                return f"{name} = {v[:40]!r}... refused: at most {MAX_TEXT_LENGTH} characters, no NUL"
+        reason = self.test(value)
+        return f"{name} = {_short(value)} refused: {reason}" if reason else ""
+
+
+#: Bounds on every string parameter (a path, a topic name, a YAML text): longer is refused before use.
+MAX_TEXT_LENGTH = 65536
+MAX_TEXT_ITEMS = 1000
+
+
+def _short(value) -> str:
+    text = repr(list(value) if isinstance(value, tuple) or hasattr(value, "tolist") else value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def one_of(*choices: str) -> Allowed:
+    """A string that is one of ``choices``."""
+    allowed = tuple(str(c) for c in choices)
+    return Allowed(f"one of: {', '.join(allowed)}",
+                   lambda v: "" if v in allowed else f"it must be one of {', '.join(allowed)}")
+
+
+def each_one_of(*choices: str, empty: bool = True, unique: bool = False) -> Allowed:
+    """A list of strings, each one of ``choices`` (``empty``: the list may be empty; ``unique``: no repeats)."""
+    allowed = tuple(str(c) for c in choices)
+
+    def test(values) -> str:
+        values = list(values)
+        bad = [v for v in values if v not in allowed]
+        if bad:
+            return f"{bad[0]!r} is not one of {', '.join(allowed)}"
+        if not values and not empty:
+            return f"it needs at least one of {', '.join(allowed)}"
+        if unique and len(set(values)) != len(values):
+            return "each may be listed once"
+        return ""
+    return Allowed(f"each one of: {', '.join(allowed)}" + ("" if empty else " (at least one)"), test)
+
+
+def text(constraint: str, test: Callable[[Any], str] | None = None) -> Allowed:
+    """Free text (a path, a topic name, a regular expression, YAML) with its constraint in words and an
+    optional check; length and NUL are bounded for every string parameter (:class:`Allowed`)."""
+    return Allowed(constraint, test or (lambda v: ""))
+
+
+def _topic_problem(name: str) -> str:
+    from rclpy.exceptions import InvalidTopicNameException
+    from rclpy.validate_topic_name import validate_topic_name
+    try:
+        validate_topic_name(name.split(":", 1)[0])
+    except InvalidTopicNameException as exc:
+        return f"{name!r} is not a topic name: {str(exc).splitlines()[0][:120]}"
+    return ""
+
+
+def topic_names(typed: bool = False) -> Allowed:
+    """A topic name or a list of them (relative or absolute; ``typed``: ``/topic:pkg/msg/Type`` allowed)."""
+    def test(value) -> str:
+        for name in [value] if isinstance(value, str) else list(value):
+            if typed and not name:
+                continue
+            problem = _topic_problem(name)
+            if problem:
+                return problem
+        return ""
+    return Allowed("ROS topic names" + (" (each may end in :pkg/msg/Type)" if typed else ""), test)
+
+
+def regular_expression() -> Allowed:
+    """A Python regular expression, or empty."""
+    import re
+
+    def test(value: str) -> str:
+        try:
+            re.compile(value)
+        except re.error as exc:
+            return f"not a regular expression: {exc}"
+        return ""
+    return Allowed("a Python regular expression, or empty", test)
+
+
+def path_or_empty(what: str) -> Allowed:
+    """A file-system path (created or read by the node as ``what`` says), or empty for its default."""
+    return Allowed(f"{what}, or empty", lambda v: "")
+
+
 class ParameterGuard:
-    """The allowed range of every numeric parameter of a node, checked on every change.
+    """The allowed values of every parameter of a node, checked on every change.
 
     rclpy checks a scalar's declared range on ``param set`` but lets NaN through
     (every comparison with NaN is false) and never checks arrays; a value out of range
     or not finite must be refused before the node uses it (``reference_wait:
-    .nan`` once killed a controller at its next sample). Registered by
-    :func:`declare_from_package_file` as an on-set-parameters callback; the
-    declared values are checked too (a bad ``-p`` stops the start, naming it).
+    .nan`` once killed a controller at its next sample). Strings are checked against
+    their :class:`Allowed` values. Registered by :func:`declare_from_package_file` and
+    :func:`declare_guarded` as an on-set-parameters callback; the declared values are
+    checked too (a bad ``-p`` stops the start, naming it).
+
+    Parameters
+    ----------
+    ranges : dict
+        Name: (lo, hi) of a number or of each element of a number array.
+    allowed : dict, optional
+        Name: :class:`Allowed` of a string or string array.
     """
 
-    def __init__(self, ranges: dict):
+    def __init__(self, ranges: dict, allowed: dict | None = None):
         self.ranges = dict(ranges)
+        self.allowed = dict(allowed or {})
 
     def problem(self, name: str, value) -> str:
         """Why ``value`` cannot be parameter ``name``, or ""."""
+        if name in self.allowed and (_is_text(value) or isinstance(value, (list, tuple))):
+            return self.allowed[name].problem(name, value)
         bounds = self.ranges.get(name)
         if bounds is None:
             return ""
@@ -182,7 +308,7 @@ class ParameterGuard:
         values = value.tolist() if hasattr(value, "tolist") else value
         for v in values if isinstance(values, (list, tuple)) else [values]:
             if _is_number(v) and not (math.isfinite(v) and lo <= v <= hi):
-                return f"{name} = {value!r} refused: it must be finite and within [{lo:g}, {hi:g}]"
+                return f"{name} = {_short(value)} refused: it must be finite and within [{lo:g}, {hi:g}]"
         return ""
 
     def __call__(self, parameters):
@@ -194,9 +320,76 @@ class ParameterGuard:
         return SetParametersResult(successful=True)
 
 
+def _describe(descriptor, value, bounds=None, allowed: Allowed | None = None):
+    """``descriptor`` (or a new one) with the range ``bounds`` of a number (array) and the constraint of
+    ``allowed`` in words; rclpy enforces a scalar's range itself, the guard every element and NaN."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    descriptor = descriptor if descriptor is not None else ParameterDescriptor()
+    if bounds is not None and _range_of(descriptor) is None:
+        lo, hi = bounds
+        first = value[0] if isinstance(value, (list, tuple)) and value else value
+        if isinstance(first, int) and not isinstance(first, bool) and float(lo).is_integer() \
+                and float(hi).is_integer():
+            descriptor.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]
+        else:
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+    if allowed is not None and not descriptor.additional_constraints:
+        descriptor.additional_constraints = allowed.constraint
+    return descriptor
+
+
+def declare_guarded(node, values: Mapping, descriptors: dict | None = None, ranges: dict | None = None,
+                    allowed: dict | None = None, where: str = "") -> dict:
+    """Declare the flat parameters ``values`` (name: default) of ``node``, each number with its range and each
+    string with its :class:`Allowed` values in its descriptor, and guard them (:class:`ParameterGuard`) at
+    declaration (an override out of range raises ``ValueError`` naming it) and on every change.
+
+    Raises
+    ------
+    ValueError
+        A number (array) without a range, a string (array) without its allowed values, a range or allowed
+        values for a parameter ``values`` does not have, or a declared value that is not allowed.
+    """
+    descriptors = dict(descriptors or {})
+    ranges, allowed = dict(ranges or {}), dict(allowed or {})
+    extra = sorted((set(ranges) | set(allowed)) - set(values))
+    if extra:
+        raise ValueError(f"{where or node.get_name()}: a range or allowed values for {', '.join(extra)}, which "
+                         "it does not declare")
+    for name, descriptor in descriptors.items():
+        if _range_of(descriptor) is not None:
+            ranges.setdefault(name, _range_of(descriptor))
+    def strings(name, value) -> bool:   # an empty list is what its descriptor says (default: numbers)
+        descriptor = descriptors.get(name)
+        if isinstance(value, (list, tuple)) and not value:
+            return descriptor is not None and descriptor.type == ParameterType.PARAMETER_STRING_ARRAY
+        return _is_text(value)
+
+    unranged = sorted(name for name, value in values.items() if name not in ranges and (
+        _numeric(value) or (isinstance(value, (list, tuple)) and not value and not strings(name, value))))
+    if unranged:
+        raise ValueError(f"{where or node.get_name()}: numeric parameters without an allowed range: "
+                         f"{', '.join(unranged)}")
+    unstated = sorted(name for name, value in values.items() if strings(name, value) and name not in allowed)
+    if unstated:
+        raise ValueError(f"{where or node.get_name()}: string parameters without their allowed values: "
+                         f"{', '.join(unstated)}")
+    for name, value in values.items():
+        if name in ranges or name in allowed:
+            descriptors[name] = _describe(descriptors.get(name), value, ranges.get(name), allowed.get(name))
+    guard = ParameterGuard(ranges, allowed)
+    declared = {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
+    for name, value in declared.items():
+        reason = guard.problem(name, value)
+        if reason:
+            raise ValueError(reason)
+    node.add_on_set_parameters_callback(guard)
+    return declared
+
+
 def declare_from_package_file(node, package: str, file_name: str, descriptors: dict | None = None,
                               defaults: dict | None = None, section: str | None = None,
-                              ranges: dict | None = None) -> dict:
+                              ranges: dict | None = None, allowed: dict | None = None) -> dict:
     """Declare every parameter of ``share/<package>/config/<file_name>`` for ``node``;
     return their values (after overrides) by name.
 
@@ -210,41 +403,15 @@ def declare_from_package_file(node, package: str, file_name: str, descriptors: d
 
     Every numeric parameter (and numeric array) has an allowed range: from its
     descriptor's range or from ``ranges`` (name: (lo, hi), for each element of
-    an array); a number without one is a programming error (``ValueError`` at
-    start). A :class:`ParameterGuard` refuses any value outside its range or
-    not finite, at declaration (``ValueError`` naming it) and on every change.
+    an array); every string (array) its :class:`Allowed` values in ``allowed``;
+    one without is a programming error (``ValueError`` at start). A
+    :class:`ParameterGuard` refuses any value outside them or not finite, at
+    declaration (``ValueError`` naming it) and on every change
+    (:func:`declare_guarded`).
     """
     path = Path(get_package_share_directory(package)) / "config" / file_name
     values = {**(defaults or {}), **flatten(load_node_parameters(path, section or node.get_name()))}
-    descriptors = dict(descriptors or {})
-    ranges = dict(ranges or {})
-    for name, bounds in ranges.items():
-        if name not in values:
-            raise ValueError(f"{file_name}: a range for {name!r}, which the file does not have")
-        if name not in descriptors and _is_number(values[name]):
-            descriptors[name] = _ranged_descriptor(values[name], bounds)
-    for name, descriptor in descriptors.items():
-        if _range_of(descriptor) is not None:
-            ranges.setdefault(name, _range_of(descriptor))
-    unranged = sorted(name for name, value in values.items() if _numeric(value) and name not in ranges)
-    if unranged:
-        raise ValueError(f"{file_name}: numeric parameters without an allowed range: {', '.join(unranged)}")
-    guard = ParameterGuard(ranges)
-    declared = {name: _declare(node, name, value, descriptors.get(name)) for name, value in values.items()}
-    for name, value in declared.items():
-        reason = guard.problem(name, value)
-        if reason:
-            raise ValueError(reason)
-    node.add_on_set_parameters_callback(guard)
-    return declared
-
-
-def _ranged_descriptor(default, bounds):
-    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-    lo, hi = bounds
-    if isinstance(default, int):
-        return ParameterDescriptor(integer_range=[IntegerRange(from_value=int(lo), to_value=int(hi), step=1)])
-    return ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=float(lo), to_value=float(hi))])
+    return declare_guarded(node, values, descriptors, ranges, allowed, where=file_name)
 
 
 def refuse_invalid_transitions(node) -> None:
@@ -347,22 +514,49 @@ def graph_time_ns(node, latest_stamp_ns: int | None) -> int:
 _IMPLICIT_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
 
+def _unknown_with_hint(name: str, declared) -> str:
+    from seapup_common.config import nearest
+    near = nearest(name, declared)
+    return f"{name!r}" + (f" (did you mean {near!r}?)" if near else "")
+
+
+class UndeclaredParameterError(ParameterNotDeclaredException):
+    """A parameter set at run time (``./seapup param set``) that the node does not have: the one-line
+    message names it and the nearest declared one (rclpy's said ``undeclared parameter(s): []``)."""
+
+    def __init__(self, names: list[str], declared):
+        hints = ", ".join(_unknown_with_hint(n, declared) for n in names)
+        Exception.__init__(self, f"no parameter {hints} on this node; './seapup param list NODE' lists them")
+
+
+def _name_undeclared(node) -> None:
+    """Make a set of an undeclared parameter fail with :class:`UndeclaredParameterError`.
+
+    rclpy's ``Node._check_undeclared_parameters`` (Jazzy) tests ``any()`` of a generator and then lists what
+    is left of it, which is nothing: ``Invalid access to undeclared parameter(s): []``."""
+    def check(parameter_list):
+        if not all(isinstance(parameter, Parameter) for parameter in parameter_list):
+            raise TypeError("parameter must be instance of type '{}'".format(repr(Parameter)))
+        unknown = [p.name for p in parameter_list if p.name not in node._parameters]
+        if unknown and not node._allow_undeclared_parameters:
+            raise UndeclaredParameterError(unknown, node._parameters)
+    node._check_undeclared_parameters = check   # rclpy has no public hook for this message
+
+
 def refuse_unknown_overrides(node) -> None:
     """Raise ``ValueError`` for a parameter given to ``node`` (``-p``, ``--params-file``, a graph file)
     that it never declared: rclpy ignores such a value silently, so a misspelled
     ``real_time_facter:=2.0`` or ``environment.current.enabeld:=true`` would change nothing while
-    the user believes it did. The message names each one and the nearest declared name."""
-    from seapup_common.config import nearest
-
+    the user believes it did. The message names each one and the nearest declared name. From then on,
+    setting an undeclared parameter at run time is refused with the same kind of message
+    (:class:`UndeclaredParameterError`)."""
     declared = set(node._parameters)
+    _name_undeclared(node)
     unknown = sorted(name for name in node._parameter_overrides
                      if name not in declared and name not in _IMPLICIT_PARAMETERS
                      and not name.startswith("qos_overrides."))
     if unknown:
-        hints = []
-        for name in unknown:
-            near = nearest(name, declared)
-            hints.append(f"{name!r}" + (f" (did you mean {near!r}?)" if near else ""))
+        hints = [_unknown_with_hint(name, declared) for name in unknown]
         raise ValueError(f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; "
                          f"'./seapup param list {node.get_fully_qualified_name()}' on a running node lists them")
 
