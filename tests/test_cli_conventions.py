@@ -115,3 +115,36 @@ def test_ctrl_c_in_the_demo_reports_what_was_flown_and_leaves_no_node(tmp_path, 
     assert gone_within(nodes, 2.0)
     summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert summary["interrupted"] is True and isinstance(summary["legs"], list)
+
+
+def test_an_unknown_command_is_one_line_with_the_nearest_commands(capsys):
+    """Before: the whole usage (56 lines) followed the unknown name."""
+    assert cli.main(["--check", "campain"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("seapup: unknown command 'campain': did you mean campaign")
+    assert cli.main(["qqqqqq"]) == 2
+    assert capsys.readouterr().err == "seapup: unknown command 'qqqqqq': ./seapup help lists the commands\n"
+
+
+@pytest.mark.parametrize("name", ["setup", "env", "lock", "help", "run"])
+def test_help_of_the_commands_parsed_before_the_bootstrap_prints_only_help(capsys, name):
+    """--check answers 3 (help printed: the script stops there), and a direct call exits 0."""
+    assert cli.main(["--check", name, "--help"]) == 3
+    out = capsys.readouterr()
+    assert out.out.startswith(f"usage: ./seapup {name}") and out.err == ""
+    assert cli.main([name, "--help"]) == 0
+
+
+@pytest.mark.parametrize("argv", [["setup", "x"], ["env", "--bogus"], ["lock", "now"], ["run"], ["run", "pkg"],
+                                  ["help", "nosuchcommand"]])
+def test_bad_usage_exits_2(capsys, argv):
+    """Before: ./seapup run without arguments exited 1, and setup/env/lock ignored their arguments."""
+    assert cli.main(["--check", *argv]) == 2
+    assert cli.main(argv) == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_run_passes_everything_after_the_executable_to_the_node():
+    args = cli.run_parser().parse_args(["seapup_sim", "simulator", "--ros-args", "-p", "mode:=realtime", "--help"])
+    assert (args.package, args.executable) == ("seapup_sim", "simulator")
+    assert args.args == ["--ros-args", "-p", "mode:=realtime", "--help"]

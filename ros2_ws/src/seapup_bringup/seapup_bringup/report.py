@@ -234,8 +234,8 @@ def update_readme(path: Path, document: dict) -> bool:
 
 
 # -- the command ------------------------------------------------------------------------------------------------
-def report_command(argv: list[str]) -> int:
-    """``./seapup report``: score every thesis target against fresh (or cached) runs; write the page."""
+def report_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup report`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup report", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("runs") / "report", help="output directory (default runs/report)")
     parser.add_argument("--chapters", help="only these chapters, comma separated (3, 4, 5, 6, 7, A)")
@@ -245,6 +245,12 @@ def report_command(argv: list[str]) -> int:
     parser.add_argument("--targets", type=Path, help="a targets file other than the product's (to check an edit)")
     parser.add_argument("--readme", type=Path, help="rewrite this README's generated score table (whole report only)")
     add_json_argument(parser)
+    return parser
+
+
+def report_command(argv: list[str]) -> int:
+    """``./seapup report``: score every thesis target against fresh (or cached) runs; write the page."""
+    parser = report_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     from seapup_bringup.reproduction import code_version, default_cache, run_all

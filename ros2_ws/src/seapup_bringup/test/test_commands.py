@@ -21,10 +21,16 @@ def test_every_registered_command_has_help_text_and_answers_help():
         assert r.returncode == 0 and "--json" in r.stdout, (name, r.stdout + r.stderr)
 
 
-def test_unknown_command_exits_2_with_usage(capsys):
+def test_unknown_command_exits_2_with_one_line(capsys):
     assert main(["frobnicate"]) == 2
     err = capsys.readouterr().err
-    assert "unknown command: frobnicate" in err and "usage: ./seapup" in err
+    assert err.startswith("seapup: unknown command 'frobnicate'") and err.count("\n") == 1
+
+
+def test_the_commands_parsed_before_the_bootstrap_answer_help(capsys):
+    for name in ("setup", "env", "lock", "help", "run"):
+        assert main([name, "--help"]) == 0
+        assert capsys.readouterr().out.startswith(f"usage: ./seapup {name}")
 
 
 def test_check_model_json_goes_to_stdout_and_text_to_stderr():
