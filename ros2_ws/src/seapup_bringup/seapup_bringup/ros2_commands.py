@@ -28,9 +28,12 @@ class CommandError(RuntimeError):
 
 
 def _did_you_mean(name: str, known) -> str:
-    """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names, or ""."""
+    """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names other than ``name`` itself, or "".
+
+    The graph lists a service as soon as a client asks for it (our own probe's client for the mistyped
+    name included), so the name itself is never a suggestion."""
     from seapup_common.config import nearest
-    near = nearest(name, known)
+    near = nearest(name, [k for k in known if k != name])
     return f"; did you mean {near}?" if near else ""
 
 

@@ -70,3 +70,13 @@ def test_cli_writes_the_documented_json(tmp_path, capsys):
     assert set(data["current"]) == {"a_c", "b", "d", "E_wc2", "w_alpha_per_w_c", "sample_mean", "sample_std"}
     assert set(data["umbilical"]) == {"50", "100", "200"}
     assert set(data["umbilical"]["50"]) == {"max_u", "Fx", "Fz"}
+
+
+def test_did_you_mean_never_suggests_the_mistyped_name_itself():
+    """The graph lists a service once a client asks for it, so the probe's own client for the typo was the
+    "nearest" name: "service /seapup/simulatr/get_parameters is not available; did you mean
+    /seapup/simulatr/get_parameters?"."""
+    from seapup_bringup.ros2_commands import _did_you_mean
+    typo, right = "/seapup/simulatr/get_parameters", "/seapup/simulator/get_parameters"
+    assert _did_you_mean(typo, [typo, right, "/seapup/navigator/get_parameters"]) == f"; did you mean {right}?"
+    assert _did_you_mean(typo, [typo]) == ""
