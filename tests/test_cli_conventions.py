@@ -148,3 +148,51 @@ def test_run_passes_everything_after_the_executable_to_the_node():
     args = cli.run_parser().parse_args(["seapup_sim", "simulator", "--ros-args", "-p", "mode:=realtime", "--help"])
     assert (args.package, args.executable) == ("seapup_sim", "simulator")
     assert args.args == ["--ros-args", "-p", "mode:=realtime", "--help"]
+
+
+def _interrupt_after(argv, started: str, workers: int = 0):
+    """Start ``./seapup ARGV`` (the registry, in its own process group), wait for the line ``started`` (its
+    work has begun), then press Ctrl-C: SIGINT to the whole group, as a terminal does. Its processes at that
+    moment, its exit status and everything it wrote after the line. With ``workers``, wait for that many
+    processes below it first."""
+    from tests.test_process_ownership import descendants
+    proc = subprocess.Popen([sys.executable, "-m", "seapup_bringup.cli", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    before = []
+    for line in proc.stdout:
+        before.append(line)
+        if started in line:
+            break
+    assert proc.poll() is None, "".join(before)
+    deadline = time.monotonic() + 60   # and its worker processes have started (when it has some)
+    while len(descendants(proc.pid)) < workers and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    children = descendants(proc.pid)
+    assert len(children) >= workers, "".join(before)
+    os.killpg(proc.pid, signal.SIGINT)
+    after, _ = proc.communicate(timeout=120)
+    return children, proc.returncode, after
+
+
+def _lines(text: str) -> list[str]:
+    return [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("campaign  ")
+            and not line.lstrip().startswith("report  ")]   # progress bars aside
+
+
+def test_ctrl_c_on_a_campaign_stops_its_dask_workers_with_one_line(tmp_path):
+    """Before: every Dask worker got the Ctrl-C too and printed a screen of KeyboardInterrupt and
+    CancelledError tracebacks (about 90 lines), and the command waited for the tasks in flight."""
+    from tests.test_process_ownership import gone_within
+    children, code, after = _interrupt_after(["campaign", "controller-robustness", "--limit", "48", "--workers", "2",
+                                              "--out", str(tmp_path / "c")], "flying on", workers=2)
+    assert code == 130 and _lines(after) == ["seapup: interrupted"], after
+    assert gone_within(children, 5.0)
+
+
+def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
+    """Before: the pool's workers finished every run first (25-45 s of silence) and wrote them to the cache."""
+    cache = tmp_path / "cache"
+    children, code, after = _interrupt_after(["report", "--no-cache", "--cache", str(cache), "--out",
+                                              str(tmp_path / "r"), "--chapters", "5", "--jobs", "2"], "report:", workers=2)
+    assert code == 130 and _lines(after) == ["seapup: interrupted"], after
+    assert list(cache.rglob("run.json")) == [], "runs went on after Ctrl-C"
