@@ -170,8 +170,39 @@ def _interrupt_after(argv, started: str, workers: int = 0):
     children = descendants(proc.pid)
     assert len(children) >= workers, "".join(before)
     os.killpg(proc.pid, signal.SIGINT)
-    after, _ = proc.communicate(timeout=120)
+    try:
+        after, _ = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError(f"{argv[0]} did not stop after Ctrl-C: {proc.communicate()[0][-2000:]}") from None
     return children, proc.returncode, after
+
+
+def test_an_interrupted_command_does_not_wait_for_threads_a_library_left(tmp_path):
+    """A library thread that never ends (Dask's, once) kept an interrupted campaign from exiting after
+    'seapup: interrupted': the process leaves once the command's clean-up has run."""
+    probe = tmp_path / "probe.py"
+    probe.write_text(
+        "import sys, threading, time\n"
+        "from seapup_bringup import cli\n"
+        "def body(argv):\n"
+        "    threading.Thread(target=threading.Event().wait, daemon=False).start()\n"
+        "    print('started', flush=True)\n"
+        "    time.sleep(60)\n"
+        "    return 0\n"
+        "cli.COMMANDS['probe'] = cli.Entry('probe', 'test', '', body, True)\n"
+        "sys.argv = ['cli', 'probe']\n"
+        "cli.run_main()\n")
+    proc = subprocess.Popen([sys.executable, str(probe)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    assert proc.stdout.readline() == "started\n"
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError("the interrupted command waited for a leftover thread") from None
+    assert proc.returncode == 130 and out == "seapup: interrupted\n"
 
 
 def _lines(text: str) -> list[str]:

@@ -130,7 +130,7 @@ def _stop_workers_now(cluster) -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL + 1)
     for nanny in list(getattr(cluster, "workers", {}).values()):
         pid = getattr(getattr(getattr(nanny, "process", None), "process", None), "pid", None)
-        if pid:
+        if isinstance(pid, int) and pid > 0 and pid != os.getpid():
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
 

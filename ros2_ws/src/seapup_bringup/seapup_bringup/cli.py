@@ -504,5 +504,23 @@ def main(argv: list[str] | None = None) -> int:
     return _dispatch(entry, argv[1:], debug)
 
 
+def run_main() -> None:
+    """``python -m seapup_bringup.cli``: :func:`main`, then exit with its status.
+
+    Interrupted, the command's clean-up has run when :func:`main` returns; the process then leaves at
+    once (``os._exit`` after flushing) rather than wait at interpreter exit for threads a library left
+    behind (Dask's client and cluster threads once hung an interrupted campaign there)."""
+    code = main()
+    output = sys.modules.get("seapup_bringup.output")
+    if output is not None and output.SIGNALS:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main()

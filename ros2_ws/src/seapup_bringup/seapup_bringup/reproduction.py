@@ -386,9 +386,9 @@ def run_all(runs: dict, cache: Path, jobs: int = 1, use_cache: bool = True, prog
         progress(done / max(len(runs), 1))
     if todo:
         with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(todo))), initializer=_ignore_interrupts) as pool:
-            futures = {pool.submit(_cached_execute, name, description, str(directory)): (name, directory)
-                       for name, (description, directory) in todo.items()}
-            try:
+            try:   # the submits too: a Ctrl-C among them must not leave the submitted runs to be waited for
+                futures = {pool.submit(_cached_execute, name, description, str(directory)): (name, directory)
+                           for name, (description, directory) in todo.items()}
                 _collect(futures, out, runs, done, progress)
             except BaseException:   # Ctrl-C, SIGTERM: the runs in flight are dropped, not waited for
                 _stop_pool(pool)
