@@ -115,3 +115,115 @@ def test_ctrl_c_in_the_demo_reports_what_was_flown_and_leaves_no_node(tmp_path, 
     assert gone_within(nodes, 2.0)
     summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert summary["interrupted"] is True and isinstance(summary["legs"], list)
+
+
+def test_an_unknown_command_is_one_line_with_the_nearest_commands(capsys):
+    """Before: the whole usage (56 lines) followed the unknown name."""
+    assert cli.main(["--check", "campain"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("seapup: unknown command 'campain': did you mean campaign")
+    assert cli.main(["qqqqqq"]) == 2
+    assert capsys.readouterr().err == "seapup: unknown command 'qqqqqq': ./seapup help lists the commands\n"
+
+
+@pytest.mark.parametrize("name", ["setup", "env", "lock", "help", "run"])
+def test_help_of_the_commands_parsed_before_the_bootstrap_prints_only_help(capsys, name):
+    """--check answers 3 (help printed: the script stops there), and a direct call exits 0."""
+    assert cli.main(["--check", name, "--help"]) == 3
+    out = capsys.readouterr()
+    assert out.out.startswith(f"usage: ./seapup {name}") and out.err == ""
+    assert cli.main([name, "--help"]) == 0
+
+
+@pytest.mark.parametrize("argv", [["setup", "x"], ["env", "--bogus"], ["lock", "now"], ["run"], ["run", "pkg"],
+                                  ["help", "nosuchcommand"]])
+def test_bad_usage_exits_2(capsys, argv):
+    """Before: ./seapup run without arguments exited 1, and setup/env/lock ignored their arguments."""
+    assert cli.main(["--check", *argv]) == 2
+    assert cli.main(argv) == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_run_passes_everything_after_the_executable_to_the_node():
+    args = cli.run_parser().parse_args(["seapup_sim", "simulator", "--ros-args", "-p", "mode:=realtime", "--help"])
+    assert (args.package, args.executable) == ("seapup_sim", "simulator")
+    assert args.args == ["--ros-args", "-p", "mode:=realtime", "--help"]
+
+
+def _interrupt_after(argv, started: str, workers: int = 0):
+    """Start ``./seapup ARGV`` (the registry, in its own process group), wait for the line ``started`` (its
+    work has begun), then press Ctrl-C: SIGINT to the whole group, as a terminal does. Its processes at that
+    moment, its exit status and everything it wrote after the line. With ``workers``, wait for that many
+    processes below it first."""
+    from tests.test_process_ownership import descendants
+    proc = subprocess.Popen([sys.executable, "-m", "seapup_bringup.cli", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    before = []
+    for line in proc.stdout:
+        before.append(line)
+        if started in line:
+            break
+    assert proc.poll() is None, "".join(before)
+    deadline = time.monotonic() + 60   # and its worker processes have started (when it has some)
+    while len(descendants(proc.pid)) < workers and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    children = descendants(proc.pid)
+    assert len(children) >= workers, "".join(before)
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        after, _ = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError(f"{argv[0]} did not stop after Ctrl-C: {proc.communicate()[0][-2000:]}") from None
+    return children, proc.returncode, after
+
+
+def test_an_interrupted_command_does_not_wait_for_threads_a_library_left(tmp_path):
+    """A library thread that never ends (Dask's, once) kept an interrupted campaign from exiting after
+    'seapup: interrupted': the process leaves once the command's clean-up has run."""
+    probe = tmp_path / "probe.py"
+    probe.write_text(
+        "import sys, threading, time\n"
+        "from seapup_bringup import cli\n"
+        "def body(argv):\n"
+        "    threading.Thread(target=threading.Event().wait, daemon=False).start()\n"
+        "    print('started', flush=True)\n"
+        "    time.sleep(60)\n"
+        "    return 0\n"
+        "cli.COMMANDS['probe'] = cli.Entry('probe', 'test', '', body, True)\n"
+        "sys.argv = ['cli', 'probe']\n"
+        "cli.run_main()\n")
+    proc = subprocess.Popen([sys.executable, str(probe)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    assert proc.stdout.readline() == "started\n"
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        out, _ = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError("the interrupted command waited for a leftover thread") from None
+    assert proc.returncode == 130 and out == "seapup: interrupted\n"
+
+
+def _lines(text: str) -> list[str]:
+    return [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("campaign  ")
+            and not line.lstrip().startswith("report  ")]   # progress bars aside
+
+
+def test_ctrl_c_on_a_campaign_stops_its_dask_workers_with_one_line(tmp_path):
+    """Before: every Dask worker got the Ctrl-C too and printed a screen of KeyboardInterrupt and
+    CancelledError tracebacks (about 90 lines), and the command waited for the tasks in flight."""
+    from tests.test_process_ownership import gone_within
+    children, code, after = _interrupt_after(["campaign", "controller-robustness", "--limit", "48", "--workers", "2",
+                                              "--out", str(tmp_path / "c")], "flying on", workers=2)
+    assert code == 130 and _lines(after) == ["seapup: interrupted"], after
+    assert gone_within(children, 5.0)
+
+
+def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
+    """Before: the pool's workers finished every run first (25-45 s of silence) and wrote them to the cache."""
+    cache = tmp_path / "cache"
+    children, code, after = _interrupt_after(["report", "--no-cache", "--cache", str(cache), "--out",
+                                              str(tmp_path / "r"), "--chapters", "5", "--jobs", "2"], "report:", workers=2)
+    assert code == 130 and _lines(after) == ["seapup: interrupted"], after
+    assert list(cache.rglob("run.json")) == [], "runs went on after Ctrl-C"

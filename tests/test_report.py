@@ -1,4 +1,4 @@
-"""``./seapup report``: the thesis's targets scored against fresh runs, ``report.json`` and one HTML page
+"""``./seapup report``: the thesis's targets scored against runs (flown now or cached), ``report.json`` and one HTML page
 rendered in a real browser (headless Chromium, Debian's package).
 
 Truth: the targets file (every target has its row, with the status the scoring gives for the run's own
@@ -169,3 +169,16 @@ def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
                {"station_keep": {"x": 3.0, "y": float("nan")}, "limit_cycle": {"detected": False, "period_s": 6.0}},
                {"station_keep": {"x": 5.0, "y": 1.0}, "limit_cycle": {"detected": True, "period_s": 5.0}, "t": [3]}]
     assert _mean_leaves(results) == {"station_keep": {"x": 3.0}, "limit_cycle": {"period_s": 5.0}}
+
+
+def test_the_page_says_which_runs_were_flown_and_which_came_from_the_cache(report):
+    """Before: "scored against fresh runs" even when every run came from the cache."""
+    from seapup_bringup.report import provenance
+    base, document, first = report
+    page = (base / "out" / "report.html").read_text()
+    assert "fresh runs" not in page
+    assert f"all {len(document['runs'])} runs flown for this report" in page   # a cold cache: every run flown
+    assert provenance([{"cached": True}] * 3) == ("all 3 runs taken from the run cache (flown earlier by this code "
+                                                  "version; --no-cache flies them again)")
+    assert provenance([{"cached": False}, {"cached": True}, {"cached": True}]).startswith(
+        "1 runs flown for this report, 2 taken from the run cache")

@@ -13,22 +13,24 @@ def run(*args, env=None):
     return subprocess.run([SEAPUP, *args], capture_output=True, text=True, cwd=REPO, env=env)
 
 
-def test_unknown_command_prints_usage_and_exits_2():
-    r = run("frobnicate")
-    assert r.returncode == 2
-    assert "unknown command: frobnicate" in r.stderr and "usage: ./seapup" in r.stderr
+def test_an_unknown_command_is_one_line_naming_the_nearest_commands():
+    r = run("demp")
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == "seapup: unknown command 'demp': did you mean demo or node or help?\n"
 
 
 def test_help_lists_the_subcommands():
     r = run("help")
     assert r.returncode == 0
     for cmd in ("demo", "test", "run", "setup", "env", "help"):
-        assert f"\n  {cmd} " in r.stdout
+        assert f"\n  ./seapup {cmd}" in r.stdout
 
 
-def test_run_without_arguments_explains_itself():
+def test_run_without_arguments_is_bad_usage():
     r = run("run")
-    assert r.returncode == 1 and "run needs a package and an executable" in r.stderr
+    assert r.returncode == 2 and "the following arguments are required: package, executable" in r.stderr
+    r = run("run", "--help")
+    assert r.returncode == 0 and r.stdout.startswith("usage: ./seapup run") and r.stderr == ""
 
 
 def test_env_exports_a_loopback_only_workspace():
@@ -59,7 +61,23 @@ def scratch_copy(tmp_path, lock_text):
     shutil.copy(SEAPUP, root / "seapup")
     shutil.copy(REPO / "cmake" / "fix_ros_wheel_paths.cmake", root / "cmake")
     (root / "requirements" / "lock.txt").write_text(lock_text)
+    (root / "requirements" / "seapup.in").write_text("numpy\n")
+    registry = root / "ros2_ws/src/seapup_bringup/seapup_bringup"
+    registry.mkdir(parents=True)
+    for name in ("cli.py", "cli_usage.json"):
+        shutil.copy(REPO / "ros2_ws/src/seapup_bringup/seapup_bringup" / name, registry / name)
     return root
+
+
+def fake_python(tmp_path, venv_body="exit 1"):
+    """A "python3.11" that reports version 3.11, runs ``venv_body`` for ``-m venv DIR`` ($3 is DIR) and is the
+    real interpreter otherwise (it runs the registry)."""
+    import sys
+    fake = tmp_path / "python3.11"
+    fake.write_text(f'#!/bin/sh\ncase "$1" in\n  -c) echo 3.11 ;;\n  -m) {venv_body} ;;\n'
+                    f'  *) exec {sys.executable} "$@" ;;\nesac\n')
+    fake.chmod(0o755)
+    return fake
 
 
 def clean_env(**extra):
@@ -97,3 +115,61 @@ def test_failed_pip_install_explains_and_keeps_nothing(tmp_path):
     assert "pip could not install requirements/lock.txt" in r.stderr
     assert "PyPI is reachable" in r.stderr
     assert not (root / ".venv").exists()
+
+
+@pytest.mark.parametrize("verb", ["setup", "env", "lock", "help", "run"])
+def test_help_of_the_bootstrap_commands_prints_and_does_nothing_else(tmp_path, verb):
+    """Before: setup --help and env --help bootstrapped, lock --help regenerated the lock."""
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    (tmp_path / "tmp").mkdir()
+    r = subprocess.run([str(root / "seapup"), verb, "--help"], capture_output=True, text=True, timeout=60,
+                       env=clean_env(SEAPUP_PYTHON=str(fake_python(tmp_path)), TMPDIR=str(tmp_path / "tmp")))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith(f"usage: ./seapup {verb}") and r.stderr == ""
+    assert sorted(p.name for p in root.iterdir()) == ["cmake", "requirements", "ros2_ws", "seapup"]
+    assert (root / "requirements" / "lock.txt").read_text() == "numpy==2.4.6\n"
+    assert list((tmp_path / "tmp").iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["setup", "--bogus"], ["env", "extra"], ["lock", "-x"], ["help", "nonsense"]])
+def test_bad_usage_of_the_bootstrap_commands_exits_2_before_anything(tmp_path, args):
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    r = subprocess.run([str(root / "seapup"), *args], capture_output=True, text=True, timeout=60,
+                       env=clean_env(SEAPUP_PYTHON=str(fake_python(tmp_path))))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert not (root / ".venv").exists()
+
+
+def test_only_the_tests_need_chromium(tmp_path):
+    """The bootstrap of setup (and so demo) goes on without Chromium; ./seapup test names it."""
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    env = clean_env(SEAPUP_PYTHON=str(fake_python(tmp_path)), SEAPUP_CHROMIUM="no-such-chromium")
+    r = subprocess.run([str(root / "seapup"), "setup"], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 1 and "chromium" not in r.stderr.lower()
+    assert "could not create" in r.stderr   # it went on to make the venv (the fake python cannot)
+    r = subprocess.run([str(root / "seapup"), "test"], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 1 and "chromium not found; ./seapup test needs it" in r.stderr
+
+
+def test_an_interrupted_lock_removes_its_scratch_venv(tmp_path):
+    """Before: Ctrl-C while pip resolved left the scratch venv (931 MB) in $TMPDIR."""
+    import os
+    import signal
+    root = scratch_copy(tmp_path, "numpy==2.4.6\n")
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    python = fake_python(tmp_path, 'mkdir -p "$3/bin"; head -c 100000 /dev/zero > "$3/bin/blob"; '
+                                   'echo "fake venv made" >&2; exec sleep 120')
+    lock = subprocess.Popen([str(root / "seapup"), "lock"], stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, env=clean_env(SEAPUP_PYTHON=str(python), TMPDIR=str(scratch)))
+    lines = []
+    for line in lock.stderr:   # waits on the state: the venv exists once this line is written
+        lines.append(line)
+        if "fake venv made" in line:
+            break
+    assert any(scratch.rglob("blob")), lines
+    os.killpg(lock.pid, signal.SIGINT)   # Ctrl-C at a terminal: the whole foreground group
+    rest = lock.stderr.read()
+    assert lock.wait(timeout=30) == 130
+    assert list(scratch.iterdir()) == [], "the scratch venv was left behind"
+    assert "Traceback" not in rest and (root / "requirements" / "lock.txt").read_text() == "numpy==2.4.6\n"

@@ -163,8 +163,8 @@ def _from_bag(bag_dir: Path) -> dict:
             "space": position.max(axis=0) - position.min(axis=0)}
 
 
-def _selftest(argv: list[str]) -> int:
-    """``./seapup selftest``: the self-test through the ROS graph (or in process, or refitted from a bag)."""
+def selftest_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup selftest`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup selftest", description=__doc__.splitlines()[0])
     _self_test_arguments(parser)
     parser.add_argument("--in-process", action="store_true",
@@ -173,6 +173,12 @@ def _selftest(argv: list[str]) -> int:
     parser.add_argument("--out", type=Path, help="output directory (default runs/selftest_<UTC time>)")
     parser.add_argument("--bag", type=Path, help="bag directory to create (default OUT/bag)")
     add_json_argument(parser)
+    return parser
+
+
+def _selftest(argv: list[str]) -> int:
+    """``./seapup selftest``: the self-test through the ROS graph (or in process, or refitted from a bag)."""
+    parser = selftest_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     bag = None
@@ -301,13 +307,19 @@ def analyse(model: VehicleModel, schedule, speeds, scheduled: bool) -> list[dict
     return rows
 
 
-def _closed_loop_command(argv: list[str]) -> int:
-    """``./seapup closed-loop``: closed-loop eigenvalues over surge speed (sec. 5.4.1)."""
+def closed_loop_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup closed-loop`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup closed-loop", description=__doc__.splitlines()[0])
     _self_test_arguments(parser)
     parser.add_argument("--schedule", action="store_true", help="gains scheduled on surge speed (else fixed at 0)")
     parser.add_argument("--plots", type=Path, help="write s-plane loci per mode (figs 5.4-5.9) into this directory")
     add_json_argument(parser)
+    return parser
+
+
+def _closed_loop_command(argv: list[str]) -> int:
+    """``./seapup closed-loop``: closed-loop eigenvalues over surge speed (sec. 5.4.1)."""
+    parser = closed_loop_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     run = _fly(args, text)

@@ -50,8 +50,8 @@ def _clock_published(wait: float) -> bool:
         context.try_shutdown()
 
 
-def record(argv: list[str]) -> int:
-    """``./seapup record``: start a recorder node with the given topics (Ctrl-C finalises the bag)."""
+def record_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup record`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup record", description="record topics into a rosbag2/MCAP bag")
     parser.add_argument("-o", "--output", help="bag directory to create (default bags/rosbag2_<UTC time>)")
     parser.add_argument("--topics", nargs="+", default=[], help="topics (/t or /t:pkg/msg/Type)")
@@ -70,6 +70,12 @@ def record(argv: list[str]) -> int:
     parser.add_argument("--clock-wait", type=float, default=5.0,
                         help="seconds to look for a /clock publisher when neither is given (default 5)")
     add_json_argument(parser)
+    return parser
+
+
+def record(argv: list[str]) -> int:
+    """``./seapup record``: start a recorder node with the given topics (Ctrl-C finalises the bag)."""
+    parser = record_parser()
     args = parser.parse_args(argv)
     if not args.topics and not args.all:
         parser.error("give --topics or --all")
@@ -121,6 +127,15 @@ def record(argv: list[str]) -> int:
     return 0
 
 
+def bag_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup bag`` (its usage line in ``./seapup help`` is generated from it)."""
+    parser = argparse.ArgumentParser(prog="./seapup bag", description="inspect or recover a bag")
+    parser.add_argument("verb", choices=("info", "recover"))
+    parser.add_argument("path", type=Path)
+    add_json_argument(parser)
+    return parser
+
+
 def bag(argv: list[str]) -> int:
     """``./seapup bag info DIR`` / ``./seapup bag recover DIR``."""
     hints = {"play": "replay DIR", "record": "record [--topics T... | --all]"}
@@ -128,10 +143,7 @@ def bag(argv: list[str]) -> int:
         print(f"seapup bag: '{argv[0]}' is its own command here: ./seapup {hints[argv[0]]} "
               f"(./seapup {hints[argv[0]].split()[0]} --help)", file=sys.stderr)
         return 2
-    parser = argparse.ArgumentParser(prog="./seapup bag", description="inspect or recover a bag")
-    parser.add_argument("verb", choices=("info", "recover"))
-    parser.add_argument("path", type=Path)
-    add_json_argument(parser)
+    parser = bag_parser()
     args = parser.parse_args(argv)
     out = text_stream(args)
     try:
@@ -170,8 +182,8 @@ def _qos(channel_metadata: dict):
                                   else DurabilityPolicy.VOLATILE))
 
 
-def replay(argv: list[str]) -> int:
-    """``./seapup replay DIR``: publish a bag's messages with their recorded timing, or in lockstep."""
+def replay_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup replay`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup replay", description="play a bag back onto the graph")
     parser.add_argument("path", type=Path)
     parser.add_argument("--rate", type=float, default=1.0, help="speed factor (> 0)")
@@ -192,6 +204,12 @@ def replay(argv: list[str]) -> int:
     parser.add_argument("--lockstep-timeout", type=float, default=10.0,
                         help="seconds to wait for an answer before going on (counted as a timeout)")
     add_json_argument(parser)
+    return parser
+
+
+def replay(argv: list[str]) -> int:
+    """``./seapup replay DIR``: publish a bag's messages with their recorded timing, or in lockstep."""
+    parser = replay_parser()
     args = parser.parse_args(argv)
     if not (0 < args.rate < 1e6 and args.start_offset >= 0 and args.lockstep_timeout > 0):
         parser.error("--rate and --lockstep-timeout must be > 0 and --start-offset >= 0")

@@ -14,15 +14,17 @@ distributions of the summary's metrics by the first grid axis and the worst runs
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import shutil
+import signal
 import sys
 import time
 from pathlib import Path
 
-from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import SIGNALS, add_json_argument, emit_json, progress, text_stream
 
 __all__ = ["campaign_command", "run_campaign", "campaign_rates"]
 
@@ -86,9 +88,51 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float =
             return Client(scheduler, timeout=f"{connect_timeout}s"), None
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
-    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=40, death_timeout=10)
-    return Client(cluster), cluster
+    cluster = None
+    try:
+        with _sigint_blocked():   # the workers start with Ctrl-C blocked: only this process answers it
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=40, death_timeout=10)
+            client = Client(cluster)
+    except KeyboardInterrupt:   # pressed while it started: delivered on leaving the block
+        _stop_workers_now(cluster)
+        if cluster is not None:
+            cluster.close(timeout=2)
+        raise
+    return client, cluster
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    """Block SIGINT in this thread while the LocalCluster starts its threads and worker processes.
+
+    Ctrl-C reaches every process of the terminal's foreground group; Dask's workers then each printed a
+    screen of KeyboardInterrupt and CancelledError tracebacks. A blocked signal is inherited by the threads
+    and processes started meanwhile (through fork and exec), so the workers never see it; a Ctrl-C pressed
+    during the start stays pending here and is delivered on leaving (the command then stops as usual).
+    """
+    blocked = hasattr(signal, "pthread_sigmask")
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _stop_workers_now(cluster) -> None:
+    """Interrupted: end the LocalCluster's worker processes at once (SIGKILL; a task in flight is lost and
+    ``--resume`` flies it again) and silence Dask's complaints about them, so the command stops within a
+    second or two with its one line instead of waiting for the tasks in flight."""
+    import logging
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    for nanny in list(getattr(cluster, "workers", {}).values()):
+        pid = getattr(getattr(getattr(nanny, "process", None), "process", None), "pid", None)
+        if isinstance(pid, int) and pid > 0 and pid != os.getpid():
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int | None = None,
@@ -138,11 +182,15 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
                 (parts / f"task-{k:05d}.parquet.tmp").replace(parts / f"task-{k:05d}.parquet")
                 done += 1
                 progress("campaign", done / len(todo), stream=text)
+    except KeyboardInterrupt:
+        _stop_workers_now(cluster)
+        raise
     finally:
+        quick = {"timeout": 2} if SIGNALS else {}
         if client is not None:
-            client.close()
+            client.close(**quick)
         if cluster is not None:
-            cluster.close()
+            cluster.close(**quick)
     table = _concat([pq.read_table(parts / f"task-{k:05d}.parquet") for k in range(len(groups))])
     pq.write_table(table, out / "results.parquet")
     records = table.to_pylist()

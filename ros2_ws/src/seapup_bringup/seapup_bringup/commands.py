@@ -46,11 +46,33 @@ def _parser(name: str, description: str, config: bool = True) -> argparse.Argume
     return parser
 
 
-def verify(argv: list[str]) -> int:
-    """``./seapup verify``: Table 3.2 and the analyses against the thesis; exit 1 if a primary target fails."""
+def verify_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup verify`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = _parser("verify", "open-loop verification of the vehicle model against the thesis")
     parser.add_argument("--plots", help="write PNG plots into this directory")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def check_model_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup check-model`` (its usage line in ``./seapup help`` is generated from it)."""
+    return _parser("check-model", "model checker (thesis sec. 3.4-3.5)")
+
+
+def bench_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup bench`` (its usage line in ``./seapup help`` is generated from it)."""
+    parser = _parser("bench", "benchmarks")
+    parser.add_argument("--steps", type=int, default=3000)
+    parser.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
+    parser.add_argument("--no-campaign", action="store_true", help="skip the Dask campaign throughput benchmark")
+    parser.add_argument("--no-report", action="store_true", help="skip the reproduction report's cold/warm timing")
+    parser.add_argument("--recording-minutes", type=float, default=10.0,
+                        help="wall minutes of the recorder memory benchmark (0 skips it; default 10)")
+    return parser
+
+
+def verify(argv: list[str]) -> int:
+    """``./seapup verify``: Table 3.2 and the analyses against the thesis; exit 1 if a primary target fails."""
+    args = verify_parser().parse_args(argv)
     out = text_stream(args)
     model = _model(args.config)
     t0 = time.perf_counter()
@@ -84,7 +106,7 @@ def verify(argv: list[str]) -> int:
 
 def check_model(argv: list[str]) -> int:
     """``./seapup check-model``: exit 1 on any finding."""
-    args = _parser("check-model", "model checker (thesis sec. 3.4-3.5)").parse_args(argv)
+    args = check_model_parser().parse_args(argv)
     out = text_stream(args)
     model = _model(args.config)
     report = run_model_check(model)
@@ -148,14 +170,7 @@ def _batch_step(model, vehicles: int, command, steps: int, threads: int = 1) -> 
 def bench(argv: list[str]) -> int:
     """``./seapup bench``: speed of the model, the batch plant, campaigns, the umbilical, verify and the ROS
     graph."""
-    parser = _parser("bench", "benchmarks")
-    parser.add_argument("--steps", type=int, default=3000)
-    parser.add_argument("--no-graph", action="store_true", help="skip the ROS graph benchmarks")
-    parser.add_argument("--no-campaign", action="store_true", help="skip the Dask campaign throughput benchmark")
-    parser.add_argument("--no-report", action="store_true", help="skip the reproduction report's cold/warm timing")
-    parser.add_argument("--recording-minutes", type=float, default=10.0,
-                        help="wall minutes of the recorder memory benchmark (0 skips it; default 10)")
-    args = parser.parse_args(argv)
+    args = bench_parser().parse_args(argv)
     out_text = text_stream(args)
     model = _model(args.config)
     n = args.steps

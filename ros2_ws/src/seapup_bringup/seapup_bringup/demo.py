@@ -478,8 +478,9 @@ self-tuner from <code>tune_in</code> s after the switch.</p></section>
     return path
 
 
-def main(argv=None) -> int:
-    from seapup_bringup.view import add_view_arguments, check_port, view_node, view_url
+def demo_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup demo`` (its usage line in ``./seapup help`` is generated from it)."""
+    from seapup_bringup.view import add_view_arguments
     parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
     parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
                                       "(default bags/demo_<UTC time> under the checkout)")
@@ -487,6 +488,12 @@ def main(argv=None) -> int:
     add_view_arguments(parser, "fly at this many times real time (the lockstep graph paced; default: as fast as "
                                "it answers, or 1 with --view); the summary is the same at any rate")
     add_json_argument(parser)
+    return parser
+
+
+def main(argv=None) -> int:
+    from seapup_bringup.view import check_port, view_node, view_url
+    parser = demo_parser()
     args = parser.parse_args(argv)
     rate = args.rate if args.rate is not None else (1.0 if args.view else 0.0)
     if not (rate >= 0 and rate < 1e4):

@@ -579,7 +579,8 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
                           "references": str(references), "period": 2 * args.half_period}}
 
 
-def main(argv=None) -> int:
+def ident_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup ident`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup ident", description=__doc__.splitlines()[0],
                                      epilog="Every subcommand takes --json [FILE]: its result as JSON to FILE "
                                             "(stdout without FILE; text then goes to stderr).")
@@ -633,6 +634,11 @@ def main(argv=None) -> int:
     exp_p.add_argument("--method", choices=("ls", "els", "rpem"), default="ls", help="the online identifier's method")
     exp_p.add_argument("--orders", default="2,2,0", help="the online identifier's na,nb,nc (default 2,2,0)")
     add_json_argument(exp_p)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = ident_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     handlers = {"fit": _fit, "orders": _orders, "compare": _compare, "residuals": _residuals,

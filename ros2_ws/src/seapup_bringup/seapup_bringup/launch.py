@@ -149,10 +149,10 @@ class Launch:
                 n.thread.join(1.0)
 
 
-def launch(argv: list[str]) -> int:
-    """``./seapup launch GRAPH.yaml [name:=value ...]`` or ``./seapup launch PACKAGE FILE [name:=value ...]``."""
+def launch_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup launch`` (its usage line in ``./seapup help`` is generated from it)."""
     import argparse
-    from seapup_bringup.view import add_view_arguments, check_port, view_node, view_url
+    from seapup_bringup.view import add_view_arguments
     parser = argparse.ArgumentParser(prog="./seapup launch", description="start a graph of nodes, as 'ros2 launch'",
                                      epilog="Graphs shipped (ROS 2 YAML launch files): seapup_bringup "
                                             "simulator.launch.yaml, "
@@ -164,6 +164,13 @@ def launch(argv: list[str]) -> int:
     add_view_arguments(parser, "a lockstep graph at this many times real time (its lockstep_pace argument; "
                                "default: unpaced, or 1 with --view)")
     add_json_argument(parser)
+    return parser
+
+
+def launch(argv: list[str]) -> int:
+    """``./seapup launch GRAPH.yaml [name:=value ...]`` or ``./seapup launch PACKAGE FILE [name:=value ...]``."""
+    from seapup_bringup.view import check_port, view_node, view_url
+    parser = launch_parser()
     args = parser.parse_args(argv)
     if args.view:
         try:

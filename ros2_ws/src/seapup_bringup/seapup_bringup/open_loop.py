@@ -139,13 +139,19 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     return {"sim_seconds": sim_seconds, "wall_seconds": wall, "published": published}
 
 
-def main(argv=None) -> int:
+def open_loop_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup open-loop`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup open-loop", description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=float(demo_config()["duration"]),
                         help="simulated seconds (default from config/demo.yaml; lockstep runs faster than real time)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/demo_<UTC time>)")
     parser.add_argument("--bag", type=Path, default=None, help="bag directory to create (default OUT/bag)")
     add_json_argument(parser)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = open_loop_parser()
     args = parser.parse_args(argv)
     if not (math.isfinite(args.duration) and 4.0 <= args.duration <= 3600.0):
         parser.error(f"--duration must be between 4 and 3600 s, got {args.duration}")

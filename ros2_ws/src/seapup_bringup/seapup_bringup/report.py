@@ -1,4 +1,4 @@
-"""``./seapup report``: the thesis's targets scored against fresh runs -- ``report.json`` and one HTML page.
+"""``./seapup report``: the thesis's targets scored against runs of this code -- ``report.json`` and one HTML page.
 
 Every target of the targets file (:mod:`seapup_runs.targets`, optionally only some chapters) is scored
 against the run that produces ours (:mod:`seapup_bringup.reproduction`: each run cached by its
@@ -25,7 +25,7 @@ from pathlib import Path
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_bringup.pages import CSS as _CSS, esc as _e, figure as _figure, fmt as _fmt
 
-__all__ = ["report_command", "build_document", "write_page", "readme_block", "update_readme", "CHAPTER_TITLES"]
+__all__ = ["report_command", "build_document", "write_page", "provenance", "readme_block", "update_readme", "CHAPTER_TITLES"]
 
 CHAPTER_TITLES = {"3": "The open-loop model (ch. 3)", "4": "Self-test identification (ch. 4)",
                   "5": "The self-test and the closed loop (ch. 5)", "6": "Identification (ch. 6)",
@@ -125,6 +125,31 @@ def _target_rows(rows: list[dict]) -> str:
     return "".join(out)
 
 
+def provenance(runs: list[dict]) -> str:
+    """Which runs were flown for this report and which were taken from the run cache.
+
+    Parameters
+    ----------
+    runs : list of dict
+        ``report.json``'s runs, each with ``cached`` (True: taken from the cache, flown earlier by the same
+        code version).
+
+    Returns
+    -------
+    str
+        One clause for the page and the terminal, e.g. "3 runs flown for this report, 24 taken from the run
+        cache (flown earlier by this code version; --no-cache flies them again)".
+    """
+    cached = sum(1 for r in runs if r.get("cached"))
+    fresh = len(runs) - cached
+    why = "flown earlier by this code version; --no-cache flies them again"
+    if not cached:
+        return f"all {fresh} runs flown for this report"
+    if not fresh:
+        return f"all {cached} runs taken from the run cache ({why})"
+    return f"{fresh} runs flown for this report, {cached} taken from the run cache ({why})"
+
+
 def write_page(document: dict, path: Path) -> Path:
     """``report.html`` from ``report.json``'s document (figures read from the runs' directories)."""
     rows, runs = document["targets"], {r["name"]: r for r in document["runs"]}
@@ -174,8 +199,8 @@ def write_page(document: dict, path: Path) -> Path:
 <body>
 <h1>seapup: the thesis against ours</h1>
 <p class=muted>K. R. Goheen, <i>The Modelling and Control of Remotely Operated Underwater Vehicles</i>: every
-result the targets file asks for, scored against fresh runs of commit <code>{_e(document['commit'])}</code> on
-{_e(document['date'])}. A target is <b>reproduced</b> when ours lies within its tolerance (each with its reason),
+result the targets file asks for, scored against runs of commit <code>{_e(document['commit'])}</code> on
+{_e(document['date'])}: {_e(provenance(document['runs']))}. A target is <b>reproduced</b> when ours lies within its tolerance (each with its reason),
 a <b>deviation</b> when it is missed for a documented, decided reason (never counted as reproduced),
 <b>failed</b> when missed otherwise.</p>
 <section id="summary"><h2>Summary</h2>
@@ -235,8 +260,8 @@ def update_readme(path: Path, document: dict) -> bool:
 
 
 # -- the command ------------------------------------------------------------------------------------------------
-def report_command(argv: list[str]) -> int:
-    """``./seapup report``: score every thesis target against fresh (or cached) runs; write the page."""
+def report_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup report`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup report", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("runs") / "report", help="output directory (default runs/report)")
     parser.add_argument("--chapters", help="only these chapters, comma separated (3, 4, 5, 6, 7, A)")
@@ -246,6 +271,12 @@ def report_command(argv: list[str]) -> int:
     parser.add_argument("--targets", type=Path, help="a targets file other than the product's (to check an edit)")
     parser.add_argument("--readme", type=Path, help="rewrite this README's generated score table (whole report only)")
     add_json_argument(parser)
+    return parser
+
+
+def report_command(argv: list[str]) -> int:
+    """``./seapup report``: score every thesis target against runs flown now or taken from the cache; write the page."""
+    parser = report_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     from seapup_bringup.reproduction import code_version, default_cache, run_all
@@ -293,6 +324,7 @@ def report_command(argv: list[str]) -> int:
     for run in document["runs"]:
         if run["error"]:
             print(f"  run {run['name']} failed: {run['error']}", file=text)
+    print(f"  runs: {provenance(document['runs'])}", file=text)
     print(f"wrote {page} and {args.out / 'report.json'} ({made['wall_s']:.1f} s)", file=text)
     if args.readme is not None:
         try:

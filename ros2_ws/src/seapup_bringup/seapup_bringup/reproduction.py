@@ -386,17 +386,44 @@ def run_all(runs: dict, cache: Path, jobs: int = 1, use_cache: bool = True, prog
     if progress is not None:
         progress(done / max(len(runs), 1))
     if todo:
-        with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(todo)))) as pool:
-            futures = {pool.submit(_cached_execute, name, description, str(directory)): (name, directory)
-                       for name, (description, directory) in todo.items()}
-            for future in as_completed(futures):
-                name, directory = futures[future]
-                try:
-                    out[name] = {**future.result(), "directory": str(directory), "cached": False}
-                except Exception as exc:  # one failed run is a row of failed targets, not a lost report
-                    out[name] = {"name": name, "result": None, "figures": [], "error": f"{type(exc).__name__}: {exc}",
-                                 "directory": str(directory), "cached": False, "wall_s": None, "cpu_s": None}
-                done += 1
-                if progress is not None:
-                    progress(done / len(runs))
+        with ProcessPoolExecutor(max_workers=max(1, min(jobs, len(todo))), initializer=_ignore_interrupts) as pool:
+            try:   # the submits too: a Ctrl-C among them must not leave the submitted runs to be waited for
+                futures = {pool.submit(_cached_execute, name, description, str(directory)): (name, directory)
+                           for name, (description, directory) in todo.items()}
+                _collect(futures, out, runs, done, progress)
+            except BaseException:   # Ctrl-C, SIGTERM: the runs in flight are dropped, not waited for
+                _stop_pool(pool)
+                raise
     return {name: out[name] for name in runs}
+
+
+def _collect(futures: dict, out: dict, runs: dict, done: int, progress) -> None:
+    """Each finished run's payload into ``out`` as it comes."""
+    for future in as_completed(futures):
+        name, directory = futures[future]
+        try:
+            out[name] = {**future.result(), "directory": str(directory), "cached": False}
+        except Exception as exc:  # one failed run is a row of failed targets, not a lost report
+            out[name] = {"name": name, "result": None, "figures": [], "error": f"{type(exc).__name__}: {exc}",
+                         "directory": str(directory), "cached": False, "wall_s": None, "cpu_s": None}
+        done += 1
+        if progress is not None:
+            progress(done / len(runs))
+
+
+def _ignore_interrupts() -> None:
+    """A run worker ignores SIGINT: Ctrl-C reaches the terminal's whole process group, and only the parent
+    answers it (:func:`_stop_pool`); the workers printed tracebacks and finished their runs first."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """End the pool's workers now (SIGKILL) and drop the queued runs: an interrupted report stops within a
+    second instead of waiting for the runs in flight (25-45 s)."""
+    for process in list(getattr(pool, "_processes", {}).values()):
+        try:
+            process.kill()
+        except (OSError, ValueError):
+            pass
+    pool.shutdown(wait=False, cancel_futures=True)

@@ -28,9 +28,12 @@ class CommandError(RuntimeError):
 
 
 def _did_you_mean(name: str, known) -> str:
-    """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names, or ""."""
+    """``"; did you mean /seapup/x?"`` for the nearest of ``known`` names other than ``name`` itself, or "".
+
+    The graph lists a service as soon as a client asks for it (our own probe's client for the mistyped
+    name included), so the name itself is never a suggestion."""
     from seapup_common.config import nearest
-    near = nearest(name, known)
+    near = nearest(name, [k for k in known if k != name])
     return f"; did you mean {near}?" if near else ""
 
 
@@ -319,8 +322,8 @@ def _topic_hz(probe, args):
     return 0
 
 
-def topic(argv: list[str]) -> int:
-    """``./seapup topic list|info|echo|pub|hz``, as ros2cli spells them."""
+def topic_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup topic`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("topic", "topics, as 'ros2 topic'")
     p = sub.add_parser("list", help="topics on the graph")
     p.add_argument("-t", "--show-types", action="store_true")
@@ -358,6 +361,12 @@ def topic(argv: list[str]) -> int:
     p.add_argument("--timeout", type=float, default=10.0)
     p.set_defaults(fn=_topic_hz)
     _json_options(parser)
+    return parser
+
+
+def topic(argv: list[str]) -> int:
+    """``./seapup topic list|info|echo|pub|hz``, as ros2cli spells them."""
+    parser = topic_parser()
     args = parser.parse_args(argv)
     if args.verb == "pub" and not (args.rate > 0 and math.isfinite(args.rate)):
         return _fail(f"--rate must be > 0, got {args.rate}")
@@ -382,8 +391,8 @@ def _split(full: str):
     return name, namespace or "/"
 
 
-def node(argv: list[str]) -> int:
-    """``./seapup node list|info``."""
+def node_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup node`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("node", "nodes, as 'ros2 node'")
     p = sub.add_parser("list")
     p.add_argument("--timeout", type=float, default=1.0)
@@ -391,6 +400,12 @@ def node(argv: list[str]) -> int:
     p.add_argument("node")
     p.add_argument("--timeout", type=float, default=2.0)
     _json_options(parser)
+    return parser
+
+
+def node(argv: list[str]) -> int:
+    """``./seapup node list|info``."""
+    parser = node_parser()
     args = parser.parse_args(argv)
 
     def run(probe, args):
@@ -463,8 +478,8 @@ def _plain_value(v):
     return list(value) if not isinstance(value, (bool, int, float, str)) else value
 
 
-def param(argv: list[str]) -> int:
-    """``./seapup param list|get|set|dump NODE ...``."""
+def param_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup param`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("param", "parameters, as 'ros2 param'")
     for verb in ("list", "dump"):
         p = sub.add_parser(verb)
@@ -479,6 +494,12 @@ def param(argv: list[str]) -> int:
     for p in sub.choices.values():
         p.add_argument("--timeout", type=float, default=5.0)
     _json_options(parser)
+    return parser
+
+
+def param(argv: list[str]) -> int:
+    """``./seapup param list|get|set|dump NODE ...``."""
+    parser = param_parser()
     args = parser.parse_args(argv)
 
     def run(probe, args):
@@ -535,11 +556,17 @@ def param(argv: list[str]) -> int:
 
 
 # -- service ----------------------------------------------------------------------------------
-def service(argv: list[str]) -> int:
-    """``./seapup service list|call``."""
+def service_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup service`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("service", "services, as 'ros2 service'")
     _list_and_request(sub, "call", "service", "pkg/srv/Type")
     _json_options(parser)
+    return parser
+
+
+def service(argv: list[str]) -> int:
+    """``./seapup service list|call``."""
+    parser = service_parser()
     args = parser.parse_args(argv)
 
     def run(probe, args):
@@ -561,13 +588,19 @@ def service(argv: list[str]) -> int:
 _STATUS = {1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
 
 
-def action(argv: list[str]) -> int:
-    """``./seapup action list|send_goal``."""
+def action_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup action`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("action", "actions, as 'ros2 action'")
     p = _list_and_request(sub, "send_goal", "action_name", "pkg/action/Type")
     p.add_argument("-f", "--feedback", action="store_true", help="print the feedback")
     p.add_argument("--result-timeout", type=float, default=3600.0, help="wall seconds to wait for the result")
     _json_options(parser)
+    return parser
+
+
+def action(argv: list[str]) -> int:
+    """``./seapup action list|send_goal``."""
+    parser = action_parser()
     args = parser.parse_args(argv)
 
     def run(probe, args):
@@ -621,12 +654,18 @@ def action(argv: list[str]) -> int:
 
 
 # -- interface ----------------------------------------------------------------------------------
-def interface(argv: list[str]) -> int:
-    """``./seapup interface show TYPE``."""
+def interface_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup interface`` (its usage line in ``./seapup help`` is generated from it)."""
     parser, sub = _verb_parser("interface", "interfaces, as 'ros2 interface'")
     p = sub.add_parser("show")
     p.add_argument("type")
     _json_options(parser)
+    return parser
+
+
+def interface(argv: list[str]) -> int:
+    """``./seapup interface show TYPE``."""
+    parser = interface_parser()
     args = parser.parse_args(argv)
     from seapup_common.ros.introspection import InterfaceError, definition, interface_class
     try:

@@ -52,6 +52,17 @@ def _summary(result, text) -> None:
             print(f"  {key}: {cells}", file=text)
 
 
+def fly_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup fly`` (its usage line in ``./seapup help`` is generated from it)."""
+    parser = argparse.ArgumentParser(prog="./seapup fly", description=__doc__.splitlines()[0])
+    parser.add_argument("spec", type=Path, help="a run specification (YAML or JSON; see docs/run-result.md)")
+    parser.add_argument("--graph", action="store_true", help="fly it through the ROS graph in lockstep")
+    parser.add_argument("--out", type=Path, help="the graph run's node logs and graph file (default: a temp dir)")
+    parser.add_argument("--plots", type=Path, help="write a figure of the run into this directory")
+    add_json_argument(parser)
+    return parser
+
+
 def fly(argv: list[str]) -> int:
     """``./seapup fly SPEC [--graph] [--out DIR] [--plots DIR] [--json [F]]``."""
     from seapup_bringup.sil import SilError
@@ -61,12 +72,7 @@ def fly(argv: list[str]) -> int:
     from seapup_sim.integrator import DivergenceError
     from seapup_sim.vehicle_config import ConfigError
 
-    parser = argparse.ArgumentParser(prog="./seapup fly", description=__doc__.splitlines()[0])
-    parser.add_argument("spec", type=Path, help="a run specification (YAML or JSON; see docs/run-result.md)")
-    parser.add_argument("--graph", action="store_true", help="fly it through the ROS graph in lockstep")
-    parser.add_argument("--out", type=Path, help="the graph run's node logs and graph file (default: a temp dir)")
-    parser.add_argument("--plots", type=Path, help="write a figure of the run into this directory")
-    add_json_argument(parser)
+    parser = fly_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     try:
@@ -88,12 +94,18 @@ def fly(argv: list[str]) -> int:
     return 0
 
 
+def controllers_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup controllers`` (its usage line in ``./seapup help`` is generated from it)."""
+    parser = argparse.ArgumentParser(prog="./seapup controllers", description="the registered velocity controllers")
+    add_json_argument(parser)
+    return parser
+
+
 def controllers(argv: list[str]) -> int:
     """``./seapup controllers [--json [F]]``."""
     from seapup_common.controllers import ControllerRegistryError, available_controllers, controller_type
 
-    parser = argparse.ArgumentParser(prog="./seapup controllers", description="the registered velocity controllers")
-    add_json_argument(parser)
+    parser = controllers_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     listed, failed = {}, {}

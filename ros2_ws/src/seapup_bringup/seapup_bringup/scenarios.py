@@ -136,8 +136,8 @@ def plot_scenario(result: RunResult, out_dir: Path) -> Path:
     return path
 
 
-def scenario_command(argv: list[str]) -> int:
-    """``./seapup scenario NAME``: one of the thesis's closed-loop cases, measured and compared."""
+def scenario_parser() -> argparse.ArgumentParser:
+    """The parser of ``./seapup scenario`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup scenario", description=__doc__.splitlines()[0])
     parser.add_argument("name", nargs="?", help="scenario (--list shows them)")
     parser.add_argument("--list", action="store_true", help="list the scenarios")
@@ -157,6 +157,12 @@ def scenario_command(argv: list[str]) -> int:
     parser.add_argument("--graph", action="store_true",
                         help="fly it through the ROS graph in lockstep (simulator and controller nodes)")
     add_json_argument(parser)
+    return parser
+
+
+def scenario_command(argv: list[str]) -> int:
+    """``./seapup scenario NAME``: one of the thesis's closed-loop cases, measured and compared."""
+    parser = scenario_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
     if args.list or not args.name:

@@ -21,10 +21,16 @@ def test_every_registered_command_has_help_text_and_answers_help():
         assert r.returncode == 0 and "--json" in r.stdout, (name, r.stdout + r.stderr)
 
 
-def test_unknown_command_exits_2_with_usage(capsys):
+def test_unknown_command_exits_2_with_one_line(capsys):
     assert main(["frobnicate"]) == 2
     err = capsys.readouterr().err
-    assert "unknown command: frobnicate" in err and "usage: ./seapup" in err
+    assert err.startswith("seapup: unknown command 'frobnicate'") and err.count("\n") == 1
+
+
+def test_the_commands_parsed_before_the_bootstrap_answer_help(capsys):
+    for name in ("setup", "env", "lock", "help", "run"):
+        assert main([name, "--help"]) == 0
+        assert capsys.readouterr().out.startswith(f"usage: ./seapup {name}")
 
 
 def test_check_model_json_goes_to_stdout_and_text_to_stderr():
@@ -64,3 +70,13 @@ def test_cli_writes_the_documented_json(tmp_path, capsys):
     assert set(data["current"]) == {"a_c", "b", "d", "E_wc2", "w_alpha_per_w_c", "sample_mean", "sample_std"}
     assert set(data["umbilical"]) == {"50", "100", "200"}
     assert set(data["umbilical"]["50"]) == {"max_u", "Fx", "Fz"}
+
+
+def test_did_you_mean_never_suggests_the_mistyped_name_itself():
+    """The graph lists a service once a client asks for it, so the probe's own client for the typo was the
+    "nearest" name: "service /seapup/simulatr/get_parameters is not available; did you mean
+    /seapup/simulatr/get_parameters?"."""
+    from seapup_bringup.ros2_commands import _did_you_mean
+    typo, right = "/seapup/simulatr/get_parameters", "/seapup/simulator/get_parameters"
+    assert _did_you_mean(typo, [typo, right, "/seapup/navigator/get_parameters"]) == f"; did you mean {right}?"
+    assert _did_you_mean(typo, [typo]) == ""
