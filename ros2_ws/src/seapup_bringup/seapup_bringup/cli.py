@@ -188,35 +188,11 @@ def _run(argv: list[str]) -> int:
 
 
 @command("view", "watch the running graph (this domain) in Foxglove or Lichtblick: a WebSocket server on "
-         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.cli:_view",
+         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.view:view_parser",
          doc="live-view.md")
 def _view(argv: list[str]) -> int:
-    import argparse
-    from seapup_common.processes import find_executable
-    parser = argparse.ArgumentParser(prog="./seapup view", description="the live_view node on this domain "
-                                     "(docs/live-view.md); Ctrl-C ends it")
-    parser.add_argument("--port", type=int, default=8765, help="WebSocket port on 127.0.0.1 (default 8765)")
-    parser.add_argument("--vehicle", default="baseline", help="configuration drawn (the simulator's)")
-    parser.add_argument("--environment-file", default="", help="the seabed drawn until the simulator's is read")
-    parser.add_argument("--write-layout", metavar="FILE", help="write the Foxglove layout (3D, plots, services) to "
-                                                               "FILE and exit: import it in Foxglove")
-    from seapup_bringup.output import add_json_argument, emit_json
-    add_json_argument(parser)
-    args = parser.parse_args(argv)
-    if args.write_layout:
-        from pathlib import Path
-        from seapup_bringup.view_layout import layout_json
-        Path(args.write_layout).write_text(layout_json())
-        print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
-        emit_json(args, {"layout": args.write_layout})
-        return 0
-    if not 0 <= args.port <= 65535:
-        parser.error(f"--port must be 0..65535, got {args.port}")
-    path = find_executable("seapup_bringup", "live_view")
-    emit_json(args, {"url": f"ws://127.0.0.1:{args.port}", "port": args.port, "pid": os.getpid()})   # then serves
-    os.execv(str(path), [str(path), "--ros-args", "-p", f"port:={args.port}", "-p", f"vehicle:={args.vehicle}",
-                         "-p", f"environment_file:={args.environment_file}"])
-    return 1  # not reached
+    from seapup_bringup.view import view_command
+    return view_command(argv)
 
 
 @command("verify", "open-loop verification of the vehicle model against the thesis",

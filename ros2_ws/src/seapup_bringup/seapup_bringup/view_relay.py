@@ -166,8 +166,8 @@ class Relay:
 
     async def _serve(self, client_reader, client_writer) -> None:
         if self.connections >= MAX_CONNECTIONS:
-            client_writer.write(_refusal("503 Service Unavailable", f"{MAX_CONNECTIONS} viewers already connected"))
-            await _close(client_writer)
+            await _refuse(client_reader, client_writer, "503 Service Unavailable",
+                          f"{MAX_CONNECTIONS} viewers already connected")
             return
         self.connections += 1
         server_writer = None
@@ -179,7 +179,7 @@ class Relay:
                     ValueError) as exc:
                 reason = f"request head over {MAX_HEAD_BYTES} bytes" if isinstance(exc, asyncio.LimitOverrunError) \
                     else str(exc) or "no complete request head"
-                client_writer.write(_refusal("400 Bad Request", reason))
+                await _refuse(client_reader, client_writer, "400 Bad Request", reason)
                 return
             server_reader, server_writer = await asyncio.open_connection("127.0.0.1", self.upstream_port,
                                                                          limit=MAX_HEAD_BYTES)
@@ -208,6 +208,20 @@ async def _pipe(reader, writer) -> None:
             await writer.drain()
     finally:
         writer.close()   # the other side sees the end, and its pipe ends too
+
+
+async def _refuse(reader, writer, status: str, reason: str) -> None:
+    """Answer ``status`` and end the connection so that the client reads the answer: half-close, then discard
+    what the client still sends (at most one chunk, for a second). Closing a socket with unread input makes the
+    kernel send a reset, which can reach the client before the answer does."""
+    writer.write(_refusal(status, reason))
+    try:
+        if writer.can_write_eof():
+            writer.write_eof()
+        await asyncio.wait_for(reader.read(CHUNK_BYTES), 1.0)
+    except (OSError, asyncio.TimeoutError, asyncio.IncompleteReadError, asyncio.LimitOverrunError):
+        pass
+    await _close(writer)
 
 
 async def _close(writer) -> None:
