@@ -17,13 +17,18 @@ from seapup_common.bag import BagError, BagWriter, make_typestore, recover_bag, 
 from seapup_common.processes import DomainLease, NoFreeDomainError
 
 PARENT = """
-import sys, time
-from seapup_common.processes import DomainLease, NodeProcess, ros_environment
+import subprocess, sys, time
+from seapup_common.processes import DomainLease, NodeProcess, child_options, ros_environment
 lease = DomainLease(lock_dir=sys.argv[1], candidates=[int(sys.argv[2])])
 lease.acquire()
-child = NodeProcess([sys.executable, "-c", sys.argv[3]], ros_environment(lease.domain_id), sys.argv[4]).start()
-if sys.argv[5] == "release-and-exit":  # once the child ignores SIGTERM (the log says so)
-    while "ready" not in child.log_text():
+child = NodeProcess([sys.executable, "-c", sys.argv[3]], ros_environment(lease.domain_id), sys.argv[4])
+if sys.argv[5] == "release-and-exit":  # tied to us (death signal, leases) but not reaped: it may outlive us
+    child.popen = subprocess.Popen(child.command, env=child.env, stdout=open(sys.argv[4], "wb"), **child_options())
+    while "ready" not in child.log_text():   # once the child ignores SIGTERM (the log says so)
+        time.sleep(0.01)
+else:
+    child.start()
+    while sys.argv[5] == "wait-ready" and "ready" not in child.log_text():
         time.sleep(0.01)
 print(child.popen.pid, flush=True)
 if sys.argv[5] == "release-and-exit":
@@ -81,6 +86,49 @@ def test_a_child_dies_within_two_seconds_of_its_parent(tmp_path, sig):
     os.kill(parent.pid, sig)
     parent.wait(10)
     assert gone_within([child], 2.0), f"child {child} outlived its parent killed by {sig.name}"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_a_child_that_ignores_sigterm_still_dies_within_two_seconds_of_its_parent(tmp_path, sig):
+    """Issue 40: children hung where no signal handler runs (simulators interrupted while starting, in a
+    futex) ignored the SIGTERM of their parent's death and lived on under PID 1 for minutes. The parent's
+    reaper sends SIGKILL after its grace, whatever killed the parent."""
+    parent, child = start_parent(tmp_path, 152, STUBBORN, "wait-ready")
+    os.kill(parent.pid, sig)
+    parent.wait(10)
+    assert gone_within([child], 2.0), f"child {child} (ignoring SIGTERM) outlived its parent killed by {sig.name}"
+
+
+NODE_HUNG_WHILE_STARTING = """
+import os, sys
+import seapup_common.ros.node as node
+node.STOP_BUDGET = 1.0
+def make_node():
+    read, _ = os.pipe()
+    print("starting", flush=True)
+    os.read(read, 1)   # blocks for ever, as a node hung while starting (a handler runs, the read goes on)
+sys.exit(node.run_node(make_node, ["hung"]))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_node_told_to_stop_while_it_is_starting_stops_even_if_it_hangs(tmp_path, sig):
+    """Issue 40: a node told to stop while starting only set a flag nobody read (its construction never
+    returned), and in its clean-up it ignored SIGINT/SIGTERM outright: it never ended. A stop now arms a
+    watchdog below Python (faulthandler's thread) that ends the process once the stop budget is spent."""
+    from seapup_common.processes import NodeProcess, ros_environment
+    proc = NodeProcess([sys.executable, "-c", NODE_HUNG_WHILE_STARTING], ros_environment(153),
+                       tmp_path / "hung.log").start()
+    deadline = time.monotonic() + 60
+    while "starting" not in proc.log_text() and time.monotonic() < deadline and proc.running:
+        time.sleep(0.02)
+    assert proc.running, proc.log_text()
+    os.kill(proc.popen.pid, sig)
+    try:
+        code = proc.popen.wait(timeout=10.0)  # 1 s of budget, and a loaded machine's margin
+    finally:
+        proc.stop(grace=0.1)
+    assert code == 1 and "Traceback" not in proc.log_text(), (code, proc.log_text())
 
 
 def test_a_leased_domain_stays_taken_while_a_child_lives(tmp_path):

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import signal
 import struct
-import subprocess
 import sys
 import time
 from itertools import groupby
@@ -83,7 +82,7 @@ def record(argv: list[str]) -> int:
           f"({reason})", file=sys.stderr)
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
-    from seapup_common.processes import child_options, find_executable
+    from seapup_common.processes import find_executable, spawn
     from seapup_common.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
     if output.exists():
@@ -97,7 +96,7 @@ def record(argv: list[str]) -> int:
            "-p", f"use_sim_time:={str(args.use_sim_time).lower()}", "-p", f"bag_path:={output}"]
     # the recorder runs as a child so that, when it has closed the bag (Ctrl-C, SIGTERM or
     # --max-duration), this process can say what is in it
-    child = subprocess.Popen([str(exe), *ros], **child_options())  # signals come once, from us; dies with us
+    child = spawn([str(exe), *ros])  # signals come once, from us; dies with us
 
     def forward(signum, frame):  # a closed terminal (SIGHUP) finalises the bag as Ctrl-C does
         child.send_signal(signal.SIGINT if signum == signal.SIGHUP else signum)

@@ -23,7 +23,7 @@ import threading
 import time
 
 from seapup_bringup.output import add_json_argument, emit_json
-from seapup_common.processes import child_options
+from seapup_common.processes import spawn
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch", "STOP_GRACE_MAX"]
@@ -75,8 +75,8 @@ class Launch:
             self.out.flush()
 
     def _start(self, node: _Running) -> None:
-        node.popen = subprocess.Popen(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, **child_options())
+        node.popen = spawn(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         node.starts += 1
         node.restart_at = None
         self.say("launch", f"started {node.spec.label} (pid {node.popen.pid})"

@@ -16,7 +16,16 @@ that machinery, with no rclpy import:
   The child asks the kernel for SIGTERM when its parent dies
   (``PR_SET_PDEATHSIG``), whatever kills the parent (SIGKILL included, where
   no handler runs), and inherits every domain lease the parent holds, so a
-  leased domain stays taken until the last child is gone.
+  leased domain stays taken until the last child is gone;
+- :func:`spawn` starts a child with those options and registers it with this
+  process's *reaper*: a small process (one per owner, started with the first
+  child) that waits, on a pipe only the owner holds, for the owner to end --
+  however it ends -- and then stops every child still running: SIGTERM to its
+  process group, SIGKILL :data:`REAPER_GRACE` s later. The death signal alone
+  is not enough: a child that ignores SIGTERM or is hung where no signal
+  handler runs (seen: simulators interrupted while starting, in a futex,
+  alive under PID 1 for minutes) needs the SIGKILL its dead owner can no
+  longer send.
 """
 from __future__ import annotations
 
@@ -25,7 +34,9 @@ import fcntl
 import os
 import signal
 import subprocess
+import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -37,7 +48,121 @@ __all__ = [
     "NodeProcess",
     "stop_process_groups",
     "child_options",
+    "spawn",
+    "REAPER_GRACE",
 ]
+
+#: Seconds the reaper gives the children of a dead owner to end after its SIGTERM before SIGKILL.
+REAPER_GRACE = 1.2
+
+#: The reaper's program (``python -S -c``): read "PID STARTTIME" lines until the owner's end closes the pipe, then
+#: stop each child's process group still running. A child is identified by its pid and its start time (field 22
+#: of /proc/PID/stat), so a pid reused by an unrelated process is never signalled; a leader already gone leaves
+#: its group's id unused by anyone else while that group lives, so the group is signalled.
+_REAPER = r"""
+import os, signal, sys, time
+fd, grace, groups, rest = int(sys.argv[1]), float(sys.argv[2]), {}, b""
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+signal.signal(signal.SIGHUP, signal.SIG_IGN)
+while True:
+    chunk = os.read(fd, 65536)
+    if not chunk:
+        break
+    *lines, rest = (rest + chunk).split(b"\n")
+    for line in lines:
+        pid, start = line.split()
+        groups[int(pid)] = start
+def started(pid):
+    try:
+        with open("/proc/%d/stat" % pid, "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+def send(sig):
+    hit = False
+    for pid, start in groups.items():
+        now = started(pid)
+        if now is not None and now != start:
+            continue
+        try:
+            os.killpg(pid, sig)
+            hit = True
+        except (ProcessLookupError, PermissionError):
+            pass
+    return hit
+def running():
+    for pid, start in groups.items():
+        now = started(pid)
+        if now == start:
+            try:
+                with open("/proc/%d/stat" % pid, "rb") as f:
+                    if f.read().rsplit(b")", 1)[1].split()[0] not in (b"Z", b"X"):
+                        return True
+            except OSError:
+                pass
+        elif now is None:
+            try:
+                os.killpg(pid, 0)
+                return True
+            except (ProcessLookupError, PermissionError):
+                pass
+    return False
+if running():
+    send(signal.SIGTERM)
+    deadline = time.monotonic() + grace
+    while time.monotonic() < deadline and running():
+        time.sleep(0.02)
+    send(signal.SIGKILL)
+"""
+
+
+class _Reaper:
+    """This process's reaper (module docstring): started with the first child, one per process."""
+
+    def __init__(self):
+        self.owner: int | None = None
+        self.fd: int | None = None
+        self.lock = threading.Lock()
+
+    def register(self, pid: int) -> None:
+        with self.lock:
+            if self.owner != os.getpid():   # first child here (or a forked copy of an owner): a reaper of our own
+                self._start()
+            try:
+                os.write(self.fd, f"{pid} {_start_time(pid)}\n".encode())
+            except OSError:   # the reaper is gone (killed): the death signal still covers the child
+                pass
+
+    def _start(self) -> None:
+        read, write = os.pipe()   # neither end is inherited by children (close_fds)
+        try:
+            subprocess.Popen([sys.executable, "-S", "-c", _REAPER, str(read), str(REAPER_GRACE)], pass_fds=(read,),
+                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                             start_new_session=True, close_fds=True)
+        finally:
+            os.close(read)
+        self.owner, self.fd = os.getpid(), write
+
+
+_REAPER_OF_THIS_PROCESS = _Reaper()
+
+
+def _start_time(pid: int) -> str:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[19].decode()
+    except (OSError, IndexError):
+        return "0"
+
+
+def spawn(command, **popen_kwargs) -> subprocess.Popen:
+    """Start ``command`` as a child tied to this process (:func:`child_options`) and registered with its
+    reaper: whatever ends this process, the child's process group gets SIGTERM, then SIGKILL
+    :data:`REAPER_GRACE` s later. Keyword arguments go to :class:`subprocess.Popen`.
+    """
+    popen = subprocess.Popen(command, **popen_kwargs, **child_options())
+    _REAPER_OF_THIS_PROCESS.register(popen.pid)
+    return popen
 
 #: Domain IDs seapup leases. 0 is left to users; the Linux port mapping of
 #: DDS allows 0-101 (and 215-232) with the default participant limits.
@@ -249,9 +374,8 @@ class NodeProcess:
     def start(self) -> "NodeProcess":
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log_path, "wb") as log:
-            self.popen = subprocess.Popen(self.command, env=self.env, stdout=log,
-                                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                          **child_options())
+            self.popen = spawn(self.command, env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                               stdin=subprocess.DEVNULL)
         return self
 
     @property
