@@ -86,6 +86,8 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float =
             return Client(scheduler, timeout=f"{connect_timeout}s"), None
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
+    from seapup_common.processes import watch_descendants
+    watch_descendants()   # the cluster's nannies and workers end with this process, however it ends
     cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                            dashboard_address=":0", silence_logs=40, death_timeout=10)
     return Client(cluster), cluster

@@ -49,6 +49,7 @@ __all__ = [
     "stop_process_groups",
     "child_options",
     "spawn",
+    "watch_descendants",
     "REAPER_GRACE",
 ]
 
@@ -56,15 +57,54 @@ __all__ = [
 REAPER_GRACE = 1.2
 
 #: The reaper's program (``python -S -c``): read "PID STARTTIME" lines until the owner's end closes the pipe, then
-#: stop each child's process group still running. A child is identified by its pid and its start time (field 22
+#: stop each child's process group still running. Meanwhile, every 0.2 s, it notes the owner's descendants
+#: (``/proc/PID/task/*/children``, recursively) -- the processes a library starts on its own (Dask's nannies and
+#: workers) -- and stops those still running too. A child is identified by its pid and its start time (field 22
 #: of /proc/PID/stat), so a pid reused by an unrelated process is never signalled; a leader already gone leaves
 #: its group's id unused by anyone else while that group lives, so the group is signalled.
 _REAPER = r"""
-import os, signal, sys, time
-fd, grace, groups, rest = int(sys.argv[1]), float(sys.argv[2]), {}, b""
-signal.signal(signal.SIGINT, signal.SIG_IGN)
-signal.signal(signal.SIGHUP, signal.SIG_IGN)
+import os, select, signal, sys, time
+fd, grace, owner, me = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), os.getpid()
+groups, procs, rest = {}, {}, b""
+for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):   # its work starts when its owner ends: not before
+    signal.signal(sig, signal.SIG_IGN)
+def stat(pid):
+    try:
+        with open("/proc/%d/stat" % pid, "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+def snapshot():
+    # only while the owner lives (it is our parent): never a walk from whoever adopted us once it is gone
+    if owner <= 1 or os.getppid() != owner:
+        return
+    todo = [owner]
+    while todo:
+        pid = todo.pop()
+        try:
+            tasks = os.listdir("/proc/%d/task" % pid)
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open("/proc/%d/task/%s/children" % (pid, task)) as f:
+                    kids = [int(k) for k in f.read().split()]
+            except OSError:
+                continue
+            for kid in kids:
+                if kid > 1 and kid != me:
+                    fields = stat(kid)
+                    if fields is not None:
+                        procs.setdefault(kid, fields[19])
+                    todo.append(kid)
+last = 0.0
 while True:
+    ready = select.select([fd], [], [], 0.2)[0]
+    if time.monotonic() - last >= 0.2:
+        snapshot()
+        last = time.monotonic()
+    if not ready:
+        continue
     chunk = os.read(fd, 65536)
     if not chunk:
         break
@@ -72,35 +112,30 @@ while True:
     for line in lines:
         pid, start = line.split()
         groups[int(pid)] = start
-def started(pid):
-    try:
-        with open("/proc/%d/stat" % pid, "rb") as f:
-            return f.read().rsplit(b")", 1)[1].split()[19]
-    except (OSError, IndexError):
-        return None
+def ours(pid, start):
+    fields = stat(pid)
+    return fields is not None and fields[19] == start and fields[0] not in (b"Z", b"X")
 def send(sig):
-    hit = False
     for pid, start in groups.items():
-        now = started(pid)
-        if now is not None and now != start:
+        if pid <= 1:
             continue
-        try:
-            os.killpg(pid, sig)
-            hit = True
-        except (ProcessLookupError, PermissionError):
-            pass
-    return hit
-def running():
-    for pid, start in groups.items():
-        now = started(pid)
-        if now == start:
+        fields = stat(pid)
+        if fields is None or fields[19] == start:
             try:
-                with open("/proc/%d/stat" % pid, "rb") as f:
-                    if f.read().rsplit(b")", 1)[1].split()[0] not in (b"Z", b"X"):
-                        return True
-            except OSError:
+                os.killpg(pid, sig)
+            except (ProcessLookupError, PermissionError):
                 pass
-        elif now is None:
+    for pid, start in procs.items():
+        if pid > 1 and ours(pid, start):
+            try:
+                os.kill(pid, sig)
+            except (ProcessLookupError, PermissionError):
+                pass
+def running():
+    for pid, start in list(groups.items()) + list(procs.items()):
+        if ours(pid, start):
+            return True
+        if pid in groups and stat(pid) is None:
             try:
                 os.killpg(pid, 0)
                 return True
@@ -122,6 +157,7 @@ class _Reaper:
     def __init__(self):
         self.owner: int | None = None
         self.fd: int | None = None
+        self.pid: int | None = None   # the reaper's
         self.lock = threading.Lock()
 
     def register(self, pid: int) -> None:
@@ -136,9 +172,10 @@ class _Reaper:
     def _start(self) -> None:
         read, write = os.pipe()   # neither end is inherited by children (close_fds)
         try:
-            subprocess.Popen([sys.executable, "-S", "-c", _REAPER, str(read), str(REAPER_GRACE)], pass_fds=(read,),
-                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             start_new_session=True, close_fds=True)
+            self.pid = subprocess.Popen(
+                [sys.executable, "-S", "-c", _REAPER, str(read), str(REAPER_GRACE), str(os.getpid())],
+                pass_fds=(read,), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                start_new_session=True, close_fds=True).pid
         finally:
             os.close(read)
         self.owner, self.fd = os.getpid(), write
@@ -153,6 +190,14 @@ def _start_time(pid: int) -> str:
             return f.read().rsplit(b")", 1)[1].split()[19].decode()
     except (OSError, IndexError):
         return "0"
+
+
+def watch_descendants() -> None:
+    """Start this process's reaper now (it starts with the first :func:`spawn` otherwise), so the processes a
+    library starts on its own (a Dask LocalCluster's) are noted and stopped once this process ends."""
+    with _REAPER_OF_THIS_PROCESS.lock:
+        if _REAPER_OF_THIS_PROCESS.owner != os.getpid():
+            _REAPER_OF_THIS_PROCESS._start()
 
 
 def spawn(command, **popen_kwargs) -> subprocess.Popen:
