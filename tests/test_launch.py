@@ -97,6 +97,63 @@ def test_arguments_are_substituted_and_checked(tmp_path):
             load_graph(bad)
 
 
+@pytest.mark.parametrize("key, value, reason", [
+    ("respawn_delay", ".nan", "respawn_delay must be a number of seconds in [0, 3600], got nan"),
+    ("respawn_delay", ".inf", "respawn_delay must be a number of seconds in [0, 3600], got inf"),
+    ("respawn_delay", "-0.5", "respawn_delay must be a number of seconds in [0, 3600], got -0.5"),
+    ("respawn_delay", "1.0e+9", "respawn_delay must be a number of seconds in [0, 3600], got 1000000000.0"),
+    ("respawn_delay", "soon", "respawn_delay must be a number of seconds in [0, 3600], got 'soon'"),
+    ("respawn_delay", "true", "respawn_delay must be a number of seconds in [0, 3600], got True"),
+    ("respawn_max_retries", "2.5", "respawn_max_retries must be an integer >= -1 (-1: no limit), got 2.5"),
+    ("respawn_max_retries", ".nan", "respawn_max_retries must be an integer >= -1 (-1: no limit), got nan"),
+    ("respawn_max_retries", "true", "respawn_max_retries must be an integer >= -1 (-1: no limit), got True"),
+    ("respawn_max_retries", "-2", "respawn_max_retries must be an integer >= -1 (-1: no limit), got -2"),
+])
+def test_a_numeric_launch_attribute_out_of_range_is_refused_naming_the_file_and_node(tmp_path, key, value, reason):
+    """Issue 40: ``respawn_delay: .nan`` was accepted, and the launcher then neither restarted the node
+    nor ended. Every numeric attribute is finite and in its range, refused in one line naming file and node."""
+    path = tmp_path / "g.launch.yaml"
+    path.write_text(f"launch:\n  - node: {{pkg: seapup_sim, exec: simulator, name: sim, respawn: 'true', "
+                    f"{key}: {value}}}\n")
+    with pytest.raises(LaunchError) as refused:
+        load_graph(path)
+    assert str(refused.value) == f"{path}: node sim: {reason}"
+
+
+def test_numeric_launch_attributes_in_range_are_read_as_numbers(tmp_path):
+    path = tmp_path / "g.launch.yaml"
+    path.write_text("launch:\n  - arg: {name: d, default: '0.25'}\n  - node: {pkg: seapup_sim, exec: simulator, "
+                    "respawn: 'true', respawn_delay: $(var d), respawn_max_retries: 3.0}\n")
+    (spec,) = load_graph(path)
+    assert (spec.respawn_delay, spec.respawn_limit) == (0.25, 3) and isinstance(spec.respawn_limit, int)
+    (spec,) = load_graph(path, {"d": "3600"})
+    assert spec.respawn_delay == 3600.0
+
+
+def test_a_launch_file_is_read_bounded_and_strictly(tmp_path):
+    """Read through seapup_common.input_files: a duplicated key (PyYAML kept the last one silently) and an
+    oversized file are refused in one line, before anything is started."""
+    path = tmp_path / "g.launch.yaml"
+    path.write_text("launch:\n  - node: {pkg: seapup_sim, exec: simulator, exec: controller}\n")
+    with pytest.raises(LaunchError, match=r"duplicate key 'exec'"):
+        load_graph(path)
+    path.write_text("launch: []\n" + "#" * (1 << 20))
+    with pytest.raises(LaunchError, match="larger than 1 MiB, the limit for a launch file"):
+        load_graph(path)
+    path.write_text("")
+    with pytest.raises(LaunchError, match="is empty"):
+        load_graph(path)
+
+
+def test_launch_stop_grace_is_checked(tmp_path):
+    """``--stop-grace nan`` (or negative) is refused before anything starts."""
+    for value in ("nan", "-1", "1e9"):
+        done = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "launch", "--stop-grace", value,
+                               "seapup_bringup", "simulator.launch.yaml"], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and "--stop-grace must be a number of seconds in [0, 60]" in done.stderr, done
+        assert "Traceback" not in done.stderr and "started" not in done.stdout
+
+
 def test_a_required_node_that_dies_stops_the_graph_and_is_named(tmp_path, ros_env):
     path = graph(tmp_path, [
         {"pkg": "seapup_sim", "exec": "simulator", "on_exit": "shutdown",

@@ -214,3 +214,73 @@ def test_a_malformed_parameter_rule_is_a_clear_error_not_a_traceback(ros_env):
                          env=ros_env, capture_output=True, text=True, timeout=60)
     assert run.returncode == 1
     assert "fatal" in run.stderr and "exclude:=" in run.stderr and "Traceback" not in run.stderr
+
+
+def _bag_cli(capsys, *argv):
+    """``./seapup bag ...`` in this process: (exit code, stdout, stderr)."""
+    from seapup_bringup.bag_commands import bag
+    code = bag(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _copy_reference_bag(tmp_path, name):
+    import shutil
+    from pathlib import Path
+    source = Path(__file__).resolve().parents[1] / "bags" / "selftest_5hz"
+    target = tmp_path / name
+    target.mkdir()
+    shutil.copyfile(storage_file(source), storage_file(target))
+    meta = (source / "metadata.yaml").read_text().replace(storage_file(source).name, storage_file(target).name)
+    (target / "metadata.yaml").write_text(meta)
+    return target
+
+
+def test_bag_recover_outcomes_are_consistent_and_true(tmp_path, capsys):
+    """Issue 40: random bytes were "recovered 0 messages" with exit 0 (an empty file exit 1), and an intact
+    bag was "damaged file kept as " (no name). Now: not MCAP -> exit 1 saying so, nothing changed;
+    intact -> exit 0, "nothing to recover", nothing changed; damaged -> the count and the kept file's name."""
+    import os
+    for name, content in (("noise", os.urandom(10_000)), ("empty", b"")):
+        (tmp_path / name).mkdir()
+        storage_file(tmp_path / name).write_bytes(content)
+        code, out, err = _bag_cli(capsys, "recover", str(tmp_path / name))
+        assert code == 1 and out == "" and err.count("\n") == 1 and "not an MCAP file" in err, (name, err)
+        assert [p.name for p in (tmp_path / name).iterdir()] == [storage_file(tmp_path / name).name]
+        assert storage_file(tmp_path / name).read_bytes() == content
+
+    intact = _copy_reference_bag(tmp_path, "intact")
+    before = {p.name: p.read_bytes() for p in intact.iterdir()}
+    code, out, err = _bag_cli(capsys, "recover", str(intact))
+    assert code == 0 and out == "nothing to recover: the bag is intact (5714 messages); nothing changed\n", out
+    assert {p.name: p.read_bytes() for p in intact.iterdir()} == before
+
+    cut = _copy_reference_bag(tmp_path, "cut")
+    data = storage_file(cut).read_bytes()
+    storage_file(cut).write_bytes(data[:800_000])
+    code, out, err = _bag_cli(capsys, "recover", str(cut))
+    first = out.splitlines()[0]
+    kept = first.rsplit("damaged file kept as ", 1)[1]
+    assert code == 0 and kept == "cut_0.mcap.damaged" and (cut / kept).read_bytes() == data[:800_000], out
+    n = int(first.split()[1])
+    assert first.startswith(f"recovered {n} messages (reading stopped: cut_0.mcap ends early (truncated at byte "
+                            f"800000))") and 0 < n == len(list(read_bag(cut))) < 5714
+
+
+def test_hostile_bags_are_refused_with_reasons_by_info_and_replay(tmp_path, capsys):
+    """Reading errors are reasons ("ends early ... run ./seapup bag recover DIR"), never an exception's name
+    ("EndOfFile:", "InvalidMagic:"), and nothing is played."""
+    import os
+    from seapup_bringup.bag_commands import replay
+    cut = _copy_reference_bag(tmp_path, "cut")
+    storage_file(cut).write_bytes(storage_file(cut).read_bytes()[:800_000])
+    (tmp_path / "noise").mkdir()
+    storage_file(tmp_path / "noise").write_bytes(os.urandom(5000))
+    (tmp_path / "void").mkdir()
+    for path, reason in ((cut, f"cut_0.mcap ends early (truncated at byte 800000): run ./seapup bag recover {cut}"),
+                         (tmp_path / "noise", "is not an MCAP file"), (tmp_path / "void", "has no void_0.mcap")):
+        assert replay([str(path)]) == 1
+        out, err = capsys.readouterr()
+        assert reason in err and err.count("\n") == 1 and "Error" not in err and "EndOfFile" not in err, err
+    code, out, err = _bag_cli(capsys, "info", str(tmp_path / "void"))
+    assert code == 1 and "is not a bag: it has neither metadata.yaml nor void_0.mcap" in err

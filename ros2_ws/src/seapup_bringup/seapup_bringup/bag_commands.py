@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 import signal
-import subprocess
+import struct
 import sys
 import time
 from itertools import groupby
@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
-from seapup_common.bag import BagError, bag_info, recover_bag, storage_file, storage_files
+from seapup_common.bag import BagError, bag_info, check_storage_files, recover_bag, storage_files
 from seapup_common.topics import CLOCK, TRUTH_ODOMETRY
 
 __all__ = ["record", "bag", "replay"]
@@ -88,7 +88,7 @@ def record(argv: list[str]) -> int:
           f"({reason})", file=sys.stderr)
     if not all(v >= 0 for v in (args.flush_interval, args.max_duration, args.max_bag_size, args.max_bag_duration)):
         parser.error("--flush-interval, --max-duration, --max-bag-size and --max-bag-duration must be >= 0")
-    from seapup_common.processes import child_options, find_executable
+    from seapup_common.processes import find_executable, spawn
     from seapup_common.recorder_node import default_bag_path
     output = Path(args.output).resolve() if args.output else default_bag_path().resolve()
     if output.exists():
@@ -102,7 +102,7 @@ def record(argv: list[str]) -> int:
            "-p", f"use_sim_time:={str(args.use_sim_time).lower()}", "-p", f"bag_path:={output}"]
     # the recorder runs as a child so that, when it has closed the bag (Ctrl-C, SIGTERM or
     # --max-duration), this process can say what is in it
-    child = subprocess.Popen([str(exe), *ros], **child_options())  # signals come once, from us; dies with us
+    child = spawn([str(exe), *ros])  # signals come once, from us; dies with us
 
     def forward(signum, frame):  # a closed terminal (SIGHUP) finalises the bag as Ctrl-C does
         child.send_signal(signal.SIGINT if signum == signal.SIGHUP else signum)
@@ -152,8 +152,10 @@ def bag(argv: list[str]) -> int:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1
     if args.verb == "recover":
-        print(f"recovered {result['messages']} messages ({result['stopped_at']}); damaged file kept as "
-              f"{result['damaged_file']}", file=out)
+        print(_recover_line(result), file=out)
+        if result["intact"]:   # nothing changed on disk
+            emit_json(args, result)
+            return 0
         result = {**result, "info": bag_info(args.path)}
         info = result["info"]
     else:
@@ -171,10 +173,25 @@ def bag(argv: list[str]) -> int:
     return 0
 
 
+def _recover_line(result: dict) -> str:
+    """What ``bag recover`` did, in one line: nothing (intact), or what it kept and under which names."""
+    if result["intact"]:
+        return f"nothing to recover: the bag is intact ({result['messages']} messages); nothing changed"
+    if result["damaged_file"]:
+        return (f"recovered {result['messages']} messages (reading stopped: {result['stopped_at']}); "
+                f"damaged file kept as {result['damaged_file']}")
+    return (f"recovered {result['messages']} messages: the files were whole, metadata.yaml rebuilt; originals kept "
+            f"as {', '.join(result['kept'])}")
+
+
 def _qos(channel_metadata: dict):
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    profiles = yaml.safe_load(channel_metadata.get("offered_qos_profiles") or "[]") or []
-    first = profiles[0] if profiles else {}
+    from seapup_common.input_files import InputFileError, parse_yaml
+    try:   # the bag's text: strict and bounded YAML; unreadable profiles are the defaults
+        profiles = parse_yaml(str(channel_metadata.get("offered_qos_profiles") or "[]"), "offered_qos_profiles")
+    except InputFileError:
+        profiles = []
+    first = profiles[0] if isinstance(profiles, list) and profiles and isinstance(profiles[0], dict) else {}
     return QoSProfile(depth=1000,
                       reliability=(ReliabilityPolicy.BEST_EFFORT if first.get("reliability") == "best_effort"
                                    else ReliabilityPolicy.RELIABLE),
@@ -221,11 +238,13 @@ def replay(argv: list[str]) -> int:
             check_port(args.view_port)
         except ValueError as exc:
             parser.error(str(exc))
-    if not storage_file(args.path).is_file():
-        print(f"seapup: error: {args.path} has no {storage_file(args.path).name}", file=sys.stderr)
-        return 1
     clock = args.clock or bool(args.lockstep)
-    answer_type, channels, records = _load_replay(args.path, args.topics, args.lockstep, clock)
+    try:
+        check_storage_files(args.path)   # not MCAP, or truncated: a reason, before any reader seeks
+        answer_type, channels, records = _load_replay(args.path, args.topics, args.lockstep, clock)
+    except BagError as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
     if not records:
         print("seapup: nothing to replay", file=sys.stderr)
         return 1
@@ -315,12 +334,23 @@ def _load_replay(path: Path, topics, lockstep_topic, clock: bool):
     lockstep answer topic is left out (the node under test publishes it); the
     answer topic's type is returned from the bag's channels.
     """
+    from mcap.exceptions import McapError
+    try:
+        return _read_replay(path, topics, lockstep_topic, clock)
+    except (McapError, EOFError, ValueError, KeyError, struct.error) as exc:
+        raise BagError(f"the bag's MCAP files cannot be read ({str(exc).splitlines()[0][:120] if str(exc) else 'damaged'})"
+                       f": run ./seapup bag recover {path}") from None
+
+
+def _read_replay(path: Path, topics, lockstep_topic, clock: bool):
     from mcap.reader import make_reader
     all_types, channels, records = {}, {}, []
     for storage in storage_files(path):  # a split bag: file after file, channels by topic
         with open(storage, "rb") as f:
             reader = make_reader(f)
             summary = reader.get_summary()
+            if summary is None:
+                raise BagError(f"the bag's MCAP file {storage.name} has no summary: run ./seapup bag recover {path}")
             for c in summary.channels.values():
                 all_types[c.topic] = summary.schemas[c.schema_id].name
                 if ((topics is None or c.topic in topics) and c.topic != lockstep_topic

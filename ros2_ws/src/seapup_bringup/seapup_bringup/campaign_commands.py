@@ -88,6 +88,8 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float =
             return Client(scheduler, timeout=f"{connect_timeout}s"), None
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
+    from seapup_common.processes import watch_descendants
+    watch_descendants()   # the cluster's nannies and workers end with this process, however it ends
     cluster = None
     try:
         with _sigint_blocked():   # the workers start with Ctrl-C blocked: only this process answers it

@@ -23,10 +23,13 @@ import threading
 import time
 
 from seapup_bringup.output import add_json_argument, emit_json
-from seapup_common.processes import child_options
+from seapup_common.processes import spawn
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
-__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch"]
+__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch", "STOP_GRACE_MAX"]
+
+#: The longest wait between two stop signals a user may ask for [s] (``--stop-grace``).
+STOP_GRACE_MAX = 60.0
 
 
 class _Running:
@@ -72,8 +75,8 @@ class Launch:
             self.out.flush()
 
     def _start(self, node: _Running) -> None:
-        node.popen = subprocess.Popen(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, **child_options())
+        node.popen = spawn(self.commands[node.spec.label], env=self.env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         node.starts += 1
         node.restart_at = None
         self.say("launch", f"started {node.spec.label} (pid {node.popen.pid})"
@@ -100,6 +103,8 @@ class Launch:
         failed = []
         try:
             for node in self.nodes:
+                if self._stop.is_set():   # stopped while starting: the rest are not started
+                    break
                 self._start(node)
             while not self._stop.is_set():
                 alive = False
@@ -177,6 +182,8 @@ def launch(argv: list[str]) -> int:
             check_port(args.view_port)
         except ValueError as exc:
             parser.error(str(exc))
+    if not 0.0 <= args.stop_grace <= STOP_GRACE_MAX:   # NaN fails this too
+        parser.error(f"--stop-grace must be a number of seconds in [0, {STOP_GRACE_MAX:g}], got {args.stop_grace}")
     words = [w for w in args.graph if ":=" not in w]
     given = dict(w.split(":=", 1) for w in args.graph if ":=" in w)
     try:

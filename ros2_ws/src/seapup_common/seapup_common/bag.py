@@ -26,7 +26,7 @@ Messages go in and come out as CDR bytes (rclpy raw subscriptions,
 from __future__ import annotations
 
 import fcntl
-import io
+import mmap
 import os
 import struct
 import time
@@ -36,14 +36,25 @@ from typing import Iterator
 
 import yaml
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, Footer, Message, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 __all__ = ["BagError", "BagMessage", "QosProfileDict", "make_typestore", "BagWriter", "header_stamp_ns", "read_bag", "bag_info", "writer_alive",
-           "recover_bag", "storage_file", "storage_files", "DEFAULT_QOS", "BAG_VERSION"]
+           "recover_bag", "storage_file", "storage_files", "DEFAULT_QOS", "BAG_VERSION", "read_metadata",
+           "check_storage_files", "MCAP_MAGIC"]
+
+#: The eight bytes an MCAP file starts and ends with.
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: The most files a bag's metadata.yaml may list (a split bag of 10 000 files is far beyond any seapup run).
+MAX_BAG_FILES = 10_000
+#: The most topics a bag's metadata.yaml may list.
+MAX_BAG_TOPICS = 100_000
+#: The largest uncompressed chunk :func:`recover_bag` decompresses (rosbag2 writes 0.75 MiB chunks).
+MAX_CHUNK_BYTES = 256 << 20
+_INT64_MAX = (1 << 63) - 1
 
 #: rosbag2 metadata version written by ROS 2 Jazzy.
 BAG_VERSION = 9
@@ -430,16 +441,151 @@ def header_stamp_ns(cdr: bytes) -> int | None:
     return sec * 1_000_000_000 + nanosec if nanosec < 1_000_000_000 else None
 
 
-def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
-    """Messages of a closed rosbag2 bag in log-time order, optionally only some topics."""
+def _require(condition: bool, source, what: str, value) -> None:
+    if not condition:
+        shown = repr(value)
+        raise BagError(f"{source}: {what}, got {shown[:80]}{'...' if len(shown) > 80 else ''}")
+
+
+def _count(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= _INT64_MAX
+
+
+def read_metadata(path: str | Path) -> dict:
+    """The ``rosbag2_bagfile_information`` of a bag's metadata.yaml, read bounded and strictly
+    (:mod:`seapup_common.input_files`, kind ``bag_metadata``) and checked: the fields seapup uses have their
+    types and ranges (counts and times integers in [0, 2^63)), and every file it lists is a plain file name
+    present in the bag directory.
+
+    Raises
+    ------
+    BagError
+        One line naming the bag, the field and what is wrong (a missing metadata.yaml says to recover the bag).
+    """
+    from seapup_common.input_files import InputFileError, load_yaml_file
     path = Path(path)
-    if not (path / "metadata.yaml").is_file():
-        raise BagError(f"{path} is not a closed rosbag2 bag (no metadata.yaml); "
-                       "if its recorder was killed, run ./seapup bag recover on it")
-    with Reader(path) as reader:
-        conns = [c for c in reader.connections if topics is None or c.topic in topics]
-        for conn, t_ns, raw in reader.messages(connections=conns):
-            yield BagMessage(conn.topic, conn.msgtype, t_ns, bytes(raw))
+    if not path.is_dir():
+        raise BagError(f"{path}: no such bag directory")
+    meta_file = path / "metadata.yaml"
+    if not meta_file.exists() and not storage_files(path):
+        raise BagError(f"{path} is not a bag: it has neither metadata.yaml nor {storage_file(path).name}")
+    if not meta_file.exists():
+        raise BagError(f"{path} has no metadata.yaml: not a closed bag (if its recorder was killed, run "
+                       f"./seapup bag recover {path})")
+    try:
+        document = load_yaml_file(meta_file, "bag_metadata")
+    except InputFileError as exc:
+        raise BagError(str(exc)) from None
+    _require(isinstance(document, dict) and isinstance(document.get("rosbag2_bagfile_information"), dict),
+             meta_file, "must be a mapping 'rosbag2_bagfile_information'", type(document).__name__)
+    info = document["rosbag2_bagfile_information"]
+    files = info.get("relative_file_paths")
+    _require(isinstance(files, list) and 1 <= len(files) <= MAX_BAG_FILES, meta_file,
+             f"relative_file_paths must be a list of 1 to {MAX_BAG_FILES} file names",
+             files if not isinstance(files, list) else f"{len(files)} entries")
+    for name in files:
+        _require(isinstance(name, str) and name not in ("", ".", "..") and "/" not in name and "\0" not in name,
+                 meta_file, "relative_file_paths: each entry must be a file name in the bag directory", name)
+        if not (path / name).is_file():
+            raise BagError(f"{meta_file} lists {name}, which is not in the bag (if the recorder was killed, run "
+                           f"./seapup bag recover {path})")
+    _require(_count(info.get("message_count")), meta_file, "message_count must be an integer in [0, 2^63)",
+             info.get("message_count"))
+    for key, field_name in (("duration", "nanoseconds"), ("starting_time", "nanoseconds_since_epoch")):
+        value = info.get(key)
+        _require(isinstance(value, dict) and _count(value.get(field_name)), meta_file,
+                 f"{key}.{field_name} must be an integer in [0, 2^63)",
+                 value.get(field_name) if isinstance(value, dict) else value)
+    _require(isinstance(info.get("storage_identifier"), str), meta_file, "storage_identifier must be a string",
+             info.get("storage_identifier"))
+    topics = info.get("topics_with_message_count")
+    _require(isinstance(topics, list) and len(topics) <= MAX_BAG_TOPICS, meta_file,
+             f"topics_with_message_count must be a list of at most {MAX_BAG_TOPICS} topics",
+             topics if not isinstance(topics, list) else f"{len(topics)} entries")
+    for t in topics:
+        meta = t.get("topic_metadata") if isinstance(t, dict) else None
+        _require(isinstance(meta, dict) and all(isinstance(meta.get(k), str) for k in ("name", "type",
+                                                                                      "serialization_format"))
+                 and isinstance(meta.get("offered_qos_profiles", []), (list, str)) and _count(t.get("message_count")),
+                 meta_file, "each of topics_with_message_count needs topic_metadata (name, type, "
+                 "serialization_format: strings) and message_count (an integer >= 0)", t)
+    return info
+
+
+def _reading_problem(exc: Exception, source: Path, offset: int, size: int) -> str:
+    """A reason, in words, why reading an MCAP file stopped (never an exception's name)."""
+    from mcap.exceptions import EndOfFile, InvalidMagic, RecordLengthLimitExceeded
+    if isinstance(exc, (EndOfFile, EOFError, struct.error)) or offset >= size:
+        return f"{source.name} ends early (truncated at byte {size})"
+    if isinstance(exc, InvalidMagic):
+        return f"{source.name} has no MCAP end marker at byte {offset} (damaged or truncated)"
+    if isinstance(exc, RecordLengthLimitExceeded):
+        return f"{source.name} has a record at byte {offset} longer than the file (damaged)"
+    text = str(exc).splitlines()[0][:120] if str(exc) else "unreadable"
+    return f"{source.name} has a damaged record at byte {offset} ({text})"
+
+
+def _magic_problem(source: Path) -> str:
+    """Why ``source`` is not an MCAP file at all ('' if it starts with the MCAP magic bytes)."""
+    try:
+        with open(source, "rb") as f:
+            head = f.read(len(MCAP_MAGIC))
+    except OSError as exc:
+        return f"{source} cannot be read ({exc.strerror or exc})"
+    if not head:
+        return f"{source} is empty: not an MCAP file, so not a bag"
+    if head != MCAP_MAGIC:
+        return f"{source} is not an MCAP file (it does not start with the MCAP magic bytes), so not a bag"
+    return ""
+
+
+def check_storage_files(path: str | Path) -> list[Path]:
+    """The bag's MCAP files, each checked to start as an MCAP file and end with its summary (footer and
+    end marker): what a reader needs before it seeks to the summary.
+
+    Raises
+    ------
+    BagError
+        For a bag without MCAP files, a file that is not MCAP (random bytes, empty), or one that ends early
+        (a killed recorder's), naming the file, the byte and what to do.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise BagError(f"{path}: no such bag directory")
+    files = storage_files(path)
+    if not files:
+        raise BagError(f"{path} has no {storage_file(path).name}: not a bag")
+    for source in files:
+        problem = _magic_problem(source)
+        if problem:
+            raise BagError(problem)
+        size = source.stat().st_size
+        with open(source, "rb") as f:
+            f.seek(max(size - len(MCAP_MAGIC), 0))
+            tail = f.read(len(MCAP_MAGIC))
+        if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
+            raise BagError(f"the bag's MCAP file {source.name} ends early (truncated at byte {size}): "
+                           f"run ./seapup bag recover {path}")
+    return files
+
+
+def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
+    """Messages of a closed rosbag2 bag in log-time order, optionally only some topics.
+
+    The metadata (:func:`read_metadata`) and the MCAP files (:func:`check_storage_files`) are checked first;
+    a reading error is a :class:`BagError` with a reason, never a reader's exception."""
+    path = Path(path)
+    read_metadata(path)
+    check_storage_files(path)
+    from rosbags.rosbag2 import ReaderError
+    try:
+        with Reader(path) as reader:
+            conns = [c for c in reader.connections if topics is None or c.topic in topics]
+            for conn, t_ns, raw in reader.messages(connections=conns):
+                yield BagMessage(conn.topic, conn.msgtype, t_ns, bytes(raw))
+    except (ReaderError, McapError, EOFError, struct.error, ValueError, KeyError) as exc:
+        raise BagError(f"{path}: the bag cannot be read ({str(exc).splitlines()[0][:160] or 'damaged'}): "
+                       f"run ./seapup bag recover {path}") from None
 
 
 def read_bag_with_publish_times(path: str | Path, topics: list[str] | None = None) -> Iterator[BagMessage]:
@@ -455,10 +601,7 @@ def read_bag_with_publish_times(path: str | Path, topics: list[str] | None = Non
 def bag_info(path: str | Path) -> dict:
     """What ``ros2 bag info`` shows: files, size, duration, start/end, counts, types, QoS."""
     path = Path(path)
-    meta_file = path / "metadata.yaml"
-    if not meta_file.is_file():
-        raise BagError(f"{path} has no metadata.yaml: not a closed bag (try ./seapup bag recover {path})")
-    info = yaml.safe_load(meta_file.read_text())["rosbag2_bagfile_information"]
+    info = read_metadata(path)
     files = [path / f for f in info["relative_file_paths"]]
     start = info["starting_time"]["nanoseconds_since_epoch"]
     return {"path": str(path), "files": [f.name for f in files], "bag_size_bytes": sum(f.stat().st_size for f in files),
@@ -468,9 +611,15 @@ def bag_info(path: str | Path) -> dict:
             "topics": [{"name": t["topic_metadata"]["name"], "type": t["topic_metadata"]["type"],
                         "count": t["message_count"],
                         "serialization_format": t["topic_metadata"]["serialization_format"],
-                        "qos": t["topic_metadata"]["offered_qos_profiles"],
+                        "qos": _qos_list(t["topic_metadata"].get("offered_qos_profiles", [])),
                         "type_hash": t["topic_metadata"].get("type_description_hash", "")}
                        for t in info["topics_with_message_count"]]}
+
+
+def _qos_list(value) -> list:
+    """Offered QoS profiles as a list of mappings (metadata before version 9 holds them as YAML text)."""
+    profiles = _parse_qos(value) if isinstance(value, str) else value
+    return [p for p in profiles if isinstance(p, dict)] if isinstance(profiles, list) else []
 
 
 def _parse_qos(text: str) -> list:
@@ -496,6 +645,63 @@ def writer_alive(path: str | Path) -> bool:
     return False
 
 
+@dataclass
+class _Scan:
+    """What reading one MCAP file record by record found."""
+
+    source: Path
+    problem: str = ""          # why reading stopped early ('' : the file read to its end marker)
+    schemas: dict = field(default_factory=dict)     # topic -> Schema
+    channels: dict = field(default_factory=dict)    # topic -> Channel
+    messages: list = field(default_factory=list)    # (topic, Message)
+
+
+def _scan(source: Path) -> _Scan:
+    """Read ``source`` record by record up to its end marker or the first incomplete or damaged record.
+
+    The file is memory-mapped (nothing is read into memory beyond what the records hold), no record may be
+    longer than the file, and no chunk may claim more than :data:`MAX_CHUNK_BYTES` uncompressed."""
+    scan = _Scan(source)
+    size = source.stat().st_size
+    ids_schema: dict[int, Schema] = {}
+    ids_topic: dict[int, str] = {}
+    with open(source, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        reader = StreamReader(data, skip_magic=False, emit_chunks=True, record_size_limit=size)
+        try:
+            for outer in reader.records:
+                if isinstance(outer, Chunk):
+                    if outer.uncompressed_size > MAX_CHUNK_BYTES:
+                        raise McapError(f"a chunk claims {outer.uncompressed_size} bytes uncompressed, more than "
+                                        f"{MAX_CHUNK_BYTES}")
+                    inner = breakup_chunk(outer, validate_crc=True)
+                else:
+                    inner = [outer]
+                for record in inner:
+                    if isinstance(record, Schema):
+                        ids_schema[record.id] = record
+                    elif isinstance(record, Channel):
+                        ids_topic[record.id] = record.topic
+                        if record.schema_id in ids_schema:
+                            scan.schemas.setdefault(record.topic, ids_schema[record.schema_id])
+                            scan.channels.setdefault(record.topic, record)
+                    elif isinstance(record, Message) and record.channel_id in ids_topic:
+                        scan.messages.append((ids_topic[record.channel_id], record))
+        except Exception as exc:  # noqa: BLE001 - any reading error of a damaged file ends the scan with a reason
+            scan.problem = _reading_problem(exc, source, data.tell(), size)
+    return scan
+
+
+def _metadata_problem(path: Path, count: int) -> str:
+    """Why the bag's metadata.yaml needs rebuilding ('' if it is readable and counts ``count`` messages)."""
+    try:
+        info = read_metadata(path)
+    except BagError as exc:
+        return str(exc)
+    if info["message_count"] != count:
+        return f"metadata.yaml counts {info['message_count']} messages, the files hold {count}"
+    return ""
+
+
 def recover_bag(path: str | Path, typestore=None) -> dict:
     """Rebuild a readable, indexed bag and its metadata.yaml from what is on disk.
 
@@ -503,61 +709,61 @@ def recover_bag(path: str | Path, typestore=None) -> dict:
     record by record up to the first incomplete or damaged one (the tail a
     killed writer left), keeps every message of the complete chunks, moves the
     files read to ``<file>.damaged`` (the damaged ones) or ``<file>.orig`` and
-    writes one finished file and metadata.yaml in their place.
+    writes one finished file and metadata.yaml in their place. A bag whose files
+    all read to their end and whose metadata.yaml agrees is intact: nothing is
+    changed on disk.
 
     Returns
     -------
     dict
-        ``messages`` kept, ``topics``, ``stopped_at`` (why reading of the
-        damaged file ended) and ``damaged_file``.
+        ``intact`` (True: nothing was done), ``messages`` kept, ``topics``, ``stopped_at`` (why reading of
+        the damaged file ended, '' if none was), ``damaged_file`` (the name it is kept under, '' if none)
+        and ``kept`` (every original file's new name).
 
     Raises
     ------
     BagError
-        If there is no MCAP file or not even the first one's header is readable.
+        If a writer is alive, there is no MCAP file, or a file is not MCAP at all (random bytes, empty): then
+        nothing is changed on disk.
     """
     path = Path(path)
+    if not path.is_dir():
+        raise BagError(f"{path}: no such bag directory")
     if writer_alive(path):
         raise BagError(f"{path} is still being written by a live recorder: stop it (Ctrl-C) and it "
                        "finishes the bag itself; recover only a bag whose writer died")
     sources = storage_files(path)
     if not sources:
-        raise BagError(f"no {storage_file(path).name} in {path}: nothing to recover")
+        raise BagError(f"{path} has no {storage_file(path).name}: not a bag, nothing to recover")
+    for source in sources:   # before anything is moved: a file that is not MCAP is not ours to rewrite
+        problem = _magic_problem(source)
+        if problem:
+            raise BagError(problem)
+    scans = [_scan(source) for source in sources]
+    total = sum(len(scan.messages) for scan in scans)
+    damaged = [scan for scan in scans if scan.problem]
+    if not damaged and not _metadata_problem(path, total):
+        return {"intact": True, "messages": total, "topics": {}, "stopped_at": "", "damaged_file": "", "kept": []}
     schemas: dict[str, Schema] = {}
     channels: dict[str, Channel] = {}
-    messages: list[tuple[str, Message]] = []
-    stopped, damaged_name = "end of file", ""
-    for source in sources:
-        data = source.read_bytes()
-        ids_schema: dict[int, Schema] = {}
-        ids_topic: dict[int, str] = {}
-        error = ""
-        try:
-            for record in StreamReader(io.BytesIO(data), skip_magic=False, emit_chunks=False).records:
-                if isinstance(record, Schema):
-                    ids_schema[record.id] = record
-                elif isinstance(record, Channel):
-                    ids_topic[record.id] = record.topic
-                    if record.schema_id in ids_schema:
-                        schemas.setdefault(record.topic, ids_schema[record.schema_id])
-                        channels.setdefault(record.topic, record)
-                elif isinstance(record, Message) and record.channel_id in ids_topic:
-                    messages.append((ids_topic[record.channel_id], record))
-        except (McapError, EOFError, ValueError, KeyError, IndexError, struct.error) as exc:
-            error = f"{type(exc).__name__}: {exc}"[:200]
-        if error and source == sources[0] and not ids_topic and len(data) < 8:
-            raise BagError(f"{source} has no readable MCAP header ({error})")
-        moved = source.with_name(source.name + (".damaged" if error else ".orig"))
-        source.replace(moved)
-        if error and not damaged_name:
-            stopped, damaged_name = error, moved.name
+    kept = []
+    for scan in scans:
+        for topic, channel in scan.channels.items():
+            schemas.setdefault(topic, scan.schemas[topic])
+            channels.setdefault(topic, channel)
+        moved = scan.source.with_name(scan.source.name + (".damaged" if scan.problem else ".orig"))
+        scan.source.replace(moved)
+        kept.append(moved.name)
     (path / "metadata.yaml").unlink(missing_ok=True)
     writer = BagWriter.into_existing(path, typestore or make_typestore())
     for topic, channel in channels.items():
         writer.add_recorded_channel(channel, schemas[topic])
+    messages = [tm for scan in scans for tm in scan.messages]
     for topic, m in sorted(messages, key=lambda tm: tm[1].log_time):
         if topic in writer.topics:  # a channel whose schema was lost cannot be written back
             writer.write(topic, m.data, m.log_time, m.publish_time)
     writer.close()
-    return {"messages": writer.count, "topics": {t: e.count for t, e in writer.topics.items()},
-            "stopped_at": stopped, "damaged_file": damaged_name}
+    first = damaged[0] if damaged else None
+    return {"intact": False, "messages": writer.count, "topics": {t: e.count for t, e in writer.topics.items()},
+            "stopped_at": first.problem if first else "", "kept": kept,
+            "damaged_file": first.source.name + ".damaged" if first else ""}

@@ -3,12 +3,54 @@ document a run or a harness writes (:func:`launch_document`), which :mod:`seapup
 reads back (and ``ros2 launch`` on a system ROS 2 starts). Pure: the run layer builds its graphs with it."""
 from __future__ import annotations
 
+import math
 import shlex
 from dataclasses import dataclass, field
 
 import yaml
 
-__all__ = ["NodeSpec", "launch_document", "argument_value", "argument_text"]
+__all__ = ["NodeSpec", "launch_document", "argument_value", "argument_text", "RESPAWN_DELAY_MAX",
+           "respawn_delay_value", "respawn_limit_value"]
+
+#: The longest respawn delay a graph may ask for [s]: an hour (launch sets no bound; a delay beyond it is a
+#: typo, and ``.inf`` would leave a node never restarted and the launcher never done).
+RESPAWN_DELAY_MAX = 3600.0
+
+
+def respawn_delay_value(value) -> float:
+    """``respawn_delay`` as seconds: a finite number in [0, :data:`RESPAWN_DELAY_MAX`].
+
+    Raises
+    ------
+    ValueError
+        Naming the value and the range (``.nan`` once was accepted: the node was then neither restarted
+        nor the launch ended).
+    """
+    if isinstance(value, str):
+        value = argument_value(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"respawn_delay must be a number of seconds in [0, {RESPAWN_DELAY_MAX:g}], got {value!r}")
+    delay = float(value)
+    if not math.isfinite(delay) or not 0.0 <= delay <= RESPAWN_DELAY_MAX:
+        raise ValueError(f"respawn_delay must be a number of seconds in [0, {RESPAWN_DELAY_MAX:g}], got {value!r}")
+    return delay
+
+
+def respawn_limit_value(value) -> int:
+    """``respawn_max_retries`` as an integer >= -1 (-1: no limit).
+
+    Raises
+    ------
+    ValueError
+        For a non-integer (``2.5``, ``true``, ``.nan``) or one below -1, naming it.
+    """
+    if isinstance(value, str):
+        value = argument_value(value)
+    if isinstance(value, float) and math.isfinite(value) and value == int(value):
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < -1:
+        raise ValueError(f"respawn_max_retries must be an integer >= -1 (-1: no limit), got {value!r}")
+    return value
 
 
 @dataclass
@@ -26,6 +68,10 @@ class NodeSpec:
     respawn: bool = False
     respawn_limit: int = -1     # respawn_max_retries (-1, launch's default: no limit)
     respawn_delay: float = 1.0
+
+    def __post_init__(self):
+        self.respawn_delay = respawn_delay_value(self.respawn_delay)
+        self.respawn_limit = respawn_limit_value(self.respawn_limit)
 
     @property
     def label(self) -> str:

@@ -16,7 +16,16 @@ that machinery, with no rclpy import:
   The child asks the kernel for SIGTERM when its parent dies
   (``PR_SET_PDEATHSIG``), whatever kills the parent (SIGKILL included, where
   no handler runs), and inherits every domain lease the parent holds, so a
-  leased domain stays taken until the last child is gone.
+  leased domain stays taken until the last child is gone;
+- :func:`spawn` starts a child with those options and registers it with this
+  process's *reaper*: a small process (one per owner, started with the first
+  child) that waits, on a pipe only the owner holds, for the owner to end --
+  however it ends -- and then stops every child still running: SIGTERM to its
+  process group, SIGKILL :data:`REAPER_GRACE` s later. The death signal alone
+  is not enough: a child that ignores SIGTERM or is hung where no signal
+  handler runs (seen: simulators interrupted while starting, in a futex,
+  alive under PID 1 for minutes) needs the SIGKILL its dead owner can no
+  longer send.
 """
 from __future__ import annotations
 
@@ -25,7 +34,9 @@ import fcntl
 import os
 import signal
 import subprocess
+import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -37,7 +48,166 @@ __all__ = [
     "NodeProcess",
     "stop_process_groups",
     "child_options",
+    "spawn",
+    "watch_descendants",
+    "REAPER_GRACE",
 ]
+
+#: Seconds the reaper gives the children of a dead owner to end after its SIGTERM before SIGKILL.
+REAPER_GRACE = 1.2
+
+#: The reaper's program (``python -S -c``): read "PID STARTTIME" lines until the owner's end closes the pipe, then
+#: stop each child's process group still running. Meanwhile, every 0.2 s, it notes the owner's descendants
+#: (``/proc/PID/task/*/children``, recursively) -- the processes a library starts on its own (Dask's nannies and
+#: workers) -- and stops those still running too. A child is identified by its pid and its start time (field 22
+#: of /proc/PID/stat), so a pid reused by an unrelated process is never signalled; a leader already gone leaves
+#: its group's id unused by anyone else while that group lives, so the group is signalled.
+_REAPER = r"""
+import os, select, signal, sys, time
+fd, grace, owner, me = int(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), os.getpid()
+groups, procs, rest = {}, {}, b""
+for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):   # its work starts when its owner ends: not before
+    signal.signal(sig, signal.SIG_IGN)
+def stat(pid):
+    try:
+        with open("/proc/%d/stat" % pid, "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+def snapshot():
+    # only while the owner lives (it is our parent): never a walk from whoever adopted us once it is gone
+    if owner <= 1 or os.getppid() != owner:
+        return
+    todo = [owner]
+    while todo:
+        pid = todo.pop()
+        try:
+            tasks = os.listdir("/proc/%d/task" % pid)
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open("/proc/%d/task/%s/children" % (pid, task)) as f:
+                    kids = [int(k) for k in f.read().split()]
+            except OSError:
+                continue
+            for kid in kids:
+                if kid > 1 and kid != me:
+                    fields = stat(kid)
+                    if fields is not None:
+                        procs.setdefault(kid, fields[19])
+                    todo.append(kid)
+last = 0.0
+while True:
+    ready = select.select([fd], [], [], 0.2)[0]
+    if time.monotonic() - last >= 0.2:
+        snapshot()
+        last = time.monotonic()
+    if not ready:
+        continue
+    chunk = os.read(fd, 65536)
+    if not chunk:
+        break
+    *lines, rest = (rest + chunk).split(b"\n")
+    for line in lines:
+        pid, start = line.split()
+        groups[int(pid)] = start
+def ours(pid, start):
+    fields = stat(pid)
+    return fields is not None and fields[19] == start and fields[0] not in (b"Z", b"X")
+def send(sig):
+    for pid, start in groups.items():
+        if pid <= 1:
+            continue
+        fields = stat(pid)
+        if fields is None or fields[19] == start:
+            try:
+                os.killpg(pid, sig)
+            except (ProcessLookupError, PermissionError):
+                pass
+    for pid, start in procs.items():
+        if pid > 1 and ours(pid, start):
+            try:
+                os.kill(pid, sig)
+            except (ProcessLookupError, PermissionError):
+                pass
+def running():
+    for pid, start in list(groups.items()) + list(procs.items()):
+        if ours(pid, start):
+            return True
+        if pid in groups and stat(pid) is None:
+            try:
+                os.killpg(pid, 0)
+                return True
+            except (ProcessLookupError, PermissionError):
+                pass
+    return False
+if running():
+    send(signal.SIGTERM)
+    deadline = time.monotonic() + grace
+    while time.monotonic() < deadline and running():
+        time.sleep(0.02)
+    send(signal.SIGKILL)
+"""
+
+
+class _Reaper:
+    """This process's reaper (module docstring): started with the first child, one per process."""
+
+    def __init__(self):
+        self.owner: int | None = None
+        self.fd: int | None = None
+        self.pid: int | None = None   # the reaper's
+        self.lock = threading.Lock()
+
+    def register(self, pid: int) -> None:
+        with self.lock:
+            if self.owner != os.getpid():   # first child here (or a forked copy of an owner): a reaper of our own
+                self._start()
+            try:
+                os.write(self.fd, f"{pid} {_start_time(pid)}\n".encode())
+            except OSError:   # the reaper is gone (killed): the death signal still covers the child
+                pass
+
+    def _start(self) -> None:
+        read, write = os.pipe()   # neither end is inherited by children (close_fds)
+        try:
+            self.pid = subprocess.Popen(
+                [sys.executable, "-S", "-c", _REAPER, str(read), str(REAPER_GRACE), str(os.getpid())],
+                pass_fds=(read,), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                start_new_session=True, close_fds=True).pid
+        finally:
+            os.close(read)
+        self.owner, self.fd = os.getpid(), write
+
+
+_REAPER_OF_THIS_PROCESS = _Reaper()
+
+
+def _start_time(pid: int) -> str:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[19].decode()
+    except (OSError, IndexError):
+        return "0"
+
+
+def watch_descendants() -> None:
+    """Start this process's reaper now (it starts with the first :func:`spawn` otherwise), so the processes a
+    library starts on its own (a Dask LocalCluster's) are noted and stopped once this process ends."""
+    with _REAPER_OF_THIS_PROCESS.lock:
+        if _REAPER_OF_THIS_PROCESS.owner != os.getpid():
+            _REAPER_OF_THIS_PROCESS._start()
+
+
+def spawn(command, **popen_kwargs) -> subprocess.Popen:
+    """Start ``command`` as a child tied to this process (:func:`child_options`) and registered with its
+    reaper: whatever ends this process, the child's process group gets SIGTERM, then SIGKILL
+    :data:`REAPER_GRACE` s later. Keyword arguments go to :class:`subprocess.Popen`.
+    """
+    popen = subprocess.Popen(command, **popen_kwargs, **child_options())
+    _REAPER_OF_THIS_PROCESS.register(popen.pid)
+    return popen
 
 #: Domain IDs seapup leases. 0 is left to users; the Linux port mapping of
 #: DDS allows 0-101 (and 215-232) with the default participant limits.
@@ -249,9 +419,8 @@ class NodeProcess:
     def start(self) -> "NodeProcess":
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         with open(self.log_path, "wb") as log:
-            self.popen = subprocess.Popen(self.command, env=self.env, stdout=log,
-                                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                          **child_options())
+            self.popen = spawn(self.command, env=self.env, stdout=log, stderr=subprocess.STDOUT,
+                               stdin=subprocess.DEVNULL)
         return self
 
     @property

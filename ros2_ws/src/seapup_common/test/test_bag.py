@@ -284,3 +284,86 @@ def test_a_killed_split_bag_is_recovered_from_all_its_files(tmp_path):
     assert 150 <= len(got) < 200 and got == [f"m{i}" for i in range(len(got))]  # all files, a gap-free prefix
     assert report["damaged_file"] == last.name + ".damaged"
     assert sorted(p.name for p in path.iterdir() if p.suffix == ".orig") == [f"split_{k}.mcap.orig" for k in range(3)]
+
+
+def _snapshot(path: Path) -> dict:
+    """Every file of a bag directory with its bytes: what 'nothing changed on disk' compares."""
+    return {p.name: p.read_bytes() for p in sorted(path.iterdir())}
+
+
+def test_recover_leaves_an_intact_bag_untouched_and_says_so(tmp_path):
+    """Issue 40: on an intact bag recover said "damaged file kept as " (an empty name) and rewrote it."""
+    write_sample(tmp_path / "b")
+    before = _snapshot(tmp_path / "b")
+    report = recover_bag(tmp_path / "b")
+    assert report["intact"] and report["messages"] == 55 and report["damaged_file"] == "" and report["kept"] == []
+    assert _snapshot(tmp_path / "b") == before
+
+
+@pytest.mark.parametrize("content, reason", [(os.urandom(4096), "is not an MCAP file"),
+                                             (b"", "is empty: not an MCAP file")])
+def test_recover_refuses_a_file_that_is_not_mcap_and_changes_nothing(tmp_path, content, reason):
+    """Issue 40: random bytes were "recovered 0 messages" with exit 0 (and the file renamed)."""
+    path = tmp_path / "junk"
+    path.mkdir()
+    storage_file(path).write_bytes(content)
+    before = _snapshot(path)
+    with pytest.raises(BagError, match=reason):
+        recover_bag(path)
+    assert _snapshot(path) == before
+
+
+def test_recover_of_a_truncated_bag_names_the_kept_file_and_the_byte_in_words(tmp_path):
+    path = tmp_path / "cut"
+    write_sample(path, n=100, flush_interval=2.0)
+    data = storage_file(path).read_bytes()
+    storage_file(path).write_bytes(data[:len(data) // 2])
+    with pytest.raises(BagError, match=rf"cut_0.mcap ends early \(truncated at byte {len(data) // 2}\): "
+                                       rf"run ./seapup bag recover {path}"):
+        list(read_bag(path))   # the metadata is there, the file is not whole: a reason, not "EndOfFile:"
+    report = recover_bag(path)
+    assert not report["intact"] and report["damaged_file"] == "cut_0.mcap.damaged"
+    assert (path / report["damaged_file"]).read_bytes() == data[:len(data) // 2]
+    assert report["stopped_at"] == f"cut_0.mcap ends early (truncated at byte {len(data) // 2})"
+    assert 0 < report["messages"] == len(list(read_bag(path))) < 110
+
+
+@pytest.mark.parametrize("edit, reason", [
+    (lambda i: i.update(message_count=10**30), r"message_count must be an integer in \[0, 2\^63\), got 10{30}"),
+    (lambda i: i.update(message_count="55"), r"message_count must be an integer in \[0, 2\^63\), got '55'"),
+    (lambda i: i.update(relative_file_paths=5), "relative_file_paths must be a list of 1 to 10000 file names, got 5"),
+    (lambda i: i.update(relative_file_paths=["../../etc/passwd"]), "each entry must be a file name in the bag"),
+    (lambda i: i.update(relative_file_paths=["gone_0.mcap"]), "lists gone_0.mcap, which is not in the bag"),
+    (lambda i: i["duration"].update(nanoseconds=-1), r"duration.nanoseconds must be an integer in \[0, 2\^63\)"),
+    (lambda i: i.update(topics_with_message_count=[{"message_count": 3}]), "each of topics_with_message_count"),
+])
+def test_bag_metadata_with_wrong_types_or_counts_is_refused_in_one_line(tmp_path, edit, reason):
+    write_sample(tmp_path / "b")
+    meta = yaml.safe_load((tmp_path / "b" / "metadata.yaml").read_text())
+    edit(meta["rosbag2_bagfile_information"])
+    (tmp_path / "b" / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    for call in (bag_info, lambda p: list(read_bag(p))):
+        with pytest.raises(BagError, match=reason) as refused:
+            call(tmp_path / "b")
+        assert "\n" not in str(refused.value)
+
+
+def test_bag_metadata_is_read_bounded_and_strictly(tmp_path):
+    write_sample(tmp_path / "b")
+    text = (tmp_path / "b" / "metadata.yaml").read_text()
+    (tmp_path / "b" / "metadata.yaml").write_text(text + "rosbag2_bagfile_information: {}\n")
+    with pytest.raises(BagError, match="duplicate key 'rosbag2_bagfile_information'"):
+        bag_info(tmp_path / "b")
+    (tmp_path / "b" / "metadata.yaml").write_text("")
+    with pytest.raises(BagError, match="is empty"):
+        bag_info(tmp_path / "b")
+
+
+def test_a_directory_that_is_no_bag_is_named_so(tmp_path):
+    (tmp_path / "nothing").mkdir()
+    with pytest.raises(BagError, match="is not a bag: it has neither metadata.yaml nor nothing_0.mcap"):
+        bag_info(tmp_path / "nothing")
+    with pytest.raises(BagError, match="has no nothing_0.mcap: not a bag"):
+        recover_bag(tmp_path / "nothing")
+    with pytest.raises(BagError, match="no such bag directory"):
+        recover_bag(tmp_path / "absent")

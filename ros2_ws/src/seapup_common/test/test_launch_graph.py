@@ -40,7 +40,7 @@ def test_respawn_without_a_limit_reads_as_launch_reads_it(tmp_path):
         return load_graph(path)[0]
     assert loaded().respawn_limit == -1 and loaded(respawn_max_retries=-1).respawn_limit == -1
     assert loaded(respawn_max_retries=0).respawn_limit == 0
-    with pytest.raises(LaunchError, match="respawn_max_retries must be >= -1"):
+    with pytest.raises(LaunchError, match="respawn_max_retries must be an integer >= -1"):
         loaded(respawn_max_retries=-2)
     # written back: no key for no limit (launch's default), the number otherwise
     for limit in (-1, 0, 2):

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import yaml
 
+from seapup_common.input_files import InputFileError, load_yaml_file
 from seapup_common.launch_format import NodeSpec, argument_text, argument_value, launch_document
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "graph_arguments",
@@ -81,10 +82,10 @@ def find_graph(spec: str, file_name: str | None = None) -> Path:
 
 def _entries(path) -> list[tuple[str, dict]]:
     """The file's ``launch:`` list as (kind, body) pairs."""
-    try:
-        document = yaml.safe_load(Path(path).read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise LaunchError(f"{path}: not YAML: {exc}") from None
+    try:   # bounded and strict: duplicate keys, unsafe tags and alias bombs refused
+        document = load_yaml_file(path, "launch")
+    except InputFileError as exc:
+        raise LaunchError(str(exc)) from None
     if not isinstance(document, dict) or set(document) != {"launch"} or not isinstance(document["launch"], list):
         raise LaunchError(f"{path}: a ROS 2 YAML launch file is one mapping 'launch:' holding a list")
     entries = []
@@ -209,14 +210,12 @@ def _node(body: dict, substitute, path, index: int) -> NodeSpec | None:
                         remappings={str(substitute(r["from"])): str(substitute(r["to"])) for r in remaps},
                         args=shlex.split(str(substitute(body.get("args", "")))), required=on_exit == "shutdown",
                         respawn=_condition(substitute(body.get("respawn", False)), what),
-                        respawn_limit=int(substitute(body.get("respawn_max_retries", -1))),
-                        respawn_delay=float(substitute(body.get("respawn_delay", 1.0))))
-    except (TypeError, ValueError) as exc:
+                        respawn_limit=substitute(body.get("respawn_max_retries", -1)),
+                        respawn_delay=substitute(body.get("respawn_delay", 1.0)))
+    except (TypeError, ValueError) as exc:   # NodeSpec checks its numbers (finite, in range)
         if isinstance(exc, LaunchError):
             raise
         raise LaunchError(f"{what}: {exc}") from None
-    if spec.respawn_limit < -1 or spec.respawn_delay < 0:
-        raise LaunchError(f"{what}: respawn_max_retries must be >= -1 (-1: no limit) and respawn_delay >= 0")
     return spec
 
 

@@ -618,6 +618,35 @@ class QosWatch:
 
 #: The signals :func:`run_node` has been asked to stop by (empty while it runs on).
 _STOP: list[int] = []
+#: Seconds a node has to end once asked to stop, its parent alive (drain, acknowledgements, destruction) or
+#: gone (nobody is left to hear it: no drain, no acknowledgements). Past them the process ends at once: a
+#: C-level watchdog (:func:`faulthandler.dump_traceback_later`, no GIL needed) calls ``_exit``, so a node
+#: hung where no Python handler runs (a futex in DDS) still ends, and never ignores a signal meanwhile.
+STOP_BUDGET = 10.0
+ORPHAN_STOP_BUDGET = 1.0
+_WATCHDOG_SINK = []   # the file the watchdog's traceback goes to (/dev/null: never shown to a user)
+
+
+def _arm_stop_watchdog(budget: float) -> None:
+    import faulthandler
+    import os
+    if not _WATCHDOG_SINK:
+        _WATCHDOG_SINK.append(open(os.devnull, "w"))  # noqa: SIM115 - held for the process's life
+    faulthandler.dump_traceback_later(budget, exit=True, file=_WATCHDOG_SINK[0])
+
+
+def _orphaned(parent: int) -> bool:
+    """True once the process that started this one is gone (the kernel gave us another parent)."""
+    import os
+    return os.getppid() != parent
+
+
+def _request_stop(signum: int, parent: int) -> None:
+    """The stop signals' handler: ask the loop to stop and arm the watchdog (again, shorter, when orphaned)."""
+    first = not _STOP
+    _STOP.append(signum)
+    if first or _orphaned(parent):
+        _arm_stop_watchdog(ORPHAN_STOP_BUDGET if _orphaned(parent) else STOP_BUDGET)
 
 
 def stop_requested() -> bool:
@@ -644,19 +673,25 @@ def run_node(make_node, args=None) -> int:
     subscriber while another has it. A callback may still end the node on
     purpose by raising ``KeyboardInterrupt`` (the recorder's ``max_duration``).
     """
+    import os
+    parent = os.getppid()
+    stop = _STOP
+    stop.clear()
+    # before rclpy.init: a signal while starting is a request like any other, never a KeyboardInterrupt
+    # thrown into the middle of rcl's or DDS's set-up
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # SIGHUP: the terminal it ran in closed
+        signal.signal(sig, lambda signum, frame: _request_stop(signum, parent))
     try:
         rclpy.init(args=sys.argv if args is None else args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl refuses the command line (e.g. a malformed -p rule)
         print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
         return 1
-    stop = _STOP
-    stop.clear()
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # SIGHUP: the terminal it ran in closed
-        signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = None
     routed = []
     try:
         executor = None
+        if stop:   # told to stop while rclpy started: the node is not built
+            return 0
         node = make_node()
         refuse_unknown_overrides(node)
         routed = _route_core_logs(node)
@@ -667,9 +702,10 @@ def run_node(make_node, args=None) -> int:
                 executor.spin_once(timeout_sec=0.1)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
-        if getattr(node, "drain_on_shutdown", False):
-            _drain(executor, node)
-        _await_acknowledgements(node)
+        if not _orphaned(parent):   # orphaned: nobody is left to acknowledge, and the budget is short
+            if getattr(node, "drain_on_shutdown", False):
+                _drain(executor, node)
+            _await_acknowledgements(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # construction or callback failure: report and exit non-zero
@@ -677,8 +713,9 @@ def run_node(make_node, args=None) -> int:
         print(f"[{name}] fatal: {exc}", file=sys.stderr)
         return 1
     finally:
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # a second signal must not interrupt the clean-up
-            signal.signal(sig, signal.SIG_IGN)
+        # a second signal only asks again (never ignored: the watchdog armed by the first bounds the clean-up)
+        if not stop:
+            _arm_stop_watchdog(ORPHAN_STOP_BUDGET if _orphaned(parent) else STOP_BUDGET)
         for logger, handler in routed:
             logger.removeHandler(handler)
         if node is not None:
