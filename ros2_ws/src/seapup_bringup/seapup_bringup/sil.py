@@ -184,13 +184,13 @@ class SilGraph:
     def __enter__(self) -> "SilGraph":
         try:
             self._start()
-        except BaseException:
-            self.close()
+        except BaseException as exc:
+            self.close(hurry=isinstance(exc, KeyboardInterrupt))
             raise
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(hurry=exc_type is not None and issubclass(exc_type, KeyboardInterrupt))
 
     def _start(self) -> None:
         import rclpy
@@ -322,13 +322,14 @@ class SilGraph:
         dead = [f"{name} (exit {p.returncode})" for name, p in self.processes.items() if not p.running]
         return f"; exited: {', '.join(dead)}" if dead else ""
 
-    def close(self) -> None:
-        """Stop every node (the recorder last, so it has everything), the probe and the lease."""
+    def close(self, hurry: bool = False) -> None:
+        """Stop every node (the recorder last, so it has everything), the probe and the lease. ``hurry`` (the
+        command was interrupted): the graph's nodes get SIGTERM, a prompt stop, instead of SIGINT."""
         from seapup_common.processes import stop_process_groups
         # the graph's nodes together (each takes a moment to shut down; one after another added up to seconds
         # per run), then the recorder, so it has everything
         nodes = [p for name, p in self.processes.items() if name != "recorder" and p.popen is not None]
-        stop_process_groups([p.popen for p in nodes], 5.0, 2.0)
+        stop_process_groups([p.popen for p in nodes], 5.0, 2.0, hurry=hurry)
         for process in nodes:
             process.popen.wait()
         if "recorder" in self.processes:

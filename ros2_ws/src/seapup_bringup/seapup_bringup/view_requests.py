@@ -20,6 +20,8 @@ from __future__ import annotations
 import json
 import math
 
+from seapup_common.values import finite_real
+
 __all__ = ["ViewRequestError", "MAX_PAYLOAD_BYTES", "MAX_NAME_LENGTH", "MAX_PARAMETERS_PER_REQUEST",
            "VIEW_PARAMETERS", "CURRENT_KEYS", "GOTO_KEYS", "LOCKSTEP_PACE_RANGE", "parse_payload", "switch_request",
            "current_request", "profile_request", "goto_request", "parameter_request"]
@@ -118,13 +120,8 @@ def _no_constant(name: str):
 def _number(context: str, key: str, value, bounds: tuple[float, float]) -> float:
     """``value`` as a finite float within ``bounds`` (closed), or refused."""
     lo, hi = bounds
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ViewRequestError(f"{context}: {key} must be a finite number, got {_shown(value)}")
-    try:
-        number = float(value)
-    except OverflowError:   # an integer beyond a float's range
-        raise ViewRequestError(f"{context}: {key} must be a finite number, got {_shown(value)}") from None
-    if not math.isfinite(number):
+    number = finite_real(value)
+    if number is None:
         raise ViewRequestError(f"{context}: {key} must be a finite number, got {_shown(value)}")
     if not lo <= number <= hi:
         allowed = f">= {lo:g}" if hi == math.inf else f"in [{lo:g}, {hi:g}]"

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_common.values import finite_real, is_real
+
 __all__ = ["ConfigError", "merge", "load_yaml", "parsed_yaml", "ConfigView", "nearest"]
 
 _MISSING = object()
@@ -211,12 +213,10 @@ class ConfigView(Mapping):
                lo_open: bool = False) -> float:
         """A finite real in [lo, hi] (``(lo, hi]`` with ``lo_open``)."""
         value = self._get(key, default)
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        if not is_real(value):
             raise self.error(key, f"must be a number, got {value!r}")
-        try:
-            value = float(value)
-        except OverflowError:   # an integer beyond a float's range
-            value = math.inf
+        value = finite_real(value)
+        value = math.inf if value is None else value
         low_ok = value > lo if lo_open else value >= lo
         if not (math.isfinite(value) and low_ok and value <= hi):
             bracket = "(" if lo_open else "["
@@ -238,9 +238,7 @@ class ConfigView(Mapping):
         value = self._get(key, default)
         if isinstance(value, np.ndarray):
             value = value.tolist()
-        if not isinstance(value, (list, tuple)) or not all(
-                isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, (bool, np.bool_))
-                for v in value):   # numbers only: no '0.2' strings, no booleans, no nested lists
+        if not isinstance(value, (list, tuple)) or not all(is_real(v) for v in value):   # numbers only: no '0.2' strings, no booleans, no nested lists
             raise self.error(key, f"must be a list of numbers, got {value!r}"[:300])
         try:
             arr = np.asarray(value, dtype=float)

@@ -32,6 +32,7 @@ from typing import Any, Callable
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import ContractError, HoldCommand, VelocityController
+from seapup_common.values import finite_real, is_real
 
 __all__ = ["ENTRY_POINT_GROUP", "ControllerRegistryError", "Ranged", "ControllerType", "ControllerSpec", "register_controller",
            "controller_type", "available_controllers", "create_controller", "HOLD_TYPE"]
@@ -156,18 +157,11 @@ class ControllerType:
         return out
 
 
-def _finite(value) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except OverflowError:   # an integer beyond a float's range
-        return False
-
-
 def _within(kind: str, name: str, value, bounds) -> None:
     """Raise unless ``value`` (each element of a list) is finite and within ``bounds``."""
     lo, hi = bounds
     for v in value if isinstance(value, (list, tuple)) else [value]:
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and not (_finite(v) and lo <= v <= hi):
+        if is_real(v) and not (finite_real(v) is not None and lo <= v <= hi):
             raise ControllerRegistryError(f"controller {kind!r} parameter {name!r} = {value!r} refused: it must be "
                                           f"finite and within [{lo:g}, {hi:g}]")
 
@@ -180,7 +174,7 @@ def _coerce(kind: str, name: str, value, default):
             return value
         raise ControllerRegistryError(f"{where} must be true or false, got {value!r}")
     if isinstance(default, (int, float)) and not isinstance(default, bool):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
+        if finite_real(value) is None:
             raise ControllerRegistryError(f"{where} must be a finite number, got {value!r}"[:300])
         if isinstance(default, int):
             if not float(value).is_integer():
@@ -192,15 +186,11 @@ def _coerce(kind: str, name: str, value, default):
             raise ControllerRegistryError(f"{where} must be a string, got {value!r}")
         return value
     if isinstance(default, (list, tuple)):
-        if not isinstance(value, (list, tuple)) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        if not isinstance(value, (list, tuple)) or not all(is_real(v) for v in value):
             raise ControllerRegistryError(f"{where} must be a list of numbers, got {value!r}"[:300])
-        try:
-            values = [float(v) for v in value]
-        except OverflowError:
-            raise ControllerRegistryError(f"{where} must be finite numbers") from None
-        if not all(math.isfinite(v) for v in values):
-            raise ControllerRegistryError(f"{where} must be finite, got {values}")
+        values = [finite_real(v) for v in value]
+        if any(v is None for v in values):
+            raise ControllerRegistryError(f"{where} must be finite numbers, got {value!r}"[:300])
         if default and len(values) != len(default):
             raise ControllerRegistryError(f"{where} needs {len(default)} values, got {len(values)}")
         return values

@@ -375,10 +375,13 @@ def find_executable(package: str, executable: str) -> Path:
         f"({len(prefixes)} prefixes); run through ./seapup or source the workspace")
 
 
-def stop_process_groups(popens, grace: float, term_grace: float) -> None:
+def stop_process_groups(popens, grace: float, term_grace: float, *, hurry: bool = False) -> None:
     """Stop the process groups led by ``popens`` together: SIGINT, then SIGTERM after ``grace`` s,
-    then SIGKILL after ``term_grace`` s more (each step only to those still running)."""
-    for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, term_grace), (signal.SIGKILL, 2.0)):
+    then SIGKILL after ``term_grace`` s more (each step only to those still running). ``hurry`` (the owner was
+    interrupted by its user): SIGTERM first, which a node takes as a prompt stop (no drain, no waiting for
+    acknowledgements: :func:`seapup_common.ros.node.run_node`)."""
+    steps = ((signal.SIGINT, grace), (signal.SIGTERM, term_grace), (signal.SIGKILL, 2.0))
+    for sig, wait in steps[1:] if hurry else steps:
         running = [p for p in popens if p.poll() is None]
         if not running:
             return

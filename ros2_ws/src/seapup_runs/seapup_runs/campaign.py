@@ -52,6 +52,7 @@ import numpy as np
 
 from seapup_common import CORE_LOGGERS
 from seapup_common.input_files import InputFileError, env_limit, load_yaml_file
+from seapup_common.values import finite_real
 from seapup_runs.spec import RunSpec, RunSpecError, number_hint
 
 __all__ = ["CampaignError", "Campaign", "shipped", "load_campaign", "campaign_from_dict", "expand", "tasks", "fly_rows",
@@ -369,12 +370,7 @@ def _draw(rng: np.random.Generator, spec, where: str):
 
 def _draw_arguments(kind: str, args, where: str) -> None:
     """Refuse what numpy would refuse with its own words (``scale < 0``, ``low >= high``, an overflow)."""
-    def finite(a) -> bool:
-        try:
-            return isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a)
-        except OverflowError:
-            return False
-    if not isinstance(args, list) or len(args) != 2 or not all(finite(a) for a in args):
+    if not isinstance(args, list) or len(args) != 2 or not all(finite_real(a) is not None for a in args):
         raise CampaignError(f"{where}: {kind} takes two finite numbers, got {_short(args)}")
     lo, hi = float(args[0]), float(args[1])
     if kind == "uniform" and not (lo <= hi and math.isfinite(hi - lo)):

@@ -26,7 +26,6 @@ Units SI and radians; positions in ``odom_ned``, velocities in ``base_link_frd``
 from __future__ import annotations
 
 import bisect
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -36,6 +35,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Reference
 from seapup_common.controllers import ControllerSpec
 from seapup_common.input_files import InputFileError, env_limit
+from seapup_common.values import finite_real, is_real
 
 __all__ = ["RunSpecError", "PHYSICS_STEP", "ReferenceSteps", "RunEvent", "SelfTestDesign", "RunSpec",
            "EVENT_KINDS", "CURRENT_FIELDS", "MAX_RUN_SAMPLES", "MAX_PHYSICS_STEPS", "MAX_OPERATING_POINTS",
@@ -94,13 +94,10 @@ def _short(value) -> str:
 def _finite(value, what: str) -> float:
     """``value`` as a float if it is a finite number: a YAML/JSON number (int or float), never a string
     (``'0.2'``) or a bool."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if not is_real(value):
         raise RunSpecError(f"{what} must be a number, got {_short(value)}{number_hint(value)}")
-    try:
-        number = float(value)
-    except OverflowError:    # an integer beyond a float's range
-        raise RunSpecError(f"{what} must be a finite number, got {_short(value)}") from None
-    if not math.isfinite(number):
+    number = finite_real(value)
+    if number is None:
         raise RunSpecError(f"{what} must be a finite number, got {_short(value)}")
     return number
 

@@ -670,7 +670,9 @@ def run_node(make_node, args=None) -> int:
     on a dead context, and the exit code is 0. Before the node goes, reliable
     publishers wait (briefly) until their subscribers have acknowledged every
     message, so the last command of a stopped controller is not lost for one
-    subscriber while another has it. A callback may still end the node on
+    subscriber while another has it -- unless the first stop signal was SIGTERM, which asks for a prompt stop
+    (launch escalates to it after SIGINT; a command interrupted by its user stops its graph with it): then
+    nothing is drained or waited for. A callback may still end the node on
     purpose by raising ``KeyboardInterrupt`` (the recorder's ``max_duration``).
     """
     import os
@@ -702,7 +704,9 @@ def run_node(make_node, args=None) -> int:
                 executor.spin_once(timeout_sec=0.1)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
-        if not _orphaned(parent):   # orphaned: nobody is left to acknowledge, and the budget is short
+        # orphaned: nobody is left to acknowledge, and the budget is short; SIGTERM first: a stop in a hurry (a
+        # user's Ctrl-C on the command that owns the graph, or launch's escalation after SIGINT)
+        if not _orphaned(parent) and _STOP[:1] != [signal.SIGTERM]:
             if getattr(node, "drain_on_shutdown", False):
                 _drain(executor, node)
             _await_acknowledgements(node)
