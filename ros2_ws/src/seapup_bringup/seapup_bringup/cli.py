@@ -188,10 +188,10 @@ def _run(argv: list[str]) -> int:
 
 
 @command("view", "watch the running graph (this domain) in Foxglove or Lichtblick: a WebSocket server on "
-         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.view:view_parser",
+         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.view_commands:view_parser",
          doc="live-view.md")
 def _view(argv: list[str]) -> int:
-    from seapup_bringup.view import view_command
+    from seapup_bringup.view_commands import view_command
     return view_command(argv)
 
 

@@ -60,7 +60,8 @@ from seapup_msgs.srv import SetCurrent, SetSensorProfile, SwitchController
 
 from seapup_common import frames
 from seapup_common.ros import messages as conv
-from seapup_common.ros.node import QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, run_node
+from seapup_common.ros.node import (QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, declare_guarded, one_of,
+                                     path_or_empty, run_node)
 from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SIMULATOR_PARAMETERS_SERVICE,
                                   SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, UMBILICAL_SHAPE, VELOCITY_REFERENCE,
@@ -109,15 +110,19 @@ class LiveViewNode(Node):
         # no parameter services of its own: every service and client is one more entity that rclpy's executor
         # visits at each turn, and the view's turns come at the graph's sample rate
         super().__init__("live_view", start_parameter_services=False, **kwargs)
-        self.declare_parameter("port", 8765, ParameterDescriptor(
-            description="the WebSocket server's port on 127.0.0.1 (0: any free port, logged)", read_only=True,
-            integer_range=[IntegerRange(from_value=0, to_value=65535)]))
-        self.declare_parameter("vehicle", "baseline", ParameterDescriptor(
-            description="vehicle configuration drawn until the simulator's own is read", read_only=True))
-        self.declare_parameter("environment_file", "", ParameterDescriptor(
-            type=ParameterType.PARAMETER_STRING, read_only=True,
-            description="environment overrides (YAML; '' or empty = the default environment): the seabed drawn "
-                        "until the simulator's own is read"))
+        from seapup_sim.vehicle_config import available_configs
+        declare_guarded(self, {"port": 8765, "vehicle": "baseline", "environment_file": ""}, descriptors={
+            "port": ParameterDescriptor(
+                description="the WebSocket server's port on 127.0.0.1 (0: any free port, logged)", read_only=True,
+                integer_range=[IntegerRange(from_value=0, to_value=65535)]),
+            "vehicle": ParameterDescriptor(
+                description="vehicle configuration drawn until the simulator's own is read", read_only=True),
+            "environment_file": ParameterDescriptor(
+                type=ParameterType.PARAMETER_STRING, read_only=True,
+                description="environment overrides (YAML; '' or empty = the default environment): the seabed "
+                            "drawn until the simulator's own is read")},
+            allowed={"vehicle": one_of(*available_configs()),
+                     "environment_file": path_or_empty("an environment file (YAML) read at start")})
         import foxglove
         from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
         from foxglove.websocket import Capability

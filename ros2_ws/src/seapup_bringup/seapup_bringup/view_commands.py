@@ -1,0 +1,55 @@
+"""``./seapup view``: the live view on this domain (the ``live_view`` node in this process), or its Foxglove
+layout written to a file (docs/live-view.md)."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from seapup_bringup.view import DEFAULT_PORT, check_port
+
+__all__ = ["view_parser", "view_command"]
+
+
+def view_parser() -> argparse.ArgumentParser:
+    """``./seapup view``'s arguments."""
+    from seapup_bringup.output import add_json_argument
+    parser = argparse.ArgumentParser(prog="./seapup view", description="the live_view node on this domain "
+                                     "(docs/live-view.md); Ctrl-C ends it")
+    parser.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"WebSocket port on 127.0.0.1 (default "
+                                                                       f"{DEFAULT_PORT})")
+    parser.add_argument("--vehicle", default="baseline", help="configuration drawn (the simulator's)")
+    parser.add_argument("--environment-file", default="", help="the seabed drawn until the simulator's is read")
+    parser.add_argument("--write-layout", metavar="FILE", help="write the Foxglove layout (3D, plots, services) to "
+                                                               "FILE and exit: import it in Foxglove")
+    add_json_argument(parser)
+    return parser
+
+
+def view_command(argv: list[str]) -> int:
+    """``./seapup view``: the live_view node, in this process (exec), on this domain; or ``--write-layout``."""
+    from seapup_bringup.output import emit_json
+    from seapup_common.processes import find_executable
+    parser = view_parser()
+    args = parser.parse_args(argv)
+    if args.write_layout:
+        from pathlib import Path
+        from seapup_bringup.view_layout import layout_json
+        Path(args.write_layout).write_text(layout_json())
+        print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
+        emit_json(args, {"layout": args.write_layout})
+        return 0
+    if not 1 <= args.port <= 65535:
+        parser.error(f"--port must be 1..65535, got {args.port}")
+    try:
+        check_port(args.port)
+    except ValueError as exc:
+        print(f"seapup view: error: {str(exc).replace('--view-port', '--port')}", file=sys.stderr)
+        return 1
+    path = find_executable("seapup_bringup", "live_view")
+    emit_json(args, {"url": f"ws://127.0.0.1:{args.port}", "port": args.port, "pid": os.getpid()})   # then serves
+    rules = [f"port:={args.port}", f"vehicle:={args.vehicle}"]
+    if args.environment_file:
+        rules.append(f"environment_file:={args.environment_file}")
+    os.execv(str(path), [str(path), "--ros-args", *[x for rule in rules for x in ("-p", rule)]])
+    return 1  # not reached
