@@ -227,3 +227,19 @@ def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
                                               str(tmp_path / "r"), "--chapters", "5", "--jobs", "2"], "report:", workers=2)
     assert code == 130 and _lines(after) == ["seapup: interrupted"], after
     assert list(cache.rglob("run.json")) == [], "runs went on after Ctrl-C"
+
+
+def test_ctrl_c_on_a_graph_run_stops_its_nodes_at_once_with_one_line(tmp_path):
+    """``fly --graph`` interrupted: the graph's nodes get SIGTERM (a prompt stop: no drain, no waiting for
+    acknowledgements) and the command says one line. Before: SIGINT and its 5 s grace, 2-3 s per Ctrl-C, and
+    an interrupt that rclpy turned into another exception stopped the graph as if nothing had happened."""
+    from tests.test_process_ownership import gone_within
+    spec = tmp_path / "long.yaml"
+    spec.write_text("name: long\nvehicle: baseline\ncontrol_period: 0.2\nduration: 400.0\ncontroller: {type: hold}\n"
+                    "reference: [[0.0, 0.0, 0.0, 0.0, 0.0]]\n")
+    children, code, after = _interrupt_after(["fly", str(spec), "--graph", "--out", str(tmp_path / "run")],
+                                             "10.0%", workers=2)
+    assert code == 130 and [line for line in _lines(after) if "long  " not in line] == ["seapup: interrupted"], after
+    assert gone_within(children, 5.0)
+    logs = "".join(p.read_text(errors="replace") for p in (tmp_path / "run").glob("*.log"))
+    assert "Traceback" not in logs, logs[-2000:]

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from seapup_bringup.output import stopped_by_signal
 from seapup_common import topics
 from seapup_common.topics import TOPIC_TYPES
 
@@ -185,12 +186,12 @@ class SilGraph:
         try:
             self._start()
         except BaseException as exc:
-            self.close(hurry=isinstance(exc, KeyboardInterrupt))
+            self.close(hurry=stopped_by_signal(exc))
             raise
         return self
 
-    def __exit__(self, exc_type, *exc) -> None:
-        self.close(hurry=exc_type is not None and issubclass(exc_type, KeyboardInterrupt))
+    def __exit__(self, exc_type, exc, traceback) -> None:
+        self.close(hurry=exc is not None and stopped_by_signal(exc))
 
     def _start(self) -> None:
         import rclpy
@@ -329,7 +330,9 @@ class SilGraph:
         # the graph's nodes together (each takes a moment to shut down; one after another added up to seconds
         # per run), then the recorder, so it has everything
         nodes = [p for name, p in self.processes.items() if name != "recorder" and p.popen is not None]
-        stop_process_groups([p.popen for p in nodes], 5.0, 2.0, hurry=hurry)
+        # interrupted (hurry): SIGTERM, and SIGKILL for what is still running a second later -- a node inside a
+        # long callback (seen: 2 s) must not hold up a user's Ctrl-C
+        stop_process_groups([p.popen for p in nodes], 5.0, 1.0 if hurry else 2.0, hurry=hurry)
         for process in nodes:
             process.popen.wait()
         if "recorder" in self.processes:

@@ -86,3 +86,18 @@ def test_find_executable_reports_what_is_missing():
     assert find_executable("seapup_sim", "simulator").name == "simulator"
     with pytest.raises(FileNotFoundError, match="no executable 'nope'"):
         find_executable("seapup_sim", "nope")
+
+
+def test_a_hurried_stop_sends_sigterm_first(tmp_path):
+    """``hurry`` (the owner was interrupted): the group gets SIGTERM at once, never the SIGINT grace first."""
+    import signal
+    from seapup_common.processes import stop_process_groups
+    record = tmp_path / "signals"
+    probe = ("import signal, sys, time\n"
+             f"def note(s, f):\n    open({str(record)!r}, 'a').write(f'{{s}}\\n')\n    sys.exit(0)\n"
+             "signal.signal(signal.SIGINT, note)\nsignal.signal(signal.SIGTERM, note)\n"
+             "print('up', flush=True)\ntime.sleep(60)")
+    popen = subprocess.Popen([sys.executable, "-c", probe], stdout=subprocess.PIPE, text=True, start_new_session=True)
+    assert popen.stdout.readline() == "up\n"
+    stop_process_groups([popen], grace=30.0, term_grace=30.0, hurry=True)
+    assert popen.wait(5) == 0 and record.read_text().split() == [str(int(signal.SIGTERM))]
