@@ -4,6 +4,7 @@ import sys
 import time
 
 import numpy as np
+import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from nav_msgs.msg import Odometry
@@ -284,3 +285,34 @@ def test_hostile_bags_are_refused_with_reasons_by_info_and_replay(tmp_path, caps
         assert reason in err and err.count("\n") == 1 and "Error" not in err and "EndOfFile" not in err, err
     code, out, err = _bag_cli(capsys, "info", str(tmp_path / "void"))
     assert code == 1 and "is not a bag: it has neither metadata.yaml nor void_0.mcap" in err
+
+
+#: The simulator's topics said once at every sample t_k (the acoustic position fix comes at some samples only).
+_EVERY_SAMPLE = ("/seapup/truth/odometry", "/seapup/odometry", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
+                 "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/altitude", "/seapup/sensors/sample")
+
+
+@pytest.mark.graph
+def test_a_recorder_started_with_a_lockstep_graph_misses_no_sample(tmp_path):
+    """Issue 43: a recorder started with a lockstep graph is an extra listener of the graph's lockstep roster
+    (seapup_common.lockstep.roster), so t_0 waits for its subscriptions: every per-sample topic of the bag
+    begins at t_0 and holds every sample to the end, one per stamp (the demo's bag had missed the first 2-9
+    samples of the velocity, IMU, depth and applied pitch). The graph's own nodes (the identifier) hear only
+    some of these topics, the recorder all of them."""
+    from seapup_bringup.sil import SilGraph
+    from seapup_common import topics
+    from seapup_common.bag import header_stamp_ns
+
+    end, period = 3.0, 0.2
+    record = topics.typed(topics.CLOCK, topics.COMMAND, *_EVERY_SAMPLE[:1], *_EVERY_SAMPLE[2:]) + [
+        "/seapup/odometry:nav_msgs/msg/Odometry"]
+    with SilGraph("seapup_bringup identification.launch.yaml", {"end_time": repr(end)}, out_dir=tmp_path,
+                  record=record, ready_status=None) as sil:
+        assert sil.spin_until(lambda: sil.t >= end - 1e-6, 120.0), f"flew {sil.t} of {end} s"
+        bag = sil.bag
+    stamps = {topic: [] for topic in _EVERY_SAMPLE}
+    for message in read_bag(bag, list(_EVERY_SAMPLE)):
+        stamps[message.topic].append(header_stamp_ns(message.cdr))
+    expected = [round(k * period * 1e9) for k in range(round(end / period) + 1)]
+    for topic, got in stamps.items():
+        assert sorted(set(got)) == expected, (topic, [s * 1e-9 for s in got[:4]], len(got))
