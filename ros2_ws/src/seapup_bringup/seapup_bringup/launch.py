@@ -33,15 +33,24 @@ import threading
 import time
 
 from seapup_bringup.output import add_json_argument, emit_json
-from seapup_common.lockstep.roster import Listener, RosterError, fill, roster
+from seapup_common.lockstep.roster import Listener, RosterError, fill, role_book, roster
 from seapup_common.processes import spawn
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
 __all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch", "STOP_GRACE_MAX",
-           "graph_nodes", "with_roster", "Listener"]
+           "graph_nodes", "with_roster", "installed_share", "Listener"]
 
 #: The longest wait between two stop signals a user may ask for [s] (``--stop-grace``).
 STOP_GRACE_MAX = 60.0
+
+
+def installed_share(package: str) -> str | None:
+    """A package's share directory on ``AMENT_PREFIX_PATH`` (None: not installed)."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    try:
+        return get_package_share_directory(package)
+    except PackageNotFoundError:
+        return None
 
 
 def with_roster(specs: list[NodeSpec], listeners=()) -> list[NodeSpec]:
@@ -61,7 +70,7 @@ def with_roster(specs: list[NodeSpec], listeners=()) -> list[NodeSpec]:
         hear a topic the simulator does not publish).
     """
     try:
-        return fill(specs, roster(specs, listeners))
+        return fill(specs, roster(specs, listeners, roles=role_book(installed_share)))
     except RosterError as exc:
         raise LaunchError(f"lockstep roster: {exc}") from None
 

@@ -4,6 +4,7 @@ times and the applied pitch five times), and the formulas seapup_runs.graph used
 (simulator: [velocity, applied] x controllers + the run's topics x listeners; each controller 1 + listeners;
 the reference publisher controllers + listeners)."""
 from collections import Counter
+from pathlib import Path
 
 import pytest
 import yaml
@@ -11,9 +12,26 @@ import yaml
 from seapup_common import topics
 from seapup_common.launch_format import NodeSpec
 from seapup_common.lockstep.roster import (Listener, NotPublishedError, Role, RoleFileError, Roster,
-                                           UnknownRoleError, fill, installed_roles, nodes_of_document, parse_roles,
-                                           resolve, roster)
+                                           UnknownRoleError, fill, nodes_of_document, package_roles, parse_roles,
+                                           resolve, role_book)
+from seapup_common.lockstep.roster import roster as derive
 from seapup_common.ros.launch_graph import find_graph, graph_arguments, load_graph
+
+def installed(package):
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    try:
+        return get_package_share_directory(package)
+    except PackageNotFoundError:
+        return None
+
+
+INSTALLED = role_book(installed)
+
+
+def roster(nodes, listeners=(), roles=INSTALLED):
+    """The roster with the installed packages' roles (those the launcher uses)."""
+    return derive(nodes, listeners, roles=roles)
+
 
 V, A, IMU, DEPTH, POS = topics.VELOCITY, topics.APPLIED, topics.IMU, topics.DEPTH, topics.POSITION
 TRUTH, ALT, MANIFEST, COMMAND = topics.TRUTH_ODOMETRY, topics.ALTITUDE, topics.SAMPLE_MANIFEST, topics.COMMAND
@@ -165,7 +183,7 @@ def test_role_files_are_checked():
         parse_roles({"x": {"samples": ["a"]}})
     with pytest.raises(RoleFileError, match="hears: a list of topic names"):
         parse_roles({"x": {"hears": "sensors/velocity"}})
-    control = installed_roles("seapup_control")
+    control = package_roles(Path(installed("seapup_control")) / "config")
     assert control["mfol_velocity_controller"] == control["velocity_controller"]
     assert control["velocity_controller"].defaults["autostart"] is False   # from config/velocity_controller.yaml
 

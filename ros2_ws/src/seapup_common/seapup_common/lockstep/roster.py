@@ -28,7 +28,8 @@ subscribers. Those lists and counts are not written anywhere by hand: they follo
 
 Names are resolved as rcl does: relative to the node's namespace (:data:`seapup_common.topics.NAMESPACE`
 when the document gives none), a remapping of the document followed. Pure: no rclpy, no clock; the only
-input read is the role files (:func:`installed_roles`), and :func:`roster` takes any role lookup.
+input read is the role files (:func:`package_roles`, :func:`role_book` given the share directories by a
+shell), and :func:`roster` takes any role lookup.
 
 Implements the graph-ready handshake of the lockstep protocol (thesis fig. 5.1: the simulator publishes
 y(t_k), the controller answers u(t_k)): every node that answers t_0 has heard it.
@@ -44,8 +45,8 @@ from seapup_common.launch_format import NodeSpec
 from seapup_common.topics import NAMESPACE
 
 __all__ = ["ROLE_FILE", "Role", "Listener", "Roster", "RosterError", "RoleFileError", "UnknownRoleError",
-           "NotPublishedError", "resolve", "parse_roles", "installed_roles", "nodes_of_document", "roster",
-           "fill"]
+           "NotPublishedError", "resolve", "parse_roles", "package_roles", "role_book", "nodes_of_document",
+           "roster", "fill"]
 
 #: The file, in ``share/<package>/config``, that declares the lockstep roles of a package's executables.
 ROLE_FILE = "lockstep.yaml"
@@ -270,23 +271,19 @@ def parse_roles(document, source: str = "roles", defaults: Callable[[str], Mappi
     return roles
 
 
-def installed_roles(package: str) -> dict:
-    """The roles the installed ``package`` declares (``share/<package>/config/lockstep.yaml``; none if absent).
+def package_roles(config_dir: str | Path) -> dict:
+    """The roles a package declares in ``config_dir/lockstep.yaml`` (its installed ``share/<package>/config``;
+    none if the file is absent), each with the defaults of its ``config`` parameter file there.
 
     Raises
     ------
     RoleFileError
-        For a role file that cannot be read or parsed.
+        For a role file, or a parameter file it names, that cannot be read or parsed.
     """
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
     from seapup_common.input_files import InputFileError, load_yaml_file
     from seapup_common.parameters import load_node_parameters
-    try:
-        share = Path(get_package_share_directory(package)) / "config"
-    except PackageNotFoundError:
-        return {}
-    path = share / ROLE_FILE
+    config_dir = Path(config_dir)
+    path = config_dir / ROLE_FILE
     if not path.is_file():
         return {}
     try:
@@ -296,18 +293,28 @@ def installed_roles(package: str) -> dict:
 
     def defaults(config: str) -> dict:
         try:
-            return _flat(load_node_parameters(share / f"{config}.yaml", config))
+            return _flat(load_node_parameters(config_dir / f"{config}.yaml", config))
         except ValueError as exc:
             raise RoleFileError(f"{path}: config {config!r}: {exc}") from None
     return parse_roles(document, str(path), defaults)
 
 
-def _installed_lookup() -> Callable[[str, str], Role | None]:
+def role_book(share: Callable[[str], str | Path | None]) -> Callable[[str, str], Role | None]:
+    """A role lookup ``(package, executable) -> Role or None`` over installed packages, each package's file
+    read once.
+
+    Parameters
+    ----------
+    share : callable
+        Package name -> its share directory, or None for a package not installed (a shell passes the ament
+        index's lookup: this module reads files but never the ROS environment).
+    """
     cache: dict[str, dict] = {}
 
     def lookup(package: str, executable: str) -> Role | None:
         if package not in cache:
-            cache[package] = installed_roles(package)
+            where = share(package)
+            cache[package] = package_roles(Path(where) / "config") if where is not None else {}
         return cache[package].get(executable)
     return lookup
 
@@ -366,8 +373,8 @@ def nodes_of_document(document) -> list[NodeSpec]:
     return nodes
 
 
-def roster(nodes: Iterable[NodeSpec | Mapping], listeners: Iterable[Listener] = (),
-           roles: Callable[[str, str], Role | None] | None = None) -> Roster:
+def roster(nodes: Iterable[NodeSpec | Mapping], listeners: Iterable[Listener] = (), *,
+           roles: Callable[[str, str], Role | None]) -> Roster:
     """The lockstep roster of a graph: who answers each sample, who must hear each first message, and the
     parameters that say so.
 
@@ -382,8 +389,8 @@ def roster(nodes: Iterable[NodeSpec | Mapping], listeners: Iterable[Listener] = 
         The graph (:func:`~seapup_common.ros.launch_graph.load_graph`'s nodes, or mappings of NodeSpec fields).
     listeners : iterable of Listener
         Subscribers outside the document.
-    roles : callable, optional
-        ``(package, executable) -> Role or None`` (default: :func:`installed_roles`).
+    roles : callable
+        ``(package, executable) -> Role or None``: the installed packages' (:func:`role_book`) or a test's.
 
     Returns
     -------
@@ -406,7 +413,7 @@ def roster(nodes: Iterable[NodeSpec | Mapping], listeners: Iterable[Listener] = 
     >>> r.settings["simulator"], r.settings["law"], r.answerers
     ({'wait_for_subscribers': ['/seapup/sensors/velocity', '/seapup/sensors/velocity']}, {'wait_for_subscribers': 1}, ('law',))
     """
-    lookup = roles or _installed_lookup()
+    lookup = roles
     specs = [n if isinstance(n, NodeSpec) else NodeSpec(**n) for n in nodes]
     cast = []
     for spec in specs:
