@@ -22,9 +22,9 @@ Modes:
 ``start_held`` holds it at t_0 until ``end_time`` is set; a later ``end_time``
 set at run time resumes it (see the server's rules). After the messages of
 each sample the simulator publishes its manifest, ``sensors/sample``
-(:func:`~seapup_sim.simulator_messages.sample_messages`). Every environment
+(:func:`~seapup_sim.ros.simulator_messages.sample_messages`). Every environment
 setting is a read-only parameter ``environment.<section>.<key>``
-(:mod:`seapup_sim.simulator_parameters`); services change the current,
+(:mod:`seapup_sim.ros.simulator_parameters`); services change the current,
 sensors, configuration and fouling at run time.
 
 Commands are subscribed raw: a message that does not decode, or whose
@@ -63,9 +63,9 @@ from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
 from seapup_sim.environment_config import load_environment
 from seapup_sim.sensors import sensor_profiles
 from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
-from seapup_sim.simulator_messages import diagnostics_of, sample_messages
-from seapup_sim.simulator_parameters import (declare_simulator_parameters, environment_overrides, events_parameter,
-                                             refusal)
+from seapup_sim.ros.simulator_messages import diagnostics_of, sample_messages
+from seapup_sim.ros.simulator_parameters import (declare_simulator_parameters, environment_overrides,
+                                                 events_parameter, refusal)
 from seapup_sim.simulator_services import answer, apply_current, current_said
 from seapup_sim.vehicle_config import available_configs
 

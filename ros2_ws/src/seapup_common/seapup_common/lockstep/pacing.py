@@ -18,7 +18,8 @@ class Pacer:
     sample t_k is published no earlier than ``wall0 + (t_k - t0) / rate``, where (t0, wall0) is where the
     pacing (re)started. The pace never speeds a graph up (a slow sample is not caught up on: the schedule
     restarts from it once it is more than :attr:`SLACK` wall seconds late, so a burst never follows a
-    stall), and changing the rate restarts the schedule at the present sample. Simulated time, and so every result, is the same at any pace.
+    stall), and changing the rate restarts the schedule at the present sample. Simulated time, and so every
+    result, is the same at any pace.
     """
 
     #: wall seconds a paced graph may fall behind its schedule and still catch up
