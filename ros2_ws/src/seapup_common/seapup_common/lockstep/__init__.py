@@ -9,7 +9,8 @@ Modules:
 
 Node shells only execute what these decide; every rule is unit-tested with explicit times.
 """
-from seapup_common.lockstep.policy import (ANSWER, SKIP, WAIT, Decision, Pacer, SamplePolicy, StampGate,
+from seapup_common.lockstep.pacing import Pacer
+from seapup_common.lockstep.policy import (ANSWER, SKIP, WAIT, Decision, SamplePolicy, StampGate,
                                            WaitSettings)
 
 __all__ = ["SamplePolicy", "Decision", "WaitSettings", "ANSWER", "WAIT", "SKIP", "StampGate", "Pacer"]
