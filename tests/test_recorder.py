@@ -87,3 +87,36 @@ def test_typed_topic_matches_a_best_effort_publisher(ros_context, node_process, 
     assert len(got) >= 18 and got == sorted(got, key=lambda s: int(s[1:]))  # loopback best effort: (nearly) all
     (topic,) = bag_info(bag_dir)["topics"]
     assert [q["reliability"] for q in topic["qos"]] == ["best_effort"]
+
+
+def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_context, node_process, spin,
+                                                                            tmp_path):
+    """Issue 43: the simulator latches /tf_static once, at its start; the recorder's eager subscription
+    (volatile) never got it unless it happened to match first. A transient-local publisher's eager
+    subscription is replaced by a transient-local one, which takes the latched message: exactly once."""
+    import time
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    bag_dir = tmp_path / "bag"
+    rec = node_process(package="seapup_common", executable="recorder",
+                       args=["--ros-args", "-p", f"bag_path:={bag_dir}",
+                             "-p", "topics:=['/latched:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and "recording /latched [" not in rec.log_text():
+        time.sleep(0.05)
+    node = rclpy.create_node("latched_source", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    pub = node.create_publisher(String, "/latched", QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    pub.publish(String(data="said once, before any match"))
+    assert pub.get_subscription_count() == 0  # published before the recorder matched: only the latch has it
+    assert spin(executor, lambda: "first message on /latched" in rec.log_text(), 20.0), rec.log_text()
+    spin(executor, lambda: pub.get_subscription_count() >= 1, 5.0)
+    assert rec.stop() == 0, rec.log_text()
+    node.destroy_node()
+    assert [deserialize_message(m.cdr, String).data for m in read_bag(bag_dir)] == ["said once, before any match"]

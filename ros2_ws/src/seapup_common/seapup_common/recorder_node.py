@@ -41,7 +41,7 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
@@ -161,17 +161,22 @@ class RecorderNode(Node):
         self.bag.add_topic(topic, type_name, qos=offered, type_hash=type_hash)
 
     def _adapt_eager(self, topic: str) -> None:
-        """A typed topic's publishers appeared: record their QoS, and match a best-effort one.
+        """A typed topic's publishers appeared: record their QoS, and match a best-effort or latched one.
 
-        The eager subscription is reliable; it cannot match a best-effort
-        publisher, so then it is replaced by one adapted to the publishers.
+        The eager subscription is reliable and volatile; it cannot match a
+        best-effort publisher, and it never gets what a transient-local
+        publisher (``/tf_static``) latched before the two matched: then it is
+        replaced by one adapted to the publishers -- for a latched topic only
+        while nothing has arrived on it (else the replacement would take the
+        latched message a second time).
         """
         publishers = self.get_publishers_info_by_topic(topic)
         if not publishers:
             return
         self.eager.discard(topic)
         adapted = adapted_qos(publishers)
-        if adapted.reliability != EAGER_QOS.reliability:
+        latched = adapted.durability == DurabilityPolicy.TRANSIENT_LOCAL and topic not in self._heard
+        if adapted.reliability != EAGER_QOS.reliability or latched:
             self.destroy_subscription(self.subscriptions_by_topic[topic])
             type_name = self.subscribed[topic]
             self.subscriptions_by_topic[topic] = self.create_subscription(
