@@ -113,10 +113,9 @@ def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package
     from seapup_common.ros.launch_graph import launch_document
     graph = launch_document([
         {"package": "seapup_sim", "executable": "simulator", "required": True,
+         # who hears the first sample (the probe, both controllers, the manager) the harness's roster derives
          "parameters": [{"mode": "lockstep", "start_depth": 30.0, "lockstep_timeout": 10.0,
-                         "environment": {"sensors": "ideal"},
-                         # the probe and both controllers hear the first sample
-                         "wait_for_subscribers": ["/seapup/sensors/velocity"] * 3 + ["/seapup/thrusters/applied"]}]},
+                         "environment": {"sensors": "ideal"}}]},
         {"package": "seapup_control", "executable": "velocity_controller", "name": "mfol_fixed",
          "parameters": [{"controller_type": "mfol", "controller_file": str(controller_file), "schedule": False,
                          **common}],

@@ -14,7 +14,7 @@ pytestmark = pytest.mark.graph
 def sil_graph(controller_file, tmp_path, **arguments):
     from seapup_bringup.sil import SilGraph
     # the probe hears every thruster command: the first waits for it too (and for the simulator)
-    return SilGraph(arguments={"controller_file": controller_file, "command_subscribers": 2, **arguments},
+    return SilGraph(arguments={"controller_file": controller_file, **arguments},
                     out_dir=tmp_path)
 
 
@@ -124,7 +124,7 @@ def test_the_manager_swaps_among_all_four_laws_mid_manoeuvre_without_a_bump(cont
     estimates = [controller_estimate(name) for name in ("explicit", "gmv")]
     order = [("mfol_fixed", "explicit"), ("explicit", "gmv"), ("gmv", "mfol_scheduled"), ("mfol_scheduled", "mfol_fixed")]
     switches, results = [], []
-    with SilGraph(arguments={"controller_file": controller_file, "command_subscribers": 2}, out_dir=tmp_path,
+    with SilGraph(arguments={"controller_file": controller_file}, out_dir=tmp_path,
                   record=[f"{topic}:{CONTROLLER_ESTIMATE_TYPE}" for topic in estimates]) as sil:
         listed = sil.call("/seapup/controller_manager/list_controllers", "seapup_msgs/srv/ListControllers")
         _, start, _ = sil.estimate()

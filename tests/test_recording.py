@@ -4,6 +4,7 @@ import sys
 import time
 
 import numpy as np
+import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from nav_msgs.msg import Odometry
@@ -284,3 +285,43 @@ def test_hostile_bags_are_refused_with_reasons_by_info_and_replay(tmp_path, caps
         assert reason in err and err.count("\n") == 1 and "Error" not in err and "EndOfFile" not in err, err
     code, out, err = _bag_cli(capsys, "info", str(tmp_path / "void"))
     assert code == 1 and "is not a bag: it has neither metadata.yaml nor void_0.mcap" in err
+
+
+#: The simulator's topics said once at every sample t_k (the acoustic position fix comes at some samples only).
+_EVERY_SAMPLE = ("/seapup/truth/odometry", "/seapup/odometry", "/seapup/thrusters/applied", "/seapup/sensors/velocity",
+                 "/seapup/sensors/imu", "/seapup/sensors/depth", "/seapup/sensors/altitude", "/seapup/sensors/sample")
+
+
+def record_with_the_graph(out, end: float) -> dict:
+    """Fly the identification graph to ``end`` with a recorder started as one of its nodes, every per-sample
+    topic typed (subscribed at its start); each topic's header stamps in the bag [ns], in the order recorded."""
+    from seapup_bringup.sil import SilGraph
+    from seapup_common import topics
+    from seapup_common.bag import header_stamp_ns
+    from seapup_common.launch_format import NodeSpec
+
+    entries = [f"{t}:{topics.TOPIC_TYPES.get(t, 'nav_msgs/msg/Odometry')}" for t in (topics.CLOCK, *_EVERY_SAMPLE)]
+    # named "recorder": the harness stops it after the graph, so it has everything (SilGraph.close)
+    recorder = NodeSpec("seapup_common", "recorder", name="recorder",
+                        parameters=[{"bag_path": str(out / "bag"), "use_sim_time": True, "topics": entries}])
+    with SilGraph("seapup_bringup identification.launch.yaml", {"end_time": repr(end)}, out_dir=out,
+                  ready_status=None, extra_nodes=[recorder]) as sil:
+        assert sil.spin_until(lambda: sil.t >= end - 1e-6, 120.0), f"flew {sil.t} of {end} s"
+    stamps = {topic: [] for topic in _EVERY_SAMPLE}
+    for message in read_bag(out / "bag", list(_EVERY_SAMPLE)):
+        stamps[message.topic].append(header_stamp_ns(message.cdr))
+    return stamps
+
+
+@pytest.mark.graph
+def test_a_recorder_started_with_a_lockstep_graph_misses_no_sample(tmp_path):
+    """Issue 43: a recorder started with a lockstep graph is a listener of the graph's lockstep roster
+    (seapup_common.lockstep.roster: its typed topics), so t_0 waits for its subscriptions: every per-sample
+    topic of the bag begins at t_0 and goes on sample by sample without a gap (the demo's bag had missed the
+    first 2-9 samples of the velocity, IMU, depth and applied pitch). The graph's own nodes (the identifier)
+    hear only some of these topics, the recorder all of them."""
+    end, period = 3.0, round(0.2e9)
+    for topic, got in record_with_the_graph(tmp_path, end).items():
+        stamps = sorted(set(got))   # t_0 may be said again (to a reader that matched late): once per stamp
+        assert stamps[:1] == [0] and stamps == list(range(0, stamps[-1] + 1, period)), (topic, stamps[:4])
+        assert stamps[-1] >= (end - 1.0) * 1e9, (topic, len(stamps))   # the recorder stops with the graph

@@ -47,18 +47,15 @@ __all__ = ["MISSION", "main", "fly_mission"]
 #: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
 MISSION = "mission.yaml"
 
-#: The simulator's handshake topics (hierarchy.launch.yaml's wait_for_subscribers) are recorded untyped: the
-#: recorder then subscribes once it has seen their publisher, so the simulator still waits for the
-#: graph's own consumers (a typed, eager recorder would satisfy the handshake alone and the navigator
-#: would miss the first sample's fix: no estimate for ~50 s of lockstep time-outs). The rest is typed,
-#: recorded from the first message. ``/tf_static`` is untyped too: the recorder then matches its publisher's
-#: latched QoS and gets the fixed frames sent before it subscribed; ``/tf`` (odom -> base_link) makes the bag
-#: show an upright vehicle in any ROS viewer.
-HANDSHAKE = [topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION, topics.APPLIED]
-RECORDED = HANDSHAKE + [topics.TF_STATIC] + topics.typed(
-                                    topics.CLOCK, topics.TF, topics.COMMAND, topics.TRUTH_ODOMETRY, topics.ALTITUDE,
-                                    topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE, topics.POSITION_REFERENCE,
-                                    topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
+#: What the demo's bag holds. Every per-sample topic is typed, so the recorder subscribes before the graph
+#: starts and is an extra listener of the graph's lockstep roster: the simulator's first sample waits for it
+#: as for the graph's own readers, and the bag holds every sample from t_0 on (docs/recording.md).
+#: ``/tf_static`` is untyped: the recorder then matches its publisher's latched QoS and gets the fixed frames
+#: sent before it subscribed; ``/tf`` (odom -> base_link) makes the bag show an upright vehicle in any ROS viewer.
+RECORDED = [topics.TF_STATIC] + topics.typed(
+    topics.CLOCK, topics.TF, topics.COMMAND, topics.APPLIED, topics.TRUTH_ODOMETRY, topics.VELOCITY, topics.IMU,
+    topics.DEPTH, topics.POSITION, topics.ALTITUDE, topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE,
+    topics.POSITION_REFERENCE, topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 
 
 def mission_config() -> dict:

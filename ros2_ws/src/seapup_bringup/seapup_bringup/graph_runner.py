@@ -74,8 +74,8 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="seapup_run_"))
     out.mkdir(parents=True, exist_ok=True)
     graph = out / "graph.launch.yaml"
-    listeners = 2 if record else 1  # the probe and the recorder: the simulator waits for both before t = 0
-    graph.write_text(yaml.safe_dump(graph_document(spec, _write_documents(spec, out), listeners=listeners),
+    # the harness's probe and recorder are the graph's extra listeners: the simulator waits for both before t = 0
+    graph.write_text(yaml.safe_dump(graph_document(spec, _write_documents(spec, out)),
                                     sort_keys=False))
     limit = 60.0 + 2.0 * spec.duration if timeout is None else float(timeout)
     with SilGraph(graph, out_dir=out, ready_status=None, ready_timeout=60.0, instruments=True,

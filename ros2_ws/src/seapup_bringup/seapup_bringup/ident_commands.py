@@ -452,13 +452,11 @@ def _experiment(args, text) -> dict:
     else:
         graph, excitation = "seapup_bringup identification.launch.yaml", _prbs_excitation(args)
     arguments.update(excitation.pop("arguments"))
-    # the first sample waits for every reader of it -- the graph's own (the identifier: it once started
-    # after a loaded run had ended, and estimated nothing), the recorder's and this process's probe's
-    # (truth, applied pitch): a run that ends at end_time never publishes them again for a late reader
-    arguments["wait_for_subscribers"] = str(_graph_listeners(graph) + list(PER_SAMPLE) + [TRUTH_ODOMETRY, APPLIED])
+    # the first sample and the first command wait for every reader of them (the lockstep roster the harness
+    # fills: the graph's own -- the identifier once started after a loaded run had ended, and estimated
+    # nothing -- the recorder and the probe): a run that ends at end_time never says them again to a late reader
     record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
                    *([VELOCITY_REFERENCE] if args.closed_loop else []))
-    arguments["command_subscribers"] = 3  # the first command waits for the simulator, the recorder and the probe
     with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
         print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
               f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
@@ -479,13 +477,6 @@ def _experiment(args, text) -> dict:
           f"data: the {samples} with an input interval); the identifier's run (readings used, model after each "
           f"sample) in {out / 'identifier'}; the request in {out / EXPERIMENT_RECORD}", file=text)
     return doc
-
-
-def _graph_listeners(graph: str) -> list[str]:
-    """The simulator topics the nodes of ``graph`` ("PACKAGE FILE") must hear from the first sample on:
-    its ``wait_for_subscribers`` argument's default."""
-    from seapup_common.ros.launch_graph import argument_value, find_graph, graph_arguments
-    return list(argument_value(graph_arguments(find_graph(*graph.split()))["wait_for_subscribers"]))
 
 
 def experiment_samples(duration: float, period: float) -> int:

@@ -8,6 +8,16 @@ nothing. A node with ``on_exit: shutdown`` is required: its exit stops the graph
 ``respawn`` restarts a node after ``respawn_delay`` s, at most ``respawn_max_retries`` times (-1 or left out:
 no limit, as launch).
 
+**Lockstep roster.** Before a graph starts, the launcher fills the counts of the lockstep handshake from
+the graph itself (:mod:`seapup_common.lockstep.roster`): the simulator's ``wait_for_subscribers`` (each
+per-sample topic once per node that must hear it from t_0 on) and each commander's subscriber counts
+(``wait_for_subscribers`` of a velocity controller, the controller manager, ``open_loop`` and
+``reference_schedule``; the self-test's ``wait_for_command_subscribers`` and ``wait_for_sample_subscribers``),
+each executable's role declared once in its package's ``config/lockstep.yaml``. A node whose parameter the
+file gives keeps it. Subscribers outside the file -- a harness's probe, a recorder -- are *extra
+listeners*: ``--listener /topic[,/topic...]`` (once per listener) on the command line, ``listeners=`` of
+:func:`graph_nodes` in Python (the SIL harness passes its probe and recorder that way).
+
 Each node runs in its own process group on the current ROS domain (loopback
 discovery), its output prefixed with ``[name]``. Ctrl-C or SIGTERM stops every
 node: SIGINT, then SIGTERM after ``stop_grace`` s, then SIGKILL. The launch
@@ -23,13 +33,59 @@ import threading
 import time
 
 from seapup_bringup.output import add_json_argument, emit_json
+from seapup_common.lockstep.roster import Listener, RosterError, fill, role_book, roster
 from seapup_common.processes import spawn
 from seapup_common.ros.launch_graph import LaunchError, NodeSpec, command_line, find_graph, graph_arguments, load_graph
 
-__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch", "STOP_GRACE_MAX"]
+__all__ = ["LaunchError", "NodeSpec", "load_graph", "find_graph", "command_line", "Launch", "STOP_GRACE_MAX",
+           "graph_nodes", "with_roster", "installed_share", "Listener"]
 
 #: The longest wait between two stop signals a user may ask for [s] (``--stop-grace``).
 STOP_GRACE_MAX = 60.0
+
+
+def installed_share(package: str) -> str | None:
+    """A package's share directory on ``AMENT_PREFIX_PATH`` (None: not installed)."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+    try:
+        return get_package_share_directory(package)
+    except PackageNotFoundError:
+        return None
+
+
+def with_roster(specs: list[NodeSpec], listeners=()) -> list[NodeSpec]:
+    """``specs`` with the lockstep handshake's counts filled from their roster (module docstring).
+
+    Parameters
+    ----------
+    specs : list of NodeSpec
+        Every node started together (the graph's and any extra ones, such as the live view).
+    listeners : iterable of Listener
+        Subscribers outside the graph (a probe, a recorder).
+
+    Raises
+    ------
+    LaunchError
+        Saying why the roster cannot be derived (an executable without a declared role, a node that must
+        hear a topic the simulator does not publish).
+    """
+    try:
+        return fill(specs, roster(specs, listeners, roles=role_book(installed_share)))
+    except RosterError as exc:
+        raise LaunchError(f"lockstep roster: {exc}") from None
+
+
+def graph_nodes(path, arguments: dict | None = None, listeners=(), extra=()) -> list[NodeSpec]:
+    """The nodes a graph file starts -- its own with ``arguments`` and the ``extra`` ones -- with the lockstep
+    handshake's counts filled for them and the extra ``listeners`` (:func:`with_roster`)."""
+    return with_roster([*load_graph(path, arguments), *extra], listeners)
+
+
+def _listener(text: str) -> Listener:
+    topics = [t for t in text.split(",") if t]
+    if not topics or not all(t.startswith("/") for t in topics):
+        raise LaunchError(f"--listener takes absolute topics separated by commas, got {text!r}")
+    return Listener(f"listener {text}", tuple(topics))
 
 
 class _Running:
@@ -166,6 +222,9 @@ def launch_parser() -> argparse.ArgumentParser:
     parser.add_argument("graph", nargs="+", help="GRAPH.yaml, or PACKAGE FILE, then name:=value arguments")
     parser.add_argument("--show-args", action="store_true", help="print the graph's arguments and exit")
     parser.add_argument("--stop-grace", type=float, default=5.0, help="seconds between SIGINT, SIGTERM, SIGKILL")
+    parser.add_argument("--listener", action="append", default=[], metavar="/TOPIC[,/TOPIC...]",
+                        help="a subscriber outside the graph (a recorder started first): the lockstep graph's first "
+                             "messages on these topics wait for it too (once per listener)")
     add_view_arguments(parser, "a lockstep graph at this many times real time (its lockstep_pace argument; "
                                "default: unpaced, or 1 with --view)")
     add_json_argument(parser)
@@ -201,7 +260,8 @@ def launch(argv: list[str]) -> int:
             if not 0 <= rate < 1e4:
                 raise LaunchError(f"--rate must be >= 0 (0: unpaced) and < 10000, got {rate}")
             given.setdefault("lockstep_pace", repr(float(rate)))
-        specs = load_graph(path, given) + ([view_node(args.view_port)] if args.view else [])
+        specs = graph_nodes(path, given, [_listener(text) for text in args.listener],
+                            [view_node(args.view_port)] if args.view else [])
         runner = Launch(specs, stop_grace=args.stop_grace)
         if args.view:
             print(f"seapup launch: live view at {view_url(args.view_port)}", file=sys.stderr)

@@ -72,16 +72,11 @@ def schedule_args(duration: float, plan) -> list[str]:
 def graph_document(duration: float, plan) -> dict:
     """The open-loop graph (launch-file format): the simulator with ``config/demo.yaml``'s parameters, in
     lockstep, ending at ``duration``, and ``open_loop`` holding ``plan``. Each first message waits for
-    every reader of it: the simulator's per-sample topics for the recorder and (truth, applied pitch,
-    diagnostics) the harness's probe as well, the first command for the simulator, the recorder and the
-    probe -- nothing published is missed by the bag."""
-    per_sample = [t for t, each in RECORDED if each]
-    waits = per_sample + [CLOCK, DIAGNOSTICS] + [TRUTH_ODOMETRY, APPLIED, DIAGNOSTICS]
-    simulator = {**demo_config()["simulator"], "mode": "lockstep", "end_time": float(duration),
-                 "wait_for_subscribers": waits}
+    every reader of it (the launcher's lockstep roster: the harness's recorder and probe are its extra
+    listeners) -- nothing published is missed by the bag."""
+    simulator = {**demo_config()["simulator"], "mode": "lockstep", "end_time": float(duration)}
     pitches = [float(x) for _, row in plan for x in row]
-    schedule = {"lockstep": True, "times": schedule_times(duration, plan), "pitches": pitches,
-                "wait_for_subscribers": 3}
+    schedule = {"lockstep": True, "times": schedule_times(duration, plan), "pitches": pitches}
     from seapup_common.launch_format import launch_document
     return launch_document([{"package": "seapup_sim", "executable": "simulator", "required": True,
                              "parameters": [simulator]},

@@ -139,7 +139,8 @@ class SilGraph:
         whether it is); pass ``end_time`` in ``arguments`` to drive the graph unpaced.
     instruments : bool
         Also log the instruments (velocity, IMU, depth, position fixes: :data:`INSTRUMENTS`). Off by
-        default, since the probe's subscriptions count for a simulator's ``wait_for_subscribers``.
+        default. The probe's subscriptions, and the recorder's typed ones, are extra listeners of the graph's
+        lockstep roster: the simulator's first sample and each commander's first message wait for them.
     ready_status : str or tuple of str, optional
         The graph is ready once the latest ``/diagnostics`` statuses of these names say OK
         (default ``seapup/task_controller``: it hears the navigator and a position controller
@@ -199,8 +200,7 @@ class SilGraph:
         from rclpy.executors import SingleThreadedExecutor
 
         from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
-        from seapup_common.ros.launch_graph import (argument_value, command_line, find_graph, graph_arguments,
-                                                    load_graph)
+        from seapup_common.ros.launch_graph import command_line, find_graph, graph_arguments, load_graph
 
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._lease = DomainLease()
@@ -215,9 +215,7 @@ class SilGraph:
                 self.arguments["end_time"] = repr(self.start_at)
             elif "start_held" in declared:  # held at t_0 itself (end_time 0 means "run on")
                 self.arguments["start_held"] = "true"
-        if "wait_for_subscribers" in declared and "wait_for_subscribers" not in self.arguments:
-            self._count_own_listeners(argument_value(declared["wait_for_subscribers"]))
-        specs = load_graph(graph_file, self.arguments)
+        specs = self._with_roster(load_graph(graph_file, self.arguments))
         self._context = Context()
         rclpy.init(context=self._context, domain_id=domain)
         self._node = rclpy.create_node("sil_probe", context=self._context)
@@ -234,7 +232,7 @@ class SilGraph:
                  "-p", "use_sim_time:=true", "-p", f"topics:={self.record}"],
                 self.env, self.out_dir / "recorder.log", "recorder").start()
             self._wait_for_recorder()
-        for spec in [*specs, *self.extra_nodes]:
+        for spec in specs:
             self.processes[spec.label] = NodeProcess(command_line(spec), self.env,
                                                      self.out_dir / f"{spec.label}.log", spec.label).start()
         names = (self.ready_status,) if isinstance(self.ready_status, str) else tuple(self.ready_status or ())
@@ -284,20 +282,17 @@ class SilGraph:
                 raise SilError(f"the graph was not held at its start ({self.start_at:g} s) within "
                                f"{self.ready_timeout:g} s; node logs in {self.out_dir}" + self._dead())
 
-    def _count_own_listeners(self, listed: list) -> None:
-        """The graph's default ``wait_for_subscribers`` (its simulator's first sample waits for these
-        subscriptions, a topic listed k times for k) plus this harness's own: the probe's and the recorder's.
-        Counted by number, the graph's own list alone would be met by the harness's subscriptions while a
-        node of the graph had not subscribed yet -- and missed t_0. (A caller that passes the argument
-        passes the whole list, its own listeners included, as ``./seapup ident experiment`` does.) The truth
-        odometry, which every simulator publishes and no node of a graph hears, is awaited for the harness
-        too: its first sample is said once, and a recorder whose subscription the simulator had not yet
-        matched lost it (a bag that began at 0.2 s)."""
-        probe = {topic for name, (topic, _) in TOPICS.items() if self.instruments or name not in INSTRUMENTS}
-        recorded = {entry.split(":")[0] for entry in self.record if ":" in entry}  # typed: subscribed at once
-        extra = [topic for topic in dict.fromkeys([*(listed or []), topics.TRUTH_ODOMETRY])
-                 for own in (probe, recorded) if topic in own]
-        self.arguments["wait_for_subscribers"] = str(list(listed or []) + extra)
+    def _with_roster(self, specs: list) -> list:
+        """The graph's nodes and the extra ones with the lockstep handshake's counts filled
+        (:func:`seapup_bringup.launch.with_roster`): this harness's probe and recorder are extra listeners,
+        so a first sample or command waits for them as for the graph's own nodes -- the bag and the logs miss
+        nothing from t_0 on."""
+        from seapup_bringup.launch import with_roster
+        from seapup_common.lockstep.roster import Listener
+        probe = Listener("sil_probe", tuple(topic for name, (topic, _) in TOPICS.items()
+                                            if self.instruments or name not in INSTRUMENTS))
+        listeners = [probe] + ([Listener.recorder("recorder", self.record)] if self.record else [])
+        return with_roster([*specs, *self.extra_nodes], listeners)
 
     def _wait_for_recorder(self, timeout: float = 30.0) -> None:
         """Before the graph starts: the recorder subscribes to every typed topic (``/t:pkg/msg/Type``) at

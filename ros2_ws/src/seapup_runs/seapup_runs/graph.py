@@ -17,6 +17,11 @@ The graph flies in lockstep and equals the in-process run sample for sample:
   sample stamped with it, each controller waiting for the one of its sample
   (``first_reference_wait``, ``reference_every_sample``).
 
+Who must hear the first sample, command and reference is not written here: the launcher derives it from
+these nodes' lockstep roles and the harness's listeners (:mod:`seapup_common.lockstep.roster`), e.g. with
+two controllers and one probe the simulator waits for three subscribers of the velocity, each controller's
+first command for the simulator and the probe, the first reference for both controllers and the probe.
+
 ``seapup_bringup.graph_runner.run_on_graph`` writes this document to a file
 and starts it through the SIL harness.
 """
@@ -27,25 +32,20 @@ import yaml
 from seapup_common import topics
 from seapup_runs.spec import RunSpec, RunSpecError
 
-__all__ = ["graph_document", "controller_nodes", "SAMPLE_TOPICS", "LISTENED_TOPICS", "REFERENCE_WAIT"]
+__all__ = ["graph_document", "controller_nodes", "LISTENED_TOPICS", "REFERENCE_WAIT"]
 
-#: What the simulator waits for before its first sample: each controller's subscription to the sample
-#: and the applied pitch, and each listener's (a probe's, a recorder's) to everything of the simulator's
-#: that a run's series is read from (nothing of the run is lost; a topic listed k times needs k
-#: subscribers). Each controller likewise holds its first command until the simulator and every
-#: listener have matched it, and the reference publisher its first reference.
-SAMPLE_TOPICS = [topics.VELOCITY, topics.APPLIED]
+#: What a run's series are read from: a listener of the run (a probe, a recorder) subscribes to these, the
+#: commands and the references, and the graph's first messages wait for it (its lockstep roster).
 LISTENED_TOPICS = [topics.TRUTH_ODOMETRY, topics.VELOCITY, topics.IMU, topics.DEPTH, topics.POSITION,
-                   topics.ALTITUDE, topics.APPLIED]
+                   topics.ALTITUDE, topics.APPLIED, topics.COMMAND, topics.VELOCITY_REFERENCE]
 #: [s wall] how long a sample waits for its reference or applied pitch before going on (counted
 #: late): generous, since a lockstep run must not depend on how busy the machine is.
 REFERENCE_WAIT = 10.0
 
 
-def controller_nodes(spec: RunSpec, files: list[str], listeners: int = 0) -> list[dict]:
+def controller_nodes(spec: RunSpec, files: list[str]) -> list[dict]:
     """A ``velocity_controller`` node per controller of the spec's timeline (``files[i]``: its design
-    document's path, "" for none), each holding its first command until the simulator and ``listeners``
-    more subscribers have matched it."""
+    document's path, "" for none)."""
     from seapup_common.controllers import controller_type
 
     timeline = spec.controller_timeline()
@@ -59,22 +59,19 @@ def controller_nodes(spec: RunSpec, files: list[str], listeners: int = 0) -> lis
                       "sample_period": spec.control_period, "lockstep": True, "autostart": True,
                       "start_at": float(start), "stop_at": float(stop), "first_reference_wait": REFERENCE_WAIT,
                       "reference_every_sample": True, "reference_wait": REFERENCE_WAIT,
-                      "applied_wait": REFERENCE_WAIT, "wait_for_subscribers": 1 + int(listeners)}
+                      "applied_wait": REFERENCE_WAIT}
         parameters.update(kind.complete(controller.parameters))
         nodes.append({"package": "seapup_control", "executable": "velocity_controller", "name": f"controller_{i}",
                       "required": True, "parameters": [parameters]})
     return nodes
 
 
-def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60.0, listeners: int = 1) -> dict:
+def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60.0) -> dict:
     """The graph of a run (see the module docstring), as a ROS 2 YAML launch document
     (:func:`seapup_common.launch_format.launch_document`).
 
-    ``files``: each controller's design-document path (:func:`controller_nodes`); ``listeners``: how
-    many subscribers besides the graph's own nodes (a harness's probe, a recorder) listen to every
-    topic a run's series is read from (:data:`LISTENED_TOPICS`, the commands, the references): the
-    simulator, each controller and the reference publisher hold their first message until all are
-    matched, so that none misses one.
+    ``files``: each controller's design-document path (:func:`controller_nodes`). The launcher fills the
+    handshake's counts from the graph's lockstep roster and the harness's listeners (the module docstring).
 
     Raises
     ------
@@ -90,8 +87,6 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
                  "dynamics": spec.dynamics, "seed": spec.seed, "start_depth": spec.start_depth,
                  "control_period": spec.control_period, "physics_step": spec.physics_step,
                  "end_time": spec.duration,
-                 "wait_for_subscribers": SAMPLE_TOPICS * len(spec.controller_timeline())
-                 + LISTENED_TOPICS * int(listeners),
                  "events": yaml.safe_dump([e.to_dict() for e in spec.plant_events()], default_flow_style=True).strip()}
     if spec.environment:
         simulator["environment"] = spec.environment
@@ -99,11 +94,10 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
     if steps[0][0] > 0:  # the node's schedule starts at 0 with the first value, as the profile does
         steps.insert(0, [0.0, *steps[0][1:]])
     references = {"lockstep": True, "sample_period": spec.control_period, "times": [row[0] for row in steps],
-                  "references": [float(v) for row in steps for v in row[1:]], "period": 0.0,
-                  "wait_for_subscribers": len(spec.controller_timeline()) + int(listeners)}
+                  "references": [float(v) for row in steps for v in row[1:]], "period": 0.0}
     from seapup_common.launch_format import launch_document
     return launch_document([{"package": "seapup_sim", "executable": "simulator", "required": True,
                              "parameters": [simulator]},
-                            *controller_nodes(spec, files, listeners),
+                            *controller_nodes(spec, files),
                             {"package": "seapup_control", "executable": "reference_schedule", "required": True,
                              "parameters": [references]}])
