@@ -71,12 +71,13 @@ def mission():
 
 
 def graph_file(spec, out, pace: float):
-    """The run's graph (:func:`seapup_runs.graph.graph_document`: a probe and a recorder listen) with the
-    simulator's ``lockstep_pace`` and its ``end_time`` as a graph argument, so the SIL harness can hold it."""
+    """The run's graph (:func:`seapup_runs.graph.graph_document`; the SIL harness fills the handshake's counts
+    from its lockstep roster, its probe and recorder included) with the simulator's ``lockstep_pace``, and its
+    ``end_time`` as a graph argument, so the SIL harness can hold it."""
     from seapup_bringup.graph_runner import _write_documents
     from seapup_runs.graph import graph_document
     out.mkdir(parents=True, exist_ok=True)
-    document = graph_document(spec, _write_documents(spec, out), listeners=2)
+    document = graph_document(spec, _write_documents(spec, out))
     simulator = next(entry["node"] for entry in document["launch"] if entry["node"]["exec"] == "simulator")
     for param in simulator["param"]:
         if param["name"] == "end_time":
