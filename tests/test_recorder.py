@@ -87,3 +87,91 @@ def test_typed_topic_matches_a_best_effort_publisher(ros_context, node_process, 
     assert len(got) >= 18 and got == sorted(got, key=lambda s: int(s[1:]))  # loopback best effort: (nearly) all
     (topic,) = bag_info(bag_dir)["topics"]
     assert [q["reliability"] for q in topic["qos"]] == ["best_effort"]
+
+
+def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_context, node_process, spin,
+                                                                            tmp_path):
+    """Issue 43: the simulator latches /tf_static once, at its start; the recorder's eager subscription
+    (volatile) never got it unless it happened to match first. A transient-local publisher's eager
+    subscription is replaced by a transient-local one, which takes the latched message: exactly once."""
+    import time
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    bag_dir = tmp_path / "bag"
+    rec = node_process(package="seapup_common", executable="recorder",
+                       args=["--ros-args", "-p", f"bag_path:={bag_dir}",
+                             "-p", "topics:=['/latched:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and "recording /latched [" not in rec.log_text():
+        time.sleep(0.05)
+    node = rclpy.create_node("latched_source", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    pub = node.create_publisher(String, "/latched", QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    pub.publish(String(data="said once, before any match"))
+    assert pub.get_subscription_count() == 0  # published before the recorder matched: only the latch has it
+    assert spin(executor, lambda: "first message on /latched" in rec.log_text(), 20.0), rec.log_text()
+    spin(executor, lambda: pub.get_subscription_count() >= 1, 5.0)
+    assert rec.stop() == 0, rec.log_text()
+    node.destroy_node()
+    assert [deserialize_message(m.cdr, String).data for m in read_bag(bag_dir)] == ["said once, before any match"]
+
+
+def _said_twice(ros_context, node_process, spin, tmp_path, *params):
+    """Record a stamped and a plain topic while each message is published twice in a row (the second
+    stamped pair differing in a field); the bag's (topic, decoded) messages."""
+    import time
+
+    import rclpy
+    from geometry_msgs.msg import PointStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    bag_dir = tmp_path / "bag"
+    rec = node_process(package="seapup_common", executable="recorder",
+                       args=["--ros-args", "-p", f"bag_path:={bag_dir}", "-p",
+                             "topics:=['/stamped:geometry_msgs/msg/PointStamped', '/plain:std_msgs/msg/String']",
+                             *[a for p in params for a in ("-p", p)]])
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and "recording /plain [" not in rec.log_text():
+        time.sleep(0.05)
+    node = rclpy.create_node("repeating_source", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    stamped, plain = node.create_publisher(PointStamped, "/stamped", 10), node.create_publisher(String, "/plain", 10)
+    assert spin(executor, lambda: stamped.get_subscription_count() and plain.get_subscription_count(), 20.0)
+    spin(executor, lambda: False, 0.5)  # the match is seen here first; give the recorder's side time too
+    for sec, x in ((1, 0.0), (1, 0.0), (2, 0.0), (2, 5.0)):
+        msg = PointStamped()
+        msg.header.stamp.sec, msg.point.x = sec, x
+        stamped.publish(msg)
+        plain.publish(String(data="again"))
+    assert spin(executor, lambda: rec.log_text().count("first message") == 2, 10.0), rec.log_text()
+    spin(executor, lambda: False, 0.5)
+    assert rec.stop() == 0, rec.log_text()
+    node.destroy_node()
+    kinds = {"/stamped": PointStamped, "/plain": String}
+    return [(m.topic, deserialize_message(m.cdr, kinds[m.topic])) for m in read_bag(bag_dir)], rec.log_text()
+
+
+def test_a_sample_said_again_is_recorded_once(ros_context, node_process, spin, tmp_path):
+    """Issue 43: a lockstep simulator says a sample again (t_0 on /clock until the first command; the held
+    sample when it resumes before it was answered), so the copies in a bag depended on wall time. A message
+    that carries its sample's time and repeats the previous one's bytes is recorded once; a plain message
+    (no time of its own: each is an event) and a stamped one that differs in any field are all recorded."""
+    got, log = _said_twice(ros_context, node_process, spin, tmp_path)
+    assert [(m.header.stamp.sec, m.point.x) for t, m in got if t == "/stamped"] == [(1, 0.0), (2, 0.0), (2, 5.0)]
+    assert [m.data for t, m in got if t == "/plain"] == ["again"] * 4
+    assert "(1 repeats of a sample not recorded again)" in log
+
+
+def test_record_repeats_keeps_every_copy(ros_context, node_process, spin, tmp_path):
+    got, log = _said_twice(ros_context, node_process, spin, tmp_path, "record_repeats:=true")
+    assert [(m.header.stamp.sec, m.point.x) for t, m in got if t == "/stamped"] == [(1, 0.0), (1, 0.0), (2, 0.0),
+                                                                                  (2, 5.0)]
+    assert "repeats of a sample" not in log

@@ -25,6 +25,15 @@ logged before its own header stamp (topics' queues are served in any order;
 a stamp more than ``max_stamp_jump`` ahead is a wrong stamp: logged at
 receipt, counted, warned about).
 
+A sample said again is recorded once: a message that carries its sample's
+time (header-first types, ``/clock``'s Clock, ``/tf``'s TFMessage) and whose
+bytes equal the previous message recorded on its topic is not written
+(``record_repeats`` true writes every copy, as rosbag2 does). A lockstep graph
+says a sample again by design (the simulator's handshake repeats t_0 on
+``/clock`` until the first command; after a hold it says the held sample again
+when it resumes before the sample was answered), so without this how many
+copies a bag holds would depend on wall time.
+
 The bag is flushed and fsync'd every ``flush_interval`` (a ``kill -9`` loses
 at most that) and finalised on SIGINT/SIGTERM or after ``max_duration``
 seconds of graph time.
@@ -41,7 +50,7 @@ from pathlib import Path
 from ament_index_python.packages import get_package_share_directory
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
@@ -53,6 +62,8 @@ __all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "defaul
 #: /clock samples kept to place receive times among (at least; a few seconds even at thousands of
 #: samples per second: far more than any callback lag).
 CLOCK_HISTORY = 10_000
+#: Types that carry their sample's time though they do not begin with a header (see the module docstring).
+SAMPLE_TIMED_TYPES = ("rosgraph_msgs/msg/Clock", "tf2_msgs/msg/TFMessage")
 #: Subscriptions for topics named with their type before any publisher exists.
 EAGER_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -98,6 +109,9 @@ class RecorderNode(Node):
             raise ValueError("nothing to record: give topics or set all:=true")
         self.wanted = [e.split(":", 1)[0] for e in entries]
         self.sim_time = bool(self.get_parameter("use_sim_time").value)
+        self.record_repeats = bool(p["record_repeats"])
+        self.repeats = 0  # samples said again, not recorded again
+        self._last: dict[str, bytes] = {}  # per sample-timed topic: the bytes last recorded
         self.max_stamp_lead_ns = int(p["max_stamp_lead"] * 1e9)
         self.max_stamp_jump_ns = int(p["max_stamp_jump"] * 1e9)
         self.distrusted_stamps = 0
@@ -112,6 +126,7 @@ class RecorderNode(Node):
         self.bag = BagWriter(path, self.typestore, flush_interval=p["flush_interval"],
                              max_bag_size=p["max_bag_size"], max_bag_duration=p["max_bag_duration"]).open()
         self.stamped: dict[str, bool] = {}
+        self.sample_timed: dict[str, bool] = {}  # the message carries its sample's time (repeats: once)
         self.drain_on_shutdown = True  # run_node takes the messages already received before closing
         self.received = 0
         self._heard: set[str] = set()  # topics a message has arrived on
@@ -153,6 +168,7 @@ class RecorderNode(Node):
         self.subscribed[topic] = type_name
         fields = self.typestore.fielddefs.get(type_name, ((), []))[1]
         self.stamped[topic] = bool(fields) and fields[0][0] == "header"
+        self.sample_timed[topic] = self.stamped[topic] or type_name in SAMPLE_TIMED_TYPES
         self.get_logger().info(f"recording {topic} [{type_name}]")
 
     def _add_to_bag(self, topic: str, type_name: str, publishers) -> None:
@@ -161,17 +177,22 @@ class RecorderNode(Node):
         self.bag.add_topic(topic, type_name, qos=offered, type_hash=type_hash)
 
     def _adapt_eager(self, topic: str) -> None:
-        """A typed topic's publishers appeared: record their QoS, and match a best-effort one.
+        """A typed topic's publishers appeared: record their QoS, and match a best-effort or latched one.
 
-        The eager subscription is reliable; it cannot match a best-effort
-        publisher, so then it is replaced by one adapted to the publishers.
+        The eager subscription is reliable and volatile; it cannot match a
+        best-effort publisher, and it never gets what a transient-local
+        publisher (``/tf_static``) latched before the two matched: then it is
+        replaced by one adapted to the publishers -- for a latched topic only
+        while nothing has arrived on it (else the replacement would take the
+        latched message a second time).
         """
         publishers = self.get_publishers_info_by_topic(topic)
         if not publishers:
             return
         self.eager.discard(topic)
         adapted = adapted_qos(publishers)
-        if adapted.reliability != EAGER_QOS.reliability:
+        latched = adapted.durability == DurabilityPolicy.TRANSIENT_LOCAL and topic not in self._heard
+        if adapted.reliability != EAGER_QOS.reliability or latched:
             self.destroy_subscription(self.subscriptions_by_topic[topic])
             type_name = self.subscribed[topic]
             self.subscriptions_by_topic[topic] = self.create_subscription(
@@ -201,6 +222,12 @@ class RecorderNode(Node):
         if topic not in self._heard:
             self._heard.add(topic)
             self.get_logger().info(f"first message on {topic}")  # the publisher's side has matched us too
+        if not self.record_repeats and self.sample_timed.get(topic):
+            raw = bytes(raw)
+            if self._last.get(topic) == raw:
+                self.repeats += 1   # the same sample said again (module docstring)
+                return
+            self._last[topic] = raw
         log_ns = self.get_clock().now().nanoseconds
         if self.sim_time:
             at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))
@@ -234,7 +261,8 @@ class RecorderNode(Node):
 
     def destroy_node(self):
         self.bag.close()
-        self.get_logger().info(f"closed {self.bag.path}: {self.bag.count} messages")
+        said_again = f" ({self.repeats} repeats of a sample not recorded again)" if self.repeats else ""
+        self.get_logger().info(f"closed {self.bag.path}: {self.bag.count} messages{said_again}")
         return super().destroy_node()
 
 
