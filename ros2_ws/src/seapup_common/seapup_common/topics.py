@@ -15,7 +15,7 @@ __all__ = ["NAMESPACE", "CLOCK", "TF", "TF_STATIC", "DIAGNOSTICS", "COMMAND", "F
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
            "SELF_TEST_ACTION", "SET_CURRENT_SERVICE", "SET_THRUSTER_EFFICIENCY_SERVICE", "SIMULATOR_PARAMETERS_SERVICE", "SWITCH_CONTROLLER_SERVICE",
-           "task_action", "typed"]
+           "SIMULATION_CONTROL", "task_action", "typed"]
 
 #: The vehicle's namespace: every seapup node runs in it.
 NAMESPACE = "/seapup"
@@ -107,6 +107,15 @@ SET_THRUSTER_EFFICIENCY_SERVICE = "/seapup/simulator/set_thruster_efficiency"
 SIMULATOR_PARAMETERS_SERVICE = "/seapup/simulator/set_parameters"
 #: The controller manager's switch (``seapup_msgs/srv/SwitchController``).
 SWITCH_CONTROLLER_SERVICE = "/seapup/controller_manager/switch_controller"
+#: The simulator's standard control surface (ROS 2 ``simulation_interfaces``, as Gazebo, Isaac Sim and O3DE
+#: offer it): name -> (service or action, its type). StepSimulation and the SimulateSteps action answer once the
+#: graph is held at the last stepped sample with every answerer's command for it in.
+SIMULATION_CONTROL = {name: (f"/seapup/simulator/{name}", f"simulation_interfaces/{kind}") for name, kind in (
+    ("get_simulator_features", "srv/GetSimulatorFeatures"), ("get_simulation_state", "srv/GetSimulationState"),
+    ("set_simulation_state", "srv/SetSimulationState"), ("step_simulation", "srv/StepSimulation"),
+    ("simulate_steps", "action/SimulateSteps"), ("reset_simulation", "srv/ResetSimulation"),
+    ("get_entities", "srv/GetEntities"), ("get_entity_state", "srv/GetEntityState"),
+    ("set_entity_state", "srv/SetEntityState"))}
 
 
 def task_action(kind: str) -> str:
