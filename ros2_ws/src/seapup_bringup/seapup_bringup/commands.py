@@ -230,6 +230,11 @@ def bench(argv: list[str]) -> int:
             print(f"{key}: {g['rtf']:.1f}x real time ({g['steps_per_s']:.0f} steps/s, "
                   f"{g['us_per_step']:.0f} us per step; CPU per step: simulator {g['simulator_cpu_us_per_step']:.0f} "
                   f"us, controller {g['controller_cpu_us_per_step']:.0f} us)", file=out_text)
+        print("graph: each executor of run_node (single, events) on the same graphs, in alternating blocks...",
+              file=out_text, flush=True)
+        out["graph_executor_ab"] = graph_bench.executor_ab()
+        for line in graph_bench.executor_ab_lines(out["graph_executor_ab"]):
+            print(line, file=out_text)
         print("graph: the live view's cost (simulator + open_loop at 5 Hz without and with it)...", file=out_text,
               flush=True)
         cost = out["graph_view_cost_5hz"] = graph_bench.view_cost()

@@ -9,6 +9,10 @@
 - :func:`dds_round_trip`: median time for a small message to go to another
   process and back (the floor of every lockstep step: the simulator publishes
   t_k, the controller answers).
+- :func:`executor_ab`: the same graphs (simulator + ``open_loop``, simulator +
+  ``mfol_velocity_controller``, the round trip) under each executor of
+  ``run_node`` (``$SEAPUP_EXECUTOR``), in alternating blocks of one run,
+  wall rate beside each process's CPU per sample.
 """
 from __future__ import annotations
 
@@ -21,21 +25,30 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.processes import DomainLease, NodeProcess, find_executable, ros_environment
+from seapup_common.ros.node import EXECUTOR_ENV, EXECUTORS, make_executor
 from seapup_common.topics import CLOCK
 
-__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate", "view_cost"]
+__all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate", "view_cost",
+           "executor_ab", "executor_ab_lines"]
 
+#: The echo of :func:`dds_round_trip`, spun as ``run_node`` spins a node: ``spin_once`` with a timeout, on the
+#: executor ``$SEAPUP_EXECUTOR`` names (both ends of the round trip use the same one).
 ECHO = """
+import os
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from seapup_common.ros.node import make_executor
 from seapup_msgs.msg import BladePitch
 rclpy.init()
 node = rclpy.create_node("bench_echo")
 qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 pub = node.create_publisher(BladePitch, "/bench/pong", qos)
 node.create_subscription(BladePitch, "/bench/ping", pub.publish, qos)
+executor = make_executor(os.environ.get("SEAPUP_EXECUTOR") or "single")
+executor.add_node(node)
 try:
-    rclpy.spin(node)
+    while rclpy.ok():
+        executor.spin_once(timeout_sec=0.1)
 except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
     pass
 """
@@ -50,7 +63,7 @@ def _context(domain: int):
 
 
 def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tmp", controller=None,
-                  view: bool = False) -> dict:
+                  view: bool = False, executor: str | None = None) -> dict:
     """Simulated seconds per wall second of simulator + a controller in lockstep.
 
     ``controller``: the controller's command line (default: ``open_loop``
@@ -58,7 +71,10 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     CPU time per control step (user + system, from ``/proc``): what a step
     costs whatever else the machine is doing. ``view``: with the live view
     beside the graph and a viewer (:class:`_Viewer`) subscribed to all of its
-    channels (its CPU per step as ``view_cpu_us_per_step``).
+    channels (its CPU per step as ``view_cpu_us_per_step``). ``executor``: the executor every node of the graph
+    runs under (``$SEAPUP_EXECUTOR``; default: as this process's environment says). ``max_gap_s``: the
+    longest wall time between two samples heard on ``/clock`` (a stall shows there: the simulator's
+    lockstep timeout is 5 s).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -68,6 +84,8 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     physics = min(0.1, control_period)
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
+        if executor is not None:
+            env[EXECUTOR_ENV] = executor
         simulator = NodeProcess([find_executable("seapup_sim", "simulator"), "--ros-args",
                            "-p", f"control_period:={control_period}", "-p", f"physics_step:={physics}",
                            "-p", "lockstep_timeout:=5.0", "-p", "watchdog_timeout:=1000.0"],
@@ -93,17 +111,20 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
             command = controller or [str(find_executable("seapup_control", "open_loop")), "--ros-args",
                                      "-p", "lockstep:=true", "-p", "pitches:=[0.6, 0.6, 0.0, 0.0]"]
             ctl = NodeProcess(command, env, f"{log_dir}/bench_ctl.log").start()
-            deadline = time.monotonic() + 120
+            deadline = time.monotonic() + 120 + sim_seconds / 20.0   # a graph slower than 20x real time fails
             while time.monotonic() < deadline and (not stamps or stamps[-1][1] < 1.0):
                 ex.spin_once(timeout_sec=0.05)
             if watcher is not None and not watcher.receiving.wait(30.0):
                 raise RuntimeError("the benchmark's viewer received nothing from the live view")
             processes = [simulator, ctl, *([live] if live is not None else [])]
+            first = len(stamps) - 1
             wall0, sim0 = stamps[-1]
             cpu0 = [_cpu_s(p.popen.pid) for p in processes]
             while time.monotonic() < deadline and stamps[-1][1] - sim0 < sim_seconds:
                 ex.spin_once(timeout_sec=0.05)
             wall1, sim1 = stamps[-1]
+            if sim1 - sim0 < sim_seconds:
+                raise TimeoutError(f"the lockstep graph stalled at t = {sim1:.1f} s of {sim0 + sim_seconds:.1f} s")
             cpu1 = [_cpu_s(p.popen.pid) for p in processes]
         finally:
             if watcher is not None:
@@ -120,7 +141,9 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
     out = {"rtf": (sim1 - sim0) / (wall1 - wall0), "steps_per_s": steps / (wall1 - wall0),
            "us_per_step": 1e6 * (wall1 - wall0) / steps, "control_period": control_period,
            "simulator_cpu_us_per_step": 1e6 * (cpu1[0] - cpu0[0]) / steps,
-           "controller_cpu_us_per_step": 1e6 * (cpu1[1] - cpu0[1]) / steps}
+           "controller_cpu_us_per_step": 1e6 * (cpu1[1] - cpu0[1]) / steps,
+           "max_gap_s": float(np.diff([w for w, _ in stamps[first:]]).max()), "samples": int(round(steps)),
+           "executor": executor or os.environ.get(EXECUTOR_ENV) or "default"}
     if view:
         out["view_cpu_us_per_step"] = 1e6 * (cpu1[2] - cpu0[2]) / steps
     return out
@@ -200,19 +223,21 @@ class _Viewer:
             connection.close()
 
 
-def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
-    """Round trip of a BladePitch to another process and back [us]."""
+def dds_round_trip(n: int = 2000, log_dir="/tmp", executor: str | None = None) -> dict:
+    """Round trip of a BladePitch to another process and back [us]; both ends spun by ``executor`` (one of
+    ``EXECUTORS``; default ``$SEAPUP_EXECUTOR``, else ``single``) in ``spin_once`` steps, as ``run_node`` does."""
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from seapup_msgs.msg import BladePitch
 
+    executor = executor or os.environ.get(EXECUTOR_ENV) or "single"
     with DomainLease() as lease:
         env = ros_environment(lease.domain_id)
+        env[EXECUTOR_ENV] = executor
         echo = NodeProcess([sys.executable, "-c", ECHO], env, f"{log_dir}/bench_echo.log").start()
         ctx = _context(lease.domain_id)
         node = rclpy.create_node("bench_ping", context=ctx)
-        ex = SingleThreadedExecutor(context=ctx)
+        ex = make_executor(executor, context=ctx)
         ex.add_node(node)
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         pub = node.create_publisher(BladePitch, "/bench/ping", qos)
@@ -224,6 +249,9 @@ def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
                     and time.monotonic() < deadline:
                 ex.spin_once(timeout_sec=0.05)
             samples = []
+            cpu0 = _cpu_s(echo.popen.pid)
+            if echo.popen.poll() is not None:
+                raise RuntimeError(f"the echo process ended: {echo.log_text()[-400:]}")
             for k in range(n + 50):
                 msg = BladePitch()
                 msg.header.stamp.sec = k
@@ -236,13 +264,15 @@ def dds_round_trip(n: int = 2000, log_dir="/tmp") -> dict:
                         raise TimeoutError("no echo within 5 s")
                 if k >= 50:
                     samples.append(time.perf_counter() - t0)
+            cpu = _cpu_s(echo.popen.pid) - cpu0
         finally:
             echo.stop()
             ex.shutdown()
             node.destroy_node()
             ctx.try_shutdown()
     s = np.array(samples) * 1e6
-    return {"median_us": float(np.median(s)), "p99_us": float(np.percentile(s, 99)), "n": n}
+    return {"median_us": float(np.median(s)), "p99_us": float(np.percentile(s, 99)), "n": n,
+            "echo_cpu_us_per_trip": 1e6 * cpu / (n + 50), "executor": executor}
 
 
 def _cpu_s(pid: int) -> float:
@@ -343,14 +373,46 @@ def mfol_step_us(n: int = 20000) -> dict:
     return {"law_us": law * 1e6, "with_measurement_and_reference_us": with_contract * 1e6, "n": n}
 
 
-def mfol_lockstep_rate(control_period: float, sim_seconds: float, log_dir="/tmp") -> dict:
+def _mfol_command(path: Path) -> list[str]:
+    return [str(find_executable("seapup_control", "mfol_velocity_controller")), "--ros-args",
+            "-p", f"controller_file:={path}", "-p", "autostart:=true"]
+
+
+def mfol_lockstep_rate(control_period: float, sim_seconds: float, log_dir="/tmp", executor: str | None = None) -> dict:
     """SimulatorCore + mfol_velocity_controller (self-tested gains, autostart) in lockstep."""
     import tempfile
     with tempfile.TemporaryDirectory() as tmp:
         path = _controller_file(Path(tmp), control_period)
-        command = [str(find_executable("seapup_control", "mfol_velocity_controller")), "--ros-args",
-                   "-p", f"controller_file:={path}", "-p", "autostart:=true"]
-        return lockstep_rate(control_period, sim_seconds, log_dir, controller=command)
+        return lockstep_rate(control_period, sim_seconds, log_dir, controller=_mfol_command(path), executor=executor)
+
+
+def executor_ab(sim_seconds: float = 60.0, blocks: int = 2, executors=EXECUTORS, round_trips: int = 2000,
+                log_dir="/tmp") -> dict:
+    """Each executor of ``run_node`` on the same graphs in one run: simulator + ``open_loop`` and simulator +
+    ``mfol_velocity_controller`` in lockstep at 5 Hz, and the DDS round trip; the executors alternate in
+    ``blocks`` (A B A B: a load that comes and goes on a shared machine falls on both), the best block of each
+    kept (the least disturbed). Per graph and executor: x real time, wall us per sample, each process's CPU us
+    per sample, the longest wall gap between two samples; and ``lockstep_over_round_trip``, the open-loop
+    graph's wall time per sample over the same executor's round-trip median (issue 43's target: <= 2)."""
+    import tempfile
+    out: dict = {"open_loop_5hz": {}, "mfol_5hz": {}, "round_trip": {}, "blocks": blocks, "sim_seconds": sim_seconds}
+    runs: dict = {key: {e: [] for e in executors} for key in ("open_loop_5hz", "mfol_5hz", "round_trip")}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = _controller_file(Path(tmp), 0.2)
+        for _ in range(blocks):
+            for name in executors:
+                runs["open_loop_5hz"][name].append(lockstep_rate(0.2, sim_seconds, log_dir, executor=name))
+                runs["mfol_5hz"][name].append(lockstep_rate(0.2, sim_seconds, log_dir, controller=_mfol_command(path),
+                                                            executor=name))
+                runs["round_trip"][name].append(dds_round_trip(round_trips, log_dir, executor=name))
+    for key in ("open_loop_5hz", "mfol_5hz"):
+        for name, values in runs[key].items():
+            out[key][name] = max(values, key=lambda r: r["rtf"])
+    for name, values in runs["round_trip"].items():
+        out["round_trip"][name] = min(values, key=lambda r: r["median_us"])
+        out["open_loop_5hz"][name]["lockstep_over_round_trip"] = \
+            out["open_loop_5hz"][name]["us_per_step"] / out["round_trip"][name]["median_us"]
+    return out
 
 
 #: Sec. 7.7: the extra PDP-11/73 time per 60 s simulated, fixed-gain : explicit : implicit [s]
@@ -431,3 +493,19 @@ def law_lockstep_rate(law: str, control_period: float = 0.2, sim_seconds: float 
         command = [str(find_executable("seapup_control", "velocity_controller")), "--ros-args",
                    "-p", f"controller_type:={law}", "-p", f"controller_file:={path}", "-p", "autostart:=true"]
         return lockstep_rate(control_period, sim_seconds, log_dir, controller=command)
+
+
+def executor_ab_lines(ab: dict) -> list[str]:
+    """The lines ``./seapup bench`` prints for :func:`executor_ab`'s result: one per graph and executor."""
+    lines = []
+    for key, label in (("open_loop_5hz", "simulator + open_loop, 5 Hz"), ("mfol_5hz", "simulator + mfol, 5 Hz")):
+        for name, g in ab[key].items():
+            ratio = g.get("lockstep_over_round_trip")
+            lines.append(f"executor {name:6s} {label}: {g['rtf']:.0f}x real time, {g['us_per_step']:.0f} us per sample "
+                         f"wall; CPU per sample: simulator {g['simulator_cpu_us_per_step']:.0f} us, controller "
+                         f"{g['controller_cpu_us_per_step']:.0f} us; longest gap {1e3 * g['max_gap_s']:.0f} ms"
+                         + (f"; {ratio:.1f} round trips per sample" if ratio is not None else ""))
+    for name, rt in ab["round_trip"].items():
+        lines.append(f"executor {name:6s} DDS round trip: median {rt['median_us']:.0f} us, p99 {rt['p99_us']:.0f} us; "
+                     f"echo CPU {rt['echo_cpu_us_per_trip']:.0f} us per trip")
+    return lines

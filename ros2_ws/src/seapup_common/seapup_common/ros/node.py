@@ -1,8 +1,9 @@
 """Shared node entry, parameter declaration, QoS and logging for seapup nodes (rclpy).
 
 Gives every node the same life cycle: ``rclpy.init`` with the process's
-arguments, a SingleThreadedExecutor (the events executor deadlocks with these
-wheels), a clean exit on SIGINT/SIGTERM, a non-zero exit code if the node
+arguments, an executor chosen by the read-only parameter ``executor``
+(:data:`EXECUTORS`; its default from ``$SEAPUP_EXECUTOR`` so a whole graph
+switches at once, see :func:`declare_executor`), a clean exit on SIGINT/SIGTERM, a non-zero exit code if the node
 could not be constructed (e.g. a rejected parameter), and the log lines of
 the pure cores (Python ``logging`` under ``seapup_*``) on the node's ROS
 logger, so ``rosout`` and the console show them.
@@ -37,7 +38,9 @@ __all__ = ["run_node", "declare_from_package_file", "declare_guarded", "declare_
            "ParameterGuard", "Allowed", "one_of", "each_one_of", "text", "topic_names", "regular_expression",
            "path_or_empty",
            "refuse_invalid_transitions", "stop_requested", "QUIET_PUBLISHER", "QUIET_SUBSCRIPTION",
-           "QosWatch", "RELIABLE_QOS", "COMMAND_QOS", "TF_QOS", "TF_STATIC_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
+           "QosWatch", "EXECUTORS", "EXECUTOR_ENV", "DEFAULT_EXECUTOR", "declare_executor", "make_executor",
+           "UnknownExecutorError",
+           "RELIABLE_QOS", "COMMAND_QOS", "TF_QOS", "TF_STATIC_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
 RELIABLE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -445,15 +448,22 @@ def _drain(executor, node, budget: float = 1.5) -> None:
     """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until a
     short wait brings nothing new (a live graph keeps publishing; what arrives after the stop is not
     waited for) or ``budget`` seconds pass (a stopped process must end promptly: its parent may be gone)."""
+    import threading
     deadline = time.monotonic() + budget
+    spent = _Stop()   # the events executor's steps may overrun their timeout: the budget ends them (_spin_step)
+    timer = threading.Timer(budget, spent.request)
+    timer.daemon = True
+    timer.start()
     try:
         while time.monotonic() < deadline:
             before = getattr(node, "received", None)
-            executor.spin_once(timeout_sec=0.01)
+            _spin_step(executor, spent, 0.01)
             if getattr(node, "received", None) == before:
                 break
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    finally:
+        timer.cancel()
 
 
 def _await_acknowledgements(node) -> None:
@@ -641,12 +651,73 @@ def _orphaned(parent: int) -> bool:
     return os.getppid() != parent
 
 
+class _Stop:
+    """A request to end a spin, shaped like the part of ``rclpy.task.Future`` that
+    ``spin_until_future_complete`` uses (``done``, ``add_done_callback``, ``remove_done_callback``).
+
+    :meth:`request` calls the waiting callbacks at once, in the caller's thread, taking no lock: it is called
+    from a signal handler, which runs in the main thread between two bytecodes of whatever it interrupted (a
+    ``Future``'s own non-reentrant lock included), and from a timer thread. The events executor's callback only
+    stops its queue.
+    """
+
+    def __init__(self):
+        self._requested = False
+        self._callbacks: list = []
+
+    def done(self) -> bool:
+        return self._requested
+
+    def add_done_callback(self, callback) -> None:
+        if self._requested:
+            callback(self)
+        else:
+            self._callbacks.append(callback)
+
+    def remove_done_callback(self, callback) -> bool:
+        try:
+            self._callbacks.remove(callback)
+        except ValueError:
+            return False
+        return True
+
+    def request(self) -> None:
+        self._requested = True
+        for callback in list(self._callbacks):
+            callback(self)
+
+
+#: The stop request of the running :func:`run_node` (ends the events executor's spin at once; see :func:`_spin_step`).
+_STOPPING: list[_Stop] = []
+
+
 def _request_stop(signum: int, parent: int) -> None:
-    """The stop signals' handler: ask the loop to stop and arm the watchdog (again, shorter, when orphaned)."""
+    """The stop signals' handler: ask the loop to stop and arm the watchdog (again, shorter, when orphaned).
+
+    The request also ends a spin of the events executor in progress (:class:`_Stop`)."""
     first = not _STOP
     _STOP.append(signum)
+    if _STOPPING:
+        _STOPPING[0].request()
     if first or _orphaned(parent):
         _arm_stop_watchdog(ORPHAN_STOP_BUDGET if _orphaned(parent) else STOP_BUDGET)
+
+
+def _spin_step(executor, until, timeout: float) -> None:
+    """One step of the executor's loop: at most ``timeout`` s, or until the future ``until`` completes.
+
+    The SingleThreadedExecutor runs one callback per ``spin_once`` and honours its timeout. The events
+    executor of rclpy 7.1 does not: its ``spin_once(timeout_sec)`` goes on dispatching while events keep
+    coming (measured: 1.9-2.6 s, once 5 s, for a 0.1 s step of a free-running simulator with 200 queued
+    commands), and its ``spin()`` never returns to Python at all, so a flag checked between steps is seen late
+    or never (the hang seen before): its queue checks the deadline only when it is empty. A request of
+    ``until`` (:class:`_Stop`) stops its queue after the callback in progress, from any thread
+    (``spin_until_future_complete`` registers a done callback that does so, and removes it on return).
+    """
+    if isinstance(executor, SingleThreadedExecutor):
+        executor.spin_once(timeout_sec=timeout)
+    else:
+        executor.spin_until_future_complete(until, timeout_sec=timeout)
 
 
 def stop_requested() -> bool:
@@ -655,12 +726,70 @@ def stop_requested() -> bool:
     return bool(_STOP)
 
 
+#: The executors a node can run under (parameter ``executor``): ``single``, rclpy's SingleThreadedExecutor
+#: (a wait set rebuilt at every iteration, in Python); ``events``, rclpy's ``experimental.EventsExecutor``
+#: (middleware callbacks queued and dispatched in C++). :func:`run_node` spins both in steps of at most 0.1 s,
+#: the stop flag checked between them (:func:`_spin_step`).
+EXECUTORS = ("single", "events")
+#: The environment variable that gives every node of a graph its default executor (a ``-p executor:=...``
+#: of one node still wins).
+EXECUTOR_ENV = "SEAPUP_EXECUTOR"
+#: The executor of a node given neither the parameter nor the environment variable: ``events``, measured
+#: faster with less CPU on every graph of ``./seapup bench``'s ``graph_executor_ab`` (simulator + MFOL at 5 Hz:
+#: about twice the samples per second, each process about half the CPU per sample; see docs/nodes.md).
+DEFAULT_EXECUTOR = "events"
+
+
+class UnknownExecutorError(ValueError):
+    """``$SEAPUP_EXECUTOR`` (or ``executor``) names no executor of :data:`EXECUTORS`."""
+
+
+def _executor_default() -> str:
+    import os
+    value = os.environ.get(EXECUTOR_ENV, "").strip() or DEFAULT_EXECUTOR
+    if value not in EXECUTORS:
+        raise UnknownExecutorError(f"{EXECUTOR_ENV}={value[:40]!r} refused: it must be one of {', '.join(EXECUTORS)}")
+    return value
+
+
+def declare_executor(node) -> str:
+    """Declare ``node``'s read-only string parameter ``executor`` (one of :data:`EXECUTORS`; default
+    ``$SEAPUP_EXECUTOR``, else :data:`DEFAULT_EXECUTOR`) and return its value.
+
+    Read-only: the executor is chosen once, when :func:`run_node` builds it; a change at run time
+    could not take effect, so it is refused rather than accepted and ignored.
+
+    Raises
+    ------
+    UnknownExecutorError
+        ``$SEAPUP_EXECUTOR`` is set to something else than one of :data:`EXECUTORS`.
+    ValueError
+        ``-p executor:=...`` is not one of :data:`EXECUTORS`.
+    """
+    from rcl_interfaces.msg import ParameterDescriptor
+    descriptor = ParameterDescriptor(read_only=True, description="the executor that spins this node: single "
+                                     f"(SingleThreadedExecutor) or events (EventsExecutor); default ${EXECUTOR_ENV}")
+    return declare_guarded(node, {"executor": _executor_default()}, {"executor": descriptor},
+                           allowed={"executor": one_of(*EXECUTORS)})["executor"]
+
+
+def make_executor(choice: str, context=None):
+    """The rclpy executor named ``choice`` (one of :data:`EXECUTORS`) on ``context`` (default: rclpy's)."""
+    if choice == "single":
+        return SingleThreadedExecutor(context=context)
+    if choice == "events":
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor(context=context)
+    raise UnknownExecutorError(f"executor {choice!r} refused: it must be one of {', '.join(EXECUTORS)}")
+
+
 def run_node(make_node, args=None) -> int:
     """Construct a node with ``make_node()`` and spin it until SIGINT or SIGTERM.
 
+    The executor is the node's ``executor`` parameter (:func:`declare_executor`, :func:`make_executor`).
     Both signals only *ask* the node to stop (a flag checked between two
-    executor iterations, at least every 0.1 s, also when the node has nothing
-    to do): an exception thrown from a signal handler into whatever runs at
+    executor steps, at least every 0.1 s, also when the node has nothing
+    to do; the events executor's step is ended by the request itself, see :func:`_spin_step`): an exception thrown from a signal handler into whatever runs at
     that moment could be swallowed by it -- a ``KeyboardInterrupt`` raised
     inside a message deserialisation comes back from pybind11 as an ordinary
     error, which the simulator counts as a malformed command and keeps
@@ -679,6 +808,8 @@ def run_node(make_node, args=None) -> int:
     parent = os.getppid()
     stop = _STOP
     stop.clear()
+    stopping = _Stop()
+    _STOPPING[:] = [stopping]
     # before rclpy.init: a signal while starting is a request like any other, never a KeyboardInterrupt
     # thrown into the middle of rcl's or DDS's set-up
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # SIGHUP: the terminal it ran in closed
@@ -688,20 +819,20 @@ def run_node(make_node, args=None) -> int:
     except Exception as exc:  # rcl refuses the command line (e.g. a malformed -p rule)
         print(f"[{getattr(make_node, '__name__', 'node')}] fatal: {exc}", file=sys.stderr)
         return 1
-    node = None
+    node = executor = None
     routed = []
     try:
-        executor = None
         if stop:   # told to stop while rclpy started: the node is not built
             return 0
         node = make_node()
+        choice = declare_executor(node)
         refuse_unknown_overrides(node)
         routed = _route_core_logs(node)
-        executor = SingleThreadedExecutor()
+        executor = make_executor(choice, context=node.context)
         executor.add_node(node)
         try:
-            while not stop:  # back here at least every 0.1 s, so a signal is acted on promptly
-                executor.spin_once(timeout_sec=0.1)
+            while not stop:  # back here at least every 0.1 s (or when asked to stop), so a signal is acted on promptly
+                _spin_step(executor, stopping, 0.1)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         # orphaned: nobody is left to acknowledge, and the budget is short; SIGTERM first: a stop in a hurry (a
@@ -722,6 +853,8 @@ def run_node(make_node, args=None) -> int:
             _arm_stop_watchdog(ORPHAN_STOP_BUDGET if _orphaned(parent) else STOP_BUDGET)
         for logger, handler in routed:
             logger.removeHandler(handler)
+        if executor is not None:   # the events executor holds the node's entities until it lets go of them
+            executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

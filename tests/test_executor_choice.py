@@ -1,0 +1,147 @@
+"""The executor a node runs under (``run_node``'s read-only parameter ``executor``, default ``$SEAPUP_EXECUTOR``).
+
+Truth: the node itself -- a probe node started by ``run_node`` in a child process reports, from one of its own
+timer callbacks, the class of the executor that called it (``Node.executor``, which rclpy sets when an
+executor takes the node). Each choice, given by parameter or by environment, must be the one that runs the
+callbacks, and a node under each must end with exit code 0 soon after SIGINT or SIGTERM (``run_node`` checks
+its stop flag between ``spin_once`` calls of at most 0.1 s; the events executor's ``spin()`` never comes back to
+Python, which is how it once hung here). A value that is not an executor stops the start, naming the choices.
+"""
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from seapup_common.processes import child_options
+
+#: A node whose timer prints the class of the executor running it, started the way every seapup node is.
+PROBE = """
+import sys
+import rclpy
+from seapup_common.ros.node import run_node
+
+def make():
+    node = rclpy.create_node("executor_probe")
+    def tick():
+        executor = node.executor
+        print(f"EXECUTOR {type(executor).__module__}.{type(executor).__name__} "
+              f"{node.get_parameter('executor').value}", flush=True)
+    node.create_timer(0.05, tick)
+    return node
+
+sys.exit(run_node(make))
+"""
+#: The classes behind each choice (the events executor is a pybind11 class made by a factory function).
+CLASSES = {"single": "rclpy.executors.SingleThreadedExecutor", "events": "rclpy._rclpy_pybind11.EventsExecutor"}
+#: How soon a node must be gone after a stop signal [s]: the 0.1 s spin step, destruction and rclpy's shutdown,
+#: on a loaded 2-core machine (the watchdog's budget is 10 s; this is far inside it).
+PROMPT = 3.0
+
+
+def _start(env: dict, executor_param: str | None = None) -> subprocess.Popen:
+    command = [sys.executable, "-c", PROBE]
+    if executor_param is not None:
+        command += ["--ros-args", "-p", f"executor:={executor_param}"]
+    return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            stdin=subprocess.DEVNULL, **child_options())
+
+
+def _first_report(popen: subprocess.Popen, timeout: float = 30.0) -> str:
+    """The first ``EXECUTOR ...`` line the probe prints (everything it printed, if it ends or times out)."""
+    deadline, seen = time.monotonic() + timeout, b""
+    fd = popen.stdout.fileno()
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([fd], [], [], 0.1)
+        if ready:
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                break
+            seen += chunk
+            for line in seen.decode(errors="replace").splitlines():
+                if line.startswith("EXECUTOR ") and seen.endswith(b"\n"):
+                    return line
+    return seen.decode(errors="replace")
+
+
+def _stop(popen: subprocess.Popen, sig: int) -> tuple[int, float]:
+    """Send ``sig`` to the probe's process group; its exit code and how long it took [s]."""
+    t0 = time.monotonic()
+    os.killpg(popen.pid, sig)
+    try:
+        code = popen.wait(timeout=15.0)
+    finally:
+        if popen.poll() is None:
+            os.killpg(popen.pid, signal.SIGKILL)
+            popen.wait()
+    return code, time.monotonic() - t0
+
+
+@pytest.mark.graph
+@pytest.mark.parametrize("choice", ["single", "events"])
+@pytest.mark.parametrize("given_by", ["parameter", "environment"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_the_chosen_executor_runs_the_node_and_it_stops_promptly(ros_env, choice, given_by, sig):
+    env = dict(ros_env)
+    other = "events" if choice == "single" else "single"
+    if given_by == "parameter":   # the parameter wins over the graph's environment
+        env["SEAPUP_EXECUTOR"] = other
+        popen = _start(env, choice)
+    else:
+        env["SEAPUP_EXECUTOR"] = choice
+        popen = _start(env)
+    report = _first_report(popen)
+    assert report == f"EXECUTOR {CLASSES[choice]} {choice}", report
+    code, took = _stop(popen, sig)
+    assert code == 0 and took < PROMPT, (code, took, popen.stdout.read().decode(errors="replace")[-2000:])
+
+
+@pytest.mark.graph
+def test_the_default_is_the_documented_one(ros_env):
+    from seapup_common.ros.node import DEFAULT_EXECUTOR
+    env = dict(ros_env)
+    env.pop("SEAPUP_EXECUTOR", None)
+    popen = _start(env)
+    report = _first_report(popen)
+    assert report == f"EXECUTOR {CLASSES[DEFAULT_EXECUTOR]} {DEFAULT_EXECUTOR}", report
+    assert _stop(popen, signal.SIGTERM)[0] == 0
+
+
+@pytest.mark.graph
+@pytest.mark.parametrize("given_by", ["parameter", "environment"])
+def test_an_unknown_executor_stops_the_start_naming_the_choices(ros_env, given_by):
+    env = dict(ros_env)
+    if given_by == "parameter":
+        popen = _start(env, "multi")
+    else:
+        env["SEAPUP_EXECUTOR"] = "multi"
+        popen = _start(env)
+    out = popen.communicate(timeout=30.0)[0].decode(errors="replace")
+    assert popen.returncode == 1, out
+    assert "'multi'" in out and "single, events" in out and "EXECUTOR " not in out, out
+
+
+@pytest.mark.graph
+def test_the_executor_cannot_be_changed_at_run_time(ros_context):
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from seapup_common.ros.node import declare_executor
+    node = rclpy.create_node("executor_read_only", context=ros_context)
+    assert declare_executor(node) in ("single", "events")
+    result = node.set_parameters([Parameter("executor", Parameter.Type.STRING, "events")])[0]
+    assert not result.successful and "read-only" in result.reason
+
+
+@pytest.mark.graph
+def test_make_executor_builds_each_choice_and_refuses_others(ros_context):
+    from seapup_common.ros.node import EXECUTORS, UnknownExecutorError, make_executor
+    for choice in EXECUTORS:
+        executor = make_executor(choice, context=ros_context)
+        assert f"{type(executor).__module__}.{type(executor).__name__}" == CLASSES[choice]
+        executor.shutdown(timeout_sec=1.0)
+    with pytest.raises(UnknownExecutorError, match="single, events"):
+        make_executor("multi", context=ros_context)
