@@ -145,3 +145,28 @@ def test_make_executor_builds_each_choice_and_refuses_others(ros_context):
         executor.shutdown(timeout_sec=1.0)
     with pytest.raises(UnknownExecutorError, match="single, events"):
         make_executor("multi", context=ros_context)
+
+
+@pytest.mark.graph
+def test_a_node_class_names_its_own_default_and_the_environment_still_wins(ros_context, monkeypatch):
+    """The per-sample nodes run under the events executor by their class's ``EXECUTOR``; every other node under
+    :data:`DEFAULT_EXECUTOR`; ``$SEAPUP_EXECUTOR`` overrides both (an A/B of a whole graph)."""
+    import rclpy
+    from rclpy.node import Node
+
+    from seapup_common.ros.node import DEFAULT_EXECUTOR, declare_executor
+    from seapup_control.open_loop_node import OpenLoopNode
+    from seapup_control.velocity_controller_node import VelocityControllerNode
+
+    class Fast(Node):
+        EXECUTOR = "events"
+
+    monkeypatch.delenv("SEAPUP_EXECUTOR", raising=False)
+    assert DEFAULT_EXECUTOR == "single"
+    assert VelocityControllerNode.EXECUTOR == OpenLoopNode.EXECUTOR == "events"
+    nodes = [Fast("fast", context=ros_context), rclpy.create_node("plain", context=ros_context)]
+    assert [declare_executor(n) for n in nodes] == ["events", "single"]
+    monkeypatch.setenv("SEAPUP_EXECUTOR", "single")
+    assert declare_executor(Fast("fast_single", context=ros_context)) == "single"
+    for node in nodes:
+        node.destroy_node()

@@ -89,7 +89,11 @@ def test_replay_reproduces_order_count_and_timing(ros_context, node_process, spi
     sim = start_simulator(node_process, "mode:=realtime", "real_time_factor:=1.0")
     probe = Probe(ros_context, spin)
     rec = start_recorder(node_process, tmp_path / "bag")
-    time.sleep(3.0)
+    # ten-odd samples after the recorder's first (at 1x, 5 Hz: about 3 s; longer on a loaded machine)
+    probe.record(ODOM, Odometry)
+    assert probe.spin(lambda: "first message on" in rec.log_text(), 30.0), rec.log_text()[-2000:]
+    heard = len(probe.msgs[ODOM])
+    assert probe.spin(lambda: len(probe.msgs[ODOM]) >= heard + 14, 30.0)
     assert rec.stop() == 0
     sim.stop()
     recorded = list(read_bag(tmp_path / "bag"))

@@ -235,6 +235,10 @@ def bench(argv: list[str]) -> int:
         out["graph_executor_ab"] = graph_bench.executor_ab()
         for line in graph_bench.executor_ab_lines(out["graph_executor_ab"]):
             print(line, file=out_text)
+        print("graph: the demo's hierarchy with its recorder, unpaced in lockstep...", file=out_text, flush=True)
+        h = out["graph_hierarchy_5hz"] = graph_bench.hierarchy_rate()
+        print(f"graph_hierarchy_5hz: {h['rtf']:.1f}x real time (target >= 60x; CPU per sample over all "
+              f"{len(h['cpu_us_per_step'])} processes {h['total_cpu_us_per_step']:.0f} us)", file=out_text)
         print("graph: the live view's cost (simulator + open_loop at 5 Hz without and with it)...", file=out_text,
               flush=True)
         cost = out["graph_view_cost_5hz"] = graph_bench.view_cost()

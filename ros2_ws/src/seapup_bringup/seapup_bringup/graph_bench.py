@@ -13,6 +13,11 @@
   ``mfol_velocity_controller``, the round trip) under each executor of
   ``run_node`` (``$SEAPUP_EXECUTOR``), in alternating blocks of one run,
   wall rate beside each process's CPU per sample.
+- :func:`hierarchy_rate`: the demo's whole graph (``hierarchy.launch.yaml``:
+  simulator, navigator, four velocity controllers under the manager, the
+  position and task controllers, the self-test) with the demo's recorder,
+  unpaced in lockstep, the fixed-gain controller active: simulated seconds per
+  wall second and the CPU of every process per sample.
 """
 from __future__ import annotations
 
@@ -29,7 +34,7 @@ from seapup_common.ros.node import EXECUTOR_ENV, EXECUTORS, make_executor
 from seapup_common.topics import CLOCK
 
 __all__ = ["lockstep_rate", "dds_round_trip", "recording_memory", "mfol_step_us", "mfol_lockstep_rate", "view_cost",
-           "executor_ab", "executor_ab_lines"]
+           "executor_ab", "executor_ab_lines", "hierarchy_rate"]
 
 #: The echo of :func:`dds_round_trip`, spun as ``run_node`` spins a node: ``spin_once`` with a timeout, on the
 #: executor ``$SEAPUP_EXECUTOR`` names (both ends of the round trip use the same one).
@@ -509,3 +514,39 @@ def executor_ab_lines(ab: dict) -> list[str]:
         lines.append(f"executor {name:6s} DDS round trip: median {rt['median_us']:.0f} us, p99 {rt['p99_us']:.0f} us; "
                      f"echo CPU {rt['echo_cpu_us_per_trip']:.0f} us per trip")
     return lines
+
+
+def hierarchy_rate(sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+    """The demo's hierarchy graph with its recorder, unpaced in lockstep (issue 43's target: >= 60x real time).
+
+    The graph runs on from t_0 (``end_time`` given: not held) with ``mfol_fixed`` active and no task goal (the
+    vehicle holds its start); the rate is measured from the first sample the probe hears once the graph is
+    ready to the sample ``sim_seconds`` later, on the probe's clock, with each node's CPU over that span.
+
+    Returns
+    -------
+    dict
+        ``rtf`` (simulated / wall), ``wall_s``, ``sim_s``, ``cpu_us_per_step`` per node, ``total_cpu_us_per_step``.
+    """
+    import tempfile
+
+    from seapup_bringup.demo import RECORDED
+    from seapup_bringup.sil import SilGraph
+    control_period = 0.2
+    with tempfile.TemporaryDirectory(dir=log_dir) as tmp:
+        path = _controller_file(Path(tmp), control_period)
+        end = 5.0 + float(sim_seconds)
+        arguments = {"controller_file": str(path), "end_time": repr(end), "lockstep_timeout": "10.0"}
+        with SilGraph(arguments=arguments, out_dir=Path(tmp) / "graph", record=RECORDED, ready_status="") as sil:
+            sil.spin_until(lambda: sil.t >= 5.0, 300.0)
+            t0, wall0 = sil.t, time.monotonic()
+            cpu0 = {name: _cpu_s(p.popen.pid) for name, p in sil.processes.items() if p.running}
+            if not sil.spin_until(lambda: sil.t >= end - 1e-6, max(600.0, 10.0 * sim_seconds)):
+                raise RuntimeError(f"the hierarchy stopped at {sil.t:.1f} s of {end:g} s")
+            wall = time.monotonic() - wall0
+            steps = max(1, round((sil.t - t0) / control_period))
+            cpu = {name: (_cpu_s(sil.processes[name].popen.pid) - c0) / steps * 1e6 for name, c0 in cpu0.items()
+                   if sil.processes[name].running}
+            sim = sil.t - t0
+    return {"rtf": sim / wall, "wall_s": wall, "sim_s": sim, "steps": steps, "cpu_us_per_step": cpu,
+            "total_cpu_us_per_step": sum(cpu.values())}

@@ -734,19 +734,24 @@ EXECUTORS = ("single", "events")
 #: The environment variable that gives every node of a graph its default executor (a ``-p executor:=...``
 #: of one node still wins).
 EXECUTOR_ENV = "SEAPUP_EXECUTOR"
-#: The executor of a node given neither the parameter nor the environment variable: ``events``, measured
-#: faster with less CPU on every graph of ``./seapup bench``'s ``graph_executor_ab`` (simulator + MFOL at 5 Hz:
-#: about twice the samples per second, each process about half the CPU per sample; see docs/nodes.md).
-DEFAULT_EXECUTOR = "events"
+#: The executor of a node given neither the parameter nor the environment variable, unless its class names
+#: another in its ``EXECUTOR`` attribute: ``single``. ``events`` was measured faster with less CPU on every graph
+#: of ``./seapup bench``'s ``graph_executor_ab`` (simulator + MFOL at 5 Hz: about twice the samples per second,
+#: each process about half the CPU per sample; see docs/nodes.md), but rclpy 7.1's EventsExecutor is not safe
+#: for every node: a recorder that replaces a subscription while spinning died in rcl ("null argument to
+#: internal routine"), and it runs no coroutine (async) service callback. So the per-sample nodes that were
+#: soaked and hostile-tested under it (velocity controllers, open_loop) say ``EXECUTOR = "events"``; the rest
+#: stay on ``single``.
+DEFAULT_EXECUTOR = "single"
 
 
 class UnknownExecutorError(ValueError):
     """``$SEAPUP_EXECUTOR`` (or ``executor``) names no executor of :data:`EXECUTORS`."""
 
 
-def _executor_default() -> str:
+def _executor_default(preferred: str = DEFAULT_EXECUTOR) -> str:
     import os
-    value = os.environ.get(EXECUTOR_ENV, "").strip() or DEFAULT_EXECUTOR
+    value = os.environ.get(EXECUTOR_ENV, "").strip() or preferred
     if value not in EXECUTORS:
         raise UnknownExecutorError(f"{EXECUTOR_ENV}={value[:40]!r} refused: it must be one of {', '.join(EXECUTORS)}")
     return value
@@ -754,7 +759,8 @@ def _executor_default() -> str:
 
 def declare_executor(node) -> str:
     """Declare ``node``'s read-only string parameter ``executor`` (one of :data:`EXECUTORS`; default
-    ``$SEAPUP_EXECUTOR``, else :data:`DEFAULT_EXECUTOR`) and return its value.
+    ``$SEAPUP_EXECUTOR``, else the node class's ``EXECUTOR`` attribute, else :data:`DEFAULT_EXECUTOR`) and
+    return its value.
 
     Read-only: the executor is chosen once, when :func:`run_node` builds it; a change at run time
     could not take effect, so it is refused rather than accepted and ignored.
@@ -769,7 +775,8 @@ def declare_executor(node) -> str:
     from rcl_interfaces.msg import ParameterDescriptor
     descriptor = ParameterDescriptor(read_only=True, description="the executor that spins this node: single "
                                      f"(SingleThreadedExecutor) or events (EventsExecutor); default ${EXECUTOR_ENV}")
-    return declare_guarded(node, {"executor": _executor_default()}, {"executor": descriptor},
+    preferred = getattr(type(node), "EXECUTOR", DEFAULT_EXECUTOR)
+    return declare_guarded(node, {"executor": _executor_default(preferred)}, {"executor": descriptor},
                            allowed={"executor": one_of(*EXECUTORS)})["executor"]
 
 
