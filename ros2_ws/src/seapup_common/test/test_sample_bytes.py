@@ -173,3 +173,156 @@ def test_zero_padding_zeroes_garbage_between_fields_and_keeps_the_fields():
     assert deserialize_message(cleaned, SampleManifest).topics == ["/a"]
     with pytest.raises(ValueError, match="bytes"):
         zero_padding(bytes(data[:-2]), SampleManifest)
+
+
+# -- reading bytes: the decoders against rclpy's deserialiser and the typed conversions ---------------------
+from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped  # noqa: E402
+
+from seapup_common.blade_pitch import InvalidBladePitchError  # noqa: E402
+from seapup_common.contract import ContractError  # noqa: E402
+from seapup_common.ros.sample_bytes import (StampedDoubles, decode_blade_pitch, decode_clock,  # noqa: E402
+                                            decode_reference, decode_velocity)
+
+SPECIAL = [math.nan, math.inf, -math.inf, 1e308, -0.0, 5e-324]
+
+
+def _random_doubles(n, rng, special=0.05):
+    values = rng.normal(0.0, 10.0, n)
+    mask = rng.random(n) < special
+    values[mask] = rng.choice(SPECIAL, mask.sum())
+    return values.tolist()
+
+
+def _random_stamped(msg_type, rng, frames_=("base_link_frd", "", "map", "base_link_frdx")):
+    msg = msg_type()
+    msg.header.stamp.sec = int(rng.integers(-2**31, 2**31))
+    msg.header.stamp.nanosec = int(rng.integers(0, 10**9))
+    msg.header.frame_id = str(rng.choice(frames_))
+    return msg
+
+
+def _random_velocity(rng):
+    msg = _random_stamped(TwistWithCovarianceStamped, rng)
+    v = _random_doubles(42, rng, 0.02)
+    conv._set_xyz(msg.twist.twist.linear, v[:3])
+    conv._set_xyz(msg.twist.twist.angular, v[3:6])
+    msg.twist.covariance = v[6:]
+    return msg
+
+
+def _random_reference(rng):
+    msg = _random_stamped(TwistStamped, rng)
+    v = _random_doubles(6, rng, 0.1)
+    conv._set_xyz(msg.twist.linear, v[:3])
+    conv._set_xyz(msg.twist.angular, v[3:])
+    return msg
+
+
+def _random_pitch(rng):
+    msg = _random_stamped(BladePitch, rng)
+    msg.pitch = _random_doubles(4, rng, 0.1)
+    return msg
+
+
+def _same(a, b):
+    """Equal bit for bit (NaNs and signed zeros included), arrays read-only like the typed path's."""
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def _outcome(convert, *args):
+    try:
+        return "ok", convert(*args)
+    except (ContractError, InvalidBladePitchError) as exc:
+        return type(exc), str(exc)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_velocity_bytes_read_as_velocity_from_msg_reads_the_message(seed):
+    rng = np.random.default_rng(seed)
+    fast = 0
+    for _ in range(300):
+        msg = _random_velocity(rng)
+        data = serialize_message(msg)
+        typed = _outcome(conv.velocity_from_msg, msg)
+        decoded = decode_velocity(data)
+        if decoded is None:   # the caller goes the typed way: only for what the typed path refuses or another frame
+            assert typed[0] != "ok" or msg.header.frame_id != frames.FRAME_FRD
+            continue
+        fast += 1
+        t_ns, velocity, rates = decoded
+        assert typed[0] == "ok" and t_ns == conv.stamp_to_ns(msg.header.stamp)
+        for mine, theirs in zip((velocity, rates), typed[1]):
+            assert mine.stamp == theirs.stamp
+            assert _same(mine.value, theirs.value) and _same(mine.variance, theirs.variance)
+            assert not mine.value.flags.writeable and not mine.variance.flags.writeable
+    assert fast > 50
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_reference_and_blade_pitch_bytes_read_as_the_typed_conversions(seed):
+    rng = np.random.default_rng(100 + seed)
+    fast = 0
+    for _ in range(300):
+        ref, pitch = _random_reference(rng), _random_pitch(rng)
+        decoded = _outcome(decode_reference, serialize_message(ref))
+        if decoded != ("ok", None):
+            fast += 1
+            typed = _outcome(conv.reference_from_msg, ref)
+            assert decoded[0] == typed[0]
+            if typed[0] == "ok":
+                assert decoded[1][0] == conv.stamp_to_ns(ref.header.stamp)
+                assert _same(decoded[1][1].velocity, typed[1].velocity)
+            else:
+                assert decoded[1] == typed[1]   # the same refusal, word for word
+        else:
+            assert ref.header.frame_id not in ("", frames.FRAME_FRD)
+        decoded = _outcome(decode_blade_pitch, serialize_message(pitch))
+        if decoded != ("ok", None):
+            typed = _outcome(conv.command_from_msg, pitch)
+            assert decoded[0] == typed[0]
+            if typed[0] == "ok":
+                t_ns, command = decoded[1]
+                assert t_ns == conv.stamp_to_ns(pitch.header.stamp) and command.stamp == typed[1].stamp
+                assert _same(command.blade_pitch, typed[1].blade_pitch)
+            else:
+                assert decoded[1] == typed[1]
+        else:
+            assert pitch.header.frame_id not in ("", frames.FRAME_FRD)
+    assert fast > 100
+
+
+def test_clock_bytes_read_as_the_message():
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = int(rng.integers(-2**31, 2**31)), int(rng.integers(0, 10**9))
+        assert decode_clock(serialize_message(msg)) == conv.stamp_to_ns(msg.clock)
+
+
+@pytest.mark.parametrize("msg_type, make, decode", [
+    (TwistWithCovarianceStamped, _random_velocity, decode_velocity),
+    (TwistStamped, _random_reference, decode_reference),
+    (BladePitch, _random_pitch, decode_blade_pitch),
+    (Clock, lambda rng: Clock(), decode_clock)])
+def test_short_long_and_foreign_bytes_are_never_decoded(msg_type, make, decode):
+    """Cut, lengthened, big-endian or garbage bytes: the fast readers say None (the caller then asks rclpy,
+    which refuses what it cannot read), never a guess."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        msg = make(rng)
+        if hasattr(msg, "header"):
+            msg.header.frame_id = "base_link_frd"
+        data = serialize_message(msg)
+        for cut in {0, 1, 4, 11, 12, len(data) // 2, len(data) - 8, len(data) - 1} - {len(data)}:
+            assert decode(data[:cut]) is None
+            with pytest.raises(Exception):   # rclpy refuses them too
+                deserialize_message(data[:cut], msg_type)
+        assert decode(data + b"\x00" * 8) is None   # rclpy reads it (ignores the tail): the caller does too
+        assert decode(b"\x00\x00\x00\x00" + data[4:]) is None    # big-endian CDR
+        assert decode(data[:4] + b"\x00" * (len(data) - 4)) is None or msg_type is Clock   # a zero-length frame
+
+
+def test_a_stamped_doubles_reader_refuses_a_message_with_other_fields():
+    with pytest.raises(TypeError, match="float64"):
+        StampedDoubles(Range, [""])

@@ -52,7 +52,16 @@ with the reason while a self-tuner has fallen back to its fixed gains). A law
 with an estimate (the self-tuners of ch. 7: ``estimate_matrix()`` and
 ``named_estimate()``) also publishes ``~/estimate``
 (``seapup_msgs/ControllerEstimate``: Theta, the named traces, the mode, the
-jacket's reason and counts) after every sample it answers.
+jacket's reason and counts) after every sample it answers; the status on
+``/diagnostics`` comes every ``diagnostics_every`` samples, in lockstep no
+more often than real time would give
+(:class:`~seapup_control.ros.diagnostics_pace.DiagnosticsPace`).
+
+The per-sample inputs (velocity, applied pitch, reference, ``/clock``) are
+subscribed as bytes and read without message objects
+(:mod:`seapup_control.ros.sample_inputs`: the typed conversions' results and
+refusals, bit for bit; bytes rclpy cannot read are refused and counted with
+the rest); the command is published as bytes.
 """
 from __future__ import annotations
 
@@ -74,14 +83,15 @@ from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, available_controllers,
                                        controller_type, create_controller)
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
-from seapup_common.ros.messages import (MeasurementCollector, SampleFeed, command_from_msg,
-                                        diagnostic_array, ns_to_stamp, reference_from_msg, stamp_to_ns)
+from seapup_common.ros.messages import MeasurementCollector, SampleFeed, diagnostic_array, ns_to_stamp, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
                                     QosWatch, declare_from_package_file, declare_guarded, one_of,
                                     refuse_invalid_transitions, run_node, text)
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
+from seapup_control.ros.diagnostics_pace import DiagnosticsPace
+from seapup_control.ros.sample_inputs import MalformedMessageError, RawSampleFeed, clock_of, command_of, reference_of
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
 
@@ -154,7 +164,7 @@ class VelocityControllerNode(LifecycleNode):
                        "skipped_samples": 0, "late_references": 0, "late_applied": 0}
         self.references = StampedReferences()
         self.applied: np.ndarray | None = None      # the latest applied blade pitch heard
-        self._applied_at: dict[int, np.ndarray] = {}  # applied pitch by sample stamp (the last few)
+        self._applied_at: dict[int, Command] = {}  # applied pitch by sample stamp (the last few)
         self._interfaces = []
         self._timer = None
         refuse_invalid_transitions(self)  # e.g. a second activate: refused, not fatal
@@ -210,6 +220,8 @@ class VelocityControllerNode(LifecycleNode):
             reference_every_sample=bool(self._value("reference_every_sample")),
             start_at=float(self._value("start_at")), stop_at=float(self._value("stop_at"))))
         self.feed = SampleFeed(self.collector, self.policy, self._rejected)
+        self.raw_feed = RawSampleFeed(self.feed)
+        self.pace = DiagnosticsPace(self.controller.sample_period, lockstep)
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", STREAM_QOS,
                                                          event_callbacks=QUIET_PUBLISHER)
         self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_subscribers")))])
@@ -219,19 +231,19 @@ class VelocityControllerNode(LifecycleNode):
         self.estimates = (self.create_lifecycle_publisher(ControllerEstimate, "~/estimate", STREAM_QOS,
                                                           event_callbacks=QUIET_PUBLISHER)
                           if callable(getattr(self.controller, "estimate_matrix", None)) else None)
-        def subscribe(kind, topic, callback, qos):  # no event handlers on the executor's path: QosWatch
-            return self.create_subscription(kind, topic, callback, qos, event_callbacks=QUIET_SUBSCRIPTION)
-        self._interfaces = [
-            subscribe(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS),
-            subscribe(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS),
-            subscribe(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS),
+        def subscribe(kind, topic, callback, qos, raw=False):  # no event handlers on the executor's path: QosWatch
+            return self.create_subscription(kind, topic, callback, qos, event_callbacks=QUIET_SUBSCRIPTION, raw=raw)
+        self._interfaces = [   # the per-sample inputs as bytes (sample_inputs)
+            subscribe(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS, raw=True),
+            subscribe(TwistStamped, "velocity_controller/reference", self._on_reference, COMMAND_QOS, raw=True),
+            subscribe(BladePitch, "thrusters/applied", self._on_applied, RELIABLE_QOS, raw=True),
             # a controller manager's copy of what reached the vehicle: activated while the graph is held at a
             # sample the outgoing controller answered, this one starts at the next (SamplePolicy)
             subscribe(BladePitch, FORWARDED_COMMAND,
                       lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)), RELIABLE_QOS)]
         self._qos_watch = QosWatch(self)
         if lockstep:
-            self._interfaces.append(subscribe(Clock, CLOCK, self._on_clock, RELIABLE_QOS))
+            self._interfaces.append(subscribe(Clock, CLOCK, self._on_clock, RELIABLE_QOS, raw=True))
         else:
             self._interfaces.append(self.create_timer(self.controller.sample_period, self._on_timer))
         self.get_logger().info(f"configured {self.kind.name} ({spec.file or 'no file'}; "
@@ -250,7 +262,8 @@ class VelocityControllerNode(LifecycleNode):
         return result
 
     def _start(self, t_ns: int | None = None) -> None:
-        applied, source = self._applied_at.get(t_ns, self.applied), "the applied blade pitch"
+        at = self._applied_at.get(t_ns)
+        applied, source = self.applied if at is None else at.blade_pitch, "the applied blade pitch"
         if applied is None:
             fallback = getattr(self.controller, "fallback_command", None)
             applied = np.asarray(fallback(), float) if fallback is not None else np.zeros(4)
@@ -282,10 +295,9 @@ class VelocityControllerNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     # -- inputs ----------------------------------------------------------------------
-    def _on_reference(self, msg: TwistStamped) -> None:
+    def _on_reference(self, data: bytes) -> None:
         try:
-            reference = reference_from_msg(msg)
-            stamp_ns = stamp_to_ns(msg.header.stamp)
+            reference, stamp_ns = reference_of(data)
             at = None if stamp_ns == 0 else stamp_ns * 1e-9
             latest = self.policy.latest_ns
             horizon = float(self._value("reference_horizon"))
@@ -300,16 +312,15 @@ class VelocityControllerNode(LifecycleNode):
         if self.policy.on_reference(at) and self.policy.latest_ns is not None:
             self._answer(self.policy.latest_ns)  # the sample that waited for it
 
-    def _on_applied(self, msg: BladePitch) -> None:
+    def _on_applied(self, data: bytes) -> None:
         try:
-            command = command_from_msg(msg)
+            command, t_ns = command_of(data)
         except ValueError as exc:  # the simulator never publishes such: counted, nothing to start from
             self.counts["rejected_applied"] += 1
             self.get_logger().warn(f"applied blade pitch rejected: {exc}", throttle_duration_sec=2.0)
             return
         self.applied = command.blade_pitch
-        t_ns = stamp_to_ns(msg.header.stamp)
-        self._applied_at[t_ns] = command.blade_pitch
+        self._applied_at[t_ns] = command   # stamped t_ns: what the law is told at that sample
         while len(self._applied_at) > 8:
             self._applied_at.pop(next(iter(self._applied_at)))
         if self.controller is not None and self.policy.on_applied(t_ns) and self.policy.latest_ns is not None:
@@ -319,13 +330,17 @@ class VelocityControllerNode(LifecycleNode):
         self.counts["rejected_measurements"] += 1
         self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=2.0)
 
-    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        t_ns = self.feed.velocity(msg)
+    def _on_velocity(self, data: bytes) -> None:
+        t_ns = self.raw_feed.velocity(data)
         if t_ns is not None:
             self._answer(t_ns)
 
-    def _on_clock(self, msg: Clock) -> None:
-        t_ns = self.feed.clock(msg)
+    def _on_clock(self, data: bytes) -> None:
+        try:
+            t_ns = self.policy.on_clock(clock_of(data))   # SampleFeed.clock of the bytes
+        except MalformedMessageError as exc:   # no clock publisher sends such; nothing to answer
+            self.get_logger().warn(f"/clock message ignored: {exc}", throttle_duration_sec=2.0)
+            return
         if t_ns is not None:
             self._answer(t_ns)
 
@@ -361,7 +376,7 @@ class VelocityControllerNode(LifecycleNode):
             return
         t = t_ns * 1e-9
         if t_ns in self._applied_at:
-            self.controller.applied(t, Command(self._applied_at[t_ns], stamp=t))
+            self.controller.applied(t, self._applied_at[t_ns])   # stamped t: checked once, when heard
         try:
             command = self.controller.update(t, self.collector.measurement(t), self.references.at(t))
         except ContractError as exc:  # no fresh velocity: nothing is integrated, the vehicle holds
@@ -373,7 +388,7 @@ class VelocityControllerNode(LifecycleNode):
         self.publisher.publish(command_bytes(command.blade_pitch, t_ns))  # serialised: a fraction of the cost
         if self.estimates is not None:
             self.estimates.publish(self._estimate(t_ns))
-        if self.counts["samples"] % max(1, int(self._value("diagnostics_every"))) == 0:
+        if self.pace.due(self.counts["samples"], max(1, int(self._value("diagnostics_every"))), time.monotonic()):
             self._diagnose(t_ns)
 
     def _wake_at(self, wake_at: float) -> None:

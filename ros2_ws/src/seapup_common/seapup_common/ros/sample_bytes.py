@@ -1,4 +1,4 @@
-"""The simulator's per-sample messages as serialised bytes (rclpy shell code).
+"""The per-sample messages as serialised bytes, both ways (rclpy shell code).
 
 What :mod:`seapup_common.ros.messages` builds as message objects, this packs
 straight into the bytes a publisher sends (:class:`~seapup_common.ros.cdr.Packer`),
@@ -7,13 +7,28 @@ ENU/FLU through :mod:`seapup_common.frames`, the same covariances. Each
 method's bytes deserialise to the message its ``messages`` counterpart builds
 (tested field for field); the simulator publishes these, so a sample costs a
 few microseconds per message instead of about fifty.
+
+The other way, :class:`StampedDoubles` reads the bytes of a message that is a
+header and then only ``float64`` fields (``TwistWithCovarianceStamped``,
+``TwistStamped``, ``BladePitch``) in its usual frames with one
+``struct.unpack_from``, and :func:`decode_velocity`, :func:`decode_reference`
+and :func:`decode_blade_pitch` turn them into what
+:func:`~seapup_common.ros.messages.velocity_from_msg`,
+:func:`~seapup_common.ros.messages.reference_from_msg` and
+:func:`~seapup_common.ros.messages.command_from_msg` return for the same
+message, bit for bit. They answer None for anything else -- another frame,
+another length, big-endian bytes, a non-finite reading: the caller then
+deserialises with rclpy and converts as before, so a refusal (and its reason)
+is exactly the typed path's, and bytes rclpy cannot read are refused too.
 """
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
-from geometry_msgs.msg import PoseWithCovarianceStamped, TwistWithCovarianceStamped, Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import (PoseWithCovarianceStamped, TwistStamped, TwistWithCovarianceStamped, Vector3Stamped,
+                               WrenchStamped)
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import Imu, Range
 from rosgraph_msgs.msg import Clock
@@ -21,11 +36,12 @@ from seapup_msgs.msg import BladePitch, Depth, SampleManifest
 from tf2_msgs.msg import TFMessage
 
 from seapup_common import frames
-from seapup_common.contract import Reading
-from seapup_common.ros.cdr import Packer, Restamper
+from seapup_common.contract import Command, Reading, Reference
+from seapup_common.ros.cdr import ENCAPSULATION_CDR_LE, Packer, Restamper
 from seapup_common.ros.messages import UNKNOWN_VARIANCE
 
-__all__ = ["SampleEncoder", "command_bytes"]
+__all__ = ["SampleEncoder", "command_bytes", "StampedDoubles", "decode_velocity", "decode_reference",
+           "decode_blade_pitch", "decode_clock"]
 
 _NS = 1_000_000_000
 
@@ -163,3 +179,121 @@ class SampleEncoder:
     def wrench_stamped(self, wrench, t_ns: int, frame_id: str) -> bytes:
         """:func:`~seapup_common.ros.messages.wrench_stamped` (``odom_ned`` or ``base_link_frd``)."""
         return self._wrench[frame_id].pack(_stamp(t_ns) + np.asarray(wrench, float).tolist())
+
+
+class StampedDoubles:
+    """Read the bytes of a ``std_msgs/Header`` + ``float64`` fields message in one of a few frames.
+
+    For each frame the layout is fixed (XCDR1 little-endian, as :class:`~seapup_common.ros.cdr.Packer`
+    writes it and ``rmw_fastrtps`` sends it): the stamp, the frame's length and bytes, padding to 8, then
+    the doubles. :meth:`decode` checks the encapsulation, the total length and the frame bytes and unpacks
+    the rest in one call; anything else is not decoded (None), never guessed at.
+
+    Parameters
+    ----------
+    msg_type : type
+        A generated message class whose fields after the header are all ``float64`` (checked: a packed
+        message of distinct values must read back the same, else ``TypeError``).
+    frame_ids : iterable of str
+        The frames read (the frame of any other message: None).
+
+    Examples
+    --------
+    >>> from seapup_msgs.msg import BladePitch
+    >>> reader = StampedDoubles(BladePitch, ["base_link_frd"])
+    >>> reader.decode(command_bytes([0.1, 0.2, 0.3, 0.4], 1_500_000_000)) is None   # no frame: not read
+    True
+    >>> reader.decode(SampleEncoder().applied([0.1, 0.2, 0.3, 0.4], 1_500_000_000))
+    (1500000000, 'base_link_frd', (0.1, 0.2, 0.3, 0.4))
+    """
+
+    def __init__(self, msg_type: type, frame_ids):
+        self.msg_type = msg_type
+        self._layouts: dict[int, list] = {}   # total length -> [(frame bytes, frame, struct)]
+        for frame in frame_ids:
+            packer = Packer(msg_type, {"header.frame_id": frame})
+            count = len(packer.fields) - 2
+            text = frame.encode() + b"\x00"
+            pad = -(12 + len(text)) % 8
+            layout = struct.Struct(f"<iI{4 + len(text)}s{pad}x{count}d")
+            probe = [3, 4] + [float(i) + 0.5 for i in range(count)]
+            if len(ENCAPSULATION_CDR_LE) + layout.size != packer.size or \
+                    layout.unpack_from(packer.pack(probe), 4) != (3, 4, struct.pack("<I", len(text)) + text,
+                                                                    *probe[2:]):
+                raise TypeError(f"{msg_type.__name__} is not a header and float64 fields")
+            self._layouts.setdefault(packer.size, []).append((layout.unpack_from(packer.pack(probe), 4)[2], frame,
+                                                              layout))
+
+    def decode(self, data: bytes) -> tuple[int, str, tuple] | None:
+        """(stamp [ns], frame, the doubles in field order), or None when ``data`` is not one of the layouts."""
+        layouts = self._layouts.get(len(data))
+        if layouts is None or data[:4] != ENCAPSULATION_CDR_LE:
+            return None
+        for text, frame, layout in layouts:
+            sec, nanosec, found, *values = layout.unpack_from(data, 4)
+            if found == text:
+                return sec * _NS + nanosec, frame, tuple(values)
+        return None
+
+
+def _finite(values) -> bool:
+    return all(map(math.isfinite, values))
+
+
+def _frozen(values) -> np.ndarray:
+    arr = np.array(values, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+_VELOCITY = StampedDoubles(TwistWithCovarianceStamped, [frames.FRAME_FRD])
+_REFERENCE = StampedDoubles(TwistStamped, [frames.FRAME_FRD, ""])
+_BLADE_PITCH = StampedDoubles(BladePitch, [frames.FRAME_FRD, ""])
+_CLOCK = struct.Struct("<iI")
+
+
+def decode_velocity(data: bytes) -> tuple[int, Reading, Reading] | None:
+    """(stamp [ns], velocity, rates) of a ``TwistWithCovarianceStamped``'s bytes in ``base_link_frd``: what
+    :func:`~seapup_common.ros.messages.velocity_from_msg` returns for it (values and covariance diagonals
+    as read-only arrays, stamped t). None for any other message or a reading with a non-finite value or
+    variance (what the typed path refuses, with its reason)."""
+    decoded = _VELOCITY.decode(data)
+    if decoded is None:
+        return None
+    t_ns, _, values = decoded
+    variances = values[6::7]           # the covariance's diagonal (row-major 6 x 6 after the twist)
+    if not _finite(values[:6] + variances):
+        return None
+    t = t_ns * 1e-9
+    return (t_ns, Reading(_frozen(values[:3]), t, _frozen(variances[:3])),
+            Reading(_frozen(values[3:6]), t, _frozen(variances[3:])))
+
+
+def decode_reference(data: bytes) -> tuple[int, Reference] | None:
+    """(stamp [ns], reference (u, v, w, r)) of a ``TwistStamped``'s bytes in ``base_link_frd`` or no frame:
+    :func:`~seapup_common.ros.messages.reference_from_msg`, which raises the same ContractError for a
+    non-finite value. None for any other message."""
+    decoded = _REFERENCE.decode(data)
+    if decoded is None:
+        return None
+    t_ns, _, (x, y, z, _p, _q, r) = decoded
+    return t_ns, Reference([x, y, z, r])
+
+
+def decode_blade_pitch(data: bytes) -> tuple[int, Command] | None:
+    """(stamp [ns], command) of a ``BladePitch``'s bytes in ``base_link_frd`` or no frame:
+    :func:`~seapup_common.ros.messages.command_from_msg`, which raises the same InvalidBladePitchError for
+    a non-finite pitch. None for any other message."""
+    decoded = _BLADE_PITCH.decode(data)
+    if decoded is None:
+        return None
+    t_ns, _, pitch = decoded
+    return t_ns, Command(np.array(pitch, float), t_ns * 1e-9)
+
+
+def decode_clock(data: bytes) -> int | None:
+    """The time [ns] of a ``rosgraph_msgs/Clock``'s bytes, or None if they are not one."""
+    if len(data) != len(ENCAPSULATION_CDR_LE) + _CLOCK.size or data[:4] != ENCAPSULATION_CDR_LE:
+        return None
+    sec, nanosec = _CLOCK.unpack_from(data, 4)
+    return sec * _NS + nanosec
