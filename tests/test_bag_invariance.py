@@ -73,7 +73,7 @@ def mission():
 def graph_file(spec, out, pace: float):
     """The run's graph (:func:`seapup_runs.graph.graph_document`; the SIL harness fills the handshake's counts
     from its lockstep roster, its probe and recorder included) with the simulator's ``lockstep_pace``, and its
-    ``end_time`` as a graph argument, so the SIL harness can hold it."""
+    ``end_time`` and ``start_held`` as graph arguments, so the SIL harness can hold it."""
     from seapup_bringup.graph_runner import _write_documents
     from seapup_runs.graph import graph_document
     out.mkdir(parents=True, exist_ok=True)
@@ -82,18 +82,34 @@ def graph_file(spec, out, pace: float):
     for param in simulator["param"]:
         if param["name"] == "end_time":
             param["value"] = "$(var end_time)"
-    simulator["param"].append({"name": "lockstep_pace", "value": float(pace)})
-    document["launch"].insert(0, {"arg": {"name": "end_time", "default": repr(spec.duration)}})
+    simulator["param"] += [{"name": "lockstep_pace", "value": float(pace)},
+                           {"name": "start_held", "value": "$(var start_held)"}]
+    document["launch"][:0] = [{"arg": {"name": "end_time", "default": repr(spec.duration)}},
+                              {"arg": {"name": "start_held", "default": "false"}}]
     path = out / "graph.launch.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False))
     return path
 
 
 def hold_and_step(sil, chunks) -> None:
-    """Run a held graph on chunk by chunk [s simulated], holding it after each (the simulator's run-time
-    ``end_time``, :meth:`SilGraph.run_for`). The one place to swap for simulation_interfaces' StepSimulation."""
-    for seconds in chunks:
-        sil.run_for(seconds)
+    """Step a held graph on chunk by chunk [s simulated] through simulation_interfaces' StepSimulation
+    (:meth:`seapup_bringup.graph_stepper.GraphStepper.step_call`): each step is answered once the graph is held
+    at the chunk's last sample and every node has answered it."""
+    from seapup_bringup.graph_stepper import GraphStepper
+    from seapup_bringup.paced import samples_to
+    stepper = GraphStepper(sil._node, sil._executor)
+    try:
+        stepper.wait_ready(30.0)
+        period_ns = int(round(stepper.period() * 1e9))
+        k = int(round(sil.held * 1e9 / period_ns))
+        target = sil.held
+        for seconds in chunks:
+            target += seconds
+            n = samples_to(target, k, period_ns)
+            stepper.step_call(n, timeout=60.0)
+            k += n
+    finally:
+        stepper.destroy()
 
 
 def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float]:
