@@ -35,7 +35,7 @@ __all__ = ["GraphStepper", "Stepped", "StepFailed", "PLAYING", "PAUSED", "STOPPE
 #: simulation_interfaces/msg/SimulationState values
 STOPPED, PLAYING, PAUSED = 0, 1, 2
 _OK = 1                      # simulation_interfaces/msg/Result RESULT_OK
-_SUCCEEDED, _CANCELED = 4, 5  # action_msgs/msg/GoalStatus
+_SUCCEEDED, _CANCELED, _ABORTED = 4, 5, 6  # action_msgs/msg/GoalStatus
 
 
 class StepFailed(RuntimeError):
@@ -229,7 +229,7 @@ class GraphStepper:
         response = future.result()
         if response.status == _SUCCEEDED and response.result.result.result == _OK:
             return Stepped(int(n), int(n), False)
-        if response.status == _CANCELED and canceled:
+        if canceled and response.status in (_CANCELED, _ABORTED):   # ended by the cancel asked for
             return Stepped(int(n), done["n"], True)
         raise StepFailed(f"a step of {n} samples ended with status {response.status}: "
                          f"{response.result.result.error_message}")
