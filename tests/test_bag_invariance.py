@@ -5,14 +5,15 @@ self-test, :func:`seapup_runs.runner.design`) and the reference schedule, as
 :func:`seapup_runs.graph.graph_document` builds it for ``./seapup run`` -- is recorded five ways: unpaced,
 paced at 1x and at 10x real time, held and stepped in uneven chunks, and unpaced with both cores saturated
 by CPU burners. Every bag must hold the same messages: on every topic, for every stamp, the same CDR
-bytes (on the simulator's manifest topic every field: :data:`PADDING_UNINITIALISED`). And a recorder that
+bytes. And a recorder that
 starts with the graph misses no sample: each per-sample topic's stamps are t_0, t_0 + T, ... up to the
 mission's end, each once.
 
 A lockstep graph says a sample again by design -- the simulator's handshake repeats t_0 on ``/clock`` until
 the first command is taken (as often as discovery takes), and a simulator resumed from a hold before it has
-taken the held sample's command says that sample again on every topic (seen: the held run's 2.2 s, twice,
-once in about ten runs) -- and the recorder records a sample said again once (``record_repeats``, false).
+taken the held sample's command says that sample again when a reader matched during the hold (a late joiner;
+before, also when the command was only in flight: the held run's 2.2 s twice, once in about ten runs) -- and
+the recorder records a sample said again once (``record_repeats``, false).
 Not compared, by design: ``/diagnostics``, wall-time status (published on wall-clock timers, so how many
 arrays a run has depends on how long it took, carrying wall-time rates such as the simulator's
 ``real_time_factor_measured``); nor the log and publish times (when the recorder received each message).
@@ -48,11 +49,6 @@ RECORDED = [f"{t}:{topics.TOPIC_TYPES[t]}" for t in (
     "/seapup/odometry:nav_msgs/msg/Odometry", "/seapup/umbilical/wrench:geometry_msgs/msg/WrenchStamped"]
 #: Wall-time status by design (module docstring): recorded, not compared.
 WALL_TIME_STATUS = {topics.DIAGNOSTICS}
-#: Compared field by field, not byte for byte: the simulator's manifests are serialised once by rclpy
-#: (``seapup_common/ros/cdr.py``, ``Restamper``), whose CDR writer leaves the alignment padding after each
-#: string uninitialised -- those bytes differ from one simulator process to the next. Every other topic's
-#: bytes are compared as recorded.
-PADDING_UNINITIALISED = {topics.SAMPLE_MANIFEST}
 #: Published once per sample, t_0 to the end (the position fixes come at some samples only; /tf_static once).
 PER_SAMPLE = {topics.CLOCK, topics.TF, topics.COMMAND, topics.APPLIED, topics.TRUTH_ODOMETRY, topics.VELOCITY,
               topics.IMU, topics.DEPTH, topics.ALTITUDE, topics.CURRENT, topics.SAMPLE_MANIFEST,
@@ -152,17 +148,10 @@ def stamp_ns(topic: str, cdr: bytes) -> int:
 
 
 def by_topic(bag) -> dict:
-    """``{topic: [(stamp_ns, cdr), ...]}`` in the bag's order: the recorded bytes, or on the topics of
-    :data:`PADDING_UNINITIALISED` the message decoded and encoded again (rosbags, which zeroes the padding)."""
-    from seapup_common.bag import make_typestore
-    from seapup_common.recorder_node import project_msg_files
-    store = make_typestore(project_msg_files())
+    """``{topic: [(stamp_ns, cdr), ...]}`` in the bag's order: the recorded bytes."""
     out = defaultdict(list)
     for m in read_bag(bag):
-        cdr = m.cdr
-        if m.topic in PADDING_UNINITIALISED:
-            cdr = bytes(store.serialize_cdr(store.deserialize_cdr(m.cdr, m.msgtype), m.msgtype))
-        out[m.topic].append((stamp_ns(m.topic, m.cdr), cdr))
+        out[m.topic].append((stamp_ns(m.topic, m.cdr), m.cdr))
     return dict(out)
 
 

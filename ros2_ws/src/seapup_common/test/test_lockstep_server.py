@@ -99,15 +99,18 @@ def test_a_paced_step_waits_for_its_wall_time_with_no_time_out_meanwhile():
 def test_end_time_holds_at_its_sample_and_commands_are_still_taken():
     server = started(timeout=0.5, end_time=0.4)
     server.command(0, accepted=True, now=0.0)
-    assert kinds(server.command(200 * MS, accepted=True, now=0.01)) == [STEP, PUBLISH]
+    assert kinds(server.command(200 * MS, accepted=True, now=0.01)) == [STEP, PUBLISH, POLL_READERS]  # baseline
     assert server.held and server.at_end and server.state == PAUSED and server.t_ns == 400 * MS
+    assert server.readers({"sensors/velocity": 1}, now=0.01) == []
     assert wake(server.tick(now=0.02)) is None                    # nothing to wake for: no time-out while held
     assert kinds(server.tick(now=100.0)) == []
     assert kinds(server.command(400 * MS, accepted=True, now=100.0)) == []     # taken, not stepped
-    assert kinds(server.set_end_time(0.6, now=101.0)) == [STEP, PUBLISH]      # answered meanwhile: on at once
+    assert kinds(server.set_end_time(0.6, now=101.0)) == [STEP, PUBLISH, POLL_READERS]   # answered meanwhile: on
     assert server.t_ns == 600 * MS and server.held
+    assert server.readers({"sensors/velocity": 1}, now=101.0) == []
     assert kinds(server.set_end_time(0.6, now=102.0)) == []       # not later than the held sample: still held
-    assert kinds(server.set_end_time(0.0, now=103.0)) == [REPUBLISH, POLL_READERS]   # 0: run on
+    assert kinds(server.set_end_time(0.0, now=103.0)) == [POLL_READERS]   # 0: run on; readers counted again
+    assert kinds(server.readers({"sensors/velocity": 1}, now=103.0)) == []   # nobody new: not said again
 
 
 def test_a_resume_at_an_unanswered_sample_republishes_it_for_late_readers_until_answered():
@@ -127,7 +130,8 @@ def test_a_resume_at_an_unanswered_sample_republishes_it_for_late_readers_until_
 
 
 def test_start_held_holds_at_t_0_until_end_time_is_set():
-    server = started(start_held=True, timeout=0.5)
+    server = LockstepServer(T, start_held=True, timeout=0.5)
+    assert kinds(server.gate_ready(now=0.0)) == [PUBLISH, POLL_READERS]     # held: the hold's baseline
     assert server.held and server.at_end
     assert kinds(server.command(0, accepted=True, now=0.1)) == []
     assert kinds(server.tick(now=5.0)) == []
@@ -165,7 +169,7 @@ def test_stop_rewinds_to_t_0_and_holds():
     server = started()
     server.command(0, accepted=True, now=0.0)
     actions = server.stop(now=0.1)
-    assert kinds(actions) == [RESET, PUBLISH] and server.t_ns == 0 and server.state == STOPPED
+    assert kinds(actions) == [RESET, PUBLISH, POLL_READERS] and server.t_ns == 0 and server.state == STOPPED
     assert kinds(server.command(0, accepted=True, now=0.2)) == []
     assert kinds(server.play(now=0.3)) == [STEP, PUBLISH]
 
@@ -183,7 +187,8 @@ def test_a_step_advances_exactly_n_samples_and_is_done_when_the_last_is_answered
     with pytest.raises(StepRefused, match="running"):
         server.step(1, now=0.1)
     actions = server.command(200 * MS, accepted=True, now=0.2)
-    assert kinds(actions) == [STEP, PUBLISH, STEP_PROGRESS] and record.done == 2 and record.outcome == ""
+    assert kinds(actions) == [STEP, PUBLISH, STEP_PROGRESS, POLL_READERS] and record.done == 2
+    assert record.outcome == ""
     assert kinds(server.tick(now=0.3)) == []                      # held at t_k+n, waiting for its answer
     actions = server.command(400 * MS, accepted=True, now=0.4)
     assert kinds(actions) == [STEP_DONE] and record.outcome == "completed" and server.state == PAUSED
@@ -211,10 +216,10 @@ def test_a_step_cancelled_or_reset_holds_where_it_is():
     record = server.stepping
     server.command(0, accepted=True, now=0.1)
     actions = server.cancel_step(now=0.2)
-    assert kinds(actions) == [STEP_DONE] and record.outcome == "canceled" and record.done == 1
+    assert kinds(actions) == [STEP_DONE, POLL_READERS] and record.outcome == "canceled" and record.done == 1
     assert server.state == PAUSED and kinds(server.tick(now=5.0)) == []
     record = server.step(2, now=6.0)[0].step
-    assert kinds(server.reset(now=6.1)) == [STEP_DONE, PUBLISH] and record.outcome == "reset"
+    assert kinds(server.reset(now=6.1)) == [STEP_DONE, PUBLISH, POLL_READERS] and record.outcome == "reset"
     assert server.t_ns == 0 and server.state == PAUSED
 
 
@@ -506,3 +511,78 @@ def test_a_reset_run_repeats_the_first_run():
     world.call("play")
     world.run(done=lambda: server.held and server.t_ns == 1_000 * MS and not world._queue)
     assert world.published[len(first):] == first and world.time_outs == 0
+
+
+def test_a_resume_at_a_sample_whose_command_is_in_flight_says_nothing_again():
+    """The bag-invariance case: held at end_time, resumed before the held sample's command arrived -- nobody
+    joined, so the sample is not said again (a recorder would have it twice); the command then steps on."""
+    server = started(timeout=1.0, end_time=0.2)
+    assert kinds(server.command(0, accepted=True, now=0.0)) == [STEP, PUBLISH, POLL_READERS]
+    server.readers({"sensors/velocity": 2}, now=0.0)                       # the hold's baseline
+    assert kinds(server.set_end_time(1.0, now=5.0)) == [POLL_READERS] and server.catch_up
+    assert kinds(server.readers({"sensors/velocity": 2}, now=5.0)) == []   # nobody new
+    assert kinds(server.command(200 * MS, accepted=True, now=5.01)) == [STEP, PUBLISH]
+
+
+def test_a_reader_that_joined_during_the_hold_gets_the_held_sample_again_at_the_resume():
+    server = started(timeout=1.0)
+    server.command(0, accepted=True, now=0.0)
+    assert kinds(server.pause(now=0.1)) == [POLL_READERS]
+    server.readers({"sensors/velocity": 1}, now=0.1)
+    assert kinds(server.set_state(PLAYING, now=3.0)) == [POLL_READERS]
+    assert kinds(server.readers({"sensors/velocity": 2}, now=3.0)) == [REPUBLISH, POLL_READERS]
+
+
+def test_set_state_follows_the_standard_transitions():
+    from seapup_common.lockstep.server import ALREADY, FAILED, INCORRECT, UNSUPPORTED, TransitionRefused
+    server = started(timeout=0.5)
+    server.command(0, accepted=True, now=0.0)
+    for target, kind in ((PLAYING, ALREADY), (3, UNSUPPORTED)):
+        with pytest.raises(TransitionRefused) as refused:
+            server.set_state(target, now=0.1)
+        assert refused.value.kind == kind
+    assert kinds(server.set_state(STOPPED, now=0.2))[:2] == [RESET, PUBLISH] and server.state == STOPPED
+    with pytest.raises(TransitionRefused, match="stopped") as refused:
+        server.set_state(PAUSED, now=0.3)                          # pausing when stopped
+    assert refused.value.kind == INCORRECT and server.state == STOPPED
+    server.set_state(PLAYING, now=0.4)
+    assert server.state == PLAYING
+    server.set_state(PAUSED, now=0.5)
+    assert server.state == PAUSED and server.entity_refusal() == ""
+    server.halt("diverged", now=0.6)
+    assert "halted" in server.entity_refusal()
+    with pytest.raises(TransitionRefused, match="halted") as refused:
+        server.set_state(PLAYING, now=0.7)
+    assert refused.value.kind == FAILED
+    server.set_state(STOPPED, now=0.8)                             # a stop resets: the halt is over
+    assert not server.halted and server.state == STOPPED and server.t_ns == 0
+
+
+def test_playing_at_an_end_time_hold_fails_and_changes_nothing():
+    from seapup_common.lockstep.server import FAILED, TransitionRefused
+    server = started(end_time=0.2)
+    server.command(0, accepted=True, now=0.0)
+    with pytest.raises(TransitionRefused, match="end_time") as refused:
+        server.set_state(PLAYING, now=1.0)
+    assert refused.value.kind == FAILED and server.state == PAUSED and server.user_hold is None
+
+
+def test_step_refusals_say_which_rule():
+    from seapup_common.lockstep.server import BUSY, HALTED, INVALID, NOT_PAUSED, NOT_STARTED
+    with pytest.raises(StepRefused) as refused:
+        LockstepServer(T).step(1, now=0.0)
+    assert refused.value.kind == NOT_STARTED
+    server = started(timeout=0.5)
+    for n, kind in ((0, INVALID), (1, NOT_PAUSED)):
+        with pytest.raises(StepRefused) as refused:
+            server.step(n, now=0.0)
+        assert refused.value.kind == kind
+    server.pause(now=0.0)
+    server.step(2, now=0.0)
+    with pytest.raises(StepRefused) as refused:
+        server.step(1, now=0.0)
+    assert refused.value.kind == BUSY
+    server.halt("diverged", now=0.1)
+    with pytest.raises(StepRefused) as refused:
+        server.step(1, now=0.2)
+    assert refused.value.kind == HALTED

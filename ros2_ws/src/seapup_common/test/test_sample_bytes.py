@@ -15,7 +15,7 @@ from tf2_msgs.msg import TFMessage
 from seapup_common import frames
 from seapup_common.contract import Command, Reading
 from seapup_common.ros import messages as conv
-from seapup_common.ros.cdr import Packer, Restamper
+from seapup_common.ros.cdr import Packer, Restamper, zero_padding
 from seapup_common.ros.sample_bytes import SampleEncoder, command_bytes
 
 RNG = np.random.default_rng(7)
@@ -150,3 +150,26 @@ def test_a_restamped_message_keeps_everything_but_its_stamp():
         assert (got.header.frame_id, got.topics) == ("odom_ned", ["/a", "/bc", "/def"])
     with pytest.raises(TypeError, match="does not begin with a header"):
         Restamper(Clock())
+
+
+def test_a_restamped_message_has_zero_padding_byte_for_byte():
+    """The CDR of a manifest written out by hand (independent of rclpy's writer): padding and all."""
+    import struct
+    restamper = Restamper(SampleManifest(topics=["/a", "/bcd"]))
+    expected = (b"\x00\x01\x00\x00" + struct.pack("<iI", 3, 5)     # encapsulation, stamp
+                + struct.pack("<I", 1) + b"\x00" + b"\x00" * 3       # frame_id "", padding to 4
+                + struct.pack("<I", 2)                              # two topics
+                + struct.pack("<I", 3) + b"/a\x00" + b"\x00"         # "/a", padding
+                + struct.pack("<I", 5) + b"/bcd\x00")                # "/bcd"
+    got = restamper.pack(3_000_000_005)
+    assert got[:len(expected)] == expected and not any(got[len(expected):])
+
+
+def test_zero_padding_zeroes_garbage_between_fields_and_keeps_the_fields():
+    data = bytearray(serialize_message(SampleManifest(topics=["/a"])))
+    data[4 + 8 + 5:4 + 8 + 8] = b"\xaa\xbb\xcc"                        # after frame_id's 1 byte: padding
+    cleaned = zero_padding(bytes(data), SampleManifest)
+    assert cleaned[4 + 8 + 5:4 + 8 + 8] == bytes(3)
+    assert deserialize_message(cleaned, SampleManifest).topics == ["/a"]
+    with pytest.raises(ValueError, match="bytes"):
+        zero_padding(bytes(data[:-2]), SampleManifest)

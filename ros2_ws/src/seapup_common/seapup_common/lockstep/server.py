@@ -42,14 +42,23 @@ Rules
 
   commands are still taken meanwhile. A step request overrides every hold
   until its last sample (see below).
+- **Readers of a hold**: whenever the server is held with no reader baseline
+  it asks for the matched-reader counts (:data:`POLL_READERS`, answered by
+  :meth:`LockstepServer.readers`): who had the held sample. A hold that
+  begins with a publication (``end_time``, ``start_held``, a step's last
+  sample, a stop) asks right after it; a pause asks when it begins (a reader
+  that matched between the publication and the pause is not known as late).
 - **Resume** (a later ``end_time``, :meth:`LockstepServer.play`, a step): if
   the command for the held sample came while held, step on at once; else the
-  held sample is published again, the same messages (:data:`REPUBLISH`), for
-  a node that joined while the graph was held, and again whenever a reader
-  matches later (:data:`POLL_READERS` every
-  :attr:`LockstepServer.READER_POLL` s, answered by
-  :meth:`LockstepServer.readers`; discovery may lag) until it is answered;
-  its time-out counts from the resume. So a driver can hold the whole graph
+  readers are counted again and the held sample is published again, the same
+  messages (:data:`REPUBLISH`), only if a reader matched since the hold's
+  baseline -- a node that joined while the graph was held. Usually the
+  command is just in flight, and saying the sample again would record it
+  twice. Then, until it is answered, the readers are polled
+  (:data:`POLL_READERS` every :attr:`LockstepServer.READER_POLL` s;
+  discovery may lag) and the sample said again whenever one more matched;
+  its time-out counts from the resume (with no baseline, e.g. after a
+  republish, the sample is said again at once, as a late joiner needs). So a driver can hold the whole graph
   at an exact sample, act (send a goal, switch a controller) and go on --
   what it does then takes effect at the same sample however busy the
   machine is.
@@ -68,6 +77,13 @@ Rules
   says when the shell must call :meth:`LockstepServer.tick` next (None:
   only events move it). A tick earlier than the deadline does nothing
   harmful, so a shell may keep an earlier timer armed.
+- **Control surface** (:meth:`LockstepServer.set_state`, the rules of
+  ``simulation_interfaces/srv/SetSimulationState``): the target state
+  already in force is refused (:data:`ALREADY`), pausing a stopped
+  simulation is an incorrect transition (:data:`INCORRECT`: play or step
+  it), playing or pausing a halted plant or playing past an ``end_time``
+  fails (:data:`FAILED`); :meth:`LockstepServer.entity_refusal` says why the
+  plant's state may not be set now (halted).
 - ``lockstep`` False (realtime): the shell's timer calls
   :meth:`LockstepServer.period` once per wall period; each call steps and
   publishes unless held; commands never step.
@@ -84,7 +100,8 @@ from seapup_common.lockstep.pacing import Pacer
 
 __all__ = ["LockstepServer", "Action", "StepRecord", "StepRefused", "STOPPED", "PLAYING", "PAUSED",
            "STEP", "PUBLISH", "REPUBLISH", "RESEND_CLOCK", "POLL_READERS", "TIME_OUT", "RESET", "WAKE_AT",
-           "STEP_PROGRESS", "STEP_DONE"]
+           "STEP_PROGRESS", "STEP_DONE", "TransitionRefused", "ALREADY", "INCORRECT", "FAILED", "UNSUPPORTED",
+           "INVALID", "NOT_PAUSED", "BUSY", "HALTED", "NOT_STARTED"]
 
 #: simulation_interfaces/msg/SimulationState values
 STOPPED, PLAYING, PAUSED = 0, 1, 2
@@ -101,8 +118,33 @@ STEP_PROGRESS = "step_progress"  #: a step request advanced one sample (``step``
 STEP_DONE = "step_done"        #: a step request ended (``step.outcome``)
 
 
+#: Why a request was refused (``kind`` of :class:`StepRefused` / :class:`TransitionRefused`).
+ALREADY = "already"            #: the target state is the present one
+INCORRECT = "incorrect"        #: a transition the standard forbids (pause a stopped simulation)
+FAILED = "failed"              #: the transition cannot be made now (halted, held by end_time)
+UNSUPPORTED = "unsupported"    #: a state this simulator has no transition to (quitting, worlds)
+INVALID = "invalid"            #: a malformed request (a step of 0 samples)
+NOT_PAUSED = "not_paused"      #: a step while playing
+BUSY = "busy"                  #: a step while another runs
+HALTED = "halted"              #: the plant diverged: reset first
+NOT_STARTED = "not_started"    #: the first sample is not published yet
+
+
 class StepRefused(ValueError):
-    """A step request the server cannot take now (the reason says what to do)."""
+    """A step request the server cannot take now (the reason says what to do; ``kind`` says which rule)."""
+
+    def __init__(self, reason: str, kind: str = INVALID):
+        super().__init__(reason)
+        self.kind = kind
+
+
+class TransitionRefused(ValueError):
+    """A state change the server refuses (the reason says why; ``kind``: :data:`ALREADY`, :data:`INCORRECT`,
+    :data:`FAILED` or :data:`UNSUPPORTED`)."""
+
+    def __init__(self, reason: str, kind: str):
+        super().__init__(reason)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -188,6 +230,7 @@ class LockstepServer:
         self._handshake = True
         self._last_resend = 0.0
         self._seen: dict | None = None
+        self._baseline_asked = False
         self._next_poll: float | None = None
         self._announced: float | None = None
 
@@ -293,9 +336,16 @@ class LockstepServer:
         return self._wake(self._resume(now), now)
 
     def readers(self, counts: dict, now: float) -> list[Action]:
-        """The matched-reader count of each published topic (asked for by :data:`POLL_READERS`)."""
+        """The matched-reader count of each published topic (asked for by :data:`POLL_READERS`): the baseline
+        of a hold, or (catching up) a comparison with it."""
         counts = dict(counts)
-        if not self.catch_up or self.held or self.halted or self._due_at is not None:
+        if self.halted or self._due_at is not None:
+            return []
+        if self.held:
+            if self._seen is None:
+                self._seen = counts      # who had the held sample
+            return []
+        if not self.catch_up:
             return []
         self._next_poll = now + self.READER_POLL
         if self._seen is None:
@@ -352,7 +402,8 @@ class LockstepServer:
         self.k = 0
         self.halted = ""
         self._answered_k, self.unanswered, self.catch_up = None, 0, False
-        self._due_at = None
+        self._due_at = self._seen = None
+        self._baseline_asked = False
         self.pacer.restart()   # the schedule starts again at t = 0
         if self.started:
             actions.append(Action(PUBLISH))
@@ -393,19 +444,56 @@ class LockstepServer:
             first sample is not published yet.
         """
         if isinstance(n, bool) or int(n) != n or n < 1:
-            raise StepRefused(f"a step is at least one sample, got {n!r}")
+            raise StepRefused(f"a step is at least one sample, got {n!r}", INVALID)
         if self.halted:
-            raise StepRefused(f"the simulation halted ({self.halted}): reset it first")
+            raise StepRefused(f"the simulation halted ({self.halted}): reset it first", HALTED)
         if not self.started:
-            raise StepRefused("the first sample is not published yet (waiting for subscribers)")
+            raise StepRefused("the first sample is not published yet (waiting for subscribers)", NOT_STARTED)
         if self.stepping is not None:
-            raise StepRefused(f"a step of {self.stepping.requested} sample(s) is running: cancel it first")
+            raise StepRefused(f"a step of {self.stepping.requested} sample(s) is running: cancel it first", BUSY)
         if not self.held:
-            raise StepRefused("the simulation is playing: pause it first")
+            raise StepRefused("the simulation is playing: pause it first", NOT_PAUSED)
         self.stepping = StepRecord(int(n), self.k)
         if self.user_hold == STOPPED:
             self.user_hold = PAUSED
         return self._wake([Action(STEP_PROGRESS, step=self.stepping)] + self._resume(now), now)
+
+    def set_state(self, target: int, now: float) -> list[Action]:
+        """Go to ``target`` (:data:`STOPPED`, :data:`PLAYING` or :data:`PAUSED`), the rules of
+        ``simulation_interfaces/srv/SetSimulationState``.
+
+        Raises
+        ------
+        TransitionRefused
+            Already in ``target`` (:data:`ALREADY`); pausing a stopped simulation (:data:`INCORRECT`); playing or
+            pausing a halted plant, or playing at an ``end_time`` hold (:data:`FAILED`); any other target
+            (:data:`UNSUPPORTED`).
+        """
+        names = {STOPPED: "stopped", PLAYING: "playing", PAUSED: "paused"}
+        if target not in names:
+            raise TransitionRefused(f"state {target!r} is not supported (only stopped {STOPPED}, playing "
+                                    f"{PLAYING} and paused {PAUSED})", UNSUPPORTED)
+        if target == self.state:
+            raise TransitionRefused(f"the simulation is {names[target]} already", ALREADY)
+        if target == PAUSED and self.state == STOPPED:
+            raise TransitionRefused("a stopped simulation cannot be paused: play it, or step it", INCORRECT)
+        if target == STOPPED:
+            return self.stop(now)
+        if self.halted:
+            raise TransitionRefused(f"the simulation halted ({self.halted}): stop or reset it first", FAILED)
+        if target == PAUSED:
+            return self.pause(now)
+        if self.stepping is None and 0 < self.end_ns <= self.t_ns:
+            raise TransitionRefused(f"held at end_time {self.end_ns * 1e-9:g} s: set a later end_time (0: none) "
+                                    "or step", FAILED)
+        return self.play(now)
+
+    def entity_refusal(self) -> str:
+        """Why the plant's state may not be set now ('' when it may: any state but halted; the change takes
+        effect from the present sample)."""
+        if self.halted:
+            return f"the simulation halted ({self.halted}): reset it first"
+        return ""
 
     def cancel_step(self, now: float) -> list[Action]:
         """Cancel a running step request: hold at the present sample."""
@@ -437,6 +525,7 @@ class LockstepServer:
         self._waiting_since = now
         self.catch_up = False
         self._seen = self._next_poll = None
+        self._baseline_asked = False
         actions = [Action(STEP), Action(PUBLISH)]
         if self.stepping is not None:
             self.stepping.done = self.k - self.stepping.start_k
@@ -457,10 +546,15 @@ class LockstepServer:
             return self._finish_step() + self._advance(now)
         self.catch_up = True
         self._waiting_since = now       # its time-out counts from now
-        return self._republish(now)
+        if self._seen is None:          # no baseline: a late joiner may need it
+            return self._republish(now)
+        self._last_resend = now
+        self._next_poll = now + self.READER_POLL
+        return [Action(POLL_READERS)]   # said again only if a reader matched since the hold began
 
     def _republish(self, now: float) -> list[Action]:
         self._seen = None               # the counts right after it are the new baseline
+        self._baseline_asked = False
         self._last_resend = now
         self._next_poll = now + self.READER_POLL
         return [Action(REPUBLISH), Action(POLL_READERS)]
@@ -482,6 +576,10 @@ class LockstepServer:
         return [Action(STEP_DONE, step=s)]
 
     def _wake(self, actions: list[Action], now: float) -> list[Action]:
+        if (self.lockstep and self.started and not self.halted and self.held and self._seen is None
+                and not self._baseline_asked and self._due_at is None):
+            self._baseline_asked = True
+            actions.append(Action(POLL_READERS))   # the hold's baseline: who had the held sample
         at = self.next_wake(now)
         if at != self._announced:
             self._announced = at

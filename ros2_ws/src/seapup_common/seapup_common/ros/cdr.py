@@ -24,7 +24,7 @@ import importlib
 import struct
 from typing import Sequence
 
-__all__ = ["Packer", "Restamper", "ENCAPSULATION_CDR_LE"]
+__all__ = ["Packer", "Restamper", "zero_padding", "ENCAPSULATION_CDR_LE"]
 
 #: The four bytes before the payload: CDR, little-endian, no options.
 ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
@@ -166,7 +166,11 @@ class Restamper:
     The message is serialised once by rclpy; :meth:`pack` writes a new stamp
     over the first eight payload bytes, where a message that begins with a
     ``std_msgs/Header`` keeps it (seconds, then nanoseconds). Any field type is
-    allowed after the header, sequences included.
+    allowed after the header, sequences included (wide strings excepted).
+    rclpy's CDR writer leaves the alignment padding (after a string, before
+    the next 4- or 8-byte field) as whatever the buffer held, so the same
+    message would differ in bytes from one process to the next: the padding
+    is zeroed (:func:`zero_padding`), as rosbags' writer does.
     """
 
     _STAMP = struct.Struct("<iI")
@@ -179,8 +183,70 @@ class Restamper:
         data = serialize_message(msg)
         if data[:4] != ENCAPSULATION_CDR_LE:
             raise ValueError(f"not little-endian CDR: {data[:4]!r}")
+        data = zero_padding(data, type(msg))
         self._tail = data[4 + self._STAMP.size:]
 
     def pack(self, t_ns: int) -> bytes:
         """The message stamped ``t_ns`` [ns]."""
         return ENCAPSULATION_CDR_LE + self._STAMP.pack(*divmod(int(t_ns), 1_000_000_000)) + self._tail
+
+
+def zero_padding(data: bytes, msg_type: type) -> bytes:
+    """``data`` (a serialised ``msg_type``, XCDR1 little-endian with its encapsulation header) with every
+    alignment padding byte -- and anything after the message's last field -- set to zero.
+
+    The walk follows CDR: each primitive aligned to its size (at most 8) from the start of the payload,
+    strings and sequences as a ``uint32`` length first. A wide string has no layout here (refused).
+
+    Raises
+    ------
+    TypeError
+        ``msg_type`` has a wide-string field.
+    ValueError
+        ``data`` is shorter than the message its lengths describe.
+    """
+    buf = bytearray(data)
+    payload = len(ENCAPSULATION_CDR_LE)
+
+    def align(offset: int, size: int) -> int:
+        end = offset + (-offset % min(size, 8))
+        buf[payload + offset:payload + end] = bytes(end - offset)
+        return end
+
+    def length(offset: int) -> tuple[int, int]:
+        offset = align(offset, 4)
+        if payload + offset + 4 > len(buf):
+            raise ValueError(f"{msg_type.__name__}: the data end inside a length at byte {offset}")
+        return struct.unpack_from("<I", buf, payload + offset)[0], offset + 4
+
+    def element(kind, offset: int) -> int:
+        name = type(kind).__name__
+        if name == "BasicType":
+            size = _BASIC[kind.typename][1]
+            return align(offset, size) + size
+        if name in ("UnboundedString", "BoundedString"):
+            n, offset = length(offset)
+            return offset + n
+        if name == "NamespacedType":
+            return message(_message_class(kind), offset)
+        if name == "Array":
+            for _ in range(kind.size):
+                offset = element(kind.value_type, offset)
+            return offset
+        if name in ("UnboundedSequence", "BoundedSequence"):
+            n, offset = length(offset)
+            for _ in range(n):
+                offset = element(kind.value_type, offset)
+            return offset
+        raise TypeError(f"{msg_type.__name__}: {name} fields have no padding rule here")
+
+    def message(kind: type, offset: int) -> int:
+        for slot_type in kind.SLOT_TYPES:
+            offset = element(slot_type, offset)
+        return offset
+
+    end = payload + message(msg_type, 0)
+    if end > len(buf):
+        raise ValueError(f"{msg_type.__name__}: {len(buf)} bytes, the message needs {end}")
+    buf[end:] = bytes(len(buf) - end)
+    return bytes(buf)
