@@ -461,9 +461,9 @@ def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_mea
     set_end(1.0)
     assert probe.spin(holding, 20.0)
     probe.spin(lambda: False, 1.0)  # held: nothing more, and no time-out while held
-    assert stamps(velocity) == [0.0, 0.0, 0.2, 0.4, 0.6, 0.8, 1.0]  # t_0 said again: unanswered at the resume
+    # t_0 unanswered at the resume, but nobody joined during the hold: not said again (no sample twice in a bag)
+    assert stamps(velocity) == [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
     assert int(probe.counters()["lockstep_timeouts"]) == 5  # nobody answers: 0 to 0.8 s went on without
-    velocity[:] = velocity[1:]
     late = []
     joined = probe.node.create_subscription(TwistWithCovarianceStamped, "/seapup/sensors/velocity", late.append, QOS)
     assert probe.spin(lambda: joined.get_publisher_count() > 0, 10.0)

@@ -25,7 +25,8 @@ each sample the simulator publishes its manifest, ``sensors/sample``
 (:func:`~seapup_sim.ros.simulator_messages.sample_messages`). Every environment
 setting is a read-only parameter ``environment.<section>.<key>``
 (:mod:`seapup_sim.ros.simulator_parameters`); services change the current,
-sensors, configuration and fouling at run time.
+sensors, configuration and fouling at run time. The standard ``simulation_interfaces`` control surface
+(state, steps, reset, the vehicle's entity state) is :mod:`seapup_sim.ros.simulation_control`.
 
 Commands are subscribed raw: a message that does not decode, or whose
 re-encoding differs in length (a wrong array length), is counted and dropped
@@ -52,8 +53,8 @@ from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfil
 from tf2_msgs.msg import TFMessage
 
 from seapup_common.contract import ContractError
-from seapup_common.lockstep.server import (POLL_READERS, PUBLISH, REPUBLISH, RESEND_CLOCK, RESET, STEP, TIME_OUT,
-                                           WAKE_AT, LockstepServer)
+from seapup_common.lockstep.server import (POLL_READERS, PUBLISH, REPUBLISH, RESEND_CLOCK, RESET, STEP, STEP_DONE,
+                                           STEP_PROGRESS, TIME_OUT, WAKE_AT, LockstepServer)
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.sample_bytes import SampleEncoder
@@ -63,6 +64,7 @@ from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
 from seapup_sim.environment_config import load_environment
 from seapup_sim.sensors import sensor_profiles
 from seapup_sim.simulator_core import SimulatorCore, SimulatorConfig
+from seapup_sim.ros.simulation_control import SimulationControl
 from seapup_sim.ros.simulator_messages import diagnostics_of, sample_messages
 from seapup_sim.ros.simulator_parameters import (declare_simulator_parameters, environment_overrides,
                                                  events_parameter, refusal)
@@ -151,6 +153,7 @@ class SimulatorNode(Node):
         srv(SetThrusterEfficiency, "~/set_thruster_efficiency", self._srv_efficiency)
         srv(SetCurrent, "~/set_current", self._srv_current)
         srv(SetSensorProfile, "~/set_sensor_profile", self._srv_sensor_profile)
+        self.control = SimulationControl(self)   # simulation_interfaces: state, steps, reset, the entity
 
     def _subscriber_gate(self, topics) -> SubscriberGate:
         """A topic listed k times needs k matched subscribers (e.g. two controllers and a probe)."""
@@ -206,6 +209,8 @@ class SimulatorNode(Node):
                 self._run(self.server.readers(counts, time.monotonic()))
             elif kind == RESET:
                 self.simulator.reset(self.config.seed, self.start_state)
+            elif kind in (STEP_PROGRESS, STEP_DONE):
+                self.control.step_event(action)
 
     def _arm(self, at: float | None) -> None:
         """Wake at ``at`` [s monotonic]; a timer armed earlier stays (its tick is harmless and re-arms)."""
