@@ -69,7 +69,7 @@ def mission():
 def graph_file(spec, out, pace: float):
     """The run's graph (:func:`seapup_runs.graph.graph_document`; the SIL harness fills the handshake's counts
     from its lockstep roster, its probe and recorder included) with the simulator's ``lockstep_pace``, and its
-    ``end_time`` and ``start_held`` as graph arguments, so the SIL harness can hold it."""
+    ``end_time`` as a graph argument, so the SIL harness can hold it."""
     from seapup_bringup.graph_runner import _write_documents
     from seapup_runs.graph import graph_document
     out.mkdir(parents=True, exist_ok=True)
@@ -78,10 +78,8 @@ def graph_file(spec, out, pace: float):
     for param in simulator["param"]:
         if param["name"] == "end_time":
             param["value"] = "$(var end_time)"
-    simulator["param"] += [{"name": "lockstep_pace", "value": float(pace)},
-                           {"name": "start_held", "value": "$(var start_held)"}]
-    document["launch"][:0] = [{"arg": {"name": "end_time", "default": repr(spec.duration)}},
-                              {"arg": {"name": "start_held", "default": "false"}}]
+    simulator["param"].append({"name": "lockstep_pace", "value": float(pace)})
+    document["launch"].insert(0, {"arg": {"name": "end_time", "default": repr(spec.duration)}})
     path = out / "graph.launch.yaml"
     path.write_text(yaml.safe_dump(document, sort_keys=False))
     return path

@@ -19,7 +19,7 @@ busy the machine is.
   for ``stall`` wall seconds (nobody answers: the graph waits for its driver);
 - :meth:`GraphStepper.step_call`: ``StepSimulation`` (the service), the same
   without feedback or cancel;
-- :meth:`GraphStepper.state`, :meth:`GraphStepper.pause`,
+- :meth:`GraphStepper.state`, :meth:`GraphStepper.wait_paused`, :meth:`GraphStepper.pause`,
   :meth:`GraphStepper.play`, :meth:`GraphStepper.period`.
 """
 from __future__ import annotations
@@ -118,6 +118,17 @@ class GraphStepper:
         """The simulation state (:data:`PLAYING`, :data:`PAUSED`, :data:`STOPPED`)."""
         kind = self._clients["get_simulation_state"].srv_type
         return int(self._call("get_simulation_state", kind.Request(), timeout).state.state)
+
+    def wait_paused(self, timeout: float) -> None:
+        """Wait until the simulator says :data:`PAUSED` (held: paused, ``start_held``, its ``end_time``).
+
+        Raises
+        ------
+        StepFailed
+            If it does not within ``timeout`` wall seconds.
+        """
+        if not self._spin_until(lambda: self.state() == PAUSED, timeout):
+            raise StepFailed(f"the simulator did not say PAUSED within {timeout:g} s")
 
     def _set_state(self, state: int, timeout: float) -> None:
         kind = self._clients["set_simulation_state"].srv_type

@@ -13,11 +13,12 @@ calls; every node runs in its own process, exactly as on a vehicle::
         logs = sil.logs()          # numpy arrays: truth, estimate, references, commands
         sil.switch(activate=["mfol_scheduled"], deactivate=["mfol_fixed"])
 
-**Paced driving.** A lockstep graph that declares a ``start_held`` argument
+**Paced driving.** A lockstep graph that declares an ``end_time`` argument
 for its simulator (``hierarchy.launch.yaml`` does) is *held*: it starts held
-at t_0 and the harness steps it through the simulator's ``simulation_interfaces``
-control surface (:class:`seapup_bringup.graph_stepper.GraphStepper`,
-``SimulateSteps``) to the first sample at or after ``start_at``, then on in
+at the first sample at or after ``start_at`` (its ``end_time``; at t_0:
+``start_held``) and the harness steps it on through the simulator's
+``simulation_interfaces`` control surface
+(:class:`seapup_bringup.graph_stepper.GraphStepper`, ``SimulateSteps``) in
 chunks of ``chunk`` simulated seconds (:class:`seapup_bringup.paced.PacedGraph`).
 A step is answered once the graph is held at its last sample and every node
 has answered that sample, so every goal, cancel, controller switch and
@@ -76,8 +77,9 @@ class SilGraph:
         Wall seconds for the graph to come up (ten-odd Python nodes beside CPU burners: most of a minute).
     start_at, chunk : float
         Paced driving (module docstring) [s simulated]: the first hold, and the run between holds. Used when
-        the graph declares a ``start_held`` argument, runs in lockstep and gets no ``end_time`` (``paced``).
-        ``start_at`` 0: held at t_0, for a graph in which nobody answers a sample before the harness acts.
+        the graph declares an ``end_time`` argument, runs in lockstep and gets no ``end_time`` (``paced``).
+        ``start_at`` 0: held at t_0 (``start_held``), for a graph in which nobody answers t_0 before the
+        harness acts.
     instruments : bool
         Also log the instruments (:data:`INSTRUMENTS`); extra listeners of the graph's lockstep roster.
     ready_status : str or tuple of str, optional
@@ -130,9 +132,11 @@ class SilGraph:
         self.processes = GraphProcesses(self.env, self.out_dir)
         graph_file = find_graph(self.graph) if Path(self.graph).is_file() else find_graph(*self.graph.split())
         declared = graph_arguments(graph_file)
-        self.paced = ("start_held" in declared and "end_time" not in self.arguments
+        self.paced = ("end_time" in declared and "end_time" not in self.arguments
                       and str(self.arguments.get("mode", declared.get("mode", "lockstep"))) == "lockstep")
-        if self.paced:   # held at t_0, then stepped (simulation_interfaces) from hold to hold
+        if self.paced and self.start_at > 0:   # held at start_at (end_time: a PAUSED state a step overrides)
+            self.arguments["end_time"] = repr(self.start_at)
+        elif self.paced and "start_held" in declared:   # held at t_0 itself (end_time 0 means "run on")
             self.arguments["start_held"] = "true"
         specs = self._with_roster(load_graph(graph_file, self.arguments))
         self._node, self._executor = self.probe.open(domain).node, self.probe.executor
@@ -148,21 +152,22 @@ class SilGraph:
         self._wait_ready()
 
     def _hold_at_start(self) -> None:
-        """Paced: the graph is held at t_0 (``start_held``); step it to ``start_at``."""
+        """Paced: wait until the simulator says PAUSED at its first hold (``start_at``: its ``end_time``, or
+        t_0: ``start_held``) and the probe has heard every node answer that sample."""
         from seapup_bringup.graph_stepper import GraphStepper, StepFailed
-        from seapup_bringup.paced import PacedGraph
-        if not self.spin_until(lambda: self.log["truth"], self.ready_timeout):   # t_0 published
-            raise SilError(f"no first sample within {self.ready_timeout:g} s; node logs in {self.out_dir}"
-                           + self._dead())
-        self._stepper = GraphStepper(self._node, self._executor)
+        from seapup_bringup.paced import PacedGraph, samples_to
+        self._stepper, deadline = GraphStepper(self._node, self._executor), time.monotonic() + self.ready_timeout
         try:
             self._stepper.wait_ready(self.ready_timeout)
-            self._pacing = PacedGraph(self._stepper, self._stepper.period(), self.chunk,
-                                      lambda t, since, answered: self.probe.hear(t, since, answered))
+            period = self._stepper.period()
+            self._stepper.wait_paused(max(1.0, deadline - time.monotonic()))
         except StepFailed as exc:
-            raise SilError(f"{exc}{self._dead()}") from None
-        if self.start_at > 0:
-            self._advance(self.start_at, timeout=self.ready_timeout)
+            raise SilError(f"the graph was not held at its start ({self.start_at:g} s): {exc}; node logs in "
+                           f"{self.out_dir}{self._dead()}") from None
+        k = samples_to(self.start_at, 0, round(period * 1e9)) if self.start_at > 0 else 0
+        self._pacing = PacedGraph(self._stepper, period, self.chunk,
+                                  lambda t, since, answered: self.probe.hear(t, since, answered), k)
+        self.probe.hear(self.held, None, answered=self.start_at > 0)   # t_0: nobody answers before the harness
 
     def _wait_ready(self) -> None:
         """Spin until the graph is ready (``ready_status``, :mod:`seapup_bringup.readiness`)."""
@@ -269,14 +274,11 @@ class SilGraph:
     def goal(self, kind: str, *, timeout: float = 300.0, cancel_after: float | None = None,
              during: tuple | None = None, **fields) -> dict:
         """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", "accepted_t", "end_t",
-        <result fields>}`` (``accepted_t``, ``end_t``: simulated times at which the probe heard it accepted and
-        ended; the result's ``end_time`` is the graph's own).
+        <result fields>}`` (``accepted_t``, ``end_t``: simulated times the probe heard it accepted and ended).
 
-        ``cancel_after`` [s simulated]: cancel the goal that long after it was accepted. ``during = (seconds,
-        function)``: call ``function()`` once, that many simulated seconds after the goal was accepted; its
-        return value is in the result as ``during``. Rejected goals return ``accepted: False`` and the reason
-        the task controller published.
-        """
+        ``cancel_after`` [s simulated]: cancel the goal that long after its acceptance. ``during = (seconds,
+        function)``: call ``function()`` that long after it (its return value: ``during``). A rejected goal:
+        ``accepted: False`` and the reason the task controller published."""
         from rclpy.action import ActionClient
 
         from seapup_common.ros.graph import send_goal
