@@ -86,10 +86,24 @@ def graph_file(spec, out, pace: float):
 
 
 def hold_and_step(sil, chunks) -> None:
-    """Run a held graph on chunk by chunk [s simulated], holding it after each (the simulator's run-time
-    ``end_time``, :meth:`SilGraph.run_for`). The one place to swap for simulation_interfaces' StepSimulation."""
-    for seconds in chunks:
-        sil.run_for(seconds)
+    """Step a held graph on chunk by chunk [s simulated] through simulation_interfaces' StepSimulation
+    (:meth:`seapup_bringup.graph_stepper.GraphStepper.step_call`): each step is answered once the graph is held
+    at the chunk's last sample and every node has answered it."""
+    from seapup_bringup.graph_stepper import GraphStepper
+    from seapup_bringup.paced import samples_to
+    stepper = GraphStepper(sil._node, sil._executor)
+    try:
+        stepper.wait_ready(30.0)
+        period_ns = int(round(stepper.period() * 1e9))
+        k = int(round(sil.held * 1e9 / period_ns))
+        target = sil.held
+        for seconds in chunks:
+            target += seconds
+            n = samples_to(target, k, period_ns)
+            stepper.step_call(n, timeout=60.0)
+            k += n
+    finally:
+        stepper.destroy()
 
 
 def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float]:
