@@ -586,3 +586,18 @@ def test_step_refusals_say_which_rule():
     with pytest.raises(StepRefused) as refused:
         server.step(1, now=0.2)
     assert refused.value.kind == HALTED
+
+
+def test_a_step_from_an_unanswered_hold_says_the_held_sample_again_with_no_new_reader():
+    """A node that became an answerer at the hold without a new subscription (a self-test goal sent there)
+    hears the held sample only if it is said again: a step from an unanswered hold republishes at once, while
+    a play with no new reader only polls the readers (a command may be in flight)."""
+    from seapup_common.lockstep.server import LockstepServer, REPUBLISH
+    for resume in ("step", "play"):
+        server = LockstepServer(0.2, timeout=10.0)
+        server.gate_ready(now=0.0)
+        server.pause(now=0.0)
+        server.readers({"/a": 1}, now=0.1)        # the baseline: nobody joins afterwards
+        actions = server.step(2, now=0.5) if resume == "step" else server.play(now=0.5)
+        kinds = [a.kind for a in actions]
+        assert (REPUBLISH in kinds) == (resume == "step"), (resume, kinds)

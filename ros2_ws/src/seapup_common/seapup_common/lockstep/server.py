@@ -58,7 +58,12 @@ Rules
   (:data:`POLL_READERS` every :attr:`LockstepServer.READER_POLL` s;
   discovery may lag) and the sample said again whenever one more matched;
   its time-out counts from the resume (with no baseline, e.g. after a
-  republish, the sample is said again at once, as a late joiner needs). So a driver can hold the whole graph
+  republish, the sample is said again at once, as a late joiner needs). A
+  step from an unanswered hold always says the sample again: a node may
+  have become an answerer at the hold with no new subscription (a self-test
+  goal, a controller activated after a cancelled step), and a step is asked
+  for only once the last one was answered or given up, so no command is in
+  flight. So a driver can hold the whole graph
   at an exact sample, act (send a goal, switch a controller) and go on --
   what it does then takes effect at the same sample however busy the
   machine is.
@@ -546,7 +551,12 @@ class LockstepServer:
             return self._finish_step() + self._advance(now)
         self.catch_up = True
         self._waiting_since = now       # its time-out counts from now
-        if self._seen is None:          # no baseline: a late joiner may need it
+        # no baseline (a late joiner may need it), or a step: a node may have become an answerer while held
+        # without a new subscription (a self-test goal sent at the hold, a controller activated there after
+        # a cancelled step), and only the sample said again reaches it; a step is asked for only once the
+        # previous one was answered or given up, so no command of this sample is in flight (a recorder keeps
+        # one copy of a sample said again: docs/recording.md)
+        if self._seen is None or self.stepping is not None:
             return self._republish(now)
         self._last_resend = now
         self._next_poll = now + self.READER_POLL
