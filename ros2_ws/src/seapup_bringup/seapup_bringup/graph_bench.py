@@ -516,7 +516,7 @@ def executor_ab_lines(ab: dict) -> list[str]:
     return lines
 
 
-def hierarchy_rate(sim_seconds: float = 60.0, log_dir="/tmp") -> dict:
+def hierarchy_rate(sim_seconds: float = 300.0, log_dir="/tmp") -> dict:
     """The demo's hierarchy graph with its recorder, unpaced in lockstep (issue 43's target: >= 60x real time).
 
     The graph runs on from t_0 (``end_time`` given: not held) with ``mfol_fixed`` active and no task goal (the

@@ -59,6 +59,10 @@ _TOPICS = {"velocity": ("sensors/velocity", TwistWithCovarianceStamped), "imu": 
 class NavigatorNode(Node):
     """rclpy shell around :class:`Navigator` (see the module docstring)."""
 
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR): plain
+    #: subscriptions and publishers, none replaced while spinning; the hierarchy's third-busiest process.
+    EXECUTOR = "events"
+
     def __init__(self, **kwargs):
         super().__init__("navigator", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "navigator.yaml", section="navigator", ranges={
