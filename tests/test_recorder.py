@@ -5,6 +5,19 @@ from seapup_msgs.msg import BladePitch
 from seapup_common.bag import read_bag
 
 
+def start_recorder(node_process, bag_dir, topics: list[str], awaited: str, *params: str):
+    """The recorder on ``topics`` into ``bag_dir`` (``params``: more ``name:=value``), once its log says it
+    subscribed to ``awaited`` (a typed topic is subscribed at start)."""
+    import time
+    rec = node_process(package="seapup_common", executable="recorder",
+                       args=["--ros-args", "-p", f"bag_path:={bag_dir}", "-p", f"topics:={topics}",
+                             *[a for p in params for a in ("-p", p)]])
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline and f"recording {awaited} [" not in rec.log_text():
+        time.sleep(0.05)
+    return rec
+
+
 def test_recorder_bags_the_open_loop_commands(node_process, tmp_path):
     bag_dir = tmp_path / "bag"
     rec = node_process(package="seapup_common", executable="recorder",
@@ -31,19 +44,12 @@ def test_recorder_bags_the_open_loop_commands(node_process, tmp_path):
 
 def _typed_recording(ros_context, node_process, spin, tmp_path, qos):
     """Start a recorder on a typed topic before its publisher, then publish 20 strings with ``qos``."""
-    import time
-
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String
 
     bag_dir = tmp_path / "bag"
-    rec = node_process(package="seapup_common", executable="recorder",
-                       args=["--ros-args", "-p", f"bag_path:={bag_dir}",
-                             "-p", "topics:=['/typed:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
-    deadline = time.monotonic() + 20.0
-    while time.monotonic() < deadline and "recording /typed [" not in rec.log_text():
-        time.sleep(0.05)
+    rec = start_recorder(node_process, bag_dir, ["/typed:std_msgs/msg/String"], "/typed", "discovery_period:=0.1")
     node = rclpy.create_node("typed_source", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
@@ -94,7 +100,6 @@ def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_
     """Issue 43: the simulator latches /tf_static once, at its start; the recorder's eager subscription
     (volatile) never got it unless it happened to match first. A transient-local publisher's eager
     subscription is replaced by a transient-local one, which takes the latched message: exactly once."""
-    import time
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -102,12 +107,8 @@ def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_
     from std_msgs.msg import String
 
     bag_dir = tmp_path / "bag"
-    rec = node_process(package="seapup_common", executable="recorder",
-                       args=["--ros-args", "-p", f"bag_path:={bag_dir}",
-                             "-p", "topics:=['/latched:std_msgs/msg/String']", "-p", "discovery_period:=0.1"])
-    deadline = time.monotonic() + 20.0
-    while time.monotonic() < deadline and "recording /latched [" not in rec.log_text():
-        time.sleep(0.05)
+    rec = start_recorder(node_process, bag_dir, ["/latched:std_msgs/msg/String"], "/latched",
+                         "discovery_period:=0.1")
     node = rclpy.create_node("latched_source", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
@@ -125,7 +126,6 @@ def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_
 def _said_twice(ros_context, node_process, spin, tmp_path, *params):
     """Record a stamped and a plain topic while each message is published twice in a row (the second
     stamped pair differing in a field); the bag's (topic, decoded) messages."""
-    import time
 
     import rclpy
     from geometry_msgs.msg import PointStamped
@@ -133,13 +133,8 @@ def _said_twice(ros_context, node_process, spin, tmp_path, *params):
     from std_msgs.msg import String
 
     bag_dir = tmp_path / "bag"
-    rec = node_process(package="seapup_common", executable="recorder",
-                       args=["--ros-args", "-p", f"bag_path:={bag_dir}", "-p",
-                             "topics:=['/stamped:geometry_msgs/msg/PointStamped', '/plain:std_msgs/msg/String']",
-                             *[a for p in params for a in ("-p", p)]])
-    deadline = time.monotonic() + 20.0
-    while time.monotonic() < deadline and "recording /plain [" not in rec.log_text():
-        time.sleep(0.05)
+    rec = start_recorder(node_process, bag_dir, ["/stamped:geometry_msgs/msg/PointStamped",
+                                                 "/plain:std_msgs/msg/String"], "/plain", *params)
     node = rclpy.create_node("repeating_source", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
