@@ -172,11 +172,11 @@ def test_a_sample_whose_applied_pitch_was_missed_is_answered_after_applied_wait(
 
 
 def test_the_first_command_waits_for_every_awaited_subscriber(ros_context, node_process, spin, tmp_path):
-    """``wait_for_subscribers`` n: a lockstep sample is not answered until n subscriptions have matched
+    """``wait_for_command_subscribers`` n: a lockstep sample is not answered until n subscriptions have matched
     the command publisher (a run's probe and recorder hear every command); then it is, with its stamp."""
     node = node_process(package="seapup_control", executable="velocity_controller",
                         args=["--ros-args", "-p", "controller_type:=hold", "-p", "blade_pitch:=[0.1, 0.1, 0.2, 0.2]",
-                              "-p", "sample_period:=0.2", "-p", "wait_for_subscribers:=2", "-p", "applied_wait:=0.2",
+                              "-p", "sample_period:=0.2", "-p", "wait_for_command_subscribers:=2", "-p", "applied_wait:=0.2",
                               "-r", "__node:=mfol_velocity_controller"])
     probe = Probe(ros_context, spin)  # one subscription to the commands
     probe.activate_and_sample(3 * 10**9)

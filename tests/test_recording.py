@@ -125,7 +125,7 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     probe = Probe(ros_context, spin)
     probe.record("/seapup/thrusters/command", BladePitch)
     node_process(package="seapup_control", executable="open_loop", name="controller",
-                 args=["--ros-args", "-p", "wait_for_subscribers:=2",
+                 args=["--ros-args", "-p", "wait_for_command_subscribers:=2",
                        *schedule_args(demo_config()["duration"], manoeuvres())])
     replay = node_process([sys.executable, "-m", "seapup_bringup.cli", "replay", str(DEMO),
                            "--lockstep", "/seapup/thrusters/command", "--wait-for-subscribers", "1",

@@ -11,7 +11,7 @@ no limit, as launch).
 **Lockstep roster.** Before a graph starts, the launcher fills the counts of the lockstep handshake from
 the graph itself (:mod:`seapup_common.lockstep.roster`): the simulator's ``wait_for_subscribers`` (each
 per-sample topic once per node that must hear it from t_0 on) and each commander's subscriber counts
-(``wait_for_subscribers`` of a velocity controller, the controller manager, ``open_loop`` and
+(``wait_for_command_subscribers`` of a velocity controller, the controller manager and ``open_loop``, ``wait_for_reference_subscribers`` of
 ``reference_schedule``; the self-test's ``wait_for_command_subscribers`` and ``wait_for_sample_subscribers``),
 each executable's role declared once in its package's ``config/lockstep.yaml``. A node whose parameter the
 file gives keeps it. Subscribers outside the file -- a harness's probe, a recorder -- are *extra

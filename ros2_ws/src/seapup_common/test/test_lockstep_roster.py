@@ -59,10 +59,10 @@ def test_hierarchy_velocity_six_and_applied_pitch_five():
     controllers = {"mfol_fixed", "mfol_scheduled", "explicit", "gmv"}
     assert set(plan.listeners[V]) == {"navigator", "self_test"} | controllers
     assert set(plan.listeners[A]) == {"controller_manager"} | controllers
-    assert plan.settings["controller_manager"] == {"wait_for_subscribers": 1}
+    assert plan.settings["controller_manager"] == {"wait_for_command_subscribers": 1}
     assert plan.settings["self_test"] == {"wait_for_command_subscribers": 1, "wait_for_sample_subscribers": 0}
     # a controller's remapped command is heard by nobody the graph names (today's default, 0)
-    assert all(plan.settings[c] == {"wait_for_subscribers": 0} for c in controllers)
+    assert all(plan.settings[c] == {"wait_for_command_subscribers": 0} for c in controllers)
     assert set(plan.answerers) == controllers | {"self_test"}
 
 
@@ -86,17 +86,17 @@ def test_the_demo_harness_adds_its_probe_and_recorder():
     counts = awaited(plan)
     assert {t: counts[t] for t in (V, A, IMU, DEPTH, POS, MANIFEST, ALT, TRUTH)} == \
         {V: 3, A: 3, IMU: 2, DEPTH: 2, POS: 2, MANIFEST: 1, ALT: 3, TRUTH: 2}
-    assert plan.settings["controller_manager"] == {"wait_for_subscribers": 3}
+    assert plan.settings["controller_manager"] == {"wait_for_command_subscribers": 3}
     assert plan.settings["self_test"] == {"wait_for_command_subscribers": 3, "wait_for_sample_subscribers": 1}
 
 
 @pytest.mark.parametrize("name, expected, commands", [
-    ("identification.launch.yaml", {V: 1, IMU: 1, A: 1}, {"open_loop": {"wait_for_subscribers": 1}}),
+    ("identification.launch.yaml", {V: 1, IMU: 1, A: 1}, {"open_loop": {"wait_for_command_subscribers": 1}}),
     ("identification_closed_loop.launch.yaml", {V: 2, IMU: 1, A: 2},
-     {"velocity_controller": {"wait_for_subscribers": 1}, "reference_schedule": {"wait_for_subscribers": 1}}),
+     {"velocity_controller": {"wait_for_command_subscribers": 1}, "reference_schedule": {"wait_for_reference_subscribers": 1}}),
     ("self_test.launch.yaml", {V: 1},
      {"self_test": {"wait_for_command_subscribers": 1, "wait_for_sample_subscribers": 0}}),
-    ("simulator_controller.launch.yaml", {V: 1, A: 1}, {"velocity_controller": {"wait_for_subscribers": 1}}),
+    ("simulator_controller.launch.yaml", {V: 1, A: 1}, {"velocity_controller": {"wait_for_command_subscribers": 1}}),
     ("simulator.launch.yaml", {}, {}),
 ])
 def test_each_shipped_graph_waits_for_what_it_spelled(name, expected, commands):
@@ -127,15 +127,15 @@ def test_run_graphs_wait_as_the_former_formulas(controllers, listeners):
     simulator_topics = [V, A] * controllers + [TRUTH, V, IMU, DEPTH, POS, ALT, A] * listeners
     assert awaited(plan) == Counter(simulator_topics)
     for i in range(controllers):
-        assert plan.settings[f"controller_{i}"] == {"wait_for_subscribers": 1 + listeners}
-    assert plan.settings["reference_schedule"] == {"wait_for_subscribers": controllers + listeners}
+        assert plan.settings[f"controller_{i}"] == {"wait_for_command_subscribers": 1 + listeners}
+    assert plan.settings["reference_schedule"] == {"wait_for_reference_subscribers": controllers + listeners}
     assert plan.count(COMMAND) == 1 + listeners
 
 
 # -- names, fill, errors ----------------------------------------------------------------------------
 BOOK = {"simulator": Role(samples=("sensors/velocity", "thrusters/applied"), sample_gate="wait_for_subscribers",
                           listens=("thrusters/command",)),
-        "law": Role(hears=("sensors/velocity",), answers=True, gates={"wait_for_subscribers": "thrusters/command"})}
+        "law": Role(hears=("sensors/velocity",), answers=True, gates={"wait_for_command_subscribers": "thrusters/command"})}
 
 
 def book(package, executable):
@@ -148,7 +148,7 @@ def test_a_remapping_is_followed():
     nodes = [NodeSpec("p", "simulator"), NodeSpec("p", "law", name="a"),
              NodeSpec("p", "law", name="b", remappings={"thrusters/command": "/seapup/b/thrusters/command"})]
     plan = roster(nodes, roles=book)
-    assert plan.settings["a"] == {"wait_for_subscribers": 1} and plan.settings["b"] == {"wait_for_subscribers": 0}
+    assert plan.settings["a"] == {"wait_for_command_subscribers": 1} and plan.settings["b"] == {"wait_for_command_subscribers": 0}
     assert plan.settings["simulator"] == {"wait_for_subscribers": [V, V]}
     moved = NodeSpec("p", "law", name="c", remappings={"sensors/velocity": "/seapup/other/velocity"})
     with pytest.raises(NotPublishedError, match="node c .* must hear /seapup/other/velocity"):
@@ -170,7 +170,7 @@ def test_fill_keeps_what_the_document_gives_and_adds_the_rest():
     plan = roster(nodes, [Listener("probe", (V, COMMAND, "/diagnostics"))], roles=book)
     simulator, law = fill(nodes, plan)
     assert simulator.parameters == nodes[0].parameters   # given by hand: kept
-    assert law.parameters == [{"lockstep": True}, {"wait_for_subscribers": 2}]
+    assert law.parameters == [{"lockstep": True}, {"wait_for_command_subscribers": 2}]
     assert plan.listeners == {V: ("law", "probe"), COMMAND: ("simulator", "probe")}
 
 

@@ -113,7 +113,7 @@ class ControllerManagerNode(Node):
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",
                                       ranges={"command_deadline": (0.01, 60.0), "switch_timeout": (0.1, 120.0),
                                               "liveness_timeout": (0.0, 60.0),
-                                              "wait_for_subscribers": (0, 100)}, allowed=ALLOWED)
+                                              "wait_for_command_subscribers": (0, 100)}, allowed=ALLOWED)
         names, types = list(p["controllers"]), list(p["types"])
         if types and len(types) != len(names):
             raise ValueError(f"types: {len(types)} given for {len(names)} controllers")
@@ -127,7 +127,7 @@ class ControllerManagerNode(Node):
         self.forwarded = self.create_publisher(BladePitch, FORWARDED_COMMAND, RELIABLE_QOS)  # a copy of each
         # the first forwarded command waits for every awaited subscriber (the vehicle, a recorder): a
         # bag once lacked the first 2-8 s of commands
-        self.gate = SubscriberGate([(self.publisher, int(p["wait_for_subscribers"]))])
+        self.gate = SubscriberGate([(self.publisher, int(p["wait_for_command_subscribers"]))])
         self._held: BladePitch | None = None
         self.create_timer(0.05, self._release_held)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)

@@ -43,14 +43,14 @@ class OpenLoopNode(Node):
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=BLADE_PITCH_LIMIT)]),
         }, defaults={"blade_pitch_limit": BLADE_PITCH_LIMIT}, section="open_loop",
             ranges={"times": (0.0, 1e9), "pitches": (-BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT),
-                    "wait_for_subscribers": (0, 100)})
+                    "wait_for_command_subscribers": (0, 100)})
         self.schedule = PitchProfile(p["times"], p["pitches"], p["blade_pitch_limit"])
         self.controller = OpenLoop(self.schedule, p["sample_period"])
         self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS)
         # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start
         self.sampler = SamplePublisher(self, self.publisher, self._command, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],
-                                       wait_for_subscribers=p["wait_for_subscribers"])
+                                       wait_for_subscribers=p["wait_for_command_subscribers"])
         self.get_logger().info(
             f"open-loop schedule: {len(self.schedule.times)} segment(s), last switch at "
             f"{self.schedule.duration:.1f} s, period {p['sample_period']:.3f} s")

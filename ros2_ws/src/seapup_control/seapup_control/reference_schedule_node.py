@@ -35,12 +35,12 @@ class ReferenceScheduleNode(Node):
                 floating_point_range=[FloatingPointRange(from_value=0.01, to_value=10.0)]),
         }, section="reference_schedule",
             ranges={"times": (0.0, 1e9), "references": (-10.0, 10.0),  # [m/s], [rad/s]
-                    "period": (0.0, 1e9), "wait_for_subscribers": (0, 100)})
+                    "period": (0.0, 1e9), "wait_for_reference_subscribers": (0, 100)})
         self.schedule = ReferenceProfile(p["times"], p["references"], p["period"])
         self.publisher = self.create_publisher(TwistStamped, "velocity_controller/reference", STREAM_QOS)
         self.sampler = SamplePublisher(self, self.publisher, self._reference, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],
-                                       wait_for_subscribers=p["wait_for_subscribers"])
+                                       wait_for_subscribers=p["wait_for_reference_subscribers"])
         self.get_logger().info(f"reference schedule: {len(self.schedule.times)} row(s)"
                                + (f", repeating every {self.schedule.period:g} s" if self.schedule.period else ""))
 

@@ -30,7 +30,7 @@ the MFOL-only era keep working).
   publishes ``/seapup/thrusters/command`` stamped with the sample time;
 - **deactivate** stops commanding.
 
-With ``wait_for_subscribers`` n > 0 the first command is held until n
+With ``wait_for_command_subscribers`` n > 0 the first command is held until n
 subscriptions have matched the command publisher
 (:class:`~seapup_common.ros.graph.SubscriberGate`): in lockstep, simulated
 time stands still meanwhile, so a run's probe or recorder hears every
@@ -99,7 +99,7 @@ __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
 #: NaN and inf included, is refused at start and by ``param set``.
 RANGES = {"sample_period": (0.0, 10.0), "applied_wait": (0.0, 600.0), "reference_wait": (0.0, 600.0),
           "reference_stream": (0.0, 3600.0), "first_reference_wait": (0.0, 600.0), "start_at": (0.0, 1e9),
-          "stop_at": (0.0, 1e9), "reference_horizon": (0.0, 1e9), "wait_for_subscribers": (0, 100),
+          "stop_at": (0.0, 1e9), "reference_horizon": (0.0, 1e9), "wait_for_command_subscribers": (0, 100),
           "diagnostics_every": (1, 10**6)}
 
 
@@ -224,7 +224,7 @@ class VelocityControllerNode(LifecycleNode):
         self.pace = DiagnosticsPace(self.controller.sample_period, lockstep)
         self.publisher = self.create_lifecycle_publisher(BladePitch, "thrusters/command", STREAM_QOS,
                                                          event_callbacks=QUIET_PUBLISHER)
-        self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_subscribers")))])
+        self.gate = SubscriberGate([(self.publisher, int(self._value("wait_for_command_subscribers")))])
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS,
                                                  event_callbacks=QUIET_PUBLISHER)
         # a self-tuner (ch. 7) says its estimate and jacket state after every sample it answers

@@ -15,7 +15,7 @@ subscribers. Those lists and counts are not written anywhere by hand: they follo
         hears: [sensors/velocity, thrusters/applied]   # of each sample, from t_0 on
         listens: [velocity_controller/reference]       # others' first messages it must hear
         answers: true                                  # it answers every sample
-        gates: {wait_for_subscribers: thrusters/command}   # count parameter: the topic it holds
+        gates: {wait_for_command_subscribers: thrusters/command}   # count parameter: the topic it holds
         lifecycle: autostart               # subscribed only once configured: at start if this is true
       mfol_velocity_controller: {like: velocity_controller}
 
@@ -406,12 +406,12 @@ def roster(nodes: Iterable[NodeSpec | Mapping], listeners: Iterable[Listener] = 
     Examples
     --------
     >>> sim = Role(samples=("sensors/velocity",), sample_gate="wait_for_subscribers", listens=("thrusters/command",))
-    >>> law = Role(hears=("sensors/velocity",), answers=True, gates={"wait_for_subscribers": "thrusters/command"})
+    >>> law = Role(hears=("sensors/velocity",), answers=True, gates={"wait_for_command_subscribers": "thrusters/command"})
     >>> book = {"simulator": sim, "law": law}
     >>> r = roster([NodeSpec("p", "simulator"), NodeSpec("p", "law")], [Listener("probe", ("sensors/velocity",))],
     ...            roles=lambda package, executable: book.get(executable))
     >>> r.settings["simulator"], r.settings["law"], r.answerers
-    ({'wait_for_subscribers': ['/seapup/sensors/velocity', '/seapup/sensors/velocity']}, {'wait_for_subscribers': 1}, ('law',))
+    ({'wait_for_subscribers': ['/seapup/sensors/velocity', '/seapup/sensors/velocity']}, {'wait_for_command_subscribers': 1}, ('law',))
     """
     lookup = roles
     specs = [n if isinstance(n, NodeSpec) else NodeSpec(**n) for n in nodes]
@@ -474,9 +474,9 @@ def fill(nodes: Iterable[NodeSpec], plan: Roster) -> list[NodeSpec]:
 
     Examples
     --------
-    >>> plan = Roster(listeners={}, answerers=(), settings={"law": {"wait_for_subscribers": 2}})
+    >>> plan = Roster(listeners={}, answerers=(), settings={"law": {"wait_for_command_subscribers": 2}})
     >>> fill([NodeSpec("p", "law", parameters=[{"lockstep": True}])], plan)[0].parameters
-    [{'lockstep': True}, {'wait_for_subscribers': 2}]
+    [{'lockstep': True}, {'wait_for_command_subscribers': 2}]
     """
     out = []
     for spec in nodes:
