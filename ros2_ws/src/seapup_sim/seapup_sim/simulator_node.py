@@ -22,7 +22,8 @@ Modes:
 ``start_held`` holds it at t_0 until ``end_time`` is set; a later ``end_time``
 set at run time resumes it (see the server's rules). After the messages of
 each sample the simulator publishes its manifest, ``sensors/sample``
-(:func:`~seapup_sim.ros.simulator_messages.sample_messages`). Every environment
+(:func:`~seapup_sim.ros.simulator_messages.sample_messages`); a message is packed only for a topic with a
+matched subscriber (nobody else could hear it). Every environment
 setting is a read-only parameter ``environment.<section>.<key>``
 (:mod:`seapup_sim.ros.simulator_parameters`); services change the current,
 sensors, configuration and fouling at run time. The standard ``simulation_interfaces`` control surface
@@ -52,12 +53,13 @@ from seapup_msgs.msg import BladePitch, Depth, SampleManifest
 from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfile, SetThrusterEfficiency
 from tf2_msgs.msg import TFMessage
 
+from seapup_common import frames
 from seapup_common.contract import ContractError
 from seapup_common.lockstep.server import (POLL_READERS, PUBLISH, REPUBLISH, RESEND_CLOCK, RESET, STEP, STEP_DONE,
                                            STEP_PROGRESS, TIME_OUT, WAKE_AT, LockstepServer)
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.sample_bytes import SampleEncoder
+from seapup_common.ros.sample_bytes import SampleEncoder, StampedDoubles
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, STREAM_QOS, SERVICE_QOS,
                                     TF_QOS, TF_STATIC_QOS, QosWatch, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
@@ -76,6 +78,10 @@ __all__ = ["SimulatorNode", "main"]
 
 class SimulatorNode(Node):
     """rclpy shell around :class:`SimulatorCore` and :class:`LockstepServer` (see module docstring)."""
+
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR; its
+    #: coroutine services through :func:`~seapup_sim.ros.simulation_control.deferred_service`).
+    EXECUTOR = "events"
 
     def __init__(self, **kwargs):
         super().__init__("simulator", namespace=NAMESPACE, **kwargs)
@@ -108,8 +114,9 @@ class SimulatorNode(Node):
         self._last_warn = self._last_gate_log = 0.0
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._encoder = SampleEncoder()
+        self._commands = StampedDoubles(BladePitch, [frames.FRAME_FRD, ""])   # the usual frames, unpacked at once
         self.ack_budget = 3.0   # at its stop, wait this long for readers (a recorder) to acknowledge the last samples
-        self._sent: list = []  # the current sample's (publisher, message bytes) pairs, for a republish
+        self._sent: list = []  # the current sample's (publisher, packed message) pairs, for a republish
         self._armed_at: float | None = None   # when the wake timer fires (None: not armed)
         self._wake_timer = self.create_timer(1.0, self._on_wake, autostart=False)
         if self.mode == "lockstep":
@@ -200,8 +207,7 @@ class SimulatorNode(Node):
                            "holding the last one")
             elif kind == REPUBLISH:   # the current sample's messages once more, unchanged
                 self._publish_clock()
-                for publisher, msg in self._sent:
-                    publisher.publish(msg)
+                self._send(self._sent)
             elif kind == RESEND_CLOCK:   # handshake: /clock only (no duplicate data for recorders)
                 self._publish_clock()
             elif kind == POLL_READERS:
@@ -273,19 +279,23 @@ class SimulatorNode(Node):
             self.get_logger().warn(text)
 
     def _on_command(self, raw: bytes) -> None:
-        try:
-            msg = deserialize_message(raw, BladePitch)
-            if len(serialize_message(msg)) != len(raw):
-                raise ValueError(f"{len(raw)} bytes do not encode a BladePitch (wrong array length?)")
-        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
-            self.simulator.reject_malformed(f"malformed command: {exc}")
-            self._warn(self.simulator.last_error)
-            return
-        stamp = conv.stamp_to_ns(msg.header.stamp)
+        decoded = self._commands.decode(raw)   # a command in base_link_frd or no frame; else the typed path
+        if decoded is not None:
+            stamp, pitch = decoded[0], decoded[2]
+        else:
+            try:
+                msg = deserialize_message(raw, BladePitch)
+                if len(serialize_message(msg)) != len(raw):
+                    raise ValueError(f"{len(raw)} bytes do not encode a BladePitch (wrong array length?)")
+            except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
+                self.simulator.reject_malformed(f"malformed command: {exc}")
+                self._warn(self.simulator.last_error)
+                return
+            stamp, pitch = conv.stamp_to_ns(msg.header.stamp), msg.pitch
         if not self.server.takes_commands:
             self.simulator.reject("rejected_future", "command before the first sample was published")
             return
-        ok, reason = self.simulator.submit(np.array(msg.pitch, float), stamp, self.mode == "lockstep")
+        ok, reason = self.simulator.submit(np.array(pitch, float), stamp, self.mode == "lockstep")
         if not ok or reason == "saturated":
             self._warn(f"command {'rejected' if not ok else 'saturated'}: {reason if not ok else ''}".strip())
         self._run(self.server.command(stamp, ok, time.monotonic()))
@@ -302,8 +312,14 @@ class SimulatorNode(Node):
         self._samples_published += 1
         self._sent = sample_messages(self._encoder, self, out, self.simulator.t_ns, self.simulator.sensor_profile,
                                      self.simulator.cable_shape())
-        for publisher, msg in self._sent:
-            publisher.publish(msg)
+        self._send(self._sent)
+
+    @staticmethod
+    def _send(messages) -> None:
+        """Publish each message that has a matched subscriber (packed only then; nobody else could hear it)."""
+        for publisher, packed in messages:
+            if publisher.get_subscription_count():
+                publisher.publish(packed())
 
     def _publish_diagnostics(self) -> None:
         self.pub_diag.publish(diagnostics_of(self.mode, self.simulator, self.server, self._graph_problems(),

@@ -1,11 +1,13 @@
 """The simulator node's messages: one sample's serialised messages and its diagnostics status.
 
 :func:`sample_messages` turns :meth:`SimulatorCore.outputs <seapup_sim.simulator_core.SimulatorCore.outputs>`
-into the (publisher, bytes) pairs of one sample, the manifest last (``sensors/sample``: the stamp t_k and
+into the (publisher, :class:`Packed`) pairs of one sample, the manifest last (``sensors/sample``: the stamp t_k and
 the topics published for it -- the acoustic fix only at some samples); :func:`diagnostics_of` builds the
 ``/diagnostics`` array from the core's counters, the lockstep server's state and the graph's problems.
 """
 from __future__ import annotations
+
+from functools import partial
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
@@ -13,13 +15,41 @@ from seapup_common import frames
 from seapup_common.lockstep.server import STOPPED
 from seapup_common.ros import messages as conv
 
-__all__ = ["sample_messages", "diagnostics", "diagnostics_of"]
+__all__ = ["Packed", "sample_messages", "diagnostics", "diagnostics_of"]
 
 NED, FRD = frames.FRAME_NED, frames.FRAME_FRD
 
 
+class Packed:
+    """One message of a sample, serialised when first asked for and kept: a topic nobody subscribes to costs
+    no packing (the sample's numbers are a snapshot, :meth:`SimulatorCore.outputs
+    <seapup_sim.simulator_core.SimulatorCore.outputs>`, so bytes packed later -- for a late joiner, when the
+    held sample is said again -- are the bytes packed at once).
+
+    Examples
+    --------
+    >>> calls = []
+    >>> packed = Packed(lambda x: calls.append(x) or b"%d" % x, 7)
+    >>> calls
+    []
+    >>> packed(), packed(), calls
+    (b'7', b'7', [7])
+    """
+
+    __slots__ = ("_pack", "_bytes")
+
+    def __init__(self, pack, *args, **kwargs):
+        self._pack, self._bytes = partial(pack, *args, **kwargs), None
+
+    def __call__(self) -> bytes:
+        if self._bytes is None:
+            self._bytes, self._pack = self._pack(), None
+        return self._bytes
+
+
 def sample_messages(encode, publishers, out: dict, t_ns: int, profile, cable=None) -> list:
-    """The (publisher, serialised message) pairs of the sample ``out`` stamped ``t_ns``, the manifest last.
+    """The (publisher, :class:`Packed` message) pairs of the sample ``out`` stamped ``t_ns``, the manifest last
+    (it lists every topic of the sample, whoever subscribes: what the sample holds).
 
     Parameters
     ----------
@@ -39,23 +69,23 @@ def sample_messages(encode, publishers, out: dict, t_ns: int, profile, cable=Non
     p = publishers
     sample, m = out["sample"], out["sample"].measurement
     messages = [
-        (p.pub_applied, encode.applied(out["applied_blade_pitch"], t_ns)),
-        (p.pub_velocity, encode.velocity(m.velocity, m.rates, t_ns)),
-        (p.pub_imu, encode.imu(m.attitude, m.rates, sample.specific_force, t_ns)),
-        *([(p.pub_position, encode.position(m.position, t_ns))] if m.position.valid else []),
-        (p.pub_depth, encode.depth(m.depth, t_ns)),
-        (p.pub_altitude, encode.altitude(  # every sample: +inf when invalid (REP-117)
-            m.altitude, t_ns, field_of_view=profile.altimeter_field_of_view, min_range=profile.altimeter_min_range,
-            max_range=profile.altimeter_max_range)),
-        (p.pub_truth, encode.odometry_ned(sample.state, t_ns)),
-        (p.pub_odom, encode.odometry_enu(sample.state, t_ns)),
-        (p.pub_current, encode.vector3_stamped(sample.current_ned, t_ns, NED)),
-        (p.pub_wrench, encode.wrench_stamped(sample.umbilical_body, t_ns, FRD)),
-        *([(p.pub_tf, encode.transforms_enu(sample.state, t_ns))] if p.pub_tf is not None else [])]
+        (p.pub_applied, Packed(encode.applied, out["applied_blade_pitch"], t_ns)),
+        (p.pub_velocity, Packed(encode.velocity, m.velocity, m.rates, t_ns)),
+        (p.pub_imu, Packed(encode.imu, m.attitude, m.rates, sample.specific_force, t_ns)),
+        *([(p.pub_position, Packed(encode.position, m.position, t_ns))] if m.position.valid else []),
+        (p.pub_depth, Packed(encode.depth, m.depth, t_ns)),
+        (p.pub_altitude, Packed(encode.altitude,  # every sample: +inf when invalid (REP-117)
+                                m.altitude, t_ns, field_of_view=profile.altimeter_field_of_view,
+                                min_range=profile.altimeter_min_range, max_range=profile.altimeter_max_range)),
+        (p.pub_truth, Packed(encode.odometry_ned, sample.state, t_ns)),
+        (p.pub_odom, Packed(encode.odometry_enu, sample.state, t_ns)),
+        (p.pub_current, Packed(encode.vector3_stamped, sample.current_ned, t_ns, NED)),
+        (p.pub_wrench, Packed(encode.wrench_stamped, sample.umbilical_body, t_ns, FRD)),
+        *([(p.pub_tf, Packed(encode.transforms_enu, sample.state, t_ns))] if p.pub_tf is not None else [])]
     if cable is not None:   # a simulation with an umbilical: its shape, to be drawn
-        messages.append((p.pub_cable, encode.path_ned(cable, t_ns)))
+        messages.append((p.pub_cable, Packed(encode.path_ned, cable, t_ns)))
     # last: what this sample holds (the acoustic fix comes only at some samples)
-    manifest = encode.manifest([publisher.topic_name for publisher, _ in messages], t_ns)
+    manifest = Packed(encode.manifest, [publisher.topic_name for publisher, _ in messages], t_ns)
     return messages + [(p.pub_manifest, manifest)]
 
 
