@@ -48,6 +48,7 @@ from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVI
                                     destroy_actions, path_or_empty, run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
+from seapup_control.ros.sample_inputs import MalformedMessageError, RawSampleFeed, clock_of
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
 
 __all__ = ["SelfTestNode", "goal_overrides", "main"]
@@ -91,13 +92,16 @@ class SelfTestNode(Node):
         # answer nothing until the plant (and a recorder) listen: no command or sample record is lost
         self.gate = SubscriberGate([(self.publisher, p["wait_for_command_subscribers"]),
                                     (self.samples, p["wait_for_sample_subscribers"])])
-        self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS)
+        # bytes read straight (sample_inputs: what the typed path gives, its refusals for anything else)
+        self.raw_feed = RawSampleFeed(self.feed)
+        self.create_subscription(TwistWithCovarianceStamped, "sensors/velocity", self._on_velocity, COMMAND_QOS,
+                                 raw=True)
         self.test: SelfTest | None = None      # the run in progress, or the last one (hovering)
         self._goal = None
         self._done: Future | None = None
         self.rejected = 0
         if self.lockstep:
-            self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
+            self.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS, raw=True)
         self._timer = None
         self._retry_timer = None  # a sample to decide again once the subscriber gate opens
         self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
@@ -183,13 +187,17 @@ class SelfTestNode(Node):
         self.rejected += 1
         self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=5.0)
 
-    def _on_velocity(self, msg: TwistWithCovarianceStamped) -> None:
-        t_ns = self.feed.velocity(msg)
+    def _on_velocity(self, data: bytes) -> None:
+        t_ns = self.raw_feed.velocity(data)
         if t_ns is not None:
             self._answer(t_ns)
 
-    def _on_clock(self, msg: Clock) -> None:
-        t_ns = self.feed.clock(msg)
+    def _on_clock(self, data: bytes) -> None:
+        try:
+            t_ns = self.policy.on_clock(clock_of(data))   # SampleFeed.clock of the bytes
+        except MalformedMessageError as exc:   # no clock publisher sends such; nothing to answer
+            self.get_logger().warn(f"/clock message ignored: {exc}", throttle_duration_sec=2.0)
+            return
         if t_ns is not None:
             self._answer(t_ns)
 
