@@ -149,21 +149,31 @@ def test_make_executor_builds_each_choice_and_refuses_others(ros_context):
 
 @pytest.mark.graph
 def test_a_node_class_names_its_own_default_and_the_environment_still_wins(ros_context, monkeypatch):
-    """The per-sample nodes run under the events executor by their class's ``EXECUTOR``; every other node under
+    """The per-sample nodes (the demo's whole hierarchy: simulator, navigator, velocity controllers, manager,
+    position and task controllers, self-test; ``open_loop``) run under the events executor by their class's
+    ``EXECUTOR``; every other node (the recorder, the identifier, the live view, ...) under
     :data:`DEFAULT_EXECUTOR`; ``$SEAPUP_EXECUTOR`` overrides both (an A/B of a whole graph)."""
     import rclpy
     from rclpy.node import Node
 
     from seapup_common.ros.node import DEFAULT_EXECUTOR, declare_executor
+    from seapup_control.controller_manager_node import ControllerManagerNode
+    from seapup_control.navigator_node import NavigatorNode
     from seapup_control.open_loop_node import OpenLoopNode
+    from seapup_control.position_controller_node import PositionControllerNode
+    from seapup_control.self_test_node import SelfTestNode
+    from seapup_control.task_controller_node import TaskControllerNode
     from seapup_control.velocity_controller_node import VelocityControllerNode
+    from seapup_sim.simulator_node import SimulatorNode
 
     class Fast(Node):
         EXECUTOR = "events"
 
     monkeypatch.delenv("SEAPUP_EXECUTOR", raising=False)
     assert DEFAULT_EXECUTOR == "single"
-    assert VelocityControllerNode.EXECUTOR == OpenLoopNode.EXECUTOR == "events"
+    per_sample = [SimulatorNode, NavigatorNode, VelocityControllerNode, OpenLoopNode, ControllerManagerNode,
+                  PositionControllerNode, TaskControllerNode, SelfTestNode]
+    assert {cls.EXECUTOR for cls in per_sample} == {"events"}
     nodes = [Fast("fast", context=ros_context), rclpy.create_node("plain", context=ros_context)]
     assert [declare_executor(n) for n in nodes] == ["events", "single"]
     monkeypatch.setenv("SEAPUP_EXECUTOR", "single")

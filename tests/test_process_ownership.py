@@ -17,7 +17,8 @@ from seapup_common.bag import BagError, BagWriter, make_typestore, recover_bag, 
 from seapup_common.processes import DomainLease, NoFreeDomainError
 
 PARENT = """
-import subprocess, sys, time
+import signal, subprocess, sys, time
+signal.signal(signal.SIGHUP, signal.SIG_DFL)   # as in a terminal: a runner under nohup hands SIGHUP down ignored
 from seapup_common.processes import DomainLease, NodeProcess, child_options, ros_environment
 lease = DomainLease(lock_dir=sys.argv[1], candidates=[int(sys.argv[2])])
 lease.acquire()

@@ -108,6 +108,9 @@ ALLOWED = {"controllers": text("velocity_controller node names in /seapup", _nod
 class ControllerManagerNode(Node):
     """rclpy shell around :class:`ControllerManagerCore` (see the module docstring)."""
 
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR).
+    EXECUTOR = "events"
+
     def __init__(self, **kwargs):
         super().__init__("controller_manager", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "controller_manager.yaml", section="controller_manager",

@@ -54,6 +54,9 @@ _LAW = ("gains", "yaw_gain", "speed_limits", "max_yaw_rate", "acceleration_limit
 class PositionControllerNode(LifecycleNode):
     """rclpy lifecycle shell around :class:`PositionController` (see the module docstring)."""
 
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR).
+    EXECUTOR = "events"
+
     def __init__(self, **kwargs):
         super().__init__("position_controller", namespace=NAMESPACE, **kwargs)
         self.p = declare_from_package_file(self, "seapup_control", "position_controller.yaml",

@@ -71,6 +71,9 @@ def goal_overrides(goal) -> dict:
 class SelfTestNode(Node):
     """rclpy shell around :class:`SelfTest` (see the module docstring)."""
 
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR).
+    EXECUTOR = "events"
+
     def __init__(self, **kwargs):
         super().__init__("self_test", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test", ranges={

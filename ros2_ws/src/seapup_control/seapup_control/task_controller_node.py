@@ -74,6 +74,9 @@ class _Running:
 class TaskControllerNode(Node):
     """rclpy shell around the tasks of :mod:`seapup_control.tasks` (see the module docstring)."""
 
+    #: Spun by rclpy's EventsExecutor unless told otherwise (seapup_common.ros.node.DEFAULT_EXECUTOR).
+    EXECUTOR = "events"
+
     def __init__(self, **kwargs):
         super().__init__("task_controller", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "task_controller.yaml", section="task_controller", ranges={
