@@ -97,7 +97,9 @@ def test_self_test_through_ros_equals_the_in_process_run(ros_context, node_proce
 
 
 def test_cancel_leaves_the_vehicle_hovering_under_the_best_controller(ros_context, node_process, spin, tmp_path):
-    start_graph(node_process, self_test_params=[f"result_dir:={tmp_path}"])
+    # paced (at most 20x real time: a sample every 10 ms of wall time) so that the cancel, sent when cycle 2's
+    # feedback is heard, reaches a test still in cycle 2: unpaced, the whole test can end before it arrives
+    start_graph(node_process, "lockstep_pace:=20.0", self_test_params=[f"result_dir:={tmp_path}"])
     client = Client(ros_context, spin)
     handle = client.send(SelfTest.Goal())
     assert client.spin(lambda: client.feedback and client.feedback[-1].cycle == 2, 120.0)
