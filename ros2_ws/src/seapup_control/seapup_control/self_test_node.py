@@ -48,7 +48,7 @@ from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVI
                                     destroy_actions, path_or_empty, run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
-from seapup_control.ros.sample_inputs import MalformedMessageError, RawSampleFeed, clock_of
+from seapup_control.ros.sample_inputs import RawSampleFeed
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
 
 __all__ = ["SelfTestNode", "goal_overrides", "main"]
@@ -196,11 +196,7 @@ class SelfTestNode(Node):
             self._answer(t_ns)
 
     def _on_clock(self, data: bytes) -> None:
-        try:
-            t_ns = self.policy.on_clock(clock_of(data))   # SampleFeed.clock of the bytes
-        except MalformedMessageError as exc:   # no clock publisher sends such; nothing to answer
-            self.get_logger().warn(f"/clock message ignored: {exc}", throttle_duration_sec=2.0)
-            return
+        t_ns = self.raw_feed.clock(data, self.get_logger())
         if t_ns is not None:
             self._answer(t_ns)
 

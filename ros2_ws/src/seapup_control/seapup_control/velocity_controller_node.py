@@ -91,7 +91,7 @@ from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIP
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 from seapup_control.ros.diagnostics_pace import DiagnosticsPace
-from seapup_control.ros.sample_inputs import MalformedMessageError, RawSampleFeed, clock_of, command_of, reference_of
+from seapup_control.ros.sample_inputs import RawSampleFeed, command_of, reference_of
 
 __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
 
@@ -336,11 +336,7 @@ class VelocityControllerNode(LifecycleNode):
             self._answer(t_ns)
 
     def _on_clock(self, data: bytes) -> None:
-        try:
-            t_ns = self.policy.on_clock(clock_of(data))   # SampleFeed.clock of the bytes
-        except MalformedMessageError as exc:   # no clock publisher sends such; nothing to answer
-            self.get_logger().warn(f"/clock message ignored: {exc}", throttle_duration_sec=2.0)
-            return
+        t_ns = self.raw_feed.clock(data, self.get_logger())
         if t_ns is not None:
             self._answer(t_ns)
 

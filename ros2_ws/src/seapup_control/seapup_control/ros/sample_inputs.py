@@ -77,6 +77,15 @@ class RawSampleFeed:
     def __init__(self, feed: SampleFeed):
         self.feed = feed
 
+    def clock(self, data: bytes, logger) -> int | None:
+        """The sample to answer after this ``/clock`` message (``SampleFeed.clock`` of the bytes), or None;
+        unreadable bytes are ignored with a warning on ``logger`` (no clock publisher sends such)."""
+        try:
+            return self.feed.policy.on_clock(clock_of(data))
+        except MalformedMessageError as exc:
+            logger.warn(f"/clock message ignored: {exc}", throttle_duration_sec=2.0)
+            return None
+
     def velocity(self, data: bytes) -> int | None:
         """The sample to answer after this velocity message, or None (refused: counted by ``rejected``)."""
         feed = self.feed
