@@ -180,8 +180,8 @@ from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped  # noqa: 
 
 from seapup_common.blade_pitch import InvalidBladePitchError  # noqa: E402
 from seapup_common.contract import ContractError  # noqa: E402
-from seapup_common.ros.sample_bytes import (StampedDoubles, decode_blade_pitch, decode_clock,  # noqa: E402
-                                            decode_reference, decode_velocity)
+from seapup_common.ros.sample_bytes import (StampedDoubles, blade_pitch_values, decode_blade_pitch,  # noqa: E402
+                                            decode_clock, decode_reference, decode_velocity)
 
 SPECIAL = [math.nan, math.inf, -math.inf, 1e308, -0.0, 5e-324]
 
@@ -290,6 +290,24 @@ def test_reference_and_blade_pitch_bytes_read_as_the_typed_conversions(seed):
         else:
             assert pitch.header.frame_id not in ("", frames.FRAME_FRD)
     assert fast > 100
+
+
+def test_blade_pitch_values_are_the_messages_as_sent_checked_or_not():
+    """What the simulator reads of a command: stamp and pitches as rclpy deserialises them (a non-finite pitch
+    included: the simulator's gate refuses and counts it), None for a frame the typed path must read."""
+    rng = np.random.default_rng(7)
+    read = 0
+    for _ in range(300):
+        pitch = _random_pitch(rng)
+        values = blade_pitch_values(serialize_message(pitch))
+        if values is None:
+            assert pitch.header.frame_id not in ("", frames.FRAME_FRD)
+            continue
+        read += 1
+        typed = deserialize_message(serialize_message(pitch), BladePitch)
+        assert values[0] == conv.stamp_to_ns(typed.header.stamp)
+        assert _same(np.array(values[1]), np.array(typed.pitch))
+    assert read > 100
 
 
 def test_clock_bytes_read_as_the_message():

@@ -53,13 +53,12 @@ from seapup_msgs.msg import BladePitch, Depth, SampleManifest
 from seapup_msgs.srv import Reset, SetConfiguration, SetCurrent, SetSensorProfile, SetThrusterEfficiency
 from tf2_msgs.msg import TFMessage
 
-from seapup_common import frames
 from seapup_common.contract import ContractError
 from seapup_common.lockstep.server import (POLL_READERS, PUBLISH, REPUBLISH, RESEND_CLOCK, RESET, STEP, STEP_DONE,
                                            STEP_PROGRESS, TIME_OUT, WAKE_AT, LockstepServer)
 from seapup_common.ros import messages as conv
 from seapup_common.ros.graph import SubscriberGate
-from seapup_common.ros.sample_bytes import SampleEncoder, StampedDoubles
+from seapup_common.ros.sample_bytes import SampleEncoder, blade_pitch_values
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, STREAM_QOS, SERVICE_QOS,
                                     TF_QOS, TF_STATIC_QOS, QosWatch, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE, TF, TF_STATIC
@@ -114,7 +113,6 @@ class SimulatorNode(Node):
         self._last_warn = self._last_gate_log = 0.0
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._encoder = SampleEncoder()
-        self._commands = StampedDoubles(BladePitch, [frames.FRAME_FRD, ""])   # the usual frames, unpacked at once
         self.ack_budget = 3.0   # at its stop, wait this long for readers (a recorder) to acknowledge the last samples
         self._sent: list = []  # the current sample's (publisher, packed message) pairs, for a republish
         self._armed_at: float | None = None   # when the wake timer fires (None: not armed)
@@ -279,9 +277,9 @@ class SimulatorNode(Node):
             self.get_logger().warn(text)
 
     def _on_command(self, raw: bytes) -> None:
-        decoded = self._commands.decode(raw)   # a command in base_link_frd or no frame; else the typed path
+        decoded = blade_pitch_values(raw)   # a command in base_link_frd or no frame; else the typed path
         if decoded is not None:
-            stamp, pitch = decoded[0], decoded[2]
+            stamp, pitch = decoded
         else:
             try:
                 msg = deserialize_message(raw, BladePitch)

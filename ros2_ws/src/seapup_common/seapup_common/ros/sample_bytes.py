@@ -41,7 +41,7 @@ from seapup_common.ros.cdr import ENCAPSULATION_CDR_LE, Packer, Restamper
 from seapup_common.ros.messages import UNKNOWN_VARIANCE
 
 __all__ = ["SampleEncoder", "command_bytes", "StampedDoubles", "decode_velocity", "decode_reference",
-           "decode_blade_pitch", "decode_clock"]
+           "decode_blade_pitch", "blade_pitch_values", "decode_clock"]
 
 _NS = 1_000_000_000
 
@@ -280,14 +280,21 @@ def decode_reference(data: bytes) -> tuple[int, Reference] | None:
     return t_ns, Reference([x, y, z, r])
 
 
+def blade_pitch_values(data: bytes) -> tuple[int, tuple] | None:
+    """(stamp [ns], the four pitches as read, unchecked) of a ``BladePitch``'s bytes in ``base_link_frd`` or no
+    frame; None for any other message (the simulator checks a command itself, counting what it refuses)."""
+    decoded = _BLADE_PITCH.decode(data)
+    return None if decoded is None else (decoded[0], decoded[2])
+
+
 def decode_blade_pitch(data: bytes) -> tuple[int, Command] | None:
     """(stamp [ns], command) of a ``BladePitch``'s bytes in ``base_link_frd`` or no frame:
     :func:`~seapup_common.ros.messages.command_from_msg`, which raises the same InvalidBladePitchError for
     a non-finite pitch. None for any other message."""
-    decoded = _BLADE_PITCH.decode(data)
+    decoded = blade_pitch_values(data)
     if decoded is None:
         return None
-    t_ns, _, pitch = decoded
+    t_ns, pitch = decoded
     return t_ns, Command(np.array(pitch, float), t_ns * 1e-9)
 
 
