@@ -739,9 +739,11 @@ EXECUTOR_ENV = "SEAPUP_EXECUTOR"
 #: of ``./seapup bench``'s ``graph_executor_ab`` (simulator + MFOL at 5 Hz: about twice the samples per second,
 #: each process about half the CPU per sample; see docs/nodes.md), but rclpy 7.1's EventsExecutor is not safe
 #: for every node: a recorder that replaces a subscription while spinning died in rcl ("null argument to
-#: internal routine"), and it runs no coroutine (async) service callback. So the per-sample nodes that were
-#: soaked and hostile-tested under it (velocity controllers, open_loop) say ``EXECUTOR = "events"``; the rest
-#: stay on ``single``.
+#: internal routine"), and it runs no coroutine (async) service callback by itself (the simulator's go through
+#: ``seapup_sim.ros.simulation_control.deferred_service``). So the per-sample nodes that were soaked and
+#: hostile-tested under it (the demo's hierarchy -- simulator, navigator, velocity controllers, controller
+#: manager, position and task controllers, self-test -- and open_loop) say ``EXECUTOR = "events"``; the rest
+#: (recorder, identifier, reference_schedule, live view) stay on ``single``.
 DEFAULT_EXECUTOR = "single"
 
 
