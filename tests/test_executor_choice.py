@@ -180,3 +180,62 @@ def test_a_node_class_names_its_own_default_and_the_environment_still_wins(ros_c
     assert declare_executor(Fast("fast_single", context=ros_context)) == "single"
     for node in nodes:
         node.destroy_node()
+
+
+@pytest.mark.graph
+def test_a_node_that_takes_message_info_runs_on_single_and_refuses_events(ros_context, monkeypatch, tmp_path):
+    """rclpy 7.1's EventsExecutor cannot deliver the message info (next test): a node whose subscriptions take it
+    -- the recorder, by its class's ``MESSAGE_INFO``, or any node with such a subscription -- runs on ``single``
+    even when ``$SEAPUP_EXECUTOR`` asks the whole graph for ``events``, and ``-p executor:=events`` given to it
+    is refused with the reason, before it spins."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import String
+
+    from seapup_common.recorder_node import RecorderNode
+    from seapup_common.ros.node import declare_executor, takes_message_info
+
+    monkeypatch.setenv("SEAPUP_EXECUTOR", "events")
+    recorder = RecorderNode(context=ros_context, parameter_overrides=[
+        Parameter("topics", value=["/chatter:std_msgs/msg/String"]), Parameter("bag_path", value=str(tmp_path / "bag"))])
+    assert takes_message_info(recorder) and declare_executor(recorder) == "single"
+    plain = Node("plain_events", context=ros_context)
+    assert not takes_message_info(plain) and declare_executor(plain) == "events"   # the environment's choice
+    with_info = Node("with_info", context=ros_context)
+    with_info.create_subscription(String, "chatter", lambda msg, info: None, 10)
+    assert takes_message_info(with_info) and declare_executor(with_info) == "single"
+    asked = Node("asked_events", context=ros_context,
+                 parameter_overrides=[Parameter("executor", value="events")])
+    asked.create_subscription(String, "chatter", lambda msg, info: None, 10)
+    with pytest.raises(ValueError, match="executor events refused: .*message info"):
+        declare_executor(asked)
+
+
+@pytest.mark.graph
+def test_rclpy_events_executor_still_cannot_deliver_the_message_info(ros_context):
+    """Why the recorder stays on ``single`` (``DEFAULT_EXECUTOR``'s note): a subscription whose callback takes the
+    message info kills rclpy 7.1.6's EventsExecutor at its first message. When an rclpy upgrade mends it, this
+    fails: then the recorder can join the events executor (its ~0.8 ms per sample in the hierarchy bench)."""
+    from rclpy.experimental import EventsExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    node = Node("info_canary", context=ros_context)
+    heard = []
+    node.create_subscription(String, "canary", lambda msg, info: heard.append(info), 10)
+    publisher = node.create_publisher(String, "canary", 10)
+    executor = EventsExecutor(context=ros_context)
+    executor.add_node(node)
+    failure = None
+    try:
+        deadline = time.monotonic() + 10.0
+        while not heard and failure is None and time.monotonic() < deadline:
+            publisher.publish(String(data="x"))
+            try:
+                executor.spin_once(timeout_sec=0.05)
+            except SystemError as exc:
+                failure = exc
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+    assert failure is not None and "null argument" in str(failure), (
+        f"rclpy's EventsExecutor delivered the message info ({heard[:1]}): the recorder may now run under it")

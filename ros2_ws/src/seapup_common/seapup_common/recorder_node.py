@@ -92,6 +92,10 @@ def default_bag_path() -> Path:
 class RecorderNode(Node):
     """rclpy shell around a :class:`BagWriter` (see module docstring)."""
 
+    #: Its callbacks take the message info (DDS receive and source times): always spun by the single-threaded
+    #: executor (rclpy 7.1's events executor cannot deliver it; :func:`seapup_common.ros.node.declare_executor`).
+    MESSAGE_INFO = True
+
     def __init__(self, **kwargs):
         super().__init__("recorder", **kwargs)
         p = declare_from_package_file(self, "seapup_common", "recorder.yaml", {

@@ -39,7 +39,7 @@ __all__ = ["run_node", "declare_from_package_file", "declare_guarded", "declare_
            "path_or_empty",
            "refuse_invalid_transitions", "stop_requested", "QUIET_PUBLISHER", "QUIET_SUBSCRIPTION",
            "QosWatch", "EXECUTORS", "EXECUTOR_ENV", "DEFAULT_EXECUTOR", "declare_executor", "make_executor",
-           "UnknownExecutorError",
+           "UnknownExecutorError", "takes_message_info",
            "RELIABLE_QOS", "COMMAND_QOS", "TF_QOS", "TF_STATIC_QOS", "SERVICE_QOS", "CORE_LOGGERS"]
 
 #: Reliable, keep-last 10: the default for seapup topics.
@@ -738,8 +738,10 @@ EXECUTOR_ENV = "SEAPUP_EXECUTOR"
 #: another in its ``EXECUTOR`` attribute: ``single``. ``events`` was measured faster with less CPU on every graph
 #: of ``./seapup bench``'s ``graph_executor_ab`` (simulator + MFOL at 5 Hz: about twice the samples per second,
 #: each process about half the CPU per sample; see docs/nodes.md), but rclpy 7.1's EventsExecutor is not safe
-#: for every node: a recorder that replaces a subscription while spinning died in rcl ("null argument to
-#: internal routine"), and it runs no coroutine (async) service callback by itself (the simulator's go through
+#: for every node: a subscription whose callback takes the message info (the recorder's, for the DDS receive
+#: and source times) kills it at the first message ("SystemError: null argument to internal routine"; such a
+#: node says ``MESSAGE_INFO = True`` and always runs on ``single``: :func:`declare_executor`), and it runs no
+#: coroutine (async) service callback by itself (the simulator's go through
 #: ``seapup_sim.ros.simulation_control.deferred_service``). So the per-sample nodes that were soaked and
 #: hostile-tested under it (the demo's hierarchy -- simulator, navigator, velocity controllers, controller
 #: manager, position and task controllers, self-test -- and open_loop) say ``EXECUTOR = "events"``; the rest
@@ -749,6 +751,14 @@ DEFAULT_EXECUTOR = "single"
 
 class UnknownExecutorError(ValueError):
     """``$SEAPUP_EXECUTOR`` (or ``executor``) names no executor of :data:`EXECUTORS`."""
+
+
+def takes_message_info(node) -> bool:
+    """Whether ``node`` has (or, by its class's ``MESSAGE_INFO`` attribute, will have) a subscription whose
+    callback takes the message info -- which rclpy 7.1's EventsExecutor cannot deliver (:data:`DEFAULT_EXECUTOR`)."""
+    from rclpy.subscription import Subscription
+    return bool(getattr(type(node), "MESSAGE_INFO", False)) or any(
+        getattr(sub, "_callback_type", None) == Subscription.CallbackType.WithMessageInfo for sub in node.subscriptions)
 
 
 def _executor_default(preferred: str = DEFAULT_EXECUTOR) -> str:
@@ -767,19 +777,31 @@ def declare_executor(node) -> str:
     Read-only: the executor is chosen once, when :func:`run_node` builds it; a change at run time
     could not take effect, so it is refused rather than accepted and ignored.
 
+    A node whose subscriptions take the message info (:func:`takes_message_info`) runs on ``single``
+    whatever ``$SEAPUP_EXECUTOR`` prefers for the graph (a whole-graph A/B keeps its recorder), and a
+    ``-p executor:=events`` given to it is refused: the events executor would die at its first message.
+
     Raises
     ------
     UnknownExecutorError
         ``$SEAPUP_EXECUTOR`` is set to something else than one of :data:`EXECUTORS`.
     ValueError
-        ``-p executor:=...`` is not one of :data:`EXECUTORS`.
+        ``-p executor:=...`` is not one of :data:`EXECUTORS`, or is ``events`` for a node that takes message info.
     """
     from rcl_interfaces.msg import ParameterDescriptor
     descriptor = ParameterDescriptor(read_only=True, description="the executor that spins this node: single "
                                      f"(SingleThreadedExecutor) or events (EventsExecutor); default ${EXECUTOR_ENV}")
     preferred = getattr(type(node), "EXECUTOR", DEFAULT_EXECUTOR)
-    return declare_guarded(node, {"executor": _executor_default(preferred)}, {"executor": descriptor},
-                           allowed={"executor": one_of(*EXECUTORS)})["executor"]
+    default = _executor_default(preferred)
+    info = takes_message_info(node)
+    if info:
+        default = "single"
+    choice = declare_guarded(node, {"executor": default}, {"executor": descriptor},
+                             allowed={"executor": one_of(*EXECUTORS)})["executor"]
+    if info and choice == "events":
+        raise ValueError("executor events refused: this node's subscriptions take the message info, which rclpy "
+                         "7.1's EventsExecutor cannot deliver (it dies at the first message); use executor:=single")
+    return choice
 
 
 def make_executor(choice: str, context=None):
