@@ -220,6 +220,66 @@ def test_ctrl_c_on_a_campaign_stops_its_dask_workers_with_one_line(tmp_path):
     assert gone_within(children, 5.0)
 
 
+def _dask_workers(pid: int) -> set[int]:
+    """The Dask worker processes below ``pid`` (multiprocessing's spawned children, its trackers aside)."""
+    from tests.test_process_ownership import descendants
+    found = set()
+    for child in descendants(pid):
+        try:
+            if b"spawn_main" in Path(f"/proc/{child}/cmdline").read_bytes():
+                found.add(child)
+        except OSError:
+            continue
+    return found
+
+
+def _ignores_sigint(pid: int) -> bool:
+    try:
+        fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    except OSError:
+        return False
+    return bool(int(fields["SigIgn"], 16) & (1 << (signal.SIGINT - 1)))
+
+
+def test_ctrl_c_is_the_command_s_alone_even_for_a_worker_the_nanny_restarts(tmp_path):
+    """The campaign's Dask workers ignore SIGINT -- those started with the cluster (they inherit it ignored)
+    and one the nanny starts after a worker died (its preload): a SIGINT that reaches only them changes
+    nothing -- the same workers fly to the end, none is started in place of one -- and the campaign ends as
+    if none came. Before: the workers took it (SIGINT neither blocked nor ignored in them, whatever the
+    command's mask), finished the task in hand and left, the nanny started none in their place, and the
+    command waited for ever (seen about once in ten Ctrl-Cs, when the command's own SIGKILL came late)."""
+    proc = subprocess.Popen([sys.executable, "-m", "seapup_bringup.cli", "campaign", "controller-robustness",
+                             "--limit", "48", "--workers", "2", "--out", str(tmp_path / "c")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        for line in proc.stdout:
+            if "flying on" in line:
+                break
+        deadline = time.monotonic() + 30
+        while len(_dask_workers(proc.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        first = _dask_workers(proc.pid)
+        assert len(first) == 2 and proc.poll() is None, first
+        for pid in first:
+            os.kill(pid, signal.SIGINT)
+        os.kill(min(first), signal.SIGKILL)    # the nanny starts another: it must ignore SIGINT too
+        while not _dask_workers(proc.pid) - first and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        restarted = _dask_workers(proc.pid) - first
+        assert restarted, "the nanny started no worker in place of the killed one"
+        while not all(map(_ignores_sigint, restarted)) and time.monotonic() < deadline:
+            time.sleep(0.05)   # its preload runs while it starts
+        assert all(map(_ignores_sigint, restarted)), "the restarted worker takes SIGINT"
+        for pid in restarted:
+            os.kill(pid, signal.SIGINT)
+        after, _ = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0 and "48 of 48 runs flown (0 failed)" in after, after[-2000:]
+    assert "Traceback" not in after and "KeyboardInterrupt" not in after, after[-2000:]
+
+
 def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
     """Before: the pool's workers finished every run first (25-45 s of silence) and wrote them to the cache."""
     cache = tmp_path / "cache"
