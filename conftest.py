@@ -35,13 +35,64 @@ ROS_FIXTURES = {"ros_domain", "ros_context", "ros_env", "node_process"}
 
 
 def pytest_collection_modifyitems(config, items):
-    """Every test is ``unit`` (pure cores, message conversions: seconds) or ``graph``
-    (a ROS graph, child processes or a build: ``./seapup test -m unit`` skips them)."""
+    """Every test is ``unit`` (pure cores, message conversions: seconds), ``sweep`` (pure, but a sweep over
+    many runs: tens of seconds), ``process`` (it starts child processes -- a command, Chromium, a Dask
+    cluster, a process pool -- but no ROS graph) or ``graph`` (a ROS graph or a build): ``./seapup test -m
+    unit`` runs the first kind only, and a unit test that starts a process fails
+    (:func:`pytest_runtest_protocol`)."""
     for item in items:
-        if item.get_closest_marker("graph") is None and not ROS_FIXTURES & set(item.fixturenames):
-            item.add_marker(pytest.mark.unit)
-        elif item.get_closest_marker("graph") is None:
+        if item.get_closest_marker("graph") is None and ROS_FIXTURES & set(item.fixturenames):
             item.add_marker(pytest.mark.graph)
+        elif not any(item.get_closest_marker(kind) for kind in ("graph", "process", "sweep")):
+            item.add_marker(pytest.mark.unit)
+
+
+class _ProcessGuard:
+    """While installed, starting a process (``subprocess``, ``multiprocessing``, ``os.fork``/``posix_spawn``:
+    every way down to the one system call) raises and is noted, so a ``unit`` test that does is failed even
+    if it swallowed the error."""
+
+    def __init__(self):
+        self.started: list[str] = []
+        self._saved: list = []
+
+    def _refuse(self, name):
+        def refused(*args, **kwargs):
+            self.started.append(name)
+            raise RuntimeError(f"a unit test started a process ({name}): mark it pytest.mark.process")
+        return refused
+
+    def __enter__(self):
+        import _posixsubprocess
+        targets = [(_posixsubprocess, "fork_exec"), (subprocess, "_fork_exec"), (os, "fork"), (os, "forkpty"), (os, "posix_spawn"),
+                   (os, "posix_spawnp"), (os, "system"), (os, "execv"), (os, "execve")]
+        for module, name in targets:
+            if hasattr(module, name):
+                self._saved.append((module, name, getattr(module, name)))
+                setattr(module, name, self._refuse(f"{module.__name__}.{name}"))
+        return self
+
+    def __exit__(self, *exc):
+        for module, name, original in reversed(self._saved):
+            setattr(module, name, original)
+        self._saved.clear()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """A ``unit`` test (its fixtures' set-up and tear-down included) starts no process: see :class:`_ProcessGuard`."""
+    if item.get_closest_marker("unit") is None:
+        yield
+        return
+    guard = _ProcessGuard()
+    with guard:
+        yield
+    if guard.started:
+        item.add_report_section("call", "process guard", ", ".join(guard.started))
+        item.config.hook.pytest_runtest_logreport(report=pytest.TestReport(
+            item.nodeid, item.location, {}, "failed",
+            f"{item.nodeid} is marked unit but started a process ({', '.join(sorted(set(guard.started)))}): "
+            "mark it pytest.mark.process", "teardown"))
 
 
 @pytest.hookimpl(tryfirst=True, hookwrapper=True)

@@ -46,6 +46,7 @@ def test_the_draws_are_reproducible_and_cover_the_space():
         random_adaptive_spec(0, controllers=("pid",))
 
 
+@pytest.mark.sweep
 @pytest.mark.timeout(900)
 def test_a_hundred_randomised_self_tuner_runs_stay_finite_and_bounded():
     rows, jacket = [], {}

@@ -36,6 +36,7 @@ def _same(a, b) -> bool:
     return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
 
 
+@pytest.mark.process
 def test_a_campaign_on_a_local_cluster_writes_every_run_s_metrics_and_resumes(tmp_path):
     import pyarrow.parquet as pq
 
@@ -80,6 +81,7 @@ def test_a_campaign_on_a_local_cluster_writes_every_run_s_metrics_and_resumes(tm
         run_campaign(changed, out, workers=1, resume=True)
 
 
+@pytest.mark.process
 def test_the_command_refuses_a_bad_file_and_an_unreachable_scheduler_with_one_line(tmp_path):
     env = dict(os.environ)
     bad = _file(tmp_path, grid={"vehicle": ["submarine"]})

@@ -81,6 +81,7 @@ def test_a_closed_pipe_ends_the_command_quietly(fake_command, capsys, monkeypatc
     monkeypatch.setattr(sys, "stdout", sys.__stdout__)
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("value", ["233", "300", "-1", "abc", "1.5"])
 def test_a_bad_domain_id_is_refused_before_dds_sees_it(value):
     run = subprocess.run([str(ROOT / "seapup"), "topic", "list"], capture_output=True, text=True, timeout=300,
@@ -178,6 +179,7 @@ def _interrupt_after(argv, started: str, workers: int = 0):
     return children, proc.returncode, after
 
 
+@pytest.mark.process
 def test_an_interrupted_command_does_not_wait_for_threads_a_library_left(tmp_path):
     """A library thread that never ends (Dask's, once) kept an interrupted campaign from exiting after
     'seapup: interrupted': the process leaves once the command's clean-up has run."""
@@ -210,6 +212,7 @@ def _lines(text: str) -> list[str]:
             and not line.lstrip().startswith("report  ")]   # progress bars aside
 
 
+@pytest.mark.process
 def test_ctrl_c_on_a_campaign_stops_its_dask_workers_with_one_line(tmp_path):
     """Before: every Dask worker got the Ctrl-C too and printed a screen of KeyboardInterrupt and
     CancelledError tracebacks (about 90 lines), and the command waited for the tasks in flight."""
@@ -241,6 +244,7 @@ def _ignores_sigint(pid: int) -> bool:
     return bool(int(fields["SigIgn"], 16) & (1 << (signal.SIGINT - 1)))
 
 
+@pytest.mark.process
 def test_ctrl_c_is_the_command_s_alone_even_for_a_worker_the_nanny_restarts(tmp_path):
     """The campaign's Dask workers ignore SIGINT -- those started with the cluster (they inherit it ignored)
     and one the nanny starts after a worker died (its preload): a SIGINT that reaches only them changes
@@ -280,6 +284,7 @@ def test_ctrl_c_is_the_command_s_alone_even_for_a_worker_the_nanny_restarts(tmp_
     assert "Traceback" not in after and "KeyboardInterrupt" not in after, after[-2000:]
 
 
+@pytest.mark.process
 def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
     """Before: the pool's workers finished every run first (25-45 s of silence) and wrote them to the cache."""
     cache = tmp_path / "cache"
@@ -289,6 +294,7 @@ def test_ctrl_c_on_a_report_drops_the_runs_in_flight_with_one_line(tmp_path):
     assert list(cache.rglob("run.json")) == [], "runs went on after Ctrl-C"
 
 
+@pytest.mark.process
 def test_ctrl_c_on_a_graph_run_stops_its_nodes_at_once_with_one_line(tmp_path):
     """``fly --graph`` interrupted: the graph's nodes get SIGTERM (a prompt stop: no drain, no waiting for
     acknowledgements) and the command says one line. Before: SIGINT and its 5 s grace, 2-3 s per Ctrl-C, and

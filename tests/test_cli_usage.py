@@ -50,6 +50,7 @@ def test_the_options_the_hand_written_help_missed_are_listed():
     assert "mfol|explicit|gmv" not in help_text   # a closed list of three, while five controllers are registered
 
 
+@pytest.mark.process
 def test_help_answers_with_the_standard_library_only(tmp_path):
     """The registry is read before the bootstrap: cli.py and its usage file alone give the full help."""
     import shutil

@@ -43,6 +43,7 @@ def _seapup(tmp_path, *argv):
     return proc.returncode, lines, usage.ru_maxrss / 1024, usage.ru_utime + usage.ru_stime
 
 
+@pytest.mark.process
 def test_fly_refuses_dev_zero_after_reading_past_the_limit_not_the_memory(tmp_path):
     """Before issue 40 ``fly /dev/zero`` read until the OOM killer ended it (23.6 GB)."""
     code, lines, rss_mb, cpu_s = _seapup(tmp_path, "fly", "/dev/zero")
@@ -60,6 +61,7 @@ def test_fly_refuses_dev_zero_after_reading_past_the_limit_not_the_memory(tmp_pa
     ("duration: 2.0e+7\n", "is 1e+08 control samples, more than the 1,000,000 a run may have"),   # 1.3 GB+
     ("name: [1, 2]\n", "name must be a non-empty string"),           # 'TypeError: unsupported format string'
 ])
+@pytest.mark.process
 def test_fly_refuses_a_bad_spec_file_in_one_line_and_flies_nothing(tmp_path, text, reason):
     spec = tmp_path / "spec.yaml"
     spec.write_text(text)
@@ -69,6 +71,7 @@ def test_fly_refuses_a_bad_spec_file_in_one_line_and_flies_nothing(tmp_path, tex
     assert "Error:" not in lines[0] and rss_mb < RSS_BOUND_MB
 
 
+@pytest.mark.process
 def test_a_campaign_of_ten_million_runs_is_refused_from_its_counts(tmp_path):
     """Before issue 40 a 7-key grid of 10^7 runs gave no answer in 30-120 s and grew past 1.5-2.6 GB."""
     grid = "\n".join(f"  {key}: [0, 1, 2, 3, 4, 5, 6, 7, 8, 9]" for key in "abcdefg")
@@ -81,6 +84,7 @@ def test_a_campaign_of_ten_million_runs_is_refused_from_its_counts(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.process
 def test_fly_of_a_start_outside_the_envelope_says_why_not_the_exception_s_name(tmp_path):
     """Before issue 40: 'seapup fly: error: DivergenceError: state z = ...'."""
     spec = tmp_path / "deep.yaml"

@@ -145,6 +145,7 @@ def test_a_launch_file_is_read_bounded_and_strictly(tmp_path):
         load_graph(path)
 
 
+@pytest.mark.process
 def test_launch_stop_grace_is_checked(tmp_path):
     """``--stop-grace nan`` (or negative) is refused before anything starts."""
     for value in ("nan", "-1", "1e9"):

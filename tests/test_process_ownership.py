@@ -81,6 +81,7 @@ def start_parent(tmp_path, domain, child_code, mode="hold"):
     return parent, child
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP, signal.SIGTERM])
 def test_a_child_dies_within_two_seconds_of_its_parent(tmp_path, sig):
     parent, child = start_parent(tmp_path, 150, SLEEPER)
@@ -89,6 +90,7 @@ def test_a_child_dies_within_two_seconds_of_its_parent(tmp_path, sig):
     assert gone_within([child], 2.0), f"child {child} outlived its parent killed by {sig.name}"
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_a_child_that_ignores_sigterm_still_dies_within_two_seconds_of_its_parent(tmp_path, sig):
     """Issue 40: children hung where no signal handler runs (simulators interrupted while starting, in a
@@ -109,6 +111,7 @@ os._exit(0)   # before the reaper has even started, most likely
 """
 
 
+@pytest.mark.process
 def test_a_reaper_whose_owner_is_gone_at_once_signals_its_children_only(tmp_path):
     """The reaper notes its owner's descendants while the owner lives; one that found its owner already gone
     (adopted by PID 1) once walked PID 1's descendants -- every process of the machine -- and stopped them
@@ -137,6 +140,7 @@ sys.exit(node.run_node(make_node, ["hung"]))
 """
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_a_node_told_to_stop_while_it_is_starting_stops_even_if_it_hangs(tmp_path, sig):
     """Issue 40: a node told to stop while starting only set a flag nobody read (its construction never
@@ -157,6 +161,7 @@ def test_a_node_told_to_stop_while_it_is_starting_stops_even_if_it_hangs(tmp_pat
     assert code == 1 and "Traceback" not in proc.log_text(), (code, proc.log_text())
 
 
+@pytest.mark.process
 def test_a_leased_domain_stays_taken_while_a_child_lives(tmp_path):
     """The parent releases its lease and exits; its child (which ignores the SIGTERM of its parent's
     death) still holds the domain: a second run cannot lease it until the child is gone."""

@@ -32,6 +32,7 @@ def report(tmp_path_factory):
     return base, json.loads((base / "first.json").read_text()), first
 
 
+@pytest.mark.process
 def test_every_target_is_scored_from_its_run(report):
     from seapup_runs import targets as tg
     base, document, _ = report
@@ -52,6 +53,7 @@ def test_every_target_is_scored_from_its_run(report):
     assert 0 < len(document["largest_misses"]) <= 10
 
 
+@pytest.mark.process
 def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, browser, tmp_path):
     base, document, _ = report
     seen = browser(base / "out" / "report.html", tmp_path)
@@ -71,6 +73,7 @@ def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, 
     assert seen["screenshot"].stat().st_size > 10_000   # kept: the test's tmp folder holds report.png
 
 
+@pytest.mark.process
 def test_a_second_report_takes_every_run_from_the_cache(report):
     base, document, _ = report
     _seapup("report", "--out", str(base / "again"), "--cache", str(base / "cache"), "--json", str(base / "second.json"))
@@ -80,6 +83,7 @@ def test_a_second_report_takes_every_run_from_the_cache(report):
         [(r["id"], r["ours"], r["status"]) for r in document["targets"]]
 
 
+@pytest.mark.process
 def test_a_broken_metric_turns_its_rows_red(report, browser, tmp_path):
     """Acceptance: the surge trials' metric pointed at the wrong test (sway's top speed read as surge's)
     fails those rows, and the page shows them red; nothing else changes."""
@@ -106,6 +110,7 @@ def test_a_broken_metric_turns_its_rows_red(report, browser, tmp_path):
     assert red["ch3.surge.max_u"] != next(r[3] for r in seen["rows"] if r[1] == "reproduced")
 
 
+@pytest.mark.process
 def test_bad_arguments_are_one_line_and_change_nothing(tmp_path):
     for args, message in ((["--chapters", "9"], "unknown 9"), (["--jobs", "0"], "at least 1")):
         run = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "report", "--out", str(tmp_path / "o"), *args],
@@ -119,6 +124,7 @@ def test_bad_arguments_are_one_line_and_change_nothing(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.process
 def test_the_readme_shows_this_commits_scores(report):
     """The README's score table is generated (``./seapup report --readme README.md``), never typed: it must be
     the table of a fresh report of this code."""
@@ -171,6 +177,7 @@ def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
     assert _mean_leaves(results) == {"station_keep": {"x": 3.0}, "limit_cycle": {"period_s": 5.0}}
 
 
+@pytest.mark.process
 def test_the_page_says_which_runs_were_flown_and_which_came_from_the_cache(report):
     """Before: "scored against fresh runs" even when every run came from the cache."""
     from seapup_bringup.report import provenance

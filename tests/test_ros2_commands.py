@@ -122,6 +122,7 @@ def test_bad_input_is_one_line_and_exit_1(realtime_simulator, ros_env):
             (args, out.stderr)
 
 
+@pytest.mark.process
 def test_interface_show_lists_the_fields_nested():
     out = subprocess.run([sys.executable, "-m", "seapup_bringup.cli", "interface", "show",
                           "seapup_msgs/srv/SetCurrent"], capture_output=True, text=True, timeout=60)

@@ -326,6 +326,7 @@ def _cli(env, *args):
                           text=True, timeout=120)
 
 
+@pytest.mark.process
 def test_interface_show_prints_step_simulation():
     out = _cli(None, "interface", "show", f"{SI}/srv/StepSimulation")
     assert out.returncode == 0, out.stderr

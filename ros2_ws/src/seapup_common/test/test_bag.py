@@ -142,6 +142,7 @@ KILLED_WRITER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.process
 def test_sigkill_loses_at_most_the_flush_interval_and_recover_restores_it(tmp_path):
     path = tmp_path / "killed"
     proc = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(path)], capture_output=True, text=True)

@@ -24,6 +24,7 @@ def test_two_leases_in_one_process_get_different_domains(tmp_path):
             DomainLease(tmp_path, candidates=[40, 41]).acquire()
 
 
+@pytest.mark.process
 def test_lease_is_exclusive_across_processes_and_freed_when_holder_dies(tmp_path):
     holder = subprocess.Popen([sys.executable, "-c", HOLD_LEASE, str(tmp_path), "50"],
                               stdout=subprocess.PIPE, text=True)
@@ -68,6 +69,7 @@ def test_ros_environment_is_loopback_only():
         ros_environment(233)
 
 
+@pytest.mark.process
 def test_stop_escalates_when_sigint_is_ignored(tmp_path):
     stubborn = "import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nprint('up', flush=True)\ntime.sleep(60)"
     proc = NodeProcess([sys.executable, "-c", stubborn], {}, tmp_path / "p.log").start()
@@ -88,6 +90,7 @@ def test_find_executable_reports_what_is_missing():
         find_executable("seapup_sim", "nope")
 
 
+@pytest.mark.process
 def test_a_hurried_stop_sends_sigterm_first(tmp_path):
     """``hurry`` (the owner was interrupted): the group gets SIGTERM at once, never the SIGINT grace first."""
     import signal
