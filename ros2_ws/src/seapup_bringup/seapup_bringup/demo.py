@@ -72,12 +72,14 @@ def _set_parameter(sil, node: str, name: str, value: str) -> None:
 
 
 def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
-    """Truth-based numbers of one leg over its goal's window: saturation, hold or altitude error."""
+    """Truth-based numbers of one leg over its goal's window: its actuator activity
+    (:func:`seapup_runs.actuators.actuator_activity`), hold or altitude error."""
+    from seapup_runs.actuators import actuator_activity
     t0, t1 = leg["t0"], leg["t1"]
     ct = logs["command_t"]
-    commands = logs["command"][(ct >= t0) & (ct <= t1)]
-    saturated = float(np.mean(np.any(np.abs(commands) >= BLADE_PITCH_LIMIT - 1e-6, axis=1))) if len(commands) else 0.0
-    out = {"saturation_pct": 100 * saturated, "duration": t1 - t0}
+    flown = (ct >= t0) & (ct <= t1)
+    out = {**actuator_activity(ct[flown], logs["command"][flown], BLADE_PITCH_LIMIT), "duration": t1 - t0}
+    out["actuator_verdict"] = _actuator_verdict(out)
     t, truth = logs["truth_t"], logs["truth_position"]
     window = (t >= t0) & (t <= t1)
     if not window.any():
@@ -104,6 +106,16 @@ def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
         out.update(_tracking(logs, leg))
     out.update(_navigation_check(logs, leg, t[window][-1], truth[window][-1]))
     return out
+
+
+def _actuator_verdict(activity: dict) -> str:
+    """"" for a leg whose blade pitches did not thrash (:mod:`seapup_runs.actuators`), else what they did."""
+    from seapup_runs.actuators import THRASH_ALLOWANCE_S
+    if not activity["thrashed"]:
+        return ""
+    return (f"blade pitches thrashed between their limits for {activity['thrash_s']:.1f} s from t = "
+            f"{activity['thrash_t']:.1f} s ({activity['swings_per_min']:.0f} swings/min; the thesis's commissioning "
+            f"thrashed {THRASH_ALLOWANCE_S:g} s, sec. 7.6.1)")
 
 
 def _tracking(logs: dict, leg: dict) -> dict:
@@ -346,9 +358,14 @@ def _truth_error(leg: dict) -> str:
     return ""
 
 
+def _thrash(leg: dict) -> str:
+    """The table's thrash column: the longest thrashing [s], '!' when the leg thrashed."""
+    return f"{leg.get('thrash_s', 0.0):.1f}{' !' if leg.get('thrashed') else ''}"
+
+
 def _table(legs: list, text) -> None:
     head = (f"{'leg':<20}{'status':<11}{'sim s':>7}{'wall s':>7}  {'task (navigation)':<24}{'truth':<26}"
-            f"{'nav err (std)':>15}{'sat %':>6}{'swap step':>16}")
+            f"{'nav err (std)':>15}{'sat %':>6}{'thrash s':>9}{'swap step':>16}")
     print(head, file=text)
     print("-" * len(head), file=text)
     for leg in legs:
@@ -357,12 +374,14 @@ def _table(legs: list, text) -> None:
         nav = f"{leg['nav_error']:.2f} ({leg['nav_std']:.2f}){' !' if leg.get('truth_verdict') else ''}" \
             if "nav_error" in leg else ""
         print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
-              f"{_task_error(leg):<24}{_truth_error(leg):<26}{nav:>15}{leg['saturation_pct']:>6.1f}{swap:>16}",
+              f"{_task_error(leg):<24}{_truth_error(leg):<26}{nav:>15}{leg['saturation_pct']:>6.1f}"
+              f"{_thrash(leg):>9}{swap:>16}",
               file=text)
     print("truth: hold and altitude errors from hold_from s into the leg (config/mission.yaml: after braking from "
           "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
           f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
-          "missed by more than tolerance + that); swap step: blade-pitch change into the incoming controller's "
+          "missed by more than tolerance + that); thrash s: the longest stretch of blade pitches swinging between "
+          "their limits ('!': longer than the thesis's commissioning, 1.6 s, sec. 7.6.1); swap step: blade-pitch change into the incoming controller's "
           "first command (largest one-sample change in the 15 s before it); v err: the fouled-thruster leg's "
           "velocity-tracking RMS from the truth before the fouling / fouled under the fixed gains / under the "
           "self-tuner once tuned in", file=text)
@@ -438,9 +457,12 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
             f'<td>{esc(_task_error(leg))}</td><td>{esc(_truth_error(leg))}</td>'
             f'<td class=num>{fmt(leg.get("nav_error"))} ({fmt(leg.get("nav_std"))})</td>'
             f'<td class=num>{fmt(leg.get("saturation_pct"))}</td>'
+            f'<td class=num data-thrashed="{str(bool(leg.get("thrashed"))).lower()}">{esc(_thrash(leg))}</td>'
             f'<td class=num>{"" if swap is None or swap != swap else fmt(swap) + " (" + fmt(leg.get("normal_step_deg")) + ")"}</td>'
             f'<td class=status>{"passed" if passed else "failed"}'
-            f'{"<div class=reason>" + esc(leg["truth_verdict"]) + "</div>" if leg.get("truth_verdict") else ""}</td></tr>')
+            f'{"<div class=reason>" + esc(leg["truth_verdict"]) + "</div>" if leg.get("truth_verdict") else ""}'
+            f'{"<div class=reason>marked: " + esc(leg["actuator_verdict"]) + "</div>" if leg.get("actuator_verdict") else ""}'
+            '</td></tr>')
     plots = "".join(figure(path, caption, wide=True) for path, caption in zip(
         summary.get("plots", []), ("top view and depth: truth, navigation estimate, setpoint; legs marked",
                                    "body velocities: truth and the velocity controller's reference",
@@ -456,11 +478,13 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
 <p>A leg passes when {esc(PASS_CRITERIA)}.</p>
 <table><thead><tr><th>leg</th><th>kind</th><th>task verdict</th><th>simulated [s]</th><th>wall [s]</th>
 <th>task error (navigation) [m]</th><th>truth error [m]</th><th>navigation error (stated std) [m]</th>
-<th>saturated [% of samples]</th><th>swap step (largest before) [deg]</th><th>passed</th></tr></thead>
+<th>saturated [% of samples]</th><th>thrashing [s]</th><th>swap step (largest before) [deg]</th><th>passed</th></tr></thead>
 <tbody>{"".join(rows)}</tbody></table>
 <p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
 reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
-the largest one-sample change in the 15 s before it. The fouled-thruster leg's truth column is its velocity-tracking
+the largest one-sample change in the 15 s before it. Thrashing is the longest stretch of blade pitches swinging between
+their limits (one-sample changes of at least the limit, each within 1.6 s of the last); a leg that thrashed longer than
+the thesis's self-tuner did while commissioning (1.6 s, sec. 7.6.1) is marked, not failed. The fouled-thruster leg's truth column is its velocity-tracking
 RMS [m/s] (truth against the reference): before the fouling / fouled under the self-tested gains / under the
 self-tuner from <code>tune_in</code> s after the switch.</p></section>
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
@@ -536,6 +560,9 @@ def main(argv=None) -> int:
     failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
     if failed:
         print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)
+    thrashed = [f"{leg['name']}: {leg['actuator_verdict']}" for leg in result["legs"] if leg.get("actuator_verdict")]
+    if thrashed:  # marked, not failed: the task was done, the thrusters paid for it
+        print("seapup demo: legs marked for their actuators: " + "; ".join(thrashed), file=text)
     doubted = [f"{leg['name']}: {leg['truth_verdict']}" for leg in result["legs"] if leg.get("truth_verdict")]
     if doubted:  # the task judged by its estimate; the truth says otherwise
         print("seapup demo: legs whose verdict the truth contradicts: " + "; ".join(doubted), file=text)
