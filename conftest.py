@@ -64,8 +64,8 @@ class _ProcessGuard:
 
     def __enter__(self):
         import _posixsubprocess
-        targets = [(_posixsubprocess, "fork_exec"), (subprocess, "_fork_exec"), (os, "fork"), (os, "forkpty"), (os, "posix_spawn"),
-                   (os, "posix_spawnp"), (os, "system"), (os, "execv"), (os, "execve")]
+        targets = [(_posixsubprocess, "fork_exec"), (subprocess, "_fork_exec"), (os, "fork"), (os, "forkpty"),
+                   (os, "posix_spawn"), (os, "posix_spawnp"), (os, "system"), (os, "execv"), (os, "execve")]
         for module, name in targets:
             if hasattr(module, name):
                 self._saved.append((module, name, getattr(module, name)))

@@ -363,6 +363,13 @@ def _thrash(leg: dict) -> str:
     return f"{leg.get('thrash_s', 0.0):.1f}{' !' if leg.get('thrashed') else ''}"
 
 
+def _marked(leg: dict) -> str:
+    """The page's note on a leg marked for its actuators ("" for none)."""
+    from seapup_bringup.pages import esc
+    verdict = leg.get("actuator_verdict")
+    return f"<div class=reason>marked: {esc(verdict)}</div>" if verdict else ""
+
+
 def _table(legs: list, text) -> None:
     head = (f"{'leg':<20}{'status':<11}{'sim s':>7}{'wall s':>7}  {'task (navigation)':<24}{'truth':<26}"
             f"{'nav err (std)':>15}{'sat %':>6}{'thrash s':>9}{'swap step':>16}")
@@ -381,10 +388,10 @@ def _table(legs: list, text) -> None:
           "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
           f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
           "missed by more than tolerance + that); thrash s: the longest stretch of blade pitches swinging between "
-          "their limits ('!': longer than the thesis's commissioning, 1.6 s, sec. 7.6.1); swap step: blade-pitch change into the incoming controller's "
-          "first command (largest one-sample change in the 15 s before it); v err: the fouled-thruster leg's "
-          "velocity-tracking RMS from the truth before the fouling / fouled under the fixed gains / under the "
-          "self-tuner once tuned in", file=text)
+          "their limits ('!': longer than the thesis's commissioning, 1.6 s, sec. 7.6.1); swap step: blade-pitch "
+          "change into the incoming controller's first command (largest one-sample change in the 15 s before it); "
+          "v err: the fouled-thruster leg's velocity-tracking RMS from the truth before the fouling / fouled under "
+          "the fixed gains / under the self-tuner once tuned in", file=text)
 
 
 def _plots(result: dict, out: Path) -> list[str]:
@@ -461,7 +468,7 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
             f'<td class=num>{"" if swap is None or swap != swap else fmt(swap) + " (" + fmt(leg.get("normal_step_deg")) + ")"}</td>'
             f'<td class=status>{"passed" if passed else "failed"}'
             f'{"<div class=reason>" + esc(leg["truth_verdict"]) + "</div>" if leg.get("truth_verdict") else ""}'
-            f'{"<div class=reason>marked: " + esc(leg["actuator_verdict"]) + "</div>" if leg.get("actuator_verdict") else ""}'
+            f'{_marked(leg)}'
             '</td></tr>')
     plots = "".join(figure(path, caption, wide=True) for path, caption in zip(
         summary.get("plots", []), ("top view and depth: truth, navigation estimate, setpoint; legs marked",
@@ -478,15 +485,16 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
 <p>A leg passes when {esc(PASS_CRITERIA)}.</p>
 <table><thead><tr><th>leg</th><th>kind</th><th>task verdict</th><th>simulated [s]</th><th>wall [s]</th>
 <th>task error (navigation) [m]</th><th>truth error [m]</th><th>navigation error (stated std) [m]</th>
-<th>saturated [% of samples]</th><th>thrashing [s]</th><th>swap step (largest before) [deg]</th><th>passed</th></tr></thead>
+<th>saturated [% of samples]</th><th>thrashing [s]</th><th>swap step (largest before) [deg]</th>
+<th>passed</th></tr></thead>
 <tbody>{"".join(rows)}</tbody></table>
 <p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
 reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
 the largest one-sample change in the 15 s before it. Thrashing is the longest stretch of blade pitches swinging between
 their limits (one-sample changes of at least the limit, each within 1.6 s of the last); a leg that thrashed longer than
-the thesis's self-tuner did while commissioning (1.6 s, sec. 7.6.1) is marked, not failed. The fouled-thruster leg's truth column is its velocity-tracking
-RMS [m/s] (truth against the reference): before the fouling / fouled under the self-tested gains / under the
-self-tuner from <code>tune_in</code> s after the switch.</p></section>
+the thesis's self-tuner did while commissioning (1.6 s, sec. 7.6.1) is marked, not failed. The fouled-thruster leg's
+truth column is its velocity-tracking RMS [m/s] (truth against the reference): before the fouling / fouled under the
+self-tested gains / under the self-tuner from <code>tune_in</code> s after the switch.</p></section>
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
 <section id="configuration"><h2>Configuration</h2>
 <p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.launch.yaml</code>, from
