@@ -115,13 +115,40 @@ def assert_same_run(graph: RunResult, local: RunResult) -> None:
     assert graph.series.events == local.series.events
 
 
+#: The scenarios flown through the graph: one per feature a scenario's spec can ask of the graph (events by
+#: kind, environment, sensor profile, controller, vehicle, period, a reference that changes or not; the cover
+#: is checked by :func:`test_the_graph_cases_cover_every_feature_a_scenario_uses`). The other scenarios differ
+#: from these only in numbers the same nodes carry (reference values, durations): equal in process and on the
+#: graph by the same code path, their behaviour is tested in process.
+GRAPH_CASES = ("camera-change", "current-step", "fast", "fouling-change", "inspection-current", "inspection-haslar",
+               "square-surge", "station-keep")
+
+
+def _graph_features(spec) -> set:
+    """What a run spec asks of the graph beyond numbers: its event kinds, environment keys, sensor profile,
+    controller type, vehicle, control period and whether its reference changes during the run."""
+    environment = dict(spec.environment)
+    return ({f"event:{e.kind}" for e in spec.events} | {f"environment:{k}" for k in environment}
+            | {f"sensors:{environment.get('sensors')}", f"controller:{spec.controller.type}",
+               f"vehicle:{spec.vehicle}", f"period:{spec.control_period:g}",
+               f"reference:{'changes' if len(spec.reference.steps) > 1 else 'constant'}"})
+
+
+def test_the_graph_cases_cover_every_feature_a_scenario_uses():
+    every = set().union(*(_graph_features(scenario_spec(name)) for name in scenarios()))
+    covered = set().union(*(_graph_features(scenario_spec(name)) for name in GRAPH_CASES))
+    assert every - covered == set(), f"add a scenario to GRAPH_CASES for {sorted(every - covered)}"
+    assert {"event:current", "event:controller", "event:configuration", "event:thruster_efficiency",
+            "sensors:haslar", "environment:current", "reference:changes"} <= covered
+
+
 @pytest.mark.graph
-@pytest.mark.parametrize("name", sorted(scenarios()))
+@pytest.mark.parametrize("name", GRAPH_CASES)
 def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(name, tmp_path):
     """Through simulator, velocity_controller and reference_schedule nodes in lockstep: the same run,
     including the events after the start -- a reference step at 15 s (fast), a current the simulator
     switches on at 10 s (current-step), a controller connected at 10 s after drifting (station-keep,
-    in a stochastic current)."""
+    in a stochastic current), the camera fitted and a thruster fouled mid-run."""
     from seapup_bringup.graph_runner import run_on_graph
 
     spec = scenario_spec(name)
