@@ -41,6 +41,7 @@ import yaml
 from seapup_bringup.output import add_json_argument, emit_json, progress, stopped_by_signal, text_stream
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common import topics
+from seapup_runs.actuators import THRASH_ALLOWANCE_S, actuator_activity
 
 __all__ = ["MISSION", "main", "fly_mission"]
 
@@ -74,7 +75,6 @@ def _set_parameter(sil, node: str, name: str, value: str) -> None:
 def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
     """Truth-based numbers of one leg over its goal's window: its actuator activity
     (:func:`seapup_runs.actuators.actuator_activity`), hold or altitude error."""
-    from seapup_runs.actuators import actuator_activity
     t0, t1 = leg["t0"], leg["t1"]
     ct = logs["command_t"]
     flown = (ct >= t0) & (ct <= t1)
@@ -110,7 +110,6 @@ def _truth_numbers(logs: dict, leg: dict, seabed) -> dict:
 
 def _actuator_verdict(activity: dict) -> str:
     """"" for a leg whose blade pitches did not thrash (:mod:`seapup_runs.actuators`), else what they did."""
-    from seapup_runs.actuators import THRASH_ALLOWANCE_S
     if not activity["thrashed"]:
         return ""
     return (f"blade pitches thrashed between their limits for {activity['thrash_s']:.1f} s from t = "
@@ -388,8 +387,9 @@ def _table(legs: list, text) -> None:
           "the previous leg, or reaching the altitude); nav err (std): the estimate's horizontal distance from the "
           f"truth at the leg's end (the navigator's stated std; '!': over {NAVIGATION_SIGMAS:g} std, or a target "
           "missed by more than tolerance + that); thrash s: the longest stretch of blade pitches swinging between "
-          "their limits ('!': longer than the thesis's commissioning, 1.6 s, sec. 7.6.1); swap step: blade-pitch "
-          "change into the incoming controller's first command (largest one-sample change in the 15 s before it); "
+          f"their limits ('!': longer than the thesis's commissioning, {THRASH_ALLOWANCE_S:g} s, sec. 7.6.1); swap "
+          "step: blade-pitch change into the incoming controller's first command (largest one-sample change in the "
+          "15 s before it); "
           "v err: the fouled-thruster leg's velocity-tracking RMS from the truth before the fouling / fouled under "
           "the fixed gains / under the self-tuner once tuned in", file=text)
 
@@ -491,8 +491,9 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
 <p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
 reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
 the largest one-sample change in the 15 s before it. Thrashing is the longest stretch of blade pitches swinging between
-their limits (one-sample changes of at least the limit, each within 1.6 s of the last); a leg that thrashed longer than
-the thesis's self-tuner did while commissioning (1.6 s, sec. 7.6.1) is marked, not failed. The fouled-thruster leg's
+their limits (one-sample changes of at least the limit, each within {THRASH_ALLOWANCE_S:g} s of the last); a leg that
+thrashed longer than the thesis's self-tuner did while commissioning ({THRASH_ALLOWANCE_S:g} s, sec. 7.6.1) is marked,
+not failed. The fouled-thruster leg's
 truth column is its velocity-tracking RMS [m/s] (truth against the reference): before the fouling / fouled under the
 self-tested gains / under the self-tuner from <code>tune_in</code> s after the switch.</p></section>
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
