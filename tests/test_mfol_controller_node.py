@@ -12,7 +12,7 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistStamped
 from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState
+from lifecycle_msgs.srv import ChangeState, GetState
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from seapup_msgs.msg import BladePitch
@@ -50,16 +50,33 @@ class Probe:
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append, 1000)
         self.reference = self.node.create_publisher(TwistStamped, "/seapup/velocity_controller/reference", 10)
         self.change = self.node.create_client(ChangeState, f"{NAME}/change_state")
+        self.get_state = self.node.create_client(GetState, f"{NAME}/get_state")
         self._spin = spin
 
     def spin(self, predicate, timeout):
         return self._spin(self.executor, predicate, timeout)
 
-    def transition(self, transition_id):
+    def state(self) -> int:
+        from seapup_common.ros.graph import call_idempotent
+        return call_idempotent(self.executor, self.get_state, GetState.Request()).current_state.id
+
+    def transition(self, transition_id, attempts: int = 4):
+        """The node's answer to a transition request. A lifecycle request is not idempotent, and the server may
+        drop its answer while it has not yet matched our response reader (rmw "failed to send response
+        (timeout)", seen on a fresh clone; :func:`seapup_common.ros.graph.call_idempotent`): unanswered, the
+        node's state tells -- changed from before the request: the transition was made; unchanged: nothing
+        happened (a refusal or a lost request), and it is asked again."""
         assert self.spin(self.change.service_is_ready, 20.0)
-        future = self.change.call_async(ChangeState.Request(transition=Transition(id=transition_id)))
-        assert self.spin(future.done, 20.0)
-        return future.result().success
+        before = self.state()
+        for _ in range(attempts):
+            future = self.change.call_async(ChangeState.Request(transition=Transition(id=transition_id)))
+            if self.spin(future.done, 20.0):
+                return future.result().success
+            self.change.remove_pending_request(future)
+            now = self.state()
+            if now != before and now < 10:   # a primary state other than the one it was in (10+: transitioning)
+                return True
+        raise AssertionError(f"transition {transition_id} unanswered {attempts} times (state {self.state()})")
 
     def activate_and_sample(self, t_ns: int) -> None:
         """Configure and activate the controller, then publish one velocity sample stamped ``t_ns``."""
