@@ -135,7 +135,9 @@ def _from_bag(bag_dir: Path) -> dict:
     from seapup_msgs.msg import SelfTestSample
 
     from seapup_common.bag import read_bag
+    from seapup_control.mfol import DesignError
     from seapup_control.self_test import refit, tests_from_samples
+    from seapup_control.step_identification import IdentificationError
     records, positions, stamps = [], [], []
     for m in read_bag(bag_dir, [SELF_TEST_SAMPLES, TRUTH_ODOMETRY]):
         if m.topic == TRUTH_ODOMETRY:
@@ -149,11 +151,19 @@ def _from_bag(bag_dir: Path) -> dict:
         records.append({"t": t, "test_index": s.test_index, "cycle": s.cycle, "surge": s.surge,
                         "thruster": s.thruster, "step": s.step, "quiescent_input": list(s.quiescent_input),
                         "equilibrium": list(s.equilibrium), "velocity": list(s.velocity),
-                        "sample_period": s.sample_period})
+                        "sample_period": s.sample_period, "phase": s.phase})
     if not records:
         raise SelfTestFailed(f"{bag_dir} has no {SELF_TEST_SAMPLES}: not a self-test bag")
-    config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
-    points = refit(tests_from_samples(records), config.sample_period, config.poles, config.max_condition)
+    last = max(records, key=lambda r: r["t"])
+    if last["phase"] not in ("done", "failed", "cancelled"):
+        raise SelfTestFailed(f"{bag_dir}: its self-test record ends at t = {last['t']:.3f} s in phase "
+                             f"{last['phase']!r}: the recording stopped before the self-test ended")
+    try:
+        config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
+        points = refit(tests_from_samples(records, config.sample_period), config.sample_period, config.poles,
+                       config.max_condition)
+    except (ConfigError, IdentificationError, DesignError) as exc:
+        raise SelfTestFailed(f"{bag_dir}: {exc}") from None
     # the box of water of the run itself: truth from its first to its last sample
     position = np.array([p[1:] for p in positions if min(stamps) - 1e-9 <= p[0] <= max(stamps) + 1e-9]
                         or [(0.0, 0.0, 0.0)])
@@ -199,8 +209,10 @@ def _selftest(argv: list[str]) -> int:
         refitted = _from_bag(bag)  # the bag holds everything: the table and the space come from it
         points, duration, space = refitted["points"], flown["result"].duration, refitted["space"]
         live = np.reshape(flown["result"].b1_inverse, (-1, 4, 4))
-        if not np.allclose(live, [p.model.B1inv for p in points], rtol=1e-12, atol=1e-15):
-            raise SelfTestFailed("the bag's refit differs from the live result (a sample was lost?)")
+        refitted_b1 = np.reshape([p.model.B1inv for p in points], (-1, 4, 4))
+        if live.shape != refitted_b1.shape or not np.allclose(live, refitted_b1, rtol=1e-12, atol=1e-15):
+            raise SelfTestFailed(f"the bag's refit ({len(refitted_b1)} operating points) differs from the live "
+                                 f"result ({len(live)}): a sample was lost; see {bag}")
         print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
     rows = _print_points(points, text, args)
     space_0, space_07 = thesis_value("ch5.self_test.space_0"), thesis_value("ch5.self_test.space_0_7")

@@ -81,7 +81,7 @@ class GraphProcesses(dict):
         2 s) must not hold up a user's Ctrl-C."""
         from seapup_common.processes import stop_process_groups
         nodes = [p for name, p in self.items() if name != RECORDER and p.popen is not None]
-        stop_process_groups([p.popen for p in nodes], 5.0, 1.0 if hurry else 2.0, hurry=hurry)
+        stop_process_groups([p.popen for p in nodes], 8.0, 1.0 if hurry else 2.0, hurry=hurry)
         for process in nodes:
             process.popen.wait()
         if RECORDER in self:

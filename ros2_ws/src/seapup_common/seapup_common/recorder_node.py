@@ -12,18 +12,12 @@ and stores their offered QoS profiles and the topic's type hash.
 
 Times are the graph's: the log time is the graph's time when the message was
 received -- the node clock on a wall-clock graph; under sim time
-(``use_sim_time``) the ``/clock`` value current when DDS received the message
-(its ``received_timestamp`` placed among those of the ``/clock`` samples, so
-a busy recorder's callback lag does not shift it),
-the publish time the DDS source timestamp on a wall clock and, under sim time
-(which stands still between samples), the log time. Under sim time the
-recorder's clock can lag the graph by one sample (a message of t_k may arrive
-before ``/clock`` says t_k); a received header stamp is a lower bound of the
-graph's time, so the clock used is the later of the two (stamps more than
-``max_stamp_lead`` ahead of ``/clock`` do not move it). And a message is never
-logged before its own header stamp (topics' queues are served in any order;
-a stamp more than ``max_stamp_jump`` ahead is a wrong stamp: logged at
-receipt, counted, warned about).
+(``use_sim_time``) the ``/clock`` value current when DDS received the message,
+raised to the time its samples' header stamps show the graph has reached and
+never before the message's own stamp (the rules, ``max_stamp_lead`` and
+``max_stamp_jump``: :mod:`seapup_common.log_time`); the publish time the DDS
+source timestamp on a wall clock and, under sim time (which stands still
+between samples), the log time.
 
 A sample said again is recorded once: a message that carries its sample's
 time (header-first types, ``/clock``'s Clock, ``/tf``'s TFMessage) and whose
@@ -43,7 +37,6 @@ from __future__ import annotations
 import importlib
 import os
 import re
-import bisect
 import time
 from pathlib import Path
 
@@ -53,15 +46,13 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from seapup_common.bag import BagWriter, header_stamp_ns, make_typestore
+from seapup_common.log_time import SimLogTime
 from seapup_common.ros.graph import adapted_qos, qos_to_rosbag2
 from seapup_common.ros.node import declare_from_package_file, path_or_empty, regular_expression, run_node, topic_names
 from seapup_common.topics import CLOCK
 
 __all__ = ["RecorderNode", "main", "message_class", "project_msg_files", "default_bag_path"]
 
-#: /clock samples kept to place receive times among (at least; a few seconds even at thousands of
-#: samples per second: far more than any callback lag).
-CLOCK_HISTORY = 10_000
 #: Types that carry their sample's time though they do not begin with a header (see the module docstring).
 SAMPLE_TIMED_TYPES = ("rosgraph_msgs/msg/Clock", "tf2_msgs/msg/TFMessage")
 #: Subscriptions for topics named with their type before any publisher exists.
@@ -116,12 +107,8 @@ class RecorderNode(Node):
         self.record_repeats = bool(p["record_repeats"])
         self.repeats = 0  # samples said again, not recorded again
         self._last: dict[str, bytes] = {}  # per sample-timed topic: the bytes last recorded
-        self.max_stamp_lead_ns = int(p["max_stamp_lead"] * 1e9)
-        self.max_stamp_jump_ns = int(p["max_stamp_jump"] * 1e9)
-        self.distrusted_stamps = 0
-        self._graph_floor_ns = 0
-        self._clock_wall: list[int] = []  # DDS receive wall times of the /clock samples (increasing)
-        self._clock_sim: list[int] = []   # and their values
+        # under sim time: the log times (seapup_common.log_time: /clock at receipt, the time so far, stamps)
+        self.log_times = SimLogTime(int(p["max_stamp_lead"] * 1e9), int(p["max_stamp_jump"] * 1e9))
         if self.sim_time:
             from rosgraph_msgs.msg import Clock
             self.create_subscription(Clock, CLOCK, self._on_clock, EAGER_QOS)
@@ -131,7 +118,8 @@ class RecorderNode(Node):
                              max_bag_size=p["max_bag_size"], max_bag_duration=p["max_bag_duration"]).open()
         self.stamped: dict[str, bool] = {}
         self.sample_timed: dict[str, bool] = {}  # the message carries its sample's time (repeats: once)
-        self.drain_on_shutdown = True  # run_node takes the messages already received before closing
+        self.drain_on_shutdown = True  # run_node takes the messages already received before closing,
+        self.drain_budget = 8.0        # however many a recorder behind a fast graph has queued (it stops when idle)
         self.received = 0
         self._heard: set[str] = set()  # topics a message has arrived on
         self.max_duration = float(p["max_duration"])
@@ -206,18 +194,12 @@ class RecorderNode(Node):
             self._add_to_bag(topic, self.subscribed[topic], publishers)
 
     def _on_clock(self, msg, info) -> None:
-        received = int(info.get("received_timestamp", 0))
-        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-        if not self._clock_wall or received >= self._clock_wall[-1]:
-            self._clock_wall.append(received)
-            self._clock_sim.append(t_ns)
-            if len(self._clock_wall) > 2 * CLOCK_HISTORY:  # bounded memory: keep the recent ones
-                del self._clock_wall[:CLOCK_HISTORY], self._clock_sim[:CLOCK_HISTORY]
+        self.log_times.on_clock(int(info.get("received_timestamp", 0)),
+                                msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
 
-    def graph_time_at(self, received_wall_ns: int) -> int | None:
-        """The /clock value current at a DDS receive (wall) time; None before the first /clock."""
-        k = bisect.bisect_right(self._clock_wall, received_wall_ns) - 1
-        return self._clock_sim[k] if k >= 0 else None
+    @property
+    def distrusted_stamps(self) -> int:
+        return self.log_times.distrusted
 
     def _record(self, topic: str, raw: bytes, info) -> None:
         self.received += 1
@@ -234,27 +216,12 @@ class RecorderNode(Node):
             self._last[topic] = raw
         log_ns = self.get_clock().now().nanoseconds
         if self.sim_time:
-            at_receipt = self.graph_time_at(int(info.get("received_timestamp", 0)))
             stamp = header_stamp_ns(raw) if self.stamped.get(topic) else None
-            if at_receipt is not None:
-                log_ns = at_receipt
-            elif stamp is not None:
-                # received before the first /clock sample this recorder heard: the node's clock is the /clock of
-                # when the callback runs (seen 1.4 s of graph time later on a busy start); the stamp is the time
-                log_ns = stamp
-            if stamp is not None and log_ns < stamp <= log_ns + self.max_stamp_lead_ns:
-                self._graph_floor_ns = max(self._graph_floor_ns, stamp)
-            log_ns = max(log_ns, self._graph_floor_ns)
-            if stamp is not None and stamp > log_ns:
-                if stamp - log_ns <= self.max_stamp_jump_ns:
-                    # a message of t_k was sent at t_k or later: never logged before its own stamp, whatever
-                    # order the topics' queues are served in (the 1 Hz fixes once came 5-12 s "early")
-                    log_ns = stamp
-                else:
-                    self.distrusted_stamps += 1
-                    self.get_logger().warn(f"{topic}: header stamp {stamp * 1e-9:.3f} s is more than max_stamp_jump "
-                                           f"ahead of the graph's time ({log_ns * 1e-9:.3f} s): logged at receipt",
-                                           throttle_duration_sec=5.0)
+            log_ns, distrusted = self.log_times.log_time(int(info.get("received_timestamp", 0)), stamp, log_ns)
+            if distrusted:
+                self.get_logger().warn(f"{topic}: header stamp {stamp * 1e-9:.3f} s is more than max_stamp_jump "
+                                       f"ahead of the graph's time ({log_ns * 1e-9:.3f} s): logged at that time",
+                                       throttle_duration_sec=5.0)
         publish_ns = log_ns if self.sim_time else int(info.get("source_timestamp", log_ns))
         self.bag.write(topic, raw, log_ns, publish_ns)
         if self._first_ns is None:

@@ -448,17 +448,18 @@ class SelfTest:
         self.reset_request = None
 
 
-def tests_from_samples(samples) -> list[StepTest]:
+def tests_from_samples(samples, sample_period: float | None = None) -> list[StepTest]:
     """The step tests of a run rebuilt from its per-sample records (``seapup_msgs/SelfTestSample`` as dicts).
 
     Each record with ``test_index >= 0`` is one output of that test; the
-    tests come back in index order with their outputs in time order.
+    tests come back in index order with their outputs in time order. With
+    ``sample_period`` [s] a test's records must be one period apart.
 
     Raises
     ------
     IdentificationError
-        If the indices have gaps (samples lost from the record) or a test's
-        records disagree about what it was.
+        If the indices have gaps or a test's records do (samples lost from
+        the record), or a test's records disagree about what it was.
     """
     grouped: dict[int, list[dict]] = {}
     for record in samples:
@@ -470,6 +471,12 @@ def tests_from_samples(samples) -> list[StepTest]:
     for index in range(len(grouped)):
         records = sorted(grouped[index], key=lambda r: r["t"])
         first = records[0]
+        if sample_period is not None:
+            steps = np.diff([r["t"] for r in records]) / sample_period
+            if np.any(np.abs(steps - 1.0) > 1e-6):
+                k = int(np.argmax(np.abs(steps - 1.0)))
+                raise IdentificationError(f"step test {index}: its records jump from t = {records[k]['t']:.3f} s "
+                                          f"to {records[k + 1]['t']:.3f} s (samples lost from the record)")
         keys = {(r["cycle"], r["surge"], r["thruster"], r["step"]) for r in records}
         if len(keys) != 1:
             raise IdentificationError(f"step test {index}: its records disagree about it")

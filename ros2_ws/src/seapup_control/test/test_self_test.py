@@ -202,6 +202,10 @@ def test_a_run_rebuilt_from_its_sample_records_refits_to_the_same_result():
         np.testing.assert_array_equal(mine.gains.K_err, live.gains.K_err)
     with pytest.raises(Exception, match="misses"):
         tests_from_samples([r for r in records if r["test_index"] != 3])
+    assert len(tests_from_samples(records, T)) == 12   # every test's records one period apart
+    inside = [i for i, r in enumerate(records) if r["test_index"] == 5][4]   # a sample inside test 5 lost
+    with pytest.raises(Exception, match=r"step test 5: its records jump from t = .* \(samples lost"):
+        tests_from_samples(records[:inside] + records[inside + 1:], T)
 
 
 def drift_phase(speeds, variance):

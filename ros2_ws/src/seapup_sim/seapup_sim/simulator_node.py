@@ -113,7 +113,6 @@ class SimulatorNode(Node):
         self._last_warn = self._last_gate_log = 0.0
         self._samples_published = 0  # samples t_k published (each data topic once per sample)
         self._encoder = SampleEncoder()
-        self.ack_budget = 3.0   # at its stop, wait this long for readers (a recorder) to acknowledge the last samples
         self._sent: list = []  # the current sample's (publisher, packed message) pairs, for a republish
         self._armed_at: float | None = None   # when the wake timer fires (None: not armed)
         self._wake_timer = self.create_timer(1.0, self._on_wake, autostart=False)

@@ -444,6 +444,11 @@ def refuse_invalid_transitions(node) -> None:
     service.callback = guarded
 
 
+#: Seconds a stopping node waits for its reliable subscribers' acknowledgements (:func:`_await_acknowledgements`):
+#: longer than Fast DDS's 3 s periodic heartbeat, after which a lost message is sent again.
+ACK_BUDGET = 4.0
+
+
 def _drain(executor, node, budget: float = 1.5) -> None:
     """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until a
     short wait brings nothing new (a live graph keeps publishing; what arrives after the stop is not
@@ -467,17 +472,20 @@ def _drain(executor, node, budget: float = 1.5) -> None:
 
 
 def _await_acknowledgements(node) -> None:
-    """Give reliable subscribers a few seconds (the budget below) to acknowledge what was published.
+    """Give reliable subscribers up to :data:`ACK_BUDGET` seconds to acknowledge what was published.
 
     A process that exits right after publishing (a controller stopped just after
     its last command) would otherwise take an unacknowledged message with it: a
     subscriber that lost the first transmission never gets the resend, while
-    another (a recorder) did receive it. On a loaded machine a lockstep graph stopped at its end can be
-    seconds of samples ahead of a recorder's acknowledgements (an identification bag lost its last 14
-    samples with 0.5 s here); the wait ends as soon as every subscriber has acknowledged. The budget: the
-    node's ``ack_budget`` if it sets one (the simulator, whose samples are what a bag records), else 0.5 s.
+    another (a recorder) did receive it. A lost transmission is repaired only after the writer's next
+    heartbeat, and a writer that stopped writing sends one every 3 s (Fast DDS's
+    ``WriterTimes.heartbeat_period``): on a loaded machine a recorder was seen 0.7 s of wall time (190
+    samples) behind a self-test's commands, waiting for such a repair when the graph stopped, and the bag lost
+    them all with a 0.5 s budget (an identification bag lost its last 14 samples the same way). The wait
+    ends as soon as every subscriber has acknowledged, so a budget longer than the heartbeat period costs a
+    stop nothing when nothing is missing. A node may set its own ``ack_budget``.
     """
-    budget = float(getattr(node, "ack_budget", 0.5))
+    budget = float(getattr(node, "ack_budget", ACK_BUDGET))
     deadline = time.monotonic() + budget
     step = Duration(nanoseconds=100_000_000)
     try:
@@ -870,7 +878,7 @@ def run_node(make_node, args=None) -> int:
         # user's Ctrl-C on the command that owns the graph, or launch's escalation after SIGINT)
         if not _orphaned(parent) and _STOP[:1] != [signal.SIGTERM]:
             if getattr(node, "drain_on_shutdown", False):
-                _drain(executor, node)
+                _drain(executor, node, float(getattr(node, "drain_budget", 1.5)))
             _await_acknowledgements(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
