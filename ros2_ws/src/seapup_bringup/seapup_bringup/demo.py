@@ -47,6 +47,8 @@ __all__ = ["MISSION", "main", "fly_mission"]
 
 #: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
 MISSION = "mission.yaml"
+#: The graph a mission is flown on (its ``graph`` section: this launch document's arguments).
+GRAPH = "seapup_bringup hierarchy.launch.yaml"
 
 #: What the demo's bag holds. Every per-sample topic is typed, so the recorder subscribes before the graph
 #: starts and is an extra listener of the graph's lockstep roster: the simulator's first sample waits for it
@@ -59,9 +61,31 @@ RECORDED = [topics.TF_STATIC] + topics.typed(
     topics.POSITION_REFERENCE, topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 
 
-def mission_config() -> dict:
+def mission_path() -> Path:
+    """The shipped mission: ``seapup_bringup/config/mission.yaml`` as installed."""
     from ament_index_python.packages import get_package_share_directory
-    return yaml.safe_load((Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION).read_text())
+    return Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION
+
+
+def mission_config(path: Path | None = None) -> dict:
+    """A mission document (default the shipped one), checked strictly (:mod:`seapup_runs.mission`), its
+    graph arguments among those the hierarchy's launch document declares.
+
+    Raises
+    ------
+    MissionError
+        The first thing wrong, in one line naming the file.
+    """
+    from seapup_common.ros.launch_graph import find_graph, graph_arguments
+    from seapup_runs.mission import MissionError, load_mission
+    path = path or mission_path()
+    config = load_mission(path).to_dict()
+    declared = graph_arguments(find_graph(*GRAPH.split()))
+    unknown = sorted(set(config["graph"]) - set(declared))
+    if unknown:
+        raise MissionError(f"{path}: graph argument {unknown[0]!r} is not one of {GRAPH}'s: "
+                           f"{', '.join(sorted(declared))}")
+    return config
 
 
 def _set_parameter(sil, node: str, name: str, value: str) -> None:
@@ -196,7 +220,7 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
     logs, bag, held = {}, out / "bag", None
     try:
-        with SilGraph(arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0,
+        with SilGraph(GRAPH, arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0,
                       extra_nodes=extra_nodes) as sil:
             print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
             for leg in plan:
@@ -499,7 +523,7 @@ self-tested gains / under the self-tuner from <code>tune_in</code> s after the s
 <section id="plots"><h2>Plots</h2>{plots or "<p class=muted>no plots (--no-plots)</p>"}</section>
 <section id="configuration"><h2>Configuration</h2>
 <p>The graph's arguments (<code>seapup_bringup/launch/hierarchy.launch.yaml</code>, from
-<code>seapup_bringup/config/mission.yaml</code>):</p><table><tbody>{graph}</tbody></table>
+<code>{esc(config.get("source", "seapup_bringup/config/mission.yaml"))}</code>):</p><table><tbody>{graph}</tbody></table>
 <p>The mission:</p><pre>{esc(yaml.safe_dump(config["mission"], sort_keys=False))}</pre></section>
 </body></html>
 """
@@ -515,6 +539,8 @@ def demo_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
                                       "(default bags/demo_<UTC time> under the checkout)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    parser.add_argument("--mission", type=Path, help="a mission file to fly instead of the shipped one "
+                                                     "(seapup_bringup/config/mission.yaml; keys: docs/missions.md)")
     add_view_arguments(parser, "fly at this many times real time (the lockstep graph paced; default: as fast as "
                                "it answers, or 1 with --view); the summary is the same at any rate")
     add_json_argument(parser)
@@ -536,7 +562,12 @@ def main(argv=None) -> int:
     text = text_stream(args)
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
-    config = mission_config()
+    from seapup_runs.mission import MissionError
+    try:
+        config = mission_config(args.mission)
+    except MissionError as exc:
+        parser.error(str(exc))
+    config["source"] = str(args.mission) if args.mission else "seapup_bringup/config/mission.yaml"
     for index, leg in enumerate(config["mission"]):
         leg["index"] = index
     if rate:

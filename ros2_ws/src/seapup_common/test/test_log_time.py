@@ -3,7 +3,6 @@ import pytest
 
 from seapup_common.log_time import CLOCK_HISTORY, SimLogTime
 
-pytestmark = pytest.mark.unit
 
 S = 1_000_000_000          # one second [ns]
 T = S // 5                 # a 5 Hz sample period

@@ -1,0 +1,40 @@
+"""``./seapup demo --mission FILE``: a user's mission file is checked before any graph starts."""
+import pytest
+import yaml
+
+from seapup_bringup import demo
+
+
+def write(tmp_path, document) -> str:
+    path = tmp_path / "mine.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return str(path)
+
+
+def shipped() -> dict:
+    return yaml.safe_load(demo.mission_path().read_text())
+
+
+def test_the_shipped_mission_passes_its_graphs_arguments():
+    config = demo.mission_config()
+    assert config["mission"] == shipped()["mission"] and config["graph"] == shipped()["graph"]
+
+
+@pytest.mark.parametrize("change, reason", [
+    (lambda d: d["graph"].update(sensor="ideal"), "graph argument 'sensor' is not one of seapup_bringup "
+                                                  "hierarchy.launch.yaml's: "),
+    (lambda d: d["mission"][1]["goal"].update(duration="40"), "mission leg 2 ('hover + swap', hover) goal "
+                                                              "duration must be a number, got '40'"),
+])
+def test_a_mission_that_cannot_be_flown_stops_the_demo_in_one_line_before_anything_starts(
+        tmp_path, capsys, change, reason):
+    document = shipped()
+    change(document)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as stop:
+        demo.main(["--mission", write(tmp_path, document), "--out", str(out)])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("./seapup demo: error: ") and "mine.yaml" in err[-1] and reason in err[-1], err[-1]
+    assert "Traceback" not in "\n".join(err)
+    assert not out.exists()   # nothing flown, nothing written
