@@ -219,16 +219,16 @@ def test_a_leg_the_truth_contradicts_is_marked_whatever_the_task_said():
     3.74 m from its target must fail in the leg table, while an estimate within its stated uncertainty
     and a target reached within tolerance + that pass."""
     import numpy as np
-    from seapup_bringup.demo import _navigation_check
+    from seapup_runs.mission_metrics import navigation_check
     truth_end = np.array([0.0, 0.0, 30.0])
     hover = {"kind": "hover"}
-    assert _navigation_check(_logs((0.1, 0.1), 0.08), hover, 10.0, truth_end)["truth_verdict"] == ""
-    off = _navigation_check(_logs((9.0, 0.0), 0.08), hover, 10.0, truth_end)
+    assert navigation_check(_logs((0.1, 0.1), 0.08), hover, 10.0, truth_end)["truth_verdict"] == ""
+    off = navigation_check(_logs((9.0, 0.0), 0.08), hover, 10.0, truth_end)
     assert off["nav_error"] == 9.0 and "from the truth" in off["truth_verdict"]
     goto = {"kind": "goto", "target": [3.74, 0.0, 30.0], "tolerance": 0.5}
-    missed = _navigation_check(_logs((3.5, 0.0), 0.5), goto, 10.0, truth_end)  # the estimate believed it arrived
+    missed = navigation_check(_logs((3.5, 0.0), 0.5), goto, 10.0, truth_end)  # the estimate believed it arrived
     assert "from the target in truth" in missed["truth_verdict"]
-    reached = _navigation_check(_logs((0.3, 0.0), 0.1), dict(goto, target=[0.6, 0.0, 30.0]), 10.0, truth_end)
+    reached = navigation_check(_logs((0.3, 0.0), 0.1), dict(goto, target=[0.6, 0.0, 30.0]), 10.0, truth_end)
     assert reached["truth_verdict"] == ""
 
 
