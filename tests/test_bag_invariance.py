@@ -2,7 +2,7 @@
 
 One short mission -- the lockstep simulator, one MFOL velocity controller (gains designed by the
 self-test, :func:`seapup_runs.runner.design`) and the reference schedule, as
-:func:`seapup_runs.graph.graph_document` builds it for ``./seapup run`` -- is recorded five ways: unpaced,
+:func:`seapup_runs.run_graph.graph_document` builds it for ``./seapup run`` -- is recorded five ways: unpaced,
 paced at 1x and at 10x real time, held and stepped in uneven chunks, and unpaced with both cores saturated
 by CPU burners. Every bag must hold the same messages: on every topic, for every stamp, the same CDR
 bytes. And a recorder that
@@ -67,11 +67,11 @@ def mission():
 
 
 def graph_file(spec, out, pace: float):
-    """The run's graph (:func:`seapup_runs.graph.graph_document`; the SIL harness fills the handshake's counts
+    """The run's graph (:func:`seapup_runs.run_graph.graph_document`; the SIL harness fills the handshake's counts
     from its lockstep roster, its probe and recorder included) with the simulator's ``lockstep_pace``, and its
     ``end_time`` as a graph argument, so the SIL harness can hold it."""
     from seapup_bringup.graph_runner import _write_documents
-    from seapup_runs.graph import graph_document
+    from seapup_runs.run_graph import graph_document
     out.mkdir(parents=True, exist_ok=True)
     document = graph_document(spec, _write_documents(spec, out))
     simulator = next(entry["node"] for entry in document["launch"] if entry["node"]["exec"] == "simulator")

@@ -1,4 +1,4 @@
-"""The supervisory hierarchy's pure cores flown together in one process (seapup_bringup.hierarchy_sil):
+"""The supervisory hierarchy's pure cores flown together in one process (seapup_bringup.hierarchy_in_process):
 navigator -> task -> position controller -> self-tested MFOL controller -> simulated Seapup.
 
 Independent truth: the simulator's true state and its seabed geometry (never seen by the
@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from seapup_bringup.hierarchy_sil import fly_hierarchy
+from seapup_bringup.hierarchy_in_process import fly_hierarchy
 from seapup_common.controllers import ControllerSpec
 from seapup_control.self_test import result_document
-from seapup_runs.self_test import fly_self_test
+from seapup_runs.self_test_flight import fly_self_test
 from seapup_control.tasks import FollowSeabed, Goto
 from seapup_sim.seabed import Seabed
 

@@ -200,7 +200,7 @@ def test_shipped_controller_graph_flies_the_simulator_in_either_mode(tmp_path, r
     every sample; in realtime (the default) the controller's commands carry the simulator's sample
     stamps, so the simulator takes them (wall-clock stamps were refused as "from the future" and the
     vehicle never flew) and the vehicle follows a surge reference."""
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     from seapup_control.self_test import result_document
     controller = tmp_path / "controller.yaml"
     controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))

@@ -411,7 +411,7 @@ def test_launch_with_the_view_paces_the_graph_and_serves_a_self_tuner_s_estimate
     import sys
     import yaml
     from seapup_control.self_test import result_document
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     controller = tmp_path / "controller.yaml"
     controller.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {}).test), sort_keys=False))
     port = _free_port()

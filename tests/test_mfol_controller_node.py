@@ -17,7 +17,7 @@ from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from seapup_msgs.msg import BladePitch
 
-from seapup_runs.self_test import fly_self_test
+from seapup_runs.self_test_flight import fly_self_test
 from seapup_common.contract import Reference
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.self_test import result_document

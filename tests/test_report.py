@@ -128,7 +128,7 @@ def test_bad_arguments_are_one_line_and_change_nothing(tmp_path):
 def test_the_readme_shows_this_commits_scores(report):
     """The README's score table is generated (``./seapup report --readme README.md``), never typed: it must be
     the table of a fresh report of this code."""
-    from seapup_bringup.report import readme_block
+    from seapup_bringup.report_commands import readme_block
     _, document, _ = report
     assert readme_block(document) in (ROOT / "README.md").read_text(), \
         "README's score table is stale: run ./seapup report --readme README.md"
@@ -180,7 +180,7 @@ def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
 @pytest.mark.process
 def test_the_page_says_which_runs_were_flown_and_which_came_from_the_cache(report):
     """Before: "scored against fresh runs" even when every run came from the cache."""
-    from seapup_bringup.report import provenance
+    from seapup_bringup.report_commands import provenance
     base, document, first = report
     page = (base / "out" / "report.html").read_text()
     assert "fresh runs" not in page

@@ -6,7 +6,7 @@ import re
 import numpy as np
 import pytest
 
-from seapup_bringup.scenarios import scenario_command
+from seapup_bringup.scenario_commands import scenario_command
 from seapup_runs.result import RunResult
 from seapup_runs.runner import run
 from seapup_runs.scenarios import scenario_spec, scenarios

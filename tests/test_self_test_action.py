@@ -1,7 +1,7 @@
 """The /seapup/self_test action through the ROS graph, with the simulator in lockstep.
 
 Independent truth: the same self-test flown in one process on the same
-simulation (seapup_runs.self_test): lockstep makes the ROS run the
+simulation (seapup_runs.self_test_flight): lockstep makes the ROS run the
 same computation, so the results must agree to rounding.
 """
 import math
@@ -16,7 +16,7 @@ from seapup_msgs.srv import SetThrusterEfficiency
 
 import rclpy
 from action_msgs.msg import GoalStatus
-from seapup_runs.self_test import fly_self_test
+from seapup_runs.self_test_flight import fly_self_test
 from seapup_common.ros.graph import call_idempotent, send_goal
 from seapup_control.mfol_controller import GainSchedule
 from seapup_sim.analysis import hover_blade_pitch

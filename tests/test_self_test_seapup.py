@@ -1,5 +1,5 @@
 """The self-test flown on the Seapup model (pure cores in lockstep, no ROS; the driver is
-seapup_runs.self_test, which performs the artificial resets at the trim): sec. 5.3.
+seapup_runs.self_test_flight, which performs the artificial resets at the trim): sec. 5.3.
 
 Independent truths: the model's own hover trim (eq. 5.2) and trim at 0.7 m/s
 (the settings the controller must find), and the noise-free 8 deg step
@@ -8,7 +8,7 @@ responses from rest at hover ("chosen by a human observer", sec. 5.3.1).
 import numpy as np
 import pytest
 
-from seapup_runs.self_test import fly_self_test
+from seapup_runs.self_test_flight import fly_self_test
 from seapup_common.contract import Reference
 from seapup_control.self_test import Phase, SelfTest, SelfTestConfig
 from seapup_sim.analysis import hover_blade_pitch, trim

@@ -16,7 +16,7 @@ pytestmark = pytest.mark.graph
 @pytest.fixture(scope="session")
 def controller_file(tmp_path_factory):
     """The self-test's result for the baseline Seapup (flown in process: 0 and 0.7 m/s)."""
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     from seapup_control.self_test import result_document
     path = tmp_path_factory.mktemp("controller") / "controller.yaml"
     path.write_text(yaml.safe_dump(result_document(fly_self_test("baseline", {"operating_points": [0.0, 0.7]}).test)))

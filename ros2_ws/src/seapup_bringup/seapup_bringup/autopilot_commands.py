@@ -22,7 +22,7 @@ import numpy as np
 from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, SELF_TEST_ACTION, SELF_TEST_SAMPLES,
                                   TRUTH_ODOMETRY, VELOCITY, typed)
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
-from seapup_runs.self_test import fly_self_test
+from seapup_runs.self_test_flight import fly_self_test
 from seapup_runs.targets import thesis_value
 from seapup_control.closed_loop import closed_loop
 from seapup_control.self_test import SelfTestConfig

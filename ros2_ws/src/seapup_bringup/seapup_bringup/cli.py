@@ -204,9 +204,9 @@ def _verify(argv: list[str]) -> int:
 
 @command("report", "the thesis's targets scored against runs of this code (flown fresh, or taken from the run "
          "cache: the page and the summary say which): report.json and one HTML page (chapters, figures, "
-         "deviation register)", "seapup_bringup.report:report_parser", doc="reproduction.md#the-report")
+         "deviation register)", "seapup_bringup.report_commands:report_parser", doc="reproduction.md#the-report")
 def _report(argv: list[str]) -> int:
-    from seapup_bringup.report import report_command
+    from seapup_bringup.report_commands import report_command
     return report_command(argv)
 
 
@@ -239,10 +239,10 @@ def _closed_loop(argv: list[str]) -> int:
 
 
 @command("scenario", "a closed-loop case of the thesis (sec. 5.4, 7.4) flown by a registered controller "
-         "(default the self-tested one)", "seapup_bringup.scenarios:scenario_parser",
+         "(default the self-tested one)", "seapup_bringup.scenario_commands:scenario_parser",
          doc="autopilot.md#scenarios-sec-54")
 def _scenario(argv: list[str]) -> int:
-    from seapup_bringup.scenarios import scenario_command
+    from seapup_bringup.scenario_commands import scenario_command
     return scenario_command(argv)
 
 

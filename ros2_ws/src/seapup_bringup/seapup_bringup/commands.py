@@ -23,7 +23,7 @@ from seapup_sim.environment_config import load_environment
 from seapup_sim.integrator import VehicleIntegrator
 from seapup_sim.model_check import check_model as run_model_check
 from seapup_runs.targets import verify_rows, verify_summary
-from seapup_sim.report import format_rows, write_plots
+from seapup_sim.verification_report import format_rows, write_plots
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
 from seapup_sim.verification import verify as run_verify
@@ -304,7 +304,7 @@ def _report_times() -> dict:
     import os
     import tempfile
     from pathlib import Path
-    from seapup_bringup.report import report_command
+    from seapup_bringup.report_commands import report_command
     jobs = os.cpu_count() or 1
     out = {"jobs": jobs}
     with tempfile.TemporaryDirectory() as tmp:

@@ -347,7 +347,7 @@ def _controller_file(directory: Path, control_period: float) -> Path:
     """A controller file from a self-test flown in process (noise-free, zero speed)."""
     import yaml
 
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     from seapup_control.self_test import result_document
     run = fly_self_test("baseline", {"sample_period": control_period})
     path = directory / f"bench_controller_{int(round(1 / control_period))}hz.yaml"
@@ -357,7 +357,7 @@ def _controller_file(directory: Path, control_period: float) -> Path:
 
 def mfol_step_us(n: int = 20000) -> dict:
     """Cost of one sample of the MFOL law (scheduled over 0 and 0.7 m/s), measurement to command [us]."""
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     from seapup_common.contract import Command, Measurement, Reference
     from seapup_common.controllers import ControllerSpec, create_controller
     from seapup_control.self_test import result_document

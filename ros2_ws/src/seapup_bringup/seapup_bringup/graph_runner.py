@@ -2,7 +2,7 @@
 
 :func:`run_on_graph` designs the spec's controllers as the in-process runner
 does (:func:`seapup_runs.runner.design`), writes their documents and the graph
-of :func:`seapup_runs.graph.graph_document` into the run's directory, starts
+of :func:`seapup_runs.run_graph.graph_document` into the run's directory, starts
 it through the SIL harness (a private domain, a process per node, a probe
 that listens to the truth, the instruments, references, commands and applied
 pitches) until ``duration`` simulated seconds have been flown, and turns what
@@ -20,7 +20,7 @@ from typing import Callable
 import yaml
 
 from seapup_common.topics import typed
-from seapup_runs.graph import graph_document
+from seapup_runs.run_graph import graph_document
 from seapup_runs.logs import RECORDED_TOPICS, series_from_logs
 from seapup_runs.metrics import compute
 from seapup_runs.result import RunResult

@@ -550,7 +550,7 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
         raise ValueError(f"--half-period must be > 0 s, got {args.half_period}")
     controller = Path(args.controller) if args.controller else None
     if controller is None:
-        from seapup_runs.self_test import fly_self_test
+        from seapup_runs.self_test_flight import fly_self_test
         from seapup_control.self_test import result_document
         print("ident experiment: self-testing the fixed-gain controller at 0 m/s (in process, sec. 5.3)", file=text)
         run = fly_self_test(args.vehicle, {"operating_points": [0.0]}, progress=lambda f: progress("self-test", f))

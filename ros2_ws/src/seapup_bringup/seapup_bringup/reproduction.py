@@ -3,7 +3,7 @@
 The targets file (:mod:`seapup_runs.targets`) names the runs that produce ours (``runs:``): a
 ``verify`` of a vehicle configuration (:func:`seapup_sim.verification.verify`: Table 3.2's trials, the
 linear analyses, the open-loop step gains of eq. 5.3 and 5.7, the current and the umbilical), a
-``selftest`` flown in process (:func:`seapup_runs.self_test.fly_self_test`, sec. 5.3) and a
+``selftest`` flown in process (:func:`seapup_runs.self_test_flight.fly_self_test`, sec. 5.3) and a
 ``scenario`` of sec. 5.4 (:func:`seapup_runs.scenarios.scenario_spec` flown by the in-process runner).
 :func:`execute` runs one and returns its result (JSON-ready: the document the targets' metric paths
 read) with the figures it drew; :func:`run_all` runs several in parallel processes and keeps each
@@ -65,7 +65,7 @@ def default_cache() -> Path:
 
 # -- one run --------------------------------------------------------------------------------------------------
 def _verify(description: dict, out: Path) -> tuple[dict, list]:
-    from seapup_sim.report import write_plots
+    from seapup_sim.verification_report import write_plots
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config
     from seapup_sim.verification import verify
@@ -90,7 +90,7 @@ def _caption(stem: str, config: str) -> str:
 def _self_test(description: dict, out: Path) -> tuple[dict, list]:
     """The self-test's points in the thesis's units (eq. 5.3, Tables 5.1-5.2) with the time and box of water
     each operating point took (sec. 5.3.3), and a figure of the test."""
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     rate = float(description.get("rate_hz", 5.0))
     run = fly_self_test(description["config"], {"sample_period": 1.0 / rate,
                                                 "operating_points": list(description.get("speeds", [0.0])),
@@ -150,7 +150,7 @@ def _plot_self_test(run, description: dict, out: Path) -> str:
 
 
 def _scenario(description: dict, out: Path) -> tuple[dict, list]:
-    from seapup_bringup.scenarios import plot_scenario
+    from seapup_bringup.scenario_commands import plot_scenario
     from seapup_runs.runner import run
     from seapup_runs.scenarios import scenario_spec
     def spec(seed):
@@ -297,7 +297,7 @@ def _closed_loop(description: dict, out: Path) -> tuple[dict, list]:
     points 0 and 0.7 m/s; fixed gains or ``scheduled``), labelled by mode, with the figures of the loci
     (figs 5.4-5.9, 5.25-5.30) and the statements the thesis makes of them."""
     from seapup_bringup.autopilot_commands import MODES, analyse, plot_loci
-    from seapup_runs.self_test import fly_self_test
+    from seapup_runs.self_test_flight import fly_self_test
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config
     rate = float(description.get("rate_hz", 5.0))

@@ -88,7 +88,7 @@ def fly(argv: list[str]) -> int:
         return 1
     _summary(result, text)
     if args.plots:
-        from seapup_bringup.scenarios import plot_scenario
+        from seapup_bringup.scenario_commands import plot_scenario
         print(f"wrote {plot_scenario(result, args.plots)}", file=text)
     emit_json(args, result.to_dict())
     return 0

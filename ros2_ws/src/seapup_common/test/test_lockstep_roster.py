@@ -1,6 +1,6 @@
 """The lockstep roster (seapup_common.lockstep.roster) against independent truth: the counts the shipped launch
 files spelled by hand before they were derived (git 1ba1677: hierarchy.launch.yaml listed the velocity six
-times and the applied pitch five times), and the formulas seapup_runs.graph used for run graphs
+times and the applied pitch five times), and the formulas seapup_runs.run_graph used for run graphs
 (simulator: [velocity, applied] x controllers + the run's topics x listeners; each controller 1 + listeners;
 the reference publisher controllers + listeners)."""
 from collections import Counter
@@ -109,7 +109,7 @@ def test_each_shipped_graph_waits_for_what_it_spelled(name, expected, commands):
     assert {k: v for k, v in plan.settings.items() if k != "simulator"} == commands
 
 
-# -- generated run graphs: seapup_runs.graph's former formulas ---------------------------------------
+# -- generated run graphs: seapup_runs.run_graph's former formulas ---------------------------------------
 def _run_spec(controllers: int):
     from seapup_common.controllers import ControllerSpec
     from seapup_runs.spec import RunEvent, RunSpec
@@ -120,7 +120,7 @@ def _run_spec(controllers: int):
 @pytest.mark.parametrize("controllers", [1, 2])
 @pytest.mark.parametrize("listeners", [0, 1])
 def test_run_graphs_wait_as_the_former_formulas(controllers, listeners):
-    from seapup_runs.graph import LISTENED_TOPICS, graph_document
+    from seapup_runs.run_graph import LISTENED_TOPICS, graph_document
     document = yaml.safe_load(yaml.safe_dump(graph_document(_run_spec(controllers), [""] * controllers)))
     extra = [Listener(f"listener {i}", tuple(LISTENED_TOPICS)) for i in range(listeners)]
     plan = roster(nodes_of_document(document), extra)

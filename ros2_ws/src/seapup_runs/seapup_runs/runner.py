@@ -66,7 +66,7 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
     key = json.dumps([spec.design.to_dict(), spec.control_period], sort_keys=True)
     if key not in _DESIGNS:
         from seapup_control.self_test import result_document
-        from seapup_runs.self_test import fly_self_test
+        from seapup_runs.self_test_flight import fly_self_test
         d = spec.design
         flown = fly_self_test(d.vehicle, {"sample_period": spec.control_period,
                                           "operating_points": list(d.operating_points), "mode": d.mode},
