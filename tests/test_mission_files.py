@@ -25,6 +25,10 @@ def test_the_shipped_mission_passes_its_graphs_arguments():
                                                   "hierarchy.launch.yaml's: "),
     (lambda d: d["mission"][1]["goal"].update(duration="40"), "mission leg 2 ('hover + swap', hover) goal "
                                                               "duration must be a number, got '40'"),
+    (lambda d: d["mission"][1]["switch"]["request"].update(activate=["mfol_sheduled"]),
+     "leg 'hover + swap' names 'mfol_sheduled', not a velocity controller of seapup_bringup hierarchy.launch.yaml"),
+    (lambda d: d["mission"][0].update(activate="pid"), "leg 'self-test' names 'pid', not a velocity controller"),
+    (lambda d: d["mission"][6]["switch"].update(deactivate=["gmv", "lqr"]), "leg 'fouled thruster' names 'lqr'"),
 ])
 def test_a_mission_that_cannot_be_flown_stops_the_demo_in_one_line_before_anything_starts(
         tmp_path, capsys, change, reason):

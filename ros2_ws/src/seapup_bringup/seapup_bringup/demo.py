@@ -76,15 +76,26 @@ def mission_config(path: Path | None = None) -> dict:
     MissionError
         The first thing wrong, in one line naming the file.
     """
-    from seapup_common.ros.launch_graph import find_graph, graph_arguments
+    from seapup_common.ros.launch_graph import find_graph, graph_arguments, load_graph
     from seapup_runs.mission import MissionError, load_mission
     path = path or mission_path()
     config = load_mission(path).to_dict()
-    declared = graph_arguments(find_graph(*GRAPH.split()))
+    graph = find_graph(*GRAPH.split())
+    declared = graph_arguments(graph)
     unknown = sorted(set(config["graph"]) - set(declared))
     if unknown:
         raise MissionError(f"{path}: graph argument {unknown[0]!r} is not one of {GRAPH}'s: "
                            f"{', '.join(sorted(declared))}")
+    controllers = sorted(n.name for n in load_graph(graph) if n.executable == "velocity_controller")
+    for leg in config["mission"]:
+        request = leg.get("switch", {})
+        request = request.get("request", request)   # a hover's switch has its request inside
+        named = [*leg.get("configure", []), *([leg["activate"]] if "activate" in leg else []),
+                 *request.get("activate", []), *request.get("deactivate", [])]
+        strangers = [name for name in named if name not in controllers]
+        if strangers:
+            raise MissionError(f"{path}: leg {leg['name']!r} names {strangers[0]!r}, not a velocity controller of "
+                               f"{GRAPH} ({', '.join(controllers)})")
     return config
 
 
