@@ -75,6 +75,7 @@ def test_order_table_rejects_first_order_and_mostly_picks_the_second():
     assert picks.count(2) >= 0.6 * len(picks)
 
 
+@pytest.mark.sweep   # 20 seeds of a 2000-sample record and a refit each: 7 s, the longest of -m unit
 def test_predict_and_residual_whiteness_tell_the_true_model_from_a_wrong_one():
     """Sec. 6.3, fig. 6.2: the true model's one-step errors are the white noise that drove it, and the
     whiteness test passes at its 5 % risk in most seeds; a first-order model of the second-order system
