@@ -25,6 +25,9 @@ from pathlib import Path
 import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+# Fast DDS's heartbeat every 100 ms, as ./seapup sets it (ros2_ws/src/seapup_common/config/fastdds_profiles.xml)
+os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE",
+                      str(Path(__file__).resolve().parent / "ros2_ws/src/seapup_common/config/fastdds_profiles.xml"))
 os.environ.pop("ROS_STATIC_PEERS", None)
 os.environ.setdefault("MPLBACKEND", "Agg")
 

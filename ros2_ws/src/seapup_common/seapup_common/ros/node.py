@@ -445,7 +445,9 @@ def refuse_invalid_transitions(node) -> None:
 
 
 #: Seconds a stopping node waits for its reliable subscribers' acknowledgements (:func:`_await_acknowledgements`):
-#: longer than Fast DDS's 3 s periodic heartbeat, after which a lost message is sent again.
+#: longer than Fast DDS's default 3 s periodic heartbeat, after which a lost message is sent again (seapup's
+#: processes send one every 100 ms: ``seapup_common/config/fastdds_profiles.xml``; the budget covers a process
+#: started without it).
 ACK_BUDGET = 4.0
 
 
@@ -478,8 +480,10 @@ def _await_acknowledgements(node) -> None:
     its last command) would otherwise take an unacknowledged message with it: a
     subscriber that lost the first transmission never gets the resend, while
     another (a recorder) did receive it. A lost transmission is repaired only after the writer's next
-    heartbeat, and a writer that stopped writing sends one every 3 s (Fast DDS's
-    ``WriterTimes.heartbeat_period``): on a loaded machine a recorder was seen 0.7 s of wall time (190
+    heartbeat, and a writer that stopped writing sends one every 3 s by default (Fast DDS's
+    ``WriterTimes.heartbeat_period``; 100 ms in seapup's processes, ``config/fastdds_profiles.xml``, since
+    a reader also acknowledges only in answer to one: with 3 s the wait below took 1-2 s per graph stop even
+    when nothing was lost): on a loaded machine a recorder was seen 0.7 s of wall time (190
     samples) behind a self-test's commands when the graph stopped (most likely waiting for such a repair);
     the bag lost them all with a 0.5 s budget, none in 24 runs with 4 s (an identification bag lost its
     last 14 samples the same way). The wait
