@@ -9,7 +9,6 @@ from seapup_ident.armax import ArmaxModel, ArmaxOrders
 from seapup_ident.identify import IdentificationData, NotExcitingError, fit, model_document, order_table, read_csv
 from seapup_ident.prbs import prbs
 
-pytestmark = pytest.mark.unit
 
 TRUE = ArmaxModel(ArmaxOrders(2, 2, 2, 1, 0),
                   np.array([[[-1.3, 0.1], [0.0, -0.7]], [[0.45, 0.0], [0.05, 0.1]]]),
