@@ -80,7 +80,8 @@ class SimLogTime:
                 return now_ns, False
             self.floor_ns = stamp_ns
             return stamp_ns, False
-        so_far = max(t for t in (at_receipt, self.floor_ns) if t is not None)
+        so_far = (self.floor_ns if at_receipt is None else at_receipt if self.floor_ns is None
+                  else max(at_receipt, self.floor_ns))   # per message: no generator
         if stamp_ns is None or stamp_ns <= so_far:
             return so_far, False
         if stamp_ns - so_far <= self.max_stamp_lead_ns:

@@ -197,10 +197,6 @@ class RecorderNode(Node):
         self.log_times.on_clock(int(info.get("received_timestamp", 0)),
                                 msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
 
-    @property
-    def distrusted_stamps(self) -> int:
-        return self.log_times.distrusted
-
     def _record(self, topic: str, raw: bytes, info) -> None:
         self.received += 1
         if topic not in self.bag.topics:  # first message of a typed topic: its publisher exists now
