@@ -28,6 +28,12 @@ says a sample again by design (the simulator's handshake repeats t_0 on
 when it resumes before the sample was answered), so without this how many
 copies a bag holds would depend on wall time.
 
+What the transport lost is said: a sample DDS reports lost to a subscription (a
+reliable writer that dropped it from its history before repairing it, a
+best-effort one that was not delivered) is counted per topic, warned about at
+once and named when the bag is closed -- a bag with holes never looks whole
+(a publisher that matches after a topic's first message is logged too).
+
 The bag is flushed and fsync'd every ``flush_interval`` (a ``kill -9`` loses
 at most that) and finalised on SIGINT/SIGTERM or after ``max_duration``
 seconds of graph time.
@@ -42,6 +48,7 @@ from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
@@ -127,6 +134,7 @@ class RecorderNode(Node):
         self.subscribed: dict[str, str] = {}
         self.subscriptions_by_topic: dict = {}
         self.eager: set[str] = set()  # typed topics subscribed before any publisher was seen
+        self.lost: dict[str, int] = {}  # per topic: samples DDS reported lost (module docstring)
         for entry in entries:
             if ":" in entry:
                 self._subscribe(*entry.split(":", 1), publishers=[])
@@ -152,7 +160,8 @@ class RecorderNode(Node):
     def _subscribe(self, topic: str, type_name: str, publishers) -> None:
         qos = adapted_qos(publishers) if publishers else EAGER_QOS
         self.subscriptions_by_topic[topic] = self.create_subscription(
-            message_class(type_name), topic, lambda raw, info, t=topic: self._record(t, raw, info), qos, raw=True)
+            message_class(type_name), topic, lambda raw, info, t=topic: self._record(t, raw, info), qos, raw=True,
+            event_callbacks=self._events(topic))
         if publishers:
             self._add_to_bag(topic, type_name, publishers)
         else:
@@ -162,6 +171,22 @@ class RecorderNode(Node):
         self.stamped[topic] = bool(fields) and fields[0][0] == "header"
         self.sample_timed[topic] = self.stamped[topic] or type_name in SAMPLE_TIMED_TYPES
         self.get_logger().info(f"recording {topic} [{type_name}]")
+
+    def _events(self, topic: str) -> SubscriptionEventCallbacks:
+        """A subscription's DDS events: samples lost, publishers matched (module docstring)."""
+        return SubscriptionEventCallbacks(message_lost=lambda status, t=topic: self._on_lost(t, status),
+                                          matched=lambda status, t=topic: self._on_matched(t, status),
+                                          use_default_callbacks=False)
+
+    def _on_lost(self, topic: str, status) -> None:
+        self.lost[topic] = self.lost.get(topic, 0) + int(status.total_count_change)
+        self.get_logger().warn(f"{topic}: {int(status.total_count_change)} sample(s) lost in transport "
+                               f"({self.lost[topic]} so far): the bag has a hole there")
+
+    def _on_matched(self, topic: str, status) -> None:
+        if int(status.current_count_change) > 0 and topic in self._heard:  # after the first message: a newcomer
+            self.get_logger().info(f"{topic}: a publisher matched after the first message "
+                                   f"({int(status.current_count)} now)")
 
     def _add_to_bag(self, topic: str, type_name: str, publishers) -> None:
         offered = [qos_to_rosbag2(i.qos_profile) for i in publishers]
@@ -189,7 +214,7 @@ class RecorderNode(Node):
             type_name = self.subscribed[topic]
             self.subscriptions_by_topic[topic] = self.create_subscription(
                 message_class(type_name), topic, lambda raw, info, t=topic: self._record(t, raw, info),
-                adapted, raw=True)
+                adapted, raw=True, event_callbacks=self._events(topic))
         if topic not in self.bag.topics:
             self._add_to_bag(topic, self.subscribed[topic], publishers)
 
@@ -230,6 +255,9 @@ class RecorderNode(Node):
         self.bag.close()
         said_again = f" ({self.repeats} repeats of a sample not recorded again)" if self.repeats else ""
         self.get_logger().info(f"closed {self.bag.path}: {self.bag.count} messages{said_again}")
+        if self.lost:
+            self.get_logger().warn("samples lost in transport, not in the bag: "
+                                   + ", ".join(f"{t} {n}" for t, n in sorted(self.lost.items())))
         return super().destroy_node()
 
 
