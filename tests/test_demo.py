@@ -237,7 +237,7 @@ def test_the_demo_folder_has_a_page_a_person_can_look_at(quiet_demo, browser, tm
     """Issue 23: the demo's output folder gets index.html -- the legs (units, pass criteria, verdicts), the
     plots, the seed and configuration -- rendered in headless Chromium with every leg's row showing the
     verdict the summary's numbers give, every plot decoded and no console error."""
-    from seapup_bringup.demo import PASS_CRITERIA, _passed
+    from seapup_bringup.mission_pages import PASS_CRITERIA, leg_passed as _passed
     _, summary, out = quiet_demo
     page = out / "index.html"
     seen = browser(page, tmp_path)

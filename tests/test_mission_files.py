@@ -2,7 +2,7 @@
 import pytest
 import yaml
 
-from seapup_bringup import demo
+from seapup_bringup import demo, mission_graph
 
 
 def write(tmp_path, document) -> str:
@@ -12,11 +12,11 @@ def write(tmp_path, document) -> str:
 
 
 def shipped() -> dict:
-    return yaml.safe_load(demo.mission_path().read_text())
+    return yaml.safe_load(mission_graph.mission_path().read_text())
 
 
 def test_the_shipped_mission_passes_its_graphs_arguments():
-    config = demo.mission_config()
+    config = mission_graph.mission_config()
     assert config["mission"] == shipped()["mission"] and config["graph"] == shipped()["graph"]
 
 

@@ -530,7 +530,7 @@ def hierarchy_rate(sim_seconds: float = 300.0, log_dir="/tmp") -> dict:
     """
     import tempfile
 
-    from seapup_bringup.demo import RECORDED
+    from seapup_bringup.mission_graph import RECORDED
     from seapup_bringup.sil import SilGraph
     control_period = 0.2
     with tempfile.TemporaryDirectory(dir=log_dir) as tmp:

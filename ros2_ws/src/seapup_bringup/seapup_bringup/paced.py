@@ -8,7 +8,10 @@ takes effect at that sample however busy the machine is. Between its actions
 chunk's end; something the driver waits for (a goal's result, heard on
 another channel at a wall time that depends on the machine) is acted on at
 the first chunk boundary a whole chunk after the graph time it says it ended
-at (:func:`next_boundary`), so when the driver hears it does not matter. When
+at (:func:`next_boundary`), so when the driver hears it does not matter -- as long as it is heard before the
+graph is a chunk past it: at each hold the driver may first ``settle`` (wait until it has heard either that
+the held sample was processed without the thing ending, or the thing's end: a task's feedback for the held
+sample or its result), so the boundary never depends on the machine's load. When
 nobody answers a sample once that something is done (a self-test ended with
 no controller active: the graph waits for its driver), the step is given up
 and the graph stays held right there ("blocked").
@@ -112,12 +115,15 @@ class PacedGraph:
         self.hear(self.held, before, not stepped.canceled)
         return stepped.canceled
 
-    def advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0) -> str:
+    def advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0, settle=None) -> str:
         """Step chunk by chunk and hold at ``until`` [s], or (``done()`` true) at the first chunk boundary a
         whole chunk after ``end_time()`` (the graph time of what ``done`` waited for; None: here); when the
-        graph blocks once ``done()`` holds, right there. "held" or "blocked"."""
+        graph blocks once ``done()`` holds, right there. ``settle(held)``, if given, is called at each hold
+        before ``done()`` is asked (module docstring). "held" or "blocked"."""
         deadline, target = time.monotonic() + timeout, None
         while True:
+            if settle is not None and done is not None and target is None:
+                settle(self.held)
             if done is not None and target is None and done():
                 end = end_time() if end_time is not None else None
                 target = self.held if end is None else next_boundary(end, self.chunk)

@@ -253,11 +253,11 @@ class SilGraph:
         """Paced: results heard too late to be acted on at their chunk boundary."""
         return self._pacing.late_results if self._pacing is not None else 0
 
-    def _advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0) -> str:
+    def _advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0, settle=None) -> str:
         """Paced: :meth:`PacedGraph.advance` (hold at ``until`` or after what ``done`` waited for)."""
         from seapup_bringup.graph_stepper import StepFailed
         try:
-            return self._pacing.advance(until, done, end_time, timeout)
+            return self._pacing.advance(until, done, end_time, timeout, settle)
         except StepFailed as exc:
             raise SilError(f"simulated time stuck at {self.t:.1f} s: {exc}{self._dead()}") from None
 
@@ -289,7 +289,7 @@ class SilGraph:
             goal = action.Goal(**fields)
             if self.paced:
                 self._task_controller_at_hold()
-            rejections = len(self.log["rejections"])
+            rejections, heard = len(self.log["rejections"]), len(self.feedback)
             handle = send_goal(self._executor, client, goal, lambda fb: self.feedback.append((kind, fb.feedback)))
             if not handle.accepted:
                 self.spin_until(lambda: len(self.log["rejections"]) > rejections, 5.0)
@@ -297,7 +297,7 @@ class SilGraph:
                 return {"status": "rejected", "accepted": False, "rejection": reason}
             accepted_t, future = self.t, handle.get_result_async()
             if self.paced:
-                during_result = self._paced_goal(future, handle, during, cancel_after, timeout)
+                during_result = self._paced_goal(future, handle, during, cancel_after, timeout, heard)
             else:
                 during_result = self._unpaced_goal(future, handle, during, cancel_after, timeout)
             if not self.spin_until(future.done, timeout):
@@ -333,7 +333,7 @@ class SilGraph:
         self.spin_until(lambda: readiness.handled_since(self.log["diagnostics"], "seapup/task_controller", held),
                         wait)
 
-    def _paced_goal(self, future, handle, during, cancel_after, timeout: float):
+    def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int):
         """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and
         the graph held again after its end (module docstring); the ``during`` result."""
         held = self.held
@@ -348,15 +348,27 @@ class SilGraph:
             self.spin_until(lambda: False, 0.5)  # heard here: on its way to the velocity controllers too
         during_result = None
         end = lambda: result_end_time(future)  # noqa: E731
+        first_step = held + self._pacing.period_ns * 1e-9   # a task first steps at the sample after acceptance
+
+        def settle(at: float) -> None:
+            # whether the task ended by the held sample is known once the task controller has stepped that sample
+            # (its feedback, ``elapsed`` from its first step: feedback since the goal was sent, ``heard`` on) or
+            # its result is here: the graph is never a chunk past the end because the result travelled slowly on
+            # a loaded machine (paced.py)
+            def stepped() -> bool:
+                elapsed = [fb.elapsed for _, fb in self.feedback[heard:]]
+                return future.done() or (bool(elapsed) and first_step + max(elapsed) >= at - 1e-6)
+            if at >= first_step - 1e-6:   # held where the task has a sample to step
+                self.spin_until(stepped, 10.0)
         if during is not None:
-            self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout)
+            self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout, settle=settle)
             during_result = during[1]()
         if cancel_after is not None:
-            self._advance(held + cancel_after, done=future.done, end_time=end, timeout=timeout)
+            self._advance(held + cancel_after, done=future.done, end_time=end, timeout=timeout, settle=settle)
             if not future.done():
                 self._task_controller_at_hold()
                 self.spin_until(handle.cancel_goal_async().done, 10.0)
-        self._advance(None, done=future.done, end_time=end, timeout=timeout)
+        self._advance(None, done=future.done, end_time=end, timeout=timeout, settle=settle)
         return during_result
 
     def action(self, name: str, action_type: str, fields: dict | None = None, timeout: float = 600.0,

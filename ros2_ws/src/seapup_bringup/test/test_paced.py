@@ -83,6 +83,24 @@ def test_a_result_heard_after_its_boundary_is_acted_on_where_heard_and_counted_l
     assert graph.held == 16.0 and graph.late_results == 1
 
 
+def test_settling_at_each_hold_makes_a_slow_result_land_on_its_boundary_all_the_same():
+    """The late result of the test above, but the driver settles at each hold: there it learns whether the task
+    ended by the held sample (here: the result is heard as soon as settle looks at a hold at or after the end),
+    so the graph is held on the result's boundary however slowly the result travelled."""
+    stepper = ServerStepper()
+    graph = paced(stepper, chunk=1.0)
+    graph.advance(10.0)
+    heard, settled = [], []
+
+    def settle(held):
+        settled.append(held)
+        if held >= 12.3 - 1e-9:
+            heard.append(held)
+    state = graph.advance(None, done=lambda: bool(heard), end_time=lambda: 12.3, settle=settle)
+    assert state == "held" and graph.held == 14.0 and graph.late_results == 0
+    assert settled == [10.0, 11.0, 12.0, 13.0]     # once per hold until the end was known, never after
+
+
 def test_a_graph_that_waits_for_its_driver_is_held_where_it_stopped():
     # a self-test that ends at 11.1 s with no controller active: nobody answers from 11.4 s (sample 57) on
     stepper, heard = ServerStepper(silent_from=57), []

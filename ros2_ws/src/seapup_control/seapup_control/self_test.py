@@ -45,7 +45,7 @@ from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains,
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
-__all__ = ["Phase", "SelfTestConfig", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
+__all__ = ["Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
            "result_document", "refit", "tests_from_samples", "DEFAULTS_FILE"]
 
 #: The defaults (every key documented there).
@@ -61,6 +61,33 @@ class Phase(str, Enum):
     FAILED = "failed"
     CANCELLED = "cancelled"
 
+
+#: The ``seapup_msgs/action/SelfTest`` goal fields that are settings (zero: the default of ``data/self_test.yaml``).
+GOAL_SETTINGS = ("sample_period", "step", "quiescence_speed", "closed_loop_divisor", "max_wait")
+
+
+def goal_overrides(goal) -> dict:
+    """A self-test goal's non-default fields as self-test settings (zero / empty: the default).
+
+    ``goal``: a ``seapup_msgs/action/SelfTest`` goal, or a mapping of its fields (a mission's self-test leg).
+
+    Examples
+    --------
+    >>> goal_overrides({"operating_points": [0.0, 0.7], "step": 0.0})
+    {'operating_points': [0.0, 0.7]}
+    """
+    get = goal.get if isinstance(goal, Mapping) else (lambda name, default: getattr(goal, name, default))
+    overrides = {}
+    for name in GOAL_SETTINGS:
+        value = float(get(name, 0.0) or 0.0)
+        if value != 0.0:
+            overrides[name] = value
+    if get("samples", 0):
+        overrides["samples"] = int(get("samples", 0))
+    points = get("operating_points", ())
+    if len(points):
+        overrides["operating_points"] = [float(v) for v in points]
+    return overrides
 
 @dataclass(frozen=True)
 class SelfTestConfig:

@@ -49,23 +49,9 @@ from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVI
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.ros.sample_inputs import RawSampleFeed
-from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, result_document
+from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, goal_overrides, result_document
 
-__all__ = ["SelfTestNode", "goal_overrides", "main"]
-
-
-def goal_overrides(goal) -> dict:
-    """The goal's non-default fields as self-test settings (zero / empty = the default)."""
-    overrides = {}
-    for name in ("sample_period", "step", "quiescence_speed", "closed_loop_divisor", "max_wait"):
-        value = float(getattr(goal, name))
-        if value != 0.0:
-            overrides[name] = value
-    if goal.samples:
-        overrides["samples"] = int(goal.samples)
-    if len(goal.operating_points):
-        overrides["operating_points"] = [float(v) for v in goal.operating_points]
-    return overrides
+__all__ = ["SelfTestNode", "main"]
 
 
 class SelfTestNode(Node):

@@ -25,8 +25,24 @@ import numpy as np
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_runs.actuators import THRASH_ALLOWANCE_S, actuator_activity
 
-__all__ = ["leg_numbers", "actuator_verdict", "velocity_tracking", "navigation_check", "swap_bump",
+__all__ = ["mission_numbers", "leg_numbers", "actuator_verdict", "velocity_tracking", "navigation_check", "swap_bump",
            "NAVIGATION_SIGMAS"]
+
+
+def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict) -> list:
+    """Every leg's numbers (:func:`leg_numbers`), the swap's bump on the leg that swapped (``swap``: its index
+    ``leg`` and sample ``t``) and on a fouling leg's switch; ``seabed``: the simulator's seabed
+    (:meth:`seapup_sim.seabed.Seabed.from_config`). The legs, updated."""
+    from seapup_sim.seabed import Seabed
+    floor = Seabed.from_config(seabed)
+    for leg in legs:
+        leg.update(leg_numbers(logs, leg, floor))
+    if swap and swap["leg"] < len(legs):
+        legs[swap["leg"]].update(swap_bump(logs, swap["t"]))
+    for leg in legs:
+        if leg["kind"] == "fouling" and "switch_t" in leg:
+            leg.update(swap_bump(logs, leg["switch_t"]))
+    return legs
 
 
 def leg_numbers(logs: dict, leg: dict, seabed) -> dict:

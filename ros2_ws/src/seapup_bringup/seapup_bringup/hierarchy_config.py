@@ -1,0 +1,84 @@
+"""The hierarchy's launch document and its nodes' parameter files as plain data, for a mission flown in process.
+
+:func:`hierarchy_config` reads ``seapup_bringup/launch/hierarchy.launch.yaml`` with a mission's ``graph``
+arguments and each node's installed ``config/<node>.yaml``, and returns the
+:class:`~seapup_runs.mission_flight.HierarchyConfig` :func:`seapup_runs.mission_flight.run_mission` flies:
+so the graph and the process read one source, the launch document, for which nodes there are and how
+each is set.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from seapup_runs.mission_flight import HierarchyConfig
+
+__all__ = ["hierarchy_config", "HIERARCHY"]
+
+#: The launch document a mission's ``graph`` section gives the arguments of.
+HIERARCHY = ("seapup_bringup", "hierarchy.launch.yaml")
+
+
+def _defaults(package: str, file: str, section: str) -> dict:
+    from ament_index_python.packages import get_package_share_directory
+
+    from seapup_common.parameters import load_node_parameters
+    return load_node_parameters(Path(get_package_share_directory(package)) / "config" / file, section)
+
+
+def _given(node) -> dict:
+    """A launch node's parameters (dotted names), the mappings merged in order."""
+    out: dict = {}
+    for item in node.parameters:
+        if isinstance(item, dict):
+            out.update(item)
+    return out
+
+
+def _bool(value) -> bool:
+    return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "1", "yes")
+
+
+def _flatten(mapping: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            out.update(_flatten(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> HierarchyConfig:
+    """The nodes of ``launch`` with ``graph``'s arguments, as :class:`HierarchyConfig`.
+
+    Raises
+    ------
+    LaunchError
+        An argument the document refuses (one line, naming it).
+    """
+    from seapup_common.ros.launch_graph import find_graph, load_graph
+    arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in graph.items()}
+    nodes = load_graph(find_graph(*launch), arguments)
+    by_exec: dict = {}
+    for node in nodes:
+        by_exec.setdefault(node.executable, []).append(node)
+    sim = {**_flatten(_defaults("seapup_sim", "simulator.yaml", "simulator")), **_given(by_exec["simulator"][0])}
+    environment = {"sensors": str(sim["environment.sensors"]),
+                   "current": {"enabled": _bool(sim["environment.current.enabled"])},
+                   "seabed": {"kind": str(sim["environment.seabed.kind"]),
+                              "depth": float(sim["environment.seabed.depth"]),
+                              "gradient": float(sim["environment.seabed.gradient"]),
+                              "direction": float(sim["environment.seabed.direction"])}}
+    simulator = {"vehicle": str(sim["vehicle"]), "seed": int(sim["seed"]), "start_depth": float(sim["start_depth"]),
+                 "environment": environment, "physics_step": float(sim["physics_step"]),
+                 "control_period": float(sim["control_period"]), "dynamics": str(sim["dynamics"]),
+                 "watchdog_timeout": float(sim["watchdog_timeout"]), "watchdog_action": str(sim["watchdog_action"])}
+
+    def node(executable: str, file: str) -> dict:
+        return {**_defaults("seapup_control", file, executable), **_given(by_exec[executable][0])}
+    velocity_defaults = _defaults("seapup_control", "velocity_controller.yaml", "velocity_controller")
+    controllers = {n.name: HierarchyConfig.controller({**velocity_defaults, **_given(n)})
+                   for n in by_exec.get("velocity_controller", [])}
+    return HierarchyConfig(simulator, node("navigator", "navigator.yaml"),
+                           node("task_controller", "task_controller.yaml"),
+                           node("position_controller", "position_controller.yaml"), controllers)

@@ -1,0 +1,229 @@
+"""A mission flown on the ROS graph: the hierarchy's launch document in lockstep, driven leg by leg through ROS.
+
+:func:`fly_mission` starts ``seapup_bringup/launch/hierarchy.launch.yaml`` with a mission's ``graph``
+arguments under :class:`seapup_bringup.sil.SilGraph` (every node its own process, plus the recorder) and
+flies the legs through ROS only: the self-test through its action, task goals through the task
+controller's actions, controller switches through the manager, the current and a fouling through the
+simulator's services -- each made while the graph is held at one sample. The result has the shape of
+:func:`seapup_runs.mission_flight.run_mission`'s, which flies the same mission in one process
+(``./seapup fly MISSION`` / ``--graph``; ``./seapup demo`` flies the shipped one here).
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from seapup_bringup.output import progress, stopped_by_signal
+from seapup_common import topics
+from seapup_runs.mission_metrics import mission_numbers
+
+__all__ = ["MISSION", "GRAPH", "RECORDED", "mission_path", "mission_config", "fly_mission"]
+
+#: The graph's arguments and the mission (seapup_bringup/config/mission.yaml).
+MISSION = "mission.yaml"
+#: The graph a mission is flown on (its ``graph`` section: this launch document's arguments).
+GRAPH = "seapup_bringup hierarchy.launch.yaml"
+
+#: What the demo's bag holds. Every per-sample topic is typed, so the recorder subscribes before the graph
+#: starts and is an extra listener of the graph's lockstep roster: the simulator's first sample waits for it
+#: as for the graph's own readers, and the bag holds every sample from t_0 on (docs/recording.md).
+#: ``/tf_static`` is untyped: the recorder then matches its publisher's latched QoS and gets the fixed frames
+#: sent before it subscribed; ``/tf`` (odom -> base_link) makes the bag show an upright vehicle in any ROS viewer.
+RECORDED = [topics.TF_STATIC] + topics.typed(
+    topics.CLOCK, topics.TF, topics.COMMAND, topics.APPLIED, topics.TRUTH_ODOMETRY, topics.VELOCITY, topics.IMU,
+    topics.DEPTH, topics.POSITION, topics.ALTITUDE, topics.NAVIGATION_ODOMETRY, topics.VELOCITY_REFERENCE,
+    topics.POSITION_REFERENCE, topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
+
+
+def mission_path() -> Path:
+    """The shipped mission: ``seapup_bringup/config/mission.yaml`` as installed."""
+    from ament_index_python.packages import get_package_share_directory
+    return Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION
+
+
+def mission_config(path: Path | None = None) -> dict:
+    """A mission document (default the shipped one), checked strictly (:mod:`seapup_runs.mission`), its
+    graph arguments among those the hierarchy's launch document declares.
+
+    Raises
+    ------
+    MissionError
+        The first thing wrong, in one line naming the file.
+    """
+    from seapup_common.ros.launch_graph import find_graph, graph_arguments, load_graph
+    from seapup_runs.mission import MissionError, load_mission
+    path = path or mission_path()
+    config = load_mission(path).to_dict()
+    graph = find_graph(*GRAPH.split())
+    declared = graph_arguments(graph)
+    unknown = sorted(set(config["graph"]) - set(declared))
+    if unknown:
+        raise MissionError(f"{path}: graph argument {unknown[0]!r} is not one of {GRAPH}'s: "
+                           f"{', '.join(sorted(declared))}")
+    controllers = sorted(n.name for n in load_graph(graph) if n.executable == "velocity_controller")
+    for leg in config["mission"]:
+        request = leg.get("switch", {})
+        request = request.get("request", request)   # a hover's switch has its request inside
+        named = [*leg.get("configure", []), *([leg["activate"]] if "activate" in leg else []),
+                 *request.get("activate", []), *request.get("deactivate", [])]
+        strangers = [name for name in named if name not in controllers]
+        if strangers:
+            raise MissionError(f"{path}: leg {leg['name']!r} names {strangers[0]!r}, not a velocity controller of "
+                               f"{GRAPH} ({', '.join(controllers)})")
+    return config
+
+
+def _set_parameter(sil, node: str, name: str, value: str) -> None:
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    parameter = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value))
+    response = sil.call(f"{topics.NAMESPACE}/{node}/set_parameters", "rcl_interfaces/srv/SetParameters", {"parameters": [parameter]})
+    if not response.results[0].successful:
+        raise RuntimeError(f"{node}: {name} refused: {response.results[0].reason}")
+
+
+def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
+    """Fly the mission in a SIL graph (with ``extra_nodes``: the live view); the per-leg numbers (and the logs
+    as arrays under ``logs``)."""
+    from seapup_bringup.hierarchy_config import hierarchy_config
+    from seapup_bringup.sil import SilGraph
+
+    graph = config["graph"]
+    seabed = hierarchy_config(graph).simulator["environment"]["seabed"]
+    legs, swap = [], {}
+    plan = [dict(leg, index=i) for i, leg in enumerate(config["mission"])]
+    total = sum(leg.get("expected", 60.0) for leg in plan)
+    done = 0.0
+    stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
+    logs, bag, held = {}, out / "bag", None
+    try:
+        with SilGraph(GRAPH, arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0,
+                      extra_nodes=extra_nodes) as sil:
+            print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
+            for leg in plan:
+                start, wall = sil.t, time.monotonic()
+                progress(f"{leg['name']:<18}", done / total)
+                try:
+                    numbers = _fly_leg(sil, leg, swap)
+                except BaseException as exc:  # interrupted: the legs flown so far still get their numbers
+                    if not stopped_by_signal(exc):
+                        raise
+                    stopped = exc
+                    print(f"\nseapup demo: interrupted in leg {leg['name']}; reporting the {len(legs)} legs flown",
+                          file=text)
+                    break
+                numbers.setdefault("t0", start)
+                numbers.setdefault("t1", sil.t)
+                done += leg.get("expected", 60.0)
+                legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
+                             "hold_from": float(leg.get("hold_from", 0.0)),
+                             "wall_s": time.monotonic() - wall, **numbers})
+                print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
+                      f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)",
+                      file=text)
+            if stopped is None:
+                progress("mission", 1.0)
+            logs = sil.logs()
+            bag, held = sil.bag, sil.held
+    except BaseException as exc:  # interrupted while the graph started or stopped: nothing (more) flown
+        if stopped is not None or not stopped_by_signal(exc):
+            raise
+        stopped = exc
+        print(f"\nseapup demo: interrupted; reporting the {len(legs)} legs flown", file=text)
+    mission_numbers(legs, logs, seabed, swap)
+    # held: the sample [s] the paced graph was held at when it stopped
+    return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
+
+
+def _set_current(sil, detail: dict) -> None:
+    """The simulator's current (``seapup_msgs/srv/SetCurrent`` fields), or why not."""
+    reply = sil.call(topics.SET_CURRENT_SERVICE, "seapup_msgs/srv/SetCurrent", detail)
+    if not reply.success:
+        raise RuntimeError(f"set_current: {reply.message}")
+
+
+def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
+    """The fouled-thruster leg: an inspection creep whose thruster fouls ``foul.after`` s in under the active
+    (self-tested) controller, then, held at its end, the switch to the self-tuner and a second creep."""
+    marks = {}
+    if "current" in leg:   # the station keeping's current off: the fouling, not the current, is the test
+        _set_current(sil, leg["current"])
+
+    def foul():
+        marks["foul_t"] = sil.t
+        reply = sil.call(topics.SET_THRUSTER_EFFICIENCY_SERVICE, "seapup_msgs/srv/SetThrusterEfficiency",
+                         {"efficiency": [float(v) for v in leg["foul"]["efficiency"]]})
+        if not reply.success:
+            raise RuntimeError(f"set_thruster_efficiency: {reply.message}")
+        return reply
+    creep = {"kind": "inspection", "name": leg["name"], "body_velocity": leg["body_velocity"],
+             "index": leg["index"]}
+    fixed = _fly_leg(sil, {**creep, "seconds": leg["fouled_seconds"]}, swap, during=(leg["foul"]["after"], foul))
+    marks["switch_t"] = sil.t
+    reply = sil.switch(**leg["switch"])
+    if not reply.ok:
+        raise RuntimeError(f"{leg['name']}: switch refused: {reply.message}")
+    adaptive = _fly_leg(sil, {**creep, "seconds": leg["adaptive_seconds"]}, swap)
+    status = "succeeded" if fixed.get("status") == adaptive.get("status") == "succeeded" else \
+        adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
+    return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
+            "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}
+
+
+def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
+    kind = leg["kind"]
+    if kind == "fouling":
+        return _fly_fouling(sil, leg, swap)
+    if kind == "self_test":
+        t0 = sil.t
+        fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}
+        result = sil.action(topics.SELF_TEST_ACTION, "seapup_msgs/action/SelfTest", fields)
+        t1 = sil.t
+        if not result.success:
+            raise RuntimeError(f"self-test failed: {result.message}")
+        for node in leg["configure"]:
+            _set_parameter(sil, node, "controller_file", result.controller_file)
+        reply = sil.switch(activate=[leg["activate"]])
+        if not reply.ok:
+            raise RuntimeError(f"activating {leg['activate']}: {reply.message}")
+        return {"status": "succeeded", "t0": t0, "t1": t1, "controller_file": result.controller_file,
+                "self_test_duration": result.duration}
+    if kind == "current":
+        _set_current(sil, leg["current"])
+        kind = "hover"
+    _, here, attitude = sil.estimate()
+    yaw = float(attitude[2])
+    goal = dict(leg.get("goal", {}))
+    target = None
+    if kind == "inspection":
+        body = np.asarray(leg["body_velocity"], dtype=float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
+        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
+                "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
+        kind = "goto"
+    elif "face" in leg:  # hold where it is, turned to this heading (e.g. into the current)
+        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
+    elif "offset" in leg:
+        target = here + np.asarray(leg["offset"], dtype=float)
+        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    if "switch" in leg:
+        def do_switch():
+            swap["t"] = sil.t
+            return sil.switch(**leg["switch"]["request"])
+        during = (leg["switch"]["after"], do_switch)
+    result = sil.goal(kind, timeout=600.0, during=during, **{k: float(v) if not isinstance(v, bool) else v
+                                                             for k, v in goal.items()})
+    if not result["accepted"]:
+        raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
+    if "switch" in leg:
+        swap["leg"] = leg["index"]
+        result["switch_ok"] = bool(result["during"].ok)
+    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
+    out.update(t0=result["accepted_t"], t1=result["end_t"])
+    if target is not None:
+        out["target"] = [float(v) for v in target]
+        out["tolerance"] = float(goal.get("tolerance", 0.5))  # the task controller's default arrival radius
+    return out
