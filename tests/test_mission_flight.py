@@ -126,3 +126,42 @@ def test_the_graph_and_the_process_fly_the_mission_alike(flown, spec, tmp_path):
     assert np.array_equal(np.round(graph_t, 6), np.round(process_t, 6))
     assert np.abs(on_graph["logs"]["command"] - flown["logs"]["command"]).max() <= COMMAND_TOLERANCE
     assert on_graph["held"] == flown["held"]
+
+
+def test_seapup_fly_flies_a_mission_file_in_process_and_writes_its_page(tmp_path, capsys):
+    """``./seapup fly MISSION``: the same result as run_mission, the leg table printed, the page and JSON written."""
+    from seapup_bringup.run_commands import fly
+    path = tmp_path / "short.yaml"
+    document = yaml.safe_load(MISSION)
+    document["mission"] = document["mission"][:3]
+    path.write_text(yaml.safe_dump(document))
+    code = fly([str(path), "--out", str(tmp_path / "out"), "--json", str(tmp_path / "result.json")])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    import json
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["transport"] == "process" and [leg["name"] for leg in result["legs"]] == \
+        ["tune", "hold and swap", "step aside"]
+    assert all(leg["status"] == "succeeded" for leg in result["legs"])
+    assert "step aside" in printed and "succeeded" in printed
+    page = (tmp_path / "out" / "index.html").read_text()
+    assert "Flown in one process" in page and "step aside" in page
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.png")) == [
+        "mission_blade_pitch.png", "mission_path.png", "mission_velocities.png"]
+
+
+@pytest.mark.parametrize("change, reason", [
+    (lambda d: d["mission"][1].update(kind="hoover"), "kind must be one of"),
+    (lambda d: d["graph"].update(sensor="baseline"), "graph argument 'sensor' is not one of"),
+    (lambda d: d["mission"][1]["switch"]["request"].update(activate=["lqr"]), "names 'lqr', not a velocity controller"),
+])
+def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys, change, reason):
+    from seapup_bringup.run_commands import fly
+    document = yaml.safe_load(MISSION)
+    change(document)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(document))
+    assert fly([str(path), "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("seapup: error: ") and reason in err[0], err
+    assert not (tmp_path / "out").exists()

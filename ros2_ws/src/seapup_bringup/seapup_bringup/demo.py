@@ -29,13 +29,12 @@ bag, the numbers as JSON (``summary.json``, ``--json``) and ``index.html``: one 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from pathlib import Path
 
 from seapup_bringup.mission_graph import fly_mission, mission_config
-from seapup_bringup.mission_pages import index_page, leg_table, mission_plots
+from seapup_bringup.mission_pages import report_mission
 from seapup_bringup.output import add_json_argument, emit_json, stopped_by_signal, text_stream
 
 __all__ = ["main", "demo_parser"]
@@ -90,31 +89,14 @@ def main(argv=None) -> int:
             raise
         print(f"seapup demo: failed: {exc}; node logs in {out}", file=text)
         return 1
-    leg_table(result["legs"], text)
-    if not args.no_plots and result["legs"]:
-        result["plots"] = mission_plots(result, out)
-        print(f"seapup demo: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
     result["wall_s"] = time.monotonic() - wall
-    print(f"seapup demo: bag {result['bag']}; {result['wall_s']:.0f} s wall", file=text)
     stopped = result.pop("stopped")
-    summary = {k: v for k, v in result.items() if k != "logs"}
-    summary["interrupted"] = stopped is not None
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-    print(f"seapup demo: see {index_page(summary, config, out)}", file=text)
+    result["interrupted"] = stopped is not None
+    summary, code = report_mission(result, config, out, text, "seapup demo", plots=not args.no_plots)
     emit_json(args, summary)
     if stopped is not None:
         raise stopped  # ./seapup: "interrupted", exit 128 + the signal
-    failed = [leg["name"] for leg in result["legs"] if leg.get("status") not in ("succeeded", None)]
-    if failed:
-        print(f"seapup demo: legs that did not succeed: {', '.join(failed)}", file=text)
-    thrashed = [f"{leg['name']}: {leg['actuator_verdict']}" for leg in result["legs"] if leg.get("actuator_verdict")]
-    if thrashed:  # marked, not failed: the task was done, the thrusters paid for it
-        print("seapup demo: legs marked for their actuators: " + "; ".join(thrashed), file=text)
-    doubted = [f"{leg['name']}: {leg['truth_verdict']}" for leg in result["legs"] if leg.get("truth_verdict")]
-    if doubted:  # the task judged by its estimate; the truth says otherwise
-        print("seapup demo: legs whose verdict the truth contradicts: " + "; ".join(doubted), file=text)
-    return 1 if failed or doubted else 0
-
+    return code
 
 if __name__ == "__main__":
     raise SystemExit(main())

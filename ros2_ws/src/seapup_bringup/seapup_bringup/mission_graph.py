@@ -134,7 +134,7 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
         print(f"\nseapup demo: interrupted; reporting the {len(legs)} legs flown", file=text)
     mission_numbers(legs, logs, seabed, swap)
     # held: the sample [s] the paced graph was held at when it stopped
-    return {"legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
+    return {"transport": "graph", "legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
 
 
 def _set_current(sil, detail: dict) -> None:

@@ -2,6 +2,7 @@
 ``./seapup fly MISSION``), for a mission flown on the graph or in process alike."""
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import yaml
 from seapup_runs.actuators import THRASH_ALLOWANCE_S
 from seapup_runs.mission_metrics import NAVIGATION_SIGMAS
 
-__all__ = ["leg_table", "mission_plots", "index_page", "PASS_CRITERIA", "leg_passed"]
+__all__ = ["leg_table", "mission_plots", "index_page", "report_mission", "PASS_CRITERIA", "leg_passed"]
 
 
 def task_error(leg: dict) -> str:
@@ -157,12 +158,16 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
                                    "body velocities: truth and the velocity controller's reference",
                                    "blade-pitch commands of the four thrusters")))
     graph = "".join(f"<tr><td><code>{esc(k)}</code></td><td>{esc(v)}</td></tr>" for k, v in config["graph"].items())
+    flown = ("Flown in one process: the hierarchy's cores, sample for sample as the lockstep graph flies them"
+             if summary.get("transport") == "process" else
+             "Self-tested through ROS, then flown leg by leg on the lockstep graph")
+    bag = f"; bag <code>{esc(summary['bag'])}</code>" if summary.get("bag") else ""
     page = f"""<!doctype html>
-<html lang="en"><head><meta charset="utf-8"><title>seapup demo: the mission</title><style>{CSS}</style></head>
-<body><h1>seapup demo: the Seapup flies a mission through the supervisory hierarchy</h1>
-<p class=muted>Self-tested through ROS, then flown leg by leg in lockstep (thesis sec. 4.2, fig. 4.3); seed
+<html lang="en"><head><meta charset="utf-8"><title>seapup: the mission</title><style>{CSS}</style></head>
+<body><h1>seapup: the Seapup flies a mission through the supervisory hierarchy</h1>
+<p class=muted>{flown} (thesis sec. 4.2, fig. 4.3); seed
 {esc(config["graph"].get("seed", 0))}; held at {fmt(summary.get("held"))} s simulated after
-{fmt(summary.get("wall_s"))} s wall; bag <code>{esc(summary.get("bag", ""))}</code>.</p>
+{fmt(summary.get("wall_s"))} s wall{bag}.</p>
 <section id="legs"><h2>The legs</h2>
 <p>A leg passes when {esc(PASS_CRITERIA)}.</p>
 <table><thead><tr><th>leg</th><th>kind</th><th>task verdict</th><th>simulated [s]</th><th>wall [s]</th>
@@ -188,3 +193,35 @@ self-tested gains / under the self-tuner from <code>tune_in</code> s after the s
     path = out / "index.html"
     path.write_text(page)
     return path
+
+
+def report_mission(result: dict, config: dict, out: Path | None, text, label: str, plots: bool = True) -> tuple:
+    """A flown mission (:func:`seapup_runs.mission_flight.run_mission`'s or
+    :func:`seapup_bringup.mission_graph.fly_mission`'s result) shown: the leg table printed and, into ``out``
+    (None: nothing written), the plots, ``summary.json`` and ``index.html``; what did not go well said in a line
+    each. (the summary -- the result without its logs --, the exit code: 1 if a leg failed or the truth
+    contradicts its verdict)."""
+    legs = result["legs"]
+    leg_table(legs, text)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        if plots and legs:
+            result["plots"] = mission_plots(result, out)
+            print(f"{label}: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
+    if result.get("bag"):
+        print(f"{label}: bag {result['bag']}", file=text)
+    print(f"{label}: {result.get('held', 0.0):.0f} s simulated in {result.get('wall_s', math.nan):.1f} s wall", file=text)
+    summary = {k: v for k, v in result.items() if k != "logs"}
+    if out is not None:
+        (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+        print(f"{label}: see {index_page(summary, config, out)}", file=text)
+    failed = [leg["name"] for leg in legs if leg.get("status") not in ("succeeded", None)]
+    if failed:
+        print(f"{label}: legs that did not succeed: {', '.join(failed)}", file=text)
+    thrashed = [f"{leg['name']}: {leg['actuator_verdict']}" for leg in legs if leg.get("actuator_verdict")]
+    if thrashed:  # marked, not failed: the task was done, the thrusters paid for it
+        print(f"{label}: legs marked for their actuators: " + "; ".join(thrashed), file=text)
+    doubted = [f"{leg['name']}: {leg['truth_verdict']}" for leg in legs if leg.get("truth_verdict")]
+    if doubted:  # the task judged by its estimate; the truth says otherwise
+        print(f"{label}: legs whose verdict the truth contradicts: " + "; ".join(doubted), file=text)
+    return summary, 1 if failed or doubted else 0

@@ -3,7 +3,12 @@
 fly          a run specification (YAML or JSON, :class:`seapup_runs.spec.RunSpec`'s keys) flown in
              this process or, with ``--graph``, through the ROS graph in lockstep; the result printed
              as a summary, written with ``--json`` in the run-result shape (``docs/run-result.md``)
-             and plotted with ``--plots``. A new experiment is a new file, not a new verb.
+             and plotted with ``--plots``. A mission document (``graph`` and ``mission`` keys,
+             ``docs/missions.md``) is flown the same two ways, through the whole hierarchy
+             (:func:`seapup_runs.mission_flight.run_mission`; on the graph
+             :func:`seapup_bringup.mission_graph.fly_mission`): the leg table printed, and with ``--out``
+             the plots, ``summary.json`` and a page (on the graph also the bag). A new experiment is a
+             new file, not a new verb.
 controllers  the registered control laws (entry points ``seapup.velocity_controllers``) with their
              parameters and defaults.
 """
@@ -55,9 +60,12 @@ def _summary(result, text) -> None:
 def fly_parser() -> argparse.ArgumentParser:
     """The parser of ``./seapup fly`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup fly", description=__doc__.splitlines()[0])
-    parser.add_argument("spec", type=Path, help="a run specification (YAML or JSON; see docs/run-result.md)")
+    parser.add_argument("spec", type=Path, help="a run specification (YAML or JSON; see docs/run-result.md) or a "
+                                                "mission (graph and mission keys; docs/missions.md)")
     parser.add_argument("--graph", action="store_true", help="fly it through the ROS graph in lockstep")
-    parser.add_argument("--out", type=Path, help="the graph run's node logs and graph file (default: a temp dir)")
+    parser.add_argument("--out", type=Path, help="the graph run's node logs and graph file (default: a temp dir); "
+                                                 "a mission's plots, summary.json and page (and bag on the graph: "
+                                                 "default bags/fly_<UTC time>)")
     parser.add_argument("--plots", type=Path, help="write a figure of the run into this directory")
     add_json_argument(parser)
     return parser
@@ -75,6 +83,8 @@ def fly(argv: list[str]) -> int:
     parser = fly_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
+    if _is_mission(args.spec):
+        return _fly_mission(args, text)
     try:
         spec = _load_spec(args.spec)
         if args.graph:
@@ -92,6 +102,62 @@ def fly(argv: list[str]) -> int:
         print(f"wrote {plot_scenario(result, args.plots)}", file=text)
     emit_json(args, result.to_dict())
     return 0
+
+
+def _is_mission(path: Path) -> bool:
+    """Does ``path`` hold a mission document (a mapping with ``mission``) rather than a run spec? Read bounded;
+    a file that cannot be read is left to the run spec's reader to refuse with its reason."""
+    from seapup_common.input_files import InputFileError, load_yaml_file
+    try:
+        document = load_yaml_file(path, "spec")
+    except InputFileError:
+        return False
+    return isinstance(document, dict) and "mission" in document
+
+
+def _fly_mission(args, text) -> int:
+    """``./seapup fly MISSION [--graph] [--out DIR] [--json [F]]``: the mission in process or on the graph."""
+    import os
+    import time
+
+    from seapup_bringup.hierarchy_config import hierarchy_config
+    from seapup_bringup.mission_graph import fly_mission, mission_config
+    from seapup_bringup.mission_pages import report_mission
+    from seapup_bringup.output import stopped_by_signal
+    from seapup_common.ros.launch_graph import LaunchError
+    from seapup_runs.mission import MissionError, MissionSpec
+    from seapup_runs.mission_flight import MissionFlightError, run_mission
+    try:
+        config = mission_config(args.spec)
+    except (MissionError, LaunchError) as exc:
+        print(f"seapup: error: {exc}", file=sys.stderr)
+        return 1
+    config["source"] = str(args.spec)
+    name = args.spec.stem
+    out = args.out or args.plots
+    if args.graph and out is None:
+        out = Path(os.environ.get("SEAPUP_ROOT", ".")) / "bags" / time.strftime("fly_%Y%m%d_%H%M%S", time.gmtime())
+    wall = time.monotonic()
+    try:
+        if args.graph:
+            result = fly_mission(out, config, text)
+        else:
+            spec = MissionSpec.load({"graph": config["graph"], "mission": config["mission"]})
+            result = run_mission(spec, hierarchy_config(spec.graph), lambda leg, f: progress(f"{name}: {leg}", f))
+    except (MissionFlightError, RuntimeError, ValueError) as exc:
+        if stopped_by_signal(exc):
+            raise
+        where = f"; node logs in {out}" if args.graph else ""
+        print(f"seapup: error: mission {name} failed: {exc}{where}", file=sys.stderr)
+        return 1
+    result["wall_s"] = time.monotonic() - wall
+    stopped = result.pop("stopped", None)
+    result["interrupted"] = stopped is not None
+    summary, code = report_mission(result, config, out, text, f"seapup fly {name}")
+    emit_json(args, summary)
+    if stopped is not None:
+        raise stopped
+    return code
 
 
 def controllers_parser() -> argparse.ArgumentParser:

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections import deque
 from typing import Callable
 
@@ -470,14 +471,15 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
     for leg in plan:
         if progress is not None:
             progress(leg["name"], done / total)
+        wall = time.monotonic()
         numbers = _fly_leg(flight, leg, swap)
         done += leg.get("expected", 60.0)
         legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
-                     "hold_from": float(leg.get("hold_from", 0.0)), **numbers})
+                     "hold_from": float(leg.get("hold_from", 0.0)), "wall_s": time.monotonic() - wall, **numbers})
     if progress is not None:
         progress("mission", 1.0)
     logs = flight.finish()
-    return {"legs": mission_numbers(legs, logs, hierarchy.simulator["environment"]["seabed"], swap), "logs": logs,
+    return {"transport": "process", "legs": mission_numbers(legs, logs, hierarchy.simulator["environment"]["seabed"], swap), "logs": logs,
             "held": flight.t,
             "skipped_samples": flight.skipped}
 
