@@ -33,7 +33,7 @@ __all__ = ["campaign_command", "run_campaign", "campaign_rates"]
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="./seapup campaign", description=__doc__.split("\n\n")[0])
     p.add_argument("spec", type=Path, help="the campaign file (YAML; see docs/campaigns.md) or a shipped "
-                   "campaign's name (controller-robustness, adaptive-500)")
+                   "campaign's name (controller-robustness, adaptive-500, demo-mission-robustness)")
     p.add_argument("--scheduler", help="address of an existing Dask scheduler (default: a LocalCluster here)")
     p.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
                    help="seconds to keep trying to reach --scheduler (default 30)")
@@ -61,6 +61,7 @@ def campaign_command(argv: list[str]) -> int:
               file=sys.stderr)
         return 2
     try:
+        ship_missions()
         campaign = load_campaign(args.spec)
     except CampaignError as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
@@ -143,6 +144,41 @@ def _stop_workers_now(cluster) -> None:
                 os.kill(pid, signal.SIGKILL)
 
 
+def ship_missions() -> None:
+    """Let a campaign name the shipped mission (``base: {mission: demo}``: ``seapup_bringup/config/mission.yaml``)."""
+    from seapup_bringup.mission_graph import mission_path
+    from seapup_runs.campaign import SHIPPED_MISSIONS
+    SHIPPED_MISSIONS.setdefault("demo", mission_path())
+
+
+def attach_hierarchies(rows: list[dict]) -> None:
+    """Each mission row gets the hierarchy's nodes as data for its graph arguments (the launch document and the
+    nodes' parameter files, read here: a worker runs the pure core only); a graph argument the launch document
+    does not declare is refused (CampaignError, one line) before anything flies."""
+    import dataclasses
+
+    from seapup_bringup.hierarchy_config import HIERARCHY, hierarchy_config
+    from seapup_common.ros.launch_graph import LaunchError, find_graph, graph_arguments
+    from seapup_runs.campaign import CampaignError
+    declared = set(graph_arguments(find_graph(*HIERARCHY)))
+    made: dict = {}
+    for row in rows:
+        if row.get("kind") != "mission":
+            continue
+        graph = row["spec"]["graph"]
+        unknown = sorted(set(graph) - declared)
+        if unknown:
+            raise CampaignError(f"run {row['index']}: graph argument {unknown[0]!r} is not one of "
+                                f"{' '.join(HIERARCHY)}'s: {', '.join(sorted(declared))}")
+        key = json.dumps(graph, sort_keys=True, default=str)
+        if key not in made:
+            try:
+                made[key] = dataclasses.asdict(hierarchy_config(graph))
+            except LaunchError as exc:
+                raise CampaignError(f"run {row['index']}: {exc}") from None
+        row["hierarchy"] = made[key]
+
+
 def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int | None = None,
                  resume: bool = False, limit: int | None = None, text=None, connect_timeout: float = 30.0) -> dict:
     """Fly ``campaign`` into ``out`` (see the module docstring); the JSON summary."""
@@ -153,6 +189,7 @@ def run_campaign(campaign, out: Path, scheduler: str | None = None, workers: int
     text = text or sys.stderr
     start = time.perf_counter()
     rows = expand(campaign)[:limit]
+    attach_hierarchies(rows)
     groups = tasks(rows, campaign.runs_per_task)
     digest = f"{campaign.digest}-{len(rows)}"
     parts = out / "parts"
@@ -314,9 +351,10 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
                           "parameters": {k.removeprefix("param."): v for k, v in r.items() if k.startswith("param.")},
                           "log_lines": int(r.get("log_lines") or 0), "log": r.get("log") or ""})
     failed = [r for r in records if r["status"] != "ok"]
+    again = "--graph --out DIR" if rows and rows[0].get("kind") == "mission" else "--plots DIR"   # a mission: on the graph
     worst_rows = "".join(
         f"<tr><td class=num>{w['index']}</td><td class=num>{fmt(w[by])}</td><td>{esc(', '.join(f'{k}={v}' for k, v in w['parameters'].items()))}"
-        f"</td><td><code>./seapup fly {esc(os.path.relpath(w['spec'], out))} --plots DIR</code></td>"
+        f"</td><td><code>./seapup fly {esc(os.path.relpath(w['spec'], out))} {again}</code></td>"
         f"<td>{w['log_lines']}{'<br><small>' + '<br>'.join(map(esc, w['log'].splitlines()[:5])) + '</small>' if w['log'] else ''}"
         "</td></tr>" for w in worst)
     failed_rows = "".join(f"<tr><td class=num>{r['index']}</td><td>{esc(r['error'])}</td></tr>" for r in failed[:50])

@@ -25,6 +25,16 @@ the sampling rate (ch. 5, 7) -- and answers with one run each. A campaign answer
 or, for the randomised self-tuner runs of :mod:`seapup_runs.randomised`, ``randomised: {count: 500, first: 0}``
 in place of ``base``/``grid``/``random``/``seeds``.
 
+A campaign over whole missions (:mod:`seapup_runs.mission`: the supervisory hierarchy flown leg by leg, in
+process by :func:`seapup_runs.mission_flight.run_mission`) has ``base: {mission: FILE}`` (a mission file,
+relative to the campaign's; ``demo``: the shipped one) or ``base: {mission: {graph: ..., mission: [...]}}``;
+its dotted paths go into the mission document, a leg by its index (``mission.6.foul.efficiency``,
+``graph.sensors``), and a replicate's seed is ``graph.seed``. Each run's metrics are its legs' numbers
+(``legs.<leg name>.<number>``) and the mission's counts (``legs_failed``, ``legs_marked``, ``legs_doubted``).
+A mission run needs the hierarchy's nodes as data (``row["hierarchy"]``, a
+:class:`~seapup_runs.mission_flight.HierarchyConfig` as a mapping), which the bringup attaches from the launch
+document before the rows are shipped.
+
 :func:`load_campaign` checks a file (read bounded and strict: at most 1 MiB, no duplicated key; unknown keys,
 distributions, the number of runs -- :func:`run_count`, at most :data:`MAX_CAMPAIGN_RUNS`, computed from the file's
 counts before anything is expanded -- and every run spec it expands into, before any run is flown); :func:`expand` lists the runs (the same file, the same runs, in the same order); :func:`fly_rows`
@@ -56,6 +66,7 @@ from seapup_common.values import finite_real
 from seapup_runs.spec import RunSpec, RunSpecError, number_hint
 
 __all__ = ["CampaignError", "Campaign", "shipped", "load_campaign", "campaign_from_dict", "expand", "tasks", "fly_rows",
+           "is_mission", "mission_metrics", "SHIPPED_MISSIONS",
            "flatten", "DISTRIBUTIONS", "MAX_CAMPAIGN_RUNS", "run_count", "max_campaign_runs"]
 
 #: The most runs a campaign may expand into (grid product x random count x seeds, before ``--limit``).
@@ -151,7 +162,11 @@ def campaign_from_dict(data, where: str = "campaign") -> Campaign:
         raise CampaignError(f"{where}: the campaign has no runs")
     for row in rows:
         try:
-            _check(RunSpec.from_dict(row["spec"]))
+            if row.get("kind") == "mission":
+                from seapup_runs.mission import MissionSpec
+                MissionSpec.load(row["spec"])
+            else:
+                _check(RunSpec.from_dict(row["spec"]))
         except (RunSpecError, KeyError, TypeError, ValueError) as exc:
             reason = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
             raise CampaignError(f"{where}: run {row['index']} ({_label(row['parameters'])}): {reason}") from None
@@ -270,10 +285,43 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+def is_mission(campaign: Campaign) -> bool:
+    """Does the campaign fly missions (``base: {mission: ...}``) rather than run specs?"""
+    base = campaign.source.get("base")
+    return isinstance(base, dict) and "mission" in base
+
+
+#: Shipped missions a campaign may name (``base: {mission: demo}``): name -> file, filled by the bringup (the
+#: shipped mission lives in its share directory).
+SHIPPED_MISSIONS: dict[str, Path] = {}
+
+
+def _mission_document(base: dict, where: str) -> dict:
+    """The base mission's document, checked (:class:`~seapup_runs.mission.MissionSpec`)."""
+    from seapup_runs.mission import MissionError, MissionSpec, load_mission
+    if set(base) != {"mission"}:
+        raise CampaignError(f"{where}: base.mission is a mission file or mapping, and alone")
+    mission = base["mission"]
+    try:
+        if isinstance(mission, dict):
+            return MissionSpec.load(mission).to_dict()
+        if isinstance(mission, str) and mission:
+            shipped_path = SHIPPED_MISSIONS.get(mission)
+            folder = Path(where).parent if Path(where).suffix else Path(".")
+            path = shipped_path if shipped_path is not None and not (folder / mission).exists() else folder / mission
+            return load_mission(path).to_dict()
+    except MissionError as exc:
+        raise CampaignError(f"{where}: base.mission: {exc}") from None
+    raise CampaignError(f"{where}: base.mission is a mission file (or a shipped name: "
+                        f"{', '.join(sorted(SHIPPED_MISSIONS)) or 'none'}) or a mapping, got {_short(mission)}")
+
+
 def _base_spec(base, where: str) -> dict:
     from seapup_runs.scenarios import scenario_spec
+    if isinstance(base, dict) and "mission" in base:
+        return _mission_document(base, where)
     if not isinstance(base, dict) or len(set(base) & {"scenario", "spec"}) != 1:
-        raise CampaignError(f"{where}: base is {{scenario: NAME, ...}} or {{spec: {{...}}}}")
+        raise CampaignError(f"{where}: base is {{scenario: NAME, ...}}, {{spec: {{...}}}} or {{mission: ...}}")
     if "spec" in base:
         if set(base) != {"spec"} or not isinstance(base["spec"], dict):
             raise CampaignError(f"{where}: base.spec is a run spec mapping (as ./seapup fly reads) and alone")
@@ -306,6 +354,9 @@ def _base_spec(base, where: str) -> dict:
 def _get(spec: dict, path: str):
     node = spec
     for key in path.split("."):
+        if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+            node = node[int(key)]
+            continue
         if not isinstance(node, dict):
             return None
         node = node.get(key)
@@ -320,9 +371,14 @@ def _set(spec: dict, path: str, value, where: str) -> None:
     if not all(keys):
         raise CampaignError(f"{where}: {path}: an empty key in the dotted path")
     for key in keys[:-1]:
+        if isinstance(node, list):   # a mission's legs, by index
+            if not key.isdigit() or int(key) >= len(node):
+                raise CampaignError(f"{where}: {path}: {key} is not an index of a list of {len(node)}")
+            node = node[int(key)]
+            continue
         if not isinstance(node, dict):
             raise CampaignError(f"{where}: {path}: {key} is inside a value that is not a mapping in the run spec")
-        if not isinstance(node.get(key), dict):
+        if not isinstance(node.get(key), (dict, list)):
             if key in node and node[key] is not None:
                 raise CampaignError(f"{where}: {path}: {key} is not a mapping in the run spec")
             node[key] = {}
@@ -411,6 +467,7 @@ def expand(campaign: Campaign) -> list[dict]:
     run_count(campaign)   # the counts checked and the total capped before anything is built
     grid, count, draws, seeds = _layout(data, where)
     base = _base_spec(data["base"], where)
+    mission = is_mission(campaign)
     base.pop("physics_step", None)   # derived from the control period, which a campaign may vary
     if isinstance(seeds, int):
         # the replicates' seeds: from the campaign's name, so two campaigns do not share their noise
@@ -425,13 +482,18 @@ def expand(campaign: Campaign) -> list[dict]:
             for seed in seed_list:
                 parameters = {**dict(zip(grid, point)), **drawn, "seed": seed}
                 spec = copy.deepcopy(base)
+                if mission:
+                    spec["graph"]["seed"] = seed
+                    parameters.pop("seed")
+                    parameters["graph.seed"] = seed
                 # a new law starts from its own defaults: the base's parameters belong to the base's law
                 for path, value in sorted(parameters.items(), key=lambda item: not item[0].endswith(".type")):
                     if path.endswith(".type") and isinstance(_get(spec, path[:-5]), dict) \
                             and _get(spec, path) != value:
                         _get(spec, path[:-5])["parameters"] = {}
                     _set(spec, path, value, where)
-                rows.append({"index": len(rows), "parameters": parameters, "spec": spec})
+                rows.append({"index": len(rows), "parameters": parameters, "spec": spec,
+                             **({"kind": "mission"} if mission else {})})
     return rows
 
 
@@ -542,16 +604,57 @@ def _fly_batched(rows: list[dict]) -> dict[int, dict]:
     return out
 
 
+def mission_metrics(result: dict) -> dict:
+    """A flown mission's numbers for its campaign row: each leg's scalars (``legs.<name>.<key>``) and the counts
+    of legs that failed, were marked for their actuators, or whose verdict the truth contradicts."""
+    legs = result["legs"]
+    out = {"legs_failed": sum(leg.get("status") != "succeeded" for leg in legs),
+           "legs_marked": sum(bool(leg.get("actuator_verdict")) for leg in legs),
+           "legs_doubted": sum(bool(leg.get("truth_verdict")) for leg in legs),
+           "held_s": float(result["held"])}
+    for leg in legs:
+        out.update({f"legs.{leg['name']}.{k}": v for k, v in flatten({
+            k: v for k, v in leg.items() if k not in ("name", "kind", "goal", "message", "target", "wall_s",
+                                                       "controller_file", "rejection")}).items()})
+    return out
+
+
+def _fly_mission_row(row: dict) -> dict:
+    """One mission of a campaign, flown in this process (:func:`seapup_runs.mission_flight.run_mission`)."""
+    from seapup_runs.mission import MissionSpec
+    from seapup_runs.mission_flight import HierarchyConfig, run_mission
+    wall, cpu = time.perf_counter(), time.process_time()
+    record = _record(row)
+    with run_log() as lines:
+        try:
+            if not isinstance(row.get("hierarchy"), dict):
+                raise CampaignError("a mission run needs the hierarchy's nodes (row['hierarchy']): the campaign "
+                                    "command attaches them")
+            spec = MissionSpec.load(row["spec"])
+            record["name"] = f"mission-{row['index']}"
+            result = run_mission(spec, HierarchyConfig(**row["hierarchy"]))
+            record.update({f"metric.{key}": v for key, v in mission_metrics(result).items()})
+        except Exception as exc:   # a mission that fails is a result of the campaign, with its reason
+            _failed(record, exc)
+    record["log_lines"], record["log"] = len(lines), "\n".join(lines[:LOG_LINES_KEPT])
+    record["wall_s"], record["cpu_s"] = time.perf_counter() - wall, time.process_time() - cpu
+    return record
+
+
 def fly_rows(rows: list[dict]) -> list[dict]:
     """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs of one
     MFOL law on one sample grid fly together as a batch (:func:`seapup_runs.batch_runner.fly_batch`, the same
     results to rounding), the others one by one."""
     from seapup_runs.runner import run
-    batched = _fly_batched(rows)
+    plain = [k for k, row in enumerate(rows) if row.get("kind") != "mission"]   # run specs: maybe batched
+    batched = {plain[i]: record for i, record in _fly_batched([rows[k] for k in plain]).items()}
     out = []
     for k, row in enumerate(rows):
         if k in batched:
             out.append(batched[k])
+            continue
+        if row.get("kind") == "mission":
+            out.append(_fly_mission_row(row))
             continue
         wall, cpu = time.perf_counter(), time.process_time()
         record = _record(row)

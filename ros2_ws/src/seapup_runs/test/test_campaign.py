@@ -269,3 +269,47 @@ def test_a_campaign_file_is_read_bounded_and_strictly(tmp_path):
             path.write_text("# nothing but a comment\n")
         with pytest.raises(cp.CampaignError, match=why):
             cp.load_campaign(path)
+
+
+MISSION = {"graph": {"seed": 0, "start_depth": 40.0},
+           "mission": [{"name": "tune", "kind": "self_test", "configure": ["mfol_fixed"], "activate": "mfol_fixed"},
+                       {"name": "hold", "kind": "hover", "goal": {"duration": 5.0}},
+                       {"name": "foul", "kind": "fouling", "body_velocity": [0.1, 0.0, 0.0], "fouled_seconds": 4.0,
+                        "foul": {"after": 1.0, "efficiency": [1.0, 1.0, 1.0, 1.0]},
+                        "switch": {"activate": ["gmv"]}, "adaptive_seconds": 4.0}]}
+
+
+@pytest.mark.unit
+def test_a_mission_campaign_expands_into_mission_documents_a_leg_by_its_index():
+    doc = {"name": "missions", "base": {"mission": MISSION}, "seeds": [7, 8],
+           "grid": {"mission.2.foul.efficiency": [[0.5, 1.0, 1.0, 1.0]], "graph.sensors": ["ideal", "baseline"]}}
+    campaign = cp.campaign_from_dict(doc)
+    rows = cp.expand(campaign)
+    assert cp.is_mission(campaign) and len(rows) == 4 and all(r["kind"] == "mission" for r in rows)
+    assert [(r["spec"]["graph"]["sensors"], r["spec"]["graph"]["seed"]) for r in rows] == [
+        ("ideal", 7), ("ideal", 8), ("baseline", 7), ("baseline", 8)]
+    assert all(r["spec"]["mission"][2]["foul"]["efficiency"] == [0.5, 1.0, 1.0, 1.0] for r in rows)
+    assert MISSION["mission"][2]["foul"]["efficiency"] == [1.0, 1.0, 1.0, 1.0]   # the base is not changed
+    assert rows[0]["parameters"] == {"mission.2.foul.efficiency": [0.5, 1.0, 1.0, 1.0], "graph.sensors": "ideal",
+                                     "graph.seed": 7}
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("grid, message", [
+    ({"mission.9.foul.efficiency": [[0.5, 1, 1, 1]]}, "9 is not an index of a list of 3"),
+    ({"mission.2.foul.efficiency": [[2.0, 1, 1, 1]]}, "run 0 (mission.2.foul.efficiency=[2.0, 1, 1, 1], "
+                                                      "graph.seed=1): mission leg 3 ('foul', fouling) foul "
+                                                      "efficiency must be four values in [0, 1]"),
+    ({"mission.1.goal.duration": ["5"]}, "goal duration must be a number, got '5'"),
+])
+def test_a_mission_campaign_refuses_a_path_or_a_value_its_missions_cannot_take(grid, message):
+    import re
+    with pytest.raises(cp.CampaignError, match=re.escape(message)):
+        cp.campaign_from_dict({"name": "m", "base": {"mission": MISSION}, "grid": grid, "seeds": [1]})
+
+
+@pytest.mark.unit
+def test_a_mission_row_without_its_hierarchy_is_a_failed_row_with_the_reason():
+    rows = cp.expand(cp.campaign_from_dict({"name": "m", "base": {"mission": MISSION}, "seeds": [1]}))
+    record, = cp.fly_rows(rows)
+    assert record["status"] == "error" and "needs the hierarchy's nodes" in record["error"]
