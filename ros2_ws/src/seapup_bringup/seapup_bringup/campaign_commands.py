@@ -427,3 +427,30 @@ def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) ->
     out["batch_samples_per_s"] = samples / (time.perf_counter() - wall)
     out["batch_samples_per_cpu_s"] = samples / (time.process_time() - cpu)
     return out
+
+
+def mission_campaign_rate(missions: int = 8, workers: int = 2) -> dict:
+    """The benchmark of a campaign over missions (``./seapup bench``): the first ``missions`` of the shipped
+    demo-mission-robustness campaign (the demo's whole mission, a fouled thruster and a current drawn) on a
+    LocalCluster of ``workers`` processes, a mission per task; each worker first flies one short mission untimed
+    (imports, compiled kernels). Missions per minute, CPU beside wall."""
+    from seapup_runs.campaign import expand, fly_rows, load_campaign
+    ship_missions()
+    rows = expand(load_campaign("demo-mission-robustness"))[:missions]
+    attach_hierarchies(rows)
+    client, cluster = _client(None, workers)
+    try:
+        client.run(lambda: fly_rows(rows[:1]) and None)
+        t0 = time.perf_counter()
+        flown = [r for task in client.gather([client.submit(fly_rows, [row], pure=False) for row in rows])
+                 for r in task]
+        wall = time.perf_counter() - t0
+    finally:
+        client.close()
+        cluster.close()
+    failed = [r for r in flown if r["status"] != "ok"]
+    if failed:
+        raise RuntimeError(f"mission campaign benchmark: {len(failed)} missions failed, first: {failed[0]['error']}")
+    return {"missions": len(flown), "workers": workers, "wall_s": wall, "missions_per_min": 60.0 * len(flown) / wall,
+            "mission_cpu_s": float(sum(r["cpu_s"] for r in flown)),
+            "simulated_s": float(sum(r["metric.held_s"] for r in flown))}

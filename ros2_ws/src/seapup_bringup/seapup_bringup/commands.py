@@ -196,6 +196,13 @@ def bench(argv: list[str]) -> int:
         print("campaign: 128 fixed-gain runs in tasks of 32 on a LocalCluster of 1, then 2 worker processes...", file=out_text,
               flush=True)
         out["campaign"] = campaign_rates()
+        from seapup_bringup.campaign_commands import mission_campaign_rate
+        print("campaign: 8 missions of demo-mission-robustness on a LocalCluster of 2 worker processes...",
+              file=out_text, flush=True)
+        mc = out["mission_campaign"] = mission_campaign_rate()
+        print(f"mission_campaign: {mc['missions_per_min']:.1f} missions per minute on {mc['workers']} workers "
+              f"({mc['wall_s']:.1f} s wall, {mc['mission_cpu_s']:.1f} s CPU in the missions; target >= 50)",
+              file=out_text)
     t0 = time.perf_counter()
     run_verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
