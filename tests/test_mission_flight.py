@@ -165,3 +165,8 @@ def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("seapup: error: ") and reason in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_mission_longer_than_its_bound_stops_with_the_reason_before_its_logs_grow(spec, hierarchy):
+    with pytest.raises(MissionFlightError, match=r"flown 60 s simulated, the most one may \(60 s\): stopped"):
+        run_mission(spec, hierarchy, max_seconds=60.0)   # the self-test alone takes longer

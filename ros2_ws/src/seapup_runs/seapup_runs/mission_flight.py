@@ -54,11 +54,15 @@ from seapup_common import frames
 from seapup_common.contract import Command, ContractError, Measurement, NavigationEstimate, StampedReferences
 from seapup_common.controllers import ControllerSpec, controller_type, create_controller
 
-__all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig"]
+__all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig",
+           "MAX_MISSION_SECONDS"]
 
 #: [s simulated] the SIL harness runs a lockstep graph between holds in chunks of this much, and holds it
 #: after a goal's end at the first chunk boundary at least a chunk later (seapup_bringup.sil's ``chunk``).
 HOLD_CHUNK = 1.0
+#: [s simulated] the longest mission flown in process: a day, 432 000 samples at 5 Hz (about 100 MB of logs);
+#: a mission that would run longer (a goal that never ends) stops with the reason.
+MAX_MISSION_SECONDS = 86_400.0
 #: [s] how long a reading stays in use when its successors drop out (the nodes' MeasurementCollector).
 MAX_AGE = {"velocity": 1.0, "rates": 1.0, "attitude": 1.0, "depth": 1.0, "altitude": 1.0, "position": 5.0}
 
@@ -163,7 +167,7 @@ class MissionFlight:
     Use :func:`run_mission`; this class is its state: the plant, the cores, the active law, the logs.
     """
 
-    def __init__(self, hierarchy: HierarchyConfig):
+    def __init__(self, hierarchy: HierarchyConfig, max_seconds: float = MAX_MISSION_SECONDS):
         from seapup_control.navigation import SHELL_PARAMETERS, Navigator, NavigatorParams
         from seapup_control.position_control import PositionController, PositionControllerParams
         from seapup_control.tasks import TaskLimits
@@ -184,6 +188,7 @@ class MissionFlight:
         self.period = config.control_period
         self.period_ns = int(round(self.period * 1e9))
         self.k = 0
+        self.max_samples = int(max_seconds / self.period)
         navigator = hierarchy.navigator
         self.navigator = Navigator(NavigatorParams.from_mapping({k: v for k, v in navigator.items()
                                                                  if k not in SHELL_PARAMETERS}))
@@ -341,6 +346,9 @@ class MissionFlight:
         if not self.answer():
             self.core.lockstep_timeout()
             self.skipped += 1
+        if self.k >= self.max_samples:
+            raise MissionFlightError(f"the mission has flown {self.t:g} s simulated, the most one may "
+                                     f"({self.max_samples * self.period:g} s): stopped")
         self.core.step()
         self.k += 1
         self._publish()
@@ -445,7 +453,8 @@ class MissionFlight:
         return {name: np.asarray(values, float) for name, values in self.logs.items()}
 
 
-def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float], None] | None = None) -> dict:
+def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float], None] | None = None,
+                max_seconds: float = MAX_MISSION_SECONDS) -> dict:
     """Fly a mission in one process: ``{"legs": [...], "logs": {...}, "held": t}`` as ``./seapup demo`` gets
     them from the graph (its legs' numbers by :func:`seapup_runs.mission_metrics.mission_numbers`).
 
@@ -457,6 +466,8 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
         The nodes' parameters (``seapup_bringup.hierarchy_config.hierarchy_config(spec.graph)``).
     progress : callable, optional
         ``progress(leg name, fraction of the mission's expected time)``.
+    max_seconds : float
+        [s simulated] the most the mission may fly (:data:`MAX_MISSION_SECONDS`): bounds its logs.
 
     Raises
     ------
@@ -464,7 +475,7 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
         A leg that cannot be flown (its goal refused, the self-test failed): which and why.
     """
     from seapup_runs.mission_metrics import mission_numbers
-    flight = MissionFlight(hierarchy)
+    flight = MissionFlight(hierarchy, max_seconds)
     plan = [dict(leg, index=i) for i, leg in enumerate(spec.to_dict()["mission"])]
     total, done = sum(leg.get("expected", 60.0) for leg in plan), 0.0
     legs, swap = [], {}
