@@ -4,14 +4,16 @@ The same pure cores the nodes wrap -- :class:`~seapup_control.navigation.Navigat
 a task of :mod:`seapup_control.tasks`, the
 :class:`~seapup_control.position_control.PositionController` and a velocity
 controller made by name (:func:`seapup_common.controllers.create_controller`)
--- with the same parameters (the nodes' YAML files) and the same timing as
-the lockstep graph of ``seapup_bringup/launch/hierarchy.launch.yaml``: the task's
-setpoint from the estimate at t_k is used by the position controller from
+-- with the same parameters (the nodes' YAML files) and the graph's delays: the
+task's setpoint from the estimate at t_k is used by the position controller from
 t_{k+1} on (stamped t_k + T), and the velocity reference it makes at t_k is
 stamped t_k + reference_delay x T into the velocity controller's
 :class:`~seapup_common.contract.StampedReferences`, the queue the
-``velocity_controller`` node keeps. So a task can be studied (and unit
-tested) in seconds, and the ROS graph checked against it.
+``velocity_controller`` node keeps. So a task can be studied (and unit tested)
+in seconds from any state. It is not the graph sample for sample (the task steps
+at the estimate it is built from, after a warm-up hover); a whole mission flown
+as the graph flies it, command for command, is
+:func:`seapup_runs.mission_flight.run_mission`.
 """
 from __future__ import annotations
 
