@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from seapup_common.launch_format import flat_parameters
 from seapup_runs.mission_flight import HierarchyConfig
 
 __all__ = ["hierarchy_config", "HIERARCHY"]
@@ -25,27 +26,8 @@ def _defaults(package: str, file: str, section: str) -> dict:
     return load_node_parameters(Path(get_package_share_directory(package)) / "config" / file, section)
 
 
-def _given(node) -> dict:
-    """A launch node's parameters (dotted names), the mappings merged in order."""
-    out: dict = {}
-    for item in node.parameters:
-        if isinstance(item, dict):
-            out.update(item)
-    return out
-
-
 def _bool(value) -> bool:
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "1", "yes")
-
-
-def _flatten(mapping: dict, prefix: str = "") -> dict:
-    out = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            out.update(_flatten(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
 
 
 def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> HierarchyConfig:
@@ -62,7 +44,8 @@ def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> Hierar
     by_exec: dict = {}
     for node in nodes:
         by_exec.setdefault(node.executable, []).append(node)
-    sim = {**_flatten(_defaults("seapup_sim", "simulator.yaml", "simulator")), **_given(by_exec["simulator"][0])}
+    sim = {**flat_parameters(_defaults("seapup_sim", "simulator.yaml", "simulator")),
+           **by_exec["simulator"][0].given_parameters()}
     environment = {"sensors": str(sim["environment.sensors"]),
                    "current": {"enabled": _bool(sim["environment.current.enabled"])},
                    "seabed": {"kind": str(sim["environment.seabed.kind"]),
@@ -75,9 +58,9 @@ def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> Hierar
                  "watchdog_timeout": float(sim["watchdog_timeout"]), "watchdog_action": str(sim["watchdog_action"])}
 
     def node(executable: str, file: str) -> dict:
-        return {**_defaults("seapup_control", file, executable), **_given(by_exec[executable][0])}
+        return {**_defaults("seapup_control", file, executable), **by_exec[executable][0].given_parameters()}
     velocity_defaults = _defaults("seapup_control", "velocity_controller.yaml", "velocity_controller")
-    controllers = {n.name: HierarchyConfig.controller({**velocity_defaults, **_given(n)})
+    controllers = {n.name: HierarchyConfig.controller({**velocity_defaults, **n.given_parameters()})
                    for n in by_exec.get("velocity_controller", [])}
     return HierarchyConfig(simulator, node("navigator", "navigator.yaml"),
                            node("task_controller", "task_controller.yaml"),

@@ -10,14 +10,12 @@ simulator's services -- each made while the graph is held at one sample. The res
 """
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
-import numpy as np
-
 from seapup_bringup.output import progress, stopped_by_signal
 from seapup_common import topics
+from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
 from seapup_runs.mission_metrics import mission_numbers
 
 __all__ = ["MISSION", "GRAPH", "RECORDED", "mission_path", "mission_config", "fly_mission"]
@@ -158,18 +156,13 @@ def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
         if not reply.success:
             raise RuntimeError(f"set_thruster_efficiency: {reply.message}")
         return reply
-    creep = {"kind": "inspection", "name": leg["name"], "body_velocity": leg["body_velocity"],
-             "index": leg["index"]}
-    fixed = _fly_leg(sil, {**creep, "seconds": leg["fouled_seconds"]}, swap, during=(leg["foul"]["after"], foul))
+    fixed = _fly_leg(sil, fouling_creep(leg, leg["fouled_seconds"]), swap, during=(leg["foul"]["after"], foul))
     marks["switch_t"] = sil.t
     reply = sil.switch(**leg["switch"])
     if not reply.ok:
         raise RuntimeError(f"{leg['name']}: switch refused: {reply.message}")
-    adaptive = _fly_leg(sil, {**creep, "seconds": leg["adaptive_seconds"]}, swap)
-    status = "succeeded" if fixed.get("status") == adaptive.get("status") == "succeeded" else \
-        adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
-    return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
-            "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}
+    adaptive = _fly_leg(sil, fouling_creep(leg, leg["adaptive_seconds"]), swap)
+    return fouling_result(leg, fixed, adaptive, marks)
 
 
 def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
@@ -192,38 +185,17 @@ def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
                 "self_test_duration": result.duration}
     if kind == "current":
         _set_current(sil, leg["current"])
-        kind = "hover"
     _, here, attitude = sil.estimate()
-    yaw = float(attitude[2])
-    goal = dict(leg.get("goal", {}))
-    target = None
-    if kind == "inspection":
-        body = np.asarray(leg["body_velocity"], dtype=float)
-        c, s = math.cos(yaw), math.sin(yaw)
-        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
-        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
-                "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
-        kind = "goto"
-    elif "face" in leg:  # hold where it is, turned to this heading (e.g. into the current)
-        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
-    elif "offset" in leg:
-        target = here + np.asarray(leg["offset"], dtype=float)
-        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    kind, goal, target = leg_goal(leg, here, float(attitude[2]))
     if "switch" in leg:
         def do_switch():
             swap["t"] = sil.t
             return sil.switch(**leg["switch"]["request"])
         during = (leg["switch"]["after"], do_switch)
-    result = sil.goal(kind, timeout=600.0, during=during, **{k: float(v) if not isinstance(v, bool) else v
-                                                             for k, v in goal.items()})
+    result = sil.goal(kind, timeout=600.0, during=during, **goal)
     if not result["accepted"]:
         raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
     if "switch" in leg:
         swap["leg"] = leg["index"]
         result["switch_ok"] = bool(result["during"].ok)
-    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
-    out.update(t0=result["accepted_t"], t1=result["end_t"])
-    if target is not None:
-        out["target"] = [float(v) for v in target]
-        out["tolerance"] = float(goal.get("tolerance", 0.5))  # the task controller's default arrival radius
-    return out
+    return leg_numbers_of(result, target, goal)

@@ -77,6 +77,15 @@ class NodeSpec:
     def label(self) -> str:
         return self.name or self.executable
 
+    def given_parameters(self) -> dict:
+        """The parameters the document gives the node: its mappings, nested ones flattened to dotted names,
+        later ones winning (parameter files are the node's business)."""
+        given: dict = {}
+        for item in self.parameters if isinstance(self.parameters, list) else [self.parameters]:
+            if isinstance(item, dict):
+                given.update(flat_parameters(item))
+        return given
+
 
 def argument_value(text: str):
     """An argument's string as the value it stands for (YAML: ``[a, b]`` a list, ``2.0`` a float)."""
@@ -127,3 +136,14 @@ def launch_document(nodes, arguments: dict | None = None) -> dict:
                 body["respawn_max_retries"] = int(spec.respawn_limit)
         document.append({"node": body})
     return {"launch": document}
+
+
+def flat_parameters(mapping: dict, prefix: str = "") -> dict:
+    """Nested parameter mappings as dotted names: ``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out = {}
+    for key, value in mapping.items():
+        if isinstance(value, dict):
+            out.update(flat_parameters(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out

@@ -363,28 +363,30 @@ def _get(spec: dict, path: str):
     return node
 
 
-def _set(spec: dict, path: str, value, where: str) -> None:
-    """Set a dotted ``path`` of the run spec dict (``events+``-style paths append)."""
+def _set(spec: dict, path: str, value, where: str, lists: bool = False) -> None:
+    """Set a dotted ``path`` of the run spec dict (``events+``-style paths append); with ``lists`` (a mission
+    document) a key may be a list's index (``mission.6.foul``)."""
     append = path.endswith("+")
     keys = path.rstrip("+").split(".")
     node = spec
     if not all(keys):
         raise CampaignError(f"{where}: {path}: an empty key in the dotted path")
     for key in keys[:-1]:
-        if isinstance(node, list):   # a mission's legs, by index
-            if not key.isdigit() or int(key) >= len(node):
-                raise CampaignError(f"{where}: {path}: {key} is not an index of a list of {len(node)}")
-            node = node[int(key)]
+        if lists and isinstance(node, list):   # a mission's legs, by index
+            node = node[_index(node, key, path, where)]
             continue
         if not isinstance(node, dict):
             raise CampaignError(f"{where}: {path}: {key} is inside a value that is not a mapping in the run spec")
-        if not isinstance(node.get(key), (dict, list)):
+        if not isinstance(node.get(key), (dict, list) if lists else dict):
             if key in node and node[key] is not None:
                 raise CampaignError(f"{where}: {path}: {key} is not a mapping in the run spec")
             node[key] = {}
         node = node[key]
     last = keys[-1]
     value = copy.deepcopy(value)
+    if lists and isinstance(node, list):
+        node[_index(node, last, path, where)] = value
+        return
     if append:
         items = value if isinstance(value, list) else [value]
         existing = node.get(last) or []
@@ -397,6 +399,12 @@ def _set(spec: dict, path: str, value, where: str) -> None:
         node[last] = {**node[last], **value}      # a mapping merges into the spec's (environment.current ...)
     else:
         node[last] = value
+
+
+def _index(items: list, key: str, path: str, where: str) -> int:
+    if not key.isdigit() or int(key) >= len(items):
+        raise CampaignError(f"{where}: {path}: {key} is not an index of a list of {len(items)}")
+    return int(key)
 
 
 def _event_time(event) -> float:
@@ -491,7 +499,7 @@ def expand(campaign: Campaign) -> list[dict]:
                     if path.endswith(".type") and isinstance(_get(spec, path[:-5]), dict) \
                             and _get(spec, path) != value:
                         _get(spec, path[:-5])["parameters"] = {}
-                    _set(spec, path, value, where)
+                    _set(spec, path, value, where, lists=mission)
                 rows.append({"index": len(rows), "parameters": parameters, "spec": spec,
                              **({"kind": "mission"} if mission else {})})
     return rows

@@ -43,7 +43,8 @@ from pathlib import Path
 from seapup_runs.spec import (CURRENT_FIELDS, RunSpecError, _finite, _name, _numbers,
                               _refuse_unknown, _short)
 
-__all__ = ["MissionSpec", "MissionError", "LEG_KINDS", "MAX_LEGS", "MAX_SECONDS", "load_mission"]
+__all__ = ["MissionSpec", "MissionError", "LEG_KINDS", "MAX_LEGS", "MAX_SECONDS", "load_mission", "leg_goal",
+           "fouling_creep", "fouling_result", "leg_numbers_of"]
 
 #: At most this many legs in a mission (the demo has 7).
 MAX_LEGS = 1000
@@ -297,3 +298,70 @@ def load_mission(path: str | Path) -> MissionSpec:
         return MissionSpec.load(document)
     except MissionError as exc:
         raise MissionError(f"{path}: {exc}") from None
+
+
+# -- how a leg is flown: what the graph and the in-process runner share ------------------------------------------
+#: [m] an inspection creep's arrival radius (the task controller's default)
+CREEP_TOLERANCE = 0.5
+
+
+def leg_goal(leg: dict, position, yaw: float) -> tuple[str, dict, list | None]:
+    """The task goal a leg flies, from where the vehicle is when it is accepted (the navigation estimate's
+    ``position`` [m, odom_ned] and ``yaw`` [rad]): (the task controller's action -- ``hover``, ``goto`` or
+    ``follow_seabed`` --, the goal's fields, the target [m] of a leg that has one or None).
+
+    An inspection (sec. 5.4.2) is a creeping goto along its body velocity, turned into odom_ned by the yaw, for
+    its ``seconds``; a current leg holds where it is, facing ``face`` when given; a goto's target is ``offset``
+    from here and its yaw ``turn`` from the present one.
+
+    Examples
+    --------
+    >>> leg_goal({"kind": "goto", "offset": [3.0, 4.0, 0.0], "turn": 0.5}, [1.0, 1.0, 30.0], 0.25)
+    ('goto', {'x': 4.0, 'y': 5.0, 'z': 30.0, 'yaw': 0.75}, [4.0, 5.0, 30.0])
+    """
+    import numpy as np
+    kind = "hover" if leg["kind"] == "current" else leg["kind"]
+    here = np.asarray(position, dtype=float)
+    goal = dict(leg.get("goal", {}))
+    target = None
+    if kind == "inspection":
+        body = np.asarray(leg["body_velocity"], dtype=float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
+        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
+                "speed": float(np.linalg.norm(body)), "tolerance": CREEP_TOLERANCE}
+        kind = "goto"
+    elif "face" in leg:  # hold where it is, turned to this heading (e.g. into the current)
+        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
+    elif "offset" in leg:
+        target = here + np.asarray(leg["offset"], dtype=float)
+        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    fields = {k: v if isinstance(v, bool) else float(v) for k, v in goal.items()}
+    return kind, fields, None if target is None else [float(v) for v in target]
+
+
+def leg_numbers_of(result: dict, target: list | None, goal: dict) -> dict:
+    """A goal leg's entry from its goal's result (status, the task's numbers, ``accepted_t``, ``end_t``): the
+    numbers with ``t0``/``t1`` (accepted, held after), and a leg's target and its tolerance."""
+    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
+    out.update(t0=result["accepted_t"], t1=result["end_t"])
+    if target is not None:
+        out["target"] = target
+        out["tolerance"] = float(goal.get("tolerance", CREEP_TOLERANCE))  # the task controller's default radius
+    return out
+
+
+def fouling_creep(leg: dict, seconds: float) -> dict:
+    """One of a fouling leg's two creeps (sec. 7.4.4): an inspection along its body velocity for ``seconds``."""
+    return {"kind": "inspection", "name": leg["name"], "body_velocity": leg["body_velocity"], "index": leg["index"],
+            "seconds": seconds}
+
+
+def fouling_result(leg: dict, fixed: dict, adaptive: dict, marks: dict) -> dict:
+    """A fouling leg's entry from its creeps' (under the fixed gains, then the self-tuner): succeeded when both
+    did, else the first that did not; its window from the first creep's start to the second's hold; the times of
+    the fouling and the switch (``marks``), the incoming controller and ``tune_in``."""
+    status = "succeeded" if fixed.get("status") == adaptive.get("status") == "succeeded" else \
+        adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
+    return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
+            "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}

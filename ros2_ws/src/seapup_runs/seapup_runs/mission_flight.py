@@ -53,6 +53,7 @@ import numpy as np
 from seapup_common import frames
 from seapup_common.contract import Command, ContractError, Measurement, NavigationEstimate, StampedReferences
 from seapup_common.controllers import ControllerSpec, controller_type, create_controller
+from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
 
 __all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig",
            "MAX_MISSION_SECONDS"]
@@ -507,41 +508,21 @@ def _fly_leg(flight: MissionFlight, leg: dict, swap: dict, during: tuple | None 
         return out
     if kind == "current":
         flight.set_current(leg["current"])
-        kind = "hover"
     estimate = flight.estimate
     if estimate is None:
         raise MissionFlightError(f"{leg['name']}: no navigation estimate yet")
-    here, yaw = estimate.position, float(estimate.attitude[2])
-    goal = dict(leg.get("goal", {}))
-    target = None
-    if kind == "inspection":
-        body = np.asarray(leg["body_velocity"], dtype=float)
-        c, s = math.cos(yaw), math.sin(yaw)
-        target = here + np.array([c * body[0] - s * body[1], s * body[0] + c * body[1], body[2]]) * leg["seconds"]
-        goal = {"x": target[0], "y": target[1], "z": target[2], "yaw": yaw,
-                "speed": float(np.linalg.norm(body)), "tolerance": 0.5}
-        kind = "goto"
-    elif "face" in leg:
-        goal.update(hold_current=False, x=here[0], y=here[1], z=here[2], yaw=float(leg["face"]))
-    elif "offset" in leg:
-        target = here + np.asarray(leg["offset"], dtype=float)
-        goal.update(x=target[0], y=target[1], z=target[2], yaw=float(yaw + leg.get("turn", 0.0)))
+    kind, goal, target = leg_goal(leg, estimate.position, float(estimate.attitude[2]))
     if "switch" in leg:
         def do_switch():
             swap["t"] = flight.t
             flight.switch(**leg["switch"]["request"])
             return True
         during = (leg["switch"]["after"], do_switch)
-    result = flight.goal(kind, {k: (v if isinstance(v, bool) else float(v)) for k, v in goal.items()}, during)
+    result = flight.goal(kind, goal, during)
     if "switch" in leg:
         swap["leg"] = leg["index"]
         result["switch_ok"] = bool(result["during"])
-    out = {k: v for k, v in result.items() if k not in ("during", "accepted_t", "end_t")}
-    out.update(t0=result["accepted_t"], t1=result["end_t"])
-    if target is not None:
-        out["target"] = [float(v) for v in target]
-        out["tolerance"] = float(goal.get("tolerance", 0.5))
-    return out
+    return leg_numbers_of(result, target, goal)
 
 
 def _fly_fouling(flight: MissionFlight, leg: dict, swap: dict) -> dict:
@@ -554,12 +535,8 @@ def _fly_fouling(flight: MissionFlight, leg: dict, swap: dict) -> dict:
         marks["foul_t"] = flight.t
         flight.core.set_thruster_efficiency([float(v) for v in leg["foul"]["efficiency"]])
         return True
-    creep = {"kind": "inspection", "name": leg["name"], "body_velocity": leg["body_velocity"], "index": leg["index"]}
-    fixed = _fly_leg(flight, {**creep, "seconds": leg["fouled_seconds"]}, swap, during=(leg["foul"]["after"], foul))
+    fixed = _fly_leg(flight, fouling_creep(leg, leg["fouled_seconds"]), swap, during=(leg["foul"]["after"], foul))
     marks["switch_t"] = flight.t
     flight.switch(**leg["switch"])
-    adaptive = _fly_leg(flight, {**creep, "seconds": leg["adaptive_seconds"]}, swap)
-    status = "succeeded" if fixed.get("status") == adaptive.get("status") == "succeeded" else \
-        adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
-    return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
-            "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}
+    adaptive = _fly_leg(flight, fouling_creep(leg, leg["adaptive_seconds"]), swap)
+    return fouling_result(leg, fixed, adaptive, marks)

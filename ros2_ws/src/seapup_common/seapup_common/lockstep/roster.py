@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping
 
-from seapup_common.launch_format import NodeSpec
+from seapup_common.launch_format import NodeSpec, flat_parameters
 from seapup_common.topics import NAMESPACE
 
 __all__ = ["ROLE_FILE", "Role", "Listener", "Roster", "RosterError", "RoleFileError", "UnknownRoleError",
@@ -293,7 +293,7 @@ def package_roles(config_dir: str | Path) -> dict:
 
     def defaults(config: str) -> dict:
         try:
-            return _flat(load_node_parameters(config_dir / f"{config}.yaml", config))
+            return flat_parameters(load_node_parameters(config_dir / f"{config}.yaml", config))
         except ValueError as exc:
             raise RoleFileError(f"{path}: config {config!r}: {exc}") from None
     return parse_roles(document, str(path), defaults)
@@ -319,23 +319,9 @@ def role_book(share: Callable[[str], str | Path | None]) -> Callable[[str, str],
     return lookup
 
 
-def _flat(mapping: Mapping, prefix: str = "") -> dict:
-    out = {}
-    for key, value in mapping.items():
-        if isinstance(value, Mapping):
-            out.update(_flat(value, f"{prefix}{key}."))
-        else:
-            out[f"{prefix}{key}"] = value
-    return out
-
-
 def _given(spec: NodeSpec) -> dict:
-    """The parameters the document gives the node (its mappings, flattened; later ones win)."""
-    given: dict = {}
-    for item in spec.parameters if isinstance(spec.parameters, list) else [spec.parameters]:
-        if isinstance(item, Mapping):
-            given.update(_flat(item))
-    return given
+    """The parameters the document gives the node (:meth:`NodeSpec.given_parameters`)."""
+    return spec.given_parameters()
 
 
 def nodes_of_document(document) -> list[NodeSpec]:
