@@ -169,8 +169,34 @@ def _ident(argv: list[str]) -> int:
 def _test(argv: list[str]) -> int:
     root = os.environ.get("SEAPUP_ROOT", ".")
     os.chdir(root)
-    os.execvp(sys.executable, [sys.executable, "-m", "pytest", *argv])
+    os.execvp(sys.executable, [sys.executable, "-m", "pytest", *pytest_arguments(argv)])
     return 1  # not reached
+
+
+#: Options with which pytest runs in this process only: given one, ./seapup test adds no workers.
+SERIAL_OPTIONS = ("-n", "--numprocesses", "--dist", "-h", "--help", "--co", "--collect-only", "--version",
+                  "--pdb", "--trace", "--fixtures", "--markers", "-x", "--exitfirst", "--maxfail", "--lf", "--sw")
+
+
+def pytest_arguments(argv: list[str], cpus: int | None = None) -> list[str]:
+    """``./seapup test``'s pytest arguments: the given ones, and -- unless they choose for themselves (an option
+    of :data:`SERIAL_OPTIONS`, or ``-p no:xdist``) -- one pytest-xdist worker per CPU, whole files to a worker
+    (``--dist loadfile``: a file's fixtures are set up once and its graph tests never run beside each other).
+
+    Examples
+    --------
+    >>> pytest_arguments(["-m", "unit"], cpus=2)
+    ['-n', '2', '--dist', 'loadfile', '-m', 'unit']
+    >>> pytest_arguments(["-x", "tests/test_demo.py"], cpus=2)
+    ['-x', 'tests/test_demo.py']
+    >>> pytest_arguments(["-m", "unit"], cpus=1)
+    ['-m', 'unit']
+    """
+    cpus = cpus if cpus is not None else len(os.sched_getaffinity(0))
+    chosen = any(a.split("=", 1)[0] in SERIAL_OPTIONS or (a.startswith("-n") and a[2:].isdigit()) for a in argv)
+    if chosen or cpus < 2 or "no:xdist" in " ".join(argv):
+        return list(argv)
+    return ["-n", str(cpus), "--dist", "loadfile", *argv]
 
 
 @command("run", "start one node, like 'ros2 run' on a ROS install", "seapup_bringup.cli:run_parser",

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time
 
-__all__ = ["PacedGraph", "samples_to", "next_boundary", "stamp_of", "result_end_time"]
+__all__ = ["PacedGraph", "samples_to", "next_boundary", "stamp_of", "result_end_time", "task_settle"]
 
 
 def samples_to(until: float, k: int, period_ns: int) -> int:
@@ -70,6 +70,24 @@ def result_end_time(future) -> float | None:
         return None
     end = getattr(future.result().result, "end_time", 0.0)
     return float(end) if end else None
+
+
+def task_settle(spin_until, ended, elapsed, accepted: float, period: float, timeout: float = 10.0):
+    """A ``settle`` for :meth:`PacedGraph.advance` while a task goal runs: at hold ``at``, wait (``spin_until(
+    predicate, timeout)``) until the task controller has stepped the held sample -- its feedback's ``elapsed()``
+    values [s] count from its first step, the sample after ``accepted`` -- or the goal ``ended()``; then whether it
+    ended by the held sample is known, not a race with its result's transport. At the acceptance's own hold there is
+    nothing to wait for (the task has no sample to step yet)."""
+    first_step = accepted + period
+
+    def stepped(at: float) -> bool:
+        values = elapsed()
+        return ended() or (bool(values) and first_step + max(values) >= at - 1e-6)
+
+    def settle(at: float) -> None:
+        if at >= first_step - 1e-6:
+            spin_until(lambda: stepped(at), timeout)
+    return settle
 
 
 class PacedGraph:

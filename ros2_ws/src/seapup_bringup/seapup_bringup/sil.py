@@ -49,7 +49,7 @@ import numpy as np
 
 from seapup_bringup import readiness
 from seapup_bringup.output import stopped_by_signal
-from seapup_bringup.paced import result_end_time
+from seapup_bringup.paced import result_end_time, task_settle
 from seapup_bringup.sil_processes import SilError
 from seapup_bringup.sil_probe import INSTRUMENTS, SAMPLED, TOPICS, SilProbe, import_path, log_arrays, stamp_s
 from seapup_common import topics
@@ -346,20 +346,9 @@ class SilGraph:
             self._advance(held + 1e-3, timeout=timeout)
             self.spin_until(lambda: self.log["reference"], 5.0)
             self.spin_until(lambda: False, 0.5)  # heard here: on its way to the velocity controllers too
-        during_result = None
-        end = lambda: result_end_time(future)  # noqa: E731
-        first_step = held + self._pacing.period_ns * 1e-9   # a task first steps at the sample after acceptance
-
-        def settle(at: float) -> None:
-            # whether the task ended by the held sample is known once the task controller has stepped that sample
-            # (its feedback, ``elapsed`` from its first step: feedback since the goal was sent, ``heard`` on) or
-            # its result is here: the graph is never a chunk past the end because the result travelled slowly on
-            # a loaded machine (paced.py)
-            def stepped() -> bool:
-                elapsed = [fb.elapsed for _, fb in self.feedback[heard:]]
-                return future.done() or (bool(elapsed) and first_step + max(elapsed) >= at - 1e-6)
-            if at >= first_step - 1e-6:   # held where the task has a sample to step
-                self.spin_until(stepped, 10.0)
+        during_result, end = None, lambda: result_end_time(future)
+        settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
+                             held, self._pacing.period_ns * 1e-9)   # feedback since the goal was sent
         if during is not None:
             self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout, settle=settle)
             during_result = during[1]()

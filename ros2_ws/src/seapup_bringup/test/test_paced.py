@@ -4,7 +4,7 @@ sample at once, until the graph falls silent)."""
 import pytest
 
 from seapup_bringup.graph_stepper import StepFailed, Stepped
-from seapup_bringup.paced import PacedGraph, next_boundary, samples_to, stamp_of
+from seapup_bringup.paced import PacedGraph, next_boundary, samples_to, stamp_of, task_settle
 from seapup_common.lockstep.server import STEP_DONE, LockstepServer
 
 T = 0.2
@@ -99,6 +99,29 @@ def test_settling_at_each_hold_makes_a_slow_result_land_on_its_boundary_all_the_
     state = graph.advance(None, done=lambda: bool(heard), end_time=lambda: 12.3, settle=settle)
     assert state == "held" and graph.held == 14.0 and graph.late_results == 0
     assert settled == [10.0, 11.0, 12.0, 13.0]     # once per hold until the end was known, never after
+
+
+def test_a_task_settles_on_the_feedback_of_the_held_sample_or_its_end():
+    """Accepted at 10.0 s (first step 10.2 s): at the acceptance's hold nothing is awaited; at 11.0 s the wait
+    ends once feedback for 11.0 s (elapsed 0.8 s) is heard -- not for 10.8 s; after the end the result ends it."""
+    feedback, ended, waited = [], [False], []
+
+    def spin_until(predicate, timeout):
+        waited.append(timeout)
+        for value in (0.0, 0.2, 0.4, 0.6, 0.8, 1.0):   # the feedback arriving while the driver spins
+            if predicate():
+                return True
+            feedback.append(value)
+        return predicate()
+    settle = task_settle(spin_until, lambda: ended[0], lambda: list(feedback), accepted=10.0, period=0.2)
+    settle(10.0)
+    assert waited == [] and feedback == []
+    settle(11.0)
+    assert waited == [10.0] and max(feedback) == pytest.approx(0.8)
+    ended[0] = True
+    feedback.clear()
+    settle(20.0)
+    assert feedback == []          # the result is in: nothing more to wait for
 
 
 def test_a_graph_that_waits_for_its_driver_is_held_where_it_stopped():

@@ -593,12 +593,19 @@ class QosWatch:
     communicate; a pair is logged as a warning the first time it is seen, like
     the default handler's "requesting incompatible QoS. No messages will be
     sent to it". Asked more often than every ``interval`` wall seconds, it
-    answers what it found last (a node may ask at every sample).
+    answers what it found last (a node may ask at every sample). An endpoint
+    whose node is not named yet waits up to :attr:`NAMING_PATIENCE` for its
+    name, so the one report names it.
     """
+
+    #: [s wall] an endpoint whose node the graph has not named yet (its node's discovery lags the endpoint's on
+    #: a busy machine) is left unreported this long, so the report names the node
+    NAMING_PATIENCE = 5.0
 
     def __init__(self, node, interval: float = 1.0):
         self.node = node
         self.interval = interval
+        self._unnamed: dict = {}   # endpoint gid -> when it was first seen without its node's name
         self._said: set = set()
         self._found: list[str] = []
         self._checked = -math.inf
@@ -630,6 +637,11 @@ class QosWatch:
             if compatibility != QoSCompatibility.ERROR:
                 continue
             other = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+            if "_NODE_NAME_UNKNOWN_" in info.node_name:
+                first = self._unnamed.setdefault(bytes(info.endpoint_gid), time.monotonic())
+                if time.monotonic() - first < self.NAMING_PATIENCE:
+                    continue   # reported once its node is named (or, never named, after the patience)
+                other = "of an unnamed node"
             text = (f"{topic}: {'subscription' if publishing else 'publisher'} {other} has an incompatible "
                     f"QoS ({reason.strip().rstrip(';') or 'see ./seapup topic info -v'}): no messages pass")
             found.append(text)
