@@ -210,7 +210,9 @@ def report_mission(result: dict, config: dict, out: Path | None, text, label: st
             print(f"{label}: plots {', '.join(Path(p).name for p in result['plots'])} in {out}", file=text)
     if result.get("bag"):
         print(f"{label}: bag {result['bag']}", file=text)
-    print(f"{label}: {result.get('held', 0.0):.0f} s simulated in {result.get('wall_s', math.nan):.1f} s wall", file=text)
+    held = result.get("held")   # None: interrupted before the graph was first held
+    flown = f"{held:.0f} s simulated" if held is not None else "interrupted before the first hold"
+    print(f"{label}: {flown} in {result.get('wall_s', math.nan):.1f} s wall", file=text)
     summary = {k: v for k, v in result.items() if k != "logs"}
     if out is not None:
         (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
