@@ -72,21 +72,24 @@ def result_end_time(future) -> float | None:
     return float(end) if end else None
 
 
-def task_settle(spin_until, ended, elapsed, accepted: float, period: float, timeout: float = 10.0):
+def task_settle(spin_until, ended, elapsed, accepted: float, period: float, timeout: float = 5.0):
     """A ``settle`` for :meth:`PacedGraph.advance` while a task goal runs: at hold ``at``, wait (``spin_until(
-    predicate, timeout)``) until the task controller has stepped the held sample -- its feedback's ``elapsed()``
-    values [s] count from its first step, the sample after ``accepted`` -- or the goal ``ended()``; then whether it
-    ended by the held sample is known, not a race with its result's transport. At the acceptance's own hold there is
-    nothing to wait for (the task has no sample to step yet)."""
+    predicate, timeout)``, true if it held) until the task controller has stepped the held sample -- its feedback's
+    ``elapsed()`` values [s] count from its first step, the sample after ``accepted`` -- or the goal ``ended()``;
+    then whether it ended by the held sample is known, not a race with its result's transport. At the acceptance's
+    own hold there is nothing to wait for (the task has no sample to step yet). A feedback stream that does not
+    come within ``timeout`` is not waited for again (a lost stream costs one timeout, not one per hold; the
+    boundary is then as late as the result's transport: :attr:`PacedGraph.late_results` counts it)."""
     first_step = accepted + period
+    heard = [True]
 
     def stepped(at: float) -> bool:
         values = elapsed()
         return ended() or (bool(values) and first_step + max(values) >= at - 1e-6)
 
     def settle(at: float) -> None:
-        if at >= first_step - 1e-6:
-            spin_until(lambda: stepped(at), timeout)
+        if at >= first_step - 1e-6 and heard[0] and not spin_until(lambda: stepped(at), timeout):
+            heard[0] = False
     return settle
 
 

@@ -117,11 +117,24 @@ def test_a_task_settles_on_the_feedback_of_the_held_sample_or_its_end():
     settle(10.0)
     assert waited == [] and feedback == []
     settle(11.0)
-    assert waited == [10.0] and max(feedback) == pytest.approx(0.8)
+    assert waited == [5.0] and max(feedback) == pytest.approx(0.8)
     ended[0] = True
     feedback.clear()
     settle(20.0)
     assert feedback == []          # the result is in: nothing more to wait for
+
+
+def test_a_feedback_stream_that_never_comes_is_waited_for_once():
+    """No feedback at all (a lost stream): the first hold waits its timeout, later holds not at all."""
+    waited = []
+
+    def spin_until(predicate, timeout):
+        waited.append(timeout)
+        return predicate()
+    settle = task_settle(spin_until, lambda: False, lambda: [], accepted=10.0, period=0.2, timeout=3.0)
+    for at in (11.0, 12.0, 13.0, 14.0):
+        settle(at)
+    assert waited == [3.0]
 
 
 def test_a_graph_that_waits_for_its_driver_is_held_where_it_stopped():
