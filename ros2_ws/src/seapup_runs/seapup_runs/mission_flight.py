@@ -433,7 +433,7 @@ class MissionFlight:
         return {"accepted": True, "rejection": "", "success": result["status"] == "succeeded", **result,
                 "accepted_t": accepted, "end_t": self.t, "during": acted}
 
-    def fly_self_test(self, goal: dict, progress: Callable[[float], None] | None = None) -> dict:
+    def fly_self_test(self, goal: dict) -> dict:
         """The self-test action from the present hold to its end; held at the sample after its last."""
         from seapup_control.self_test import SelfTest, SelfTestConfig, goal_overrides, result_document
         test = SelfTest(SelfTestConfig.load(goal_overrides(goal)))
@@ -441,8 +441,6 @@ class MissionFlight:
         t0 = self.t
         while not test.finished:
             self.step()
-            if progress is not None and self.k % 25 == 0:
-                progress(test.progress)
         self.self_test = None
         if test.phase.value != "done":
             raise MissionFlightError(f"self-test failed: {test.reason}")
