@@ -160,3 +160,50 @@ def test_no_velocity_data_aborts_the_goal(ros_context, node_process, spin, tmp_p
     answer = client.result(client.send(SelfTest.Goal()), timeout=30.0)
     assert answer.status == GoalStatus.STATUS_ABORTED and "no velocity data" in answer.result.message
     assert client.commands == []  # nothing was commanded without data
+
+
+class _AcceptedHandle:
+    """What rclpy's action server hands its ``handle_accepted_callback``."""
+
+    is_cancel_requested = False
+
+    def __init__(self, request):
+        self.request, self.executed, self.feedback = request, 0, []
+
+    def execute(self):
+        self.executed += 1
+
+    def publish_feedback(self, feedback):
+        self.feedback.append(feedback)
+
+
+def test_a_goal_answers_the_held_sample_heard_before_it(ros_context):
+    """Issue 43 (about one graph self-test start in six stalled, "no velocity data for 10.0 s"): a lockstep
+    graph held at t_0 has delivered t_0's velocity before the goal is sent, and nothing asks for t_0 again
+    once the graph is held. Accepting the goal (rclpy's accepted callback, run right after the goal response)
+    must answer t_0 at once, with no later sample or /clock. Truth: one command, stamped t_0, before the
+    execute callback has run."""
+    from rclpy.action import GoalResponse
+    from rclpy.serialization import deserialize_message, serialize_message
+    from geometry_msgs.msg import TwistWithCovarianceStamped
+    from seapup_common import frames
+    from seapup_common.ros.graph import SubscriberGate
+    from seapup_control.self_test_node import SelfTestNode
+    node = SelfTestNode(context=ros_context)
+    node.gate = SubscriberGate([], grace=0.0)     # the plant listens (tested elsewhere: the gate itself)
+    commands = []
+    node.publisher.publish = lambda data: commands.append(deserialize_message(data, BladePitch))
+    sample = TwistWithCovarianceStamped()
+    sample.header.frame_id = frames.FRAME_FRD
+    node._on_velocity(serialize_message(sample))  # t_0, heard while no goal runs: nothing answers it
+    assert commands == [] and node.policy.latest_ns == 0
+    goal = SelfTest.Goal()
+    assert node._accept(goal) == GoalResponse.ACCEPT
+    handle = _AcceptedHandle(goal)
+    node.server._handle_accepted_callback(handle)   # the server's own wiring
+    assert handle.executed == 1 and len(commands) == 1
+    assert (commands[0].header.stamp.sec, commands[0].header.stamp.nanosec) == (0, 0)
+    assert np.all(np.isfinite(commands[0].pitch)) and len(handle.feedback) == 1
+    node._on_velocity(serialize_message(sample))  # t_0 again (the simulator's repeat): answered once only
+    assert len(commands) == 1
+    node.destroy_node()

@@ -144,3 +144,50 @@ def test_an_estimate_said_again_steps_the_task_once(ros_context):
     for kind, msg in twice:
         (node._on_altitude if kind == "altitude" else node._on_estimate)(msg)
     assert len(reference) == 19 and setpoints == reference and node.counts["repeated_estimates"] == 19
+
+
+class _AcceptedHandle(_Handle):
+    """What rclpy's action server hands its ``handle_accepted_callback``: the goal and its id."""
+
+    def __init__(self, request):
+        import uuid
+        from unique_identifier_msgs.msg import UUID
+        self.request, self.goal_id, self.executed, self.feedback = request, UUID(uuid=list(uuid.uuid4().bytes)), 0, []
+
+    def execute(self):
+        self.executed += 1
+
+    def publish_feedback(self, feedback):
+        self.feedback.append(feedback)
+
+
+@pytest.mark.graph
+def test_a_task_starts_at_its_acceptance_so_its_first_step_is_the_next_estimate(ros_context):
+    """Issue 43 (a loaded demo's seabed following ended 0.4 s late): rclpy sends the goal response and then,
+    with no callback in between, calls the server's accepted callback; the execute callback runs later, after
+    estimates that may already be queued. A lockstep harness steps the graph as soon as it hears the
+    acceptance, so the task must be running from the accepted callback on: the next estimate is its first step,
+    whatever the executor does first. Truth: the task's first step and feedback at t_1, for a goal accepted at
+    t_0, and nothing left to the execute callback but waiting for the end."""
+    from rclpy.action import GoalResponse
+    from seapup_control.task_controller_node import TaskControllerNode
+    from seapup_msgs.action import FollowSeabed, Hover
+    node = TaskControllerNode(context=ros_context)
+    setpoints = []
+    node.setpoints.publish = lambda msg: setpoints.append(conv.stamp_to_ns(msg.header.stamp))
+    node.setpoints.get_subscription_count = lambda: 1  # a position controller listens
+    node._on_altitude(_altitude(0))
+    node._on_estimate(_estimate(0))
+    goal = FollowSeabed.Goal(altitude=8.0, yaw=0.0, speed=0.2, duration=100.0)
+    assert node._accept("follow_seabed", goal) == GoalResponse.ACCEPT
+    assert node.running is None                     # accepting alone starts nothing (a goal may still be refused)
+    handle = _AcceptedHandle(goal)
+    node.servers[2]._handle_accepted_callback(handle)  # the server's own wiring: task/follow_seabed
+    assert handle.executed == 1 and node.running is not None and node.running.task.kind == "follow_seabed"
+    assert setpoints == [round(T * 1e9)]            # the stream starts at once, for t_1
+    node._on_altitude(_altitude(1))
+    node._on_estimate(_estimate(1))
+    assert node.running.task.t0 == pytest.approx(T) and [fb.elapsed for fb in handle.feedback] == [0.0]
+    # a second goal while it runs is refused at once (no window between acceptance and execution)
+    assert node._accept("hover", Hover.Goal()) == GoalResponse.REJECT
+    node.destroy_node()

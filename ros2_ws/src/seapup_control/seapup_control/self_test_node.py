@@ -10,6 +10,15 @@ blade-pitch command on ``/seapup/thrusters/command``:
   simulator's repeated ``/clock`` t_k (its graph-ready handshake);
 - otherwise on a timer of the node clock every ``sample_period``.
 
+A goal's test starts at its acceptance, in the callback that sends the goal
+response (rclpy's ``handle_accepted_callback``, with no other callback in
+between), and at once answers the newest sample heard if it is still
+pending: a lockstep graph held at t_0 when the goal is sent has already
+delivered t_0, and answering it only when a later callback (the execute
+callback, scheduled by rclpy) first saw a sample left the graph waiting for
+a command nobody would send whenever t_0's repeat came in between (about
+one graph self-test start in six stalled: "no velocity data for 10.0 s").
+
 Feedback (phase, cycle, thruster, operating point, progress, velocities)
 goes out every sample. Cancel is honoured at the next sample: the test stops
 and, as after success or failure, the node keeps flying the best controller
@@ -96,7 +105,9 @@ class SelfTestNode(Node):
         self.server = ActionServer(self, SelfTestAction, "self_test", execute_callback=self._execute,
                                    goal_callback=self._accept, cancel_callback=lambda _: CancelResponse.ACCEPT,
                                    goal_service_qos_profile=SERVICE_QOS, result_service_qos_profile=SERVICE_QOS,
-                                   cancel_service_qos_profile=SERVICE_QOS)  # a request storm gets every answer
+                                   cancel_service_qos_profile=SERVICE_QOS,  # a request storm gets every answer
+                                   handle_accepted_callback=self._start)
+        self._watchdog = None
         self.get_logger().info(f"self-test action server ready ({'lockstep' if self.lockstep else 'timer'})")
 
     def destroy_node(self):
@@ -115,7 +126,9 @@ class SelfTestNode(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
-    async def _execute(self, goal_handle):
+    def _start(self, goal_handle) -> None:
+        """The goal was accepted (its response just sent: module docstring): the test starts now, answering the
+        held sample if nobody has, then the execute callback awaits its end."""
         config = SelfTestConfig.load(goal_overrides(goal_handle.request))
         self.test = SelfTest(config)
         self._goal = goal_handle
@@ -125,11 +138,16 @@ class SelfTestNode(Node):
                 self.destroy_timer(self._timer)
             self._timer = self.create_timer(config.sample_period, self._on_timer)
         self._last_sample_wall = time.monotonic()
-        watchdog = self.create_timer(0.5, self._watch_data)
+        self._watchdog = self.create_timer(0.5, self._watch_data)
         self.get_logger().info(f"self-test started: operating points {list(config.operating_points)} m/s, "
                                f"T = {config.sample_period:g} s")
+        goal_handle.execute()
+        if self.lockstep and self.policy.latest_ns is not None:
+            self._answer(self.policy.latest_ns)  # the sample heard before the goal (a held graph's t_0) waits
+
+    async def _execute(self, goal_handle):
         await self._done
-        self.destroy_timer(watchdog)
+        self.destroy_timer(self._watchdog)
         test = self.test
         self._goal = None
         result = self._result(test)
