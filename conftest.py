@@ -37,6 +37,13 @@ REPO_ROOT = Path(__file__).resolve().parent
 ROS_FIXTURES = {"ros_domain", "ros_context", "ros_env", "node_process"}
 
 
+def pytest_sessionstart(session):
+    """Matplotlib builds its font cache the first time it is imported on a machine, and runs ``fc-list`` to do
+    it: done here, before any test, so the unit test that happens to draw first on a fresh machine does not
+    start that process (:class:`_ProcessGuard` would fail it; seen on a fresh machine's first suite)."""
+    import matplotlib.font_manager  # noqa: F401  (builds the cache if missing; reads it otherwise)
+
+
 def pytest_collection_modifyitems(config, items):
     """Every test is ``unit`` (pure cores, message conversions: seconds), ``sweep`` (pure, but a sweep over
     many runs: tens of seconds), ``process`` (it starts child processes -- a command, Chromium, a Dask
