@@ -1,6 +1,7 @@
 """Dependencies point one way, and pure cores never touch ROS.
 
     seapup_msgs <- seapup_common <- seapup_sim, seapup_ident <- seapup_control <- seapup_runs <- seapup_bringup
+                                               seapup_sim <- seapup_live_view <------------------------'
 
 seapup_control and seapup_ident must install and run on a real vehicle without
 the simulator, so they never import seapup_sim (outside their tests); a
@@ -11,7 +12,9 @@ node are bringup's and the tests' alone. Pure-core
 modules import numpy/scipy/yaml/rosbags but never rclpy or ROS message
 packages, directly or through another seapup module; rclpy shells are the
 ``*_node.py`` modules, each package's ``ros`` subpackage (``seapup_common.ros``,
-``seapup_control.ros``) and the bringup package (graphs, the SIL harness).
+``seapup_control.ros``) and the modules named in :data:`SHELLS` (bringup's verbs, graphs and SIL harness; the
+live view's graph helpers): every other module of bringup and the live view is held to the pure rule too, and
+every named shell must really reach ROS (a module that no longer does leaves the list).
 """
 import ast
 import re
@@ -21,8 +24,24 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
 LAYER = {"seapup_msgs": 0, "seapup_common": 1, "seapup_sim": 2, "seapup_ident": 2, "seapup_control": 3,
-         "seapup_runs": 4, "seapup_bringup": 5}
-# seapup_sim and seapup_ident share a layer: neither imports the other
+         "seapup_live_view": 3, "seapup_runs": 4, "seapup_bringup": 5}
+# seapup_sim and seapup_ident share a layer: neither imports the other; nor do seapup_control and the live view
+# (which draws the vehicle and the seabed from the simulator's configuration, and flies nothing)
+#: The modules that are rclpy shells besides ``*_node.py`` and the ``ros`` subpackages, named one by one.
+SHELLS = {
+    # bringup: the verbs (each starts or talks to a graph, or imports one that does)
+    "seapup_bringup.cli", "seapup_bringup.cli_usage", "seapup_bringup.commands", "seapup_bringup.autopilot_commands",
+    "seapup_bringup.bag_commands", "seapup_bringup.campaign_commands", "seapup_bringup.ident_commands",
+    "seapup_bringup.report_commands", "seapup_bringup.ros2_commands", "seapup_bringup.run_commands",
+    "seapup_bringup.scenario_commands", "seapup_bringup.view_commands", "seapup_bringup.demo",
+    "seapup_bringup.reproduction",
+    # bringup: graphs, the SIL harness and the graph runners, benchmarks
+    "seapup_bringup.launch", "seapup_bringup.sil", "seapup_bringup.sil_probe", "seapup_bringup.graph_stepper",
+    "seapup_bringup.graph_runner", "seapup_bringup.mission_graph", "seapup_bringup.open_loop",
+    "seapup_bringup.graph_bench", "seapup_bringup.hierarchy_config", "seapup_bringup.hierarchy_in_process",
+    # the live view: the node beside a graph, and the layout of the node's topics
+    "seapup_live_view.attach", "seapup_live_view.view_layout",
+}
 ROS = re.compile(r"^(rclpy|rosidl\w*|ament_index_python|\w+_msgs|\w+_interfaces|rcl_\w+|rosgraph_msgs)(\.|$)")
 
 
@@ -51,7 +70,7 @@ def imports_of(path: Path) -> set[str]:
 
 def is_shell(module: str) -> bool:
     package = module.split(".")[0]
-    return (package == "seapup_bringup" or module.startswith(f"{package}.ros.") or module == f"{package}.ros"
+    return (module in SHELLS or module.startswith(f"{package}.ros.") or module == f"{package}.ros"
             or module.split(".")[-1].endswith("_node"))
 
 
@@ -101,6 +120,13 @@ def _project_closure(module: str, seen=None) -> set[str]:
             seen.add(target)
             out |= _project_closure(target, seen)
     return out
+
+
+def test_every_named_shell_exists_and_reaches_ros():
+    """The list of shells is not a blanket: each is a module of the product, and each really reaches ROS."""
+    assert SHELLS <= set(MODULES), sorted(SHELLS - set(MODULES))
+    pure = sorted(m for m in SHELLS if not any(ROS.match(n) for n in _project_closure(m)))
+    assert not pure, f"named as shells but pure: {pure} (take them off SHELLS: the pure rule then guards them)"
 
 
 @pytest.mark.parametrize("module", sorted(m for m in MODULES if not is_shell(m)))

@@ -76,7 +76,7 @@ def test_arguments_are_substituted_and_checked(tmp_path):
         {"name": "real_time_factor", "value": "$(var rtf)"},
         {"name": "environment", "param": [{"name": "sensors", "value": "ideal"}]},
         {"name": "wait_for_subscribers", "value": "$(var topics)"}]},
-        {"pkg": "seapup_bringup", "exec": "live_view", "if": "$(var view)"}],
+        {"pkg": "seapup_live_view", "exec": "live_view", "if": "$(var view)"}],
         {"rtf": 2.0, "topics": "[/a, /b]", "view": "false"})
     (spec,) = load_graph(path, {"rtf": "3.5"})   # the view's condition is false: left out
     assert spec.parameters == [{"real_time_factor": 3.5, "environment.sensors": "ideal",   # typed after substitution

@@ -133,7 +133,7 @@ def graph(node_process, ros_context):
                        "-p", "watchdog_timeout:=1000.0", "-p", "environment.seabed.kind:=slope",
                        "-p", "environment.seabed.depth:=40.0", "-p", "environment.seabed.gradient:=0.1",
                        "-p", "environment.umbilical.enabled:=true", "-p", "environment.current.enabled:=true"])
-    node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
+    node_process(package="seapup_live_view", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
     node = rclpy.create_node("truth_probe", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
@@ -320,7 +320,7 @@ def test_a_stalled_then_killed_client_leaves_a_lockstep_graph_stepping(node_proc
     node_process(package="seapup_sim", executable="simulator",
                  args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", "watchdog_timeout:=1000.0",
                        "-p", "diagnostics_period:=0.2"])
-    node_process(package="seapup_bringup", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
+    node_process(package="seapup_live_view", executable="live_view", args=["--ros-args", "-p", f"port:={port}"])
     node = rclpy.create_node("rate_probe", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)

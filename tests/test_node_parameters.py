@@ -38,7 +38,7 @@ def _kinds(tmp_path):
              ("recorder", "seapup_common.recorder_node", "RecorderNode", {"bag_path": str(tmp_path / "bag")}),
              ("open_loop", "seapup_control.open_loop_node", "OpenLoopNode", {}),
              ("reference_schedule", "seapup_control.reference_schedule_node", "ReferenceScheduleNode", {}),
-             ("live_view", "seapup_bringup.live_view_node", "LiveViewNode", {"port": 0})]
+             ("live_view", "seapup_live_view.live_view_node", "LiveViewNode", {"port": 0})]
     kinds += [(f"velocity_controller[{law}]", "seapup_control.velocity_controller_node", "VelocityControllerNode",
                {"controller_type": law}) for law in available_controllers()]
     return kinds

@@ -15,7 +15,8 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
 #: seapup_control joins once its node shells take their absolute names from the table.
-PACKAGES = ("seapup_common", "seapup_sim", "seapup_ident", "seapup_control", "seapup_runs", "seapup_bringup")
+PACKAGES = ("seapup_common", "seapup_sim", "seapup_ident", "seapup_control", "seapup_runs", "seapup_live_view",
+            "seapup_bringup")
 TABLE = SRC / "seapup_common" / "seapup_common" / "topics.py"
 GRAPH_NAME = re.compile(r"""(^|['"\[])/(seapup|clock|diagnostics)(/|$|['"\]])""")
 

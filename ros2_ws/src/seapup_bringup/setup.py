@@ -16,7 +16,6 @@ setup(
         ("share/" + package_name + "/launch", glob("launch/*.yaml")),
     ],
     install_requires=["setuptools"],
-    entry_points={"console_scripts": ["live_view = seapup_bringup.live_view_node:main"]},
     zip_safe=True,
     maintainer="seapup developers",
     maintainer_email="dev@seapup.invalid",

@@ -233,7 +233,7 @@ def replay(argv: list[str]) -> int:
     if args.lockstep and args.loop:
         parser.error("--lockstep plays the bag once (--loop would send time backwards)")
     if args.view:
-        from seapup_bringup.view import check_port
+        from seapup_live_view.attach import check_port
         try:
             check_port(args.view_port)
         except ValueError as exc:
@@ -310,7 +310,7 @@ def _start_view(port: int, bag: Path):
     """The live view on this domain, for a replay (its log in the temporary directory)."""
     import os
     import tempfile
-    from seapup_bringup.view import view_node, view_url
+    from seapup_live_view.attach import view_node, view_url
     from seapup_common.processes import NodeProcess
     from seapup_common.ros.launch_graph import command_line
     log = Path(tempfile.gettempdir()) / f"seapup_live_view_{os.getpid()}.log"

@@ -42,7 +42,7 @@ __all__ = ["main", "demo_parser"]
 
 def demo_parser() -> argparse.ArgumentParser:
     """The parser of ``./seapup demo`` (its usage line in ``./seapup help`` is generated from it)."""
-    from seapup_bringup.view import add_view_arguments
+    from seapup_live_view.attach import add_view_arguments
     parser = argparse.ArgumentParser(prog="./seapup demo", description=__doc__.splitlines()[0])
     parser.add_argument("--out", help="output directory: the bag (OUT/bag), plots, summary.json and node logs "
                                       "(default bags/demo_<UTC time> under the checkout)")
@@ -56,7 +56,7 @@ def demo_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from seapup_bringup.view import check_port, view_node, view_url
+    from seapup_live_view.attach import check_port, view_node, view_url
     parser = demo_parser()
     args = parser.parse_args(argv)
     rate = args.rate if args.rate is not None else (1.0 if args.view else 0.0)

@@ -107,7 +107,7 @@ def lockstep_rate(control_period: float, sim_seconds: float = 60.0, log_dir="/tm
         try:
             if view:
                 port = _free_port()
-                live = NodeProcess([find_executable("seapup_bringup", "live_view"), "--ros-args", "-p",
+                live = NodeProcess([find_executable("seapup_live_view", "live_view"), "--ros-args", "-p",
                                     f"port:={port}"], env, f"{log_dir}/bench_view.log").start()
                 watcher = _Viewer(port).start()
             deadline = time.monotonic() + 30

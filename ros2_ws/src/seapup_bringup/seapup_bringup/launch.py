@@ -213,7 +213,7 @@ class Launch:
 def launch_parser() -> argparse.ArgumentParser:
     """The parser of ``./seapup launch`` (its usage line in ``./seapup help`` is generated from it)."""
     import argparse
-    from seapup_bringup.view import add_view_arguments
+    from seapup_live_view.attach import add_view_arguments
     parser = argparse.ArgumentParser(prog="./seapup launch", description="start a graph of nodes, as 'ros2 launch'",
                                      epilog="Graphs shipped (ROS 2 YAML launch files): seapup_bringup "
                                             "simulator.launch.yaml, "
@@ -233,7 +233,7 @@ def launch_parser() -> argparse.ArgumentParser:
 
 def launch(argv: list[str]) -> int:
     """``./seapup launch GRAPH.yaml [name:=value ...]`` or ``./seapup launch PACKAGE FILE [name:=value ...]``."""
-    from seapup_bringup.view import check_port, view_node, view_url
+    from seapup_live_view.attach import check_port, view_node, view_url
     parser = launch_parser()
     args = parser.parse_args(argv)
     if args.view:

@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from seapup_bringup.view import DEFAULT_PORT, check_port
+from seapup_live_view.attach import DEFAULT_PORT, check_port
 
 __all__ = ["view_parser", "view_command"]
 
@@ -34,7 +34,7 @@ def view_command(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     if args.write_layout:
         from pathlib import Path
-        from seapup_bringup.view_layout import layout_json
+        from seapup_live_view.view_layout import layout_json
         Path(args.write_layout).write_text(layout_json())
         print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
         emit_json(args, {"layout": args.write_layout})
@@ -46,7 +46,7 @@ def view_command(argv: list[str]) -> int:
     except ValueError as exc:
         print(f"seapup view: error: {str(exc).replace('--view-port', '--port')}", file=sys.stderr)
         return 1
-    path = find_executable("seapup_bringup", "live_view")
+    path = find_executable("seapup_live_view", "live_view")
     emit_json(args, {"url": f"ws://127.0.0.1:{args.port}", "port": args.port, "pid": os.getpid()})   # then serves
     rules = [f"port:={args.port}", f"vehicle:={args.vehicle}"]
     if args.environment_file:

@@ -1,4 +1,4 @@
-"""What the live view draws, as plain geometry (the pure core of :mod:`seapup_bringup.live_view_node`).
+"""What the live view draws, as plain geometry (the pure core of :mod:`seapup_live_view.live_view_node`).
 
 No viewer types here: numpy arrays, frame names and small dataclasses, so every shape is tested without a
 server, and the node only copies them into Foxglove's messages.

@@ -4,7 +4,7 @@
 it equal to :func:`layout`). Import it in Foxglove (Layouts -> Import from file): a 3D panel in ``odom``
 (ENU, up is up) following the vehicle, with its three scene topics; plots of the body velocities against
 the velocity controllers' references and of the blade pitches against the +-35 deg limit; the two service
-buttons. The paths name :data:`seapup_bringup.live_view_node.PLOT_SCHEMA`'s fields.
+buttons. The paths name :data:`seapup_live_view.live_view_node.PLOT_SCHEMA`'s fields.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ VELOCITY_AXES = ("u", "v", "w", "r")
 def layout():
     """The layout object (``foxglove.layouts.Layout``)."""
     from foxglove import layouts as L
-    from seapup_bringup.live_view_node import EVENTS_TOPIC, PLOT_TOPIC, SCENE_TOPICS, SERVICES
+    from seapup_live_view.live_view_node import EVENTS_TOPIC, PLOT_TOPIC, SCENE_TOPICS, SERVICES
 
     scene = {topic: L.BaseRendererSceneUpdateTopicSettings(visible=True) for topic in SCENE_TOPICS}
     three_d = L.ThreeDeePanel(title="Seapup (odom, ENU: up is up)", config=L.ThreeDeeConfig(

@@ -1,6 +1,6 @@
 """The ``live_view`` node: the graph in Foxglove (or Lichtblick) through a WebSocket on localhost.
 
-A shell over :mod:`seapup_bringup.view_scene` (the geometry) and the ``foxglove-sdk`` server (its own
+A shell over :mod:`seapup_live_view.view_scene` (the geometry) and the ``foxglove-sdk`` server (its own
 threads: nothing here waits for a viewer). It subscribes to the graph's topics and, at each sample of the
 simulator's truth, logs to the server, stamped with the sample's (sim) time, which the server also
 broadcasts as its clock (at a display's rate: every sample while the graph runs at up to 10x real time):
@@ -19,13 +19,13 @@ Services through the server (JSON requests): ``switch_controller`` (``{"activate
 manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's),
 ``set_sensor_profile`` (``{"name": "haslar"}``) and ``goto`` (``{"x": 10, "y": 0, "z": 30}`` -> a goal of the
 task controller). Parameters: ``lockstep_pace`` (the simulator's) and ``controller`` (setting it switches).
-Every payload and parameter value is checked first (:mod:`seapup_bringup.view_requests`); a refusal is one line,
+Every payload and parameter value is checked first (:mod:`seapup_live_view.view_requests`); a refusal is one line,
 said on ``/events`` with the count of refusals so far, and nothing reaches the graph. A parameter set never holds
 the server's thread: it is checked there, carried out on the view's own worker (one at a time), and its new value
 published to the viewers subscribed to it; at most :data:`MAX_CALLS_IN_FLIGHT` service calls wait on the graph
 at once.
 
-The port is served through :class:`seapup_bringup.view_relay.Relay`, so clients offering ``foxglove.sdk.v1`` and
+The port is served through :class:`seapup_live_view.view_relay.Relay`, so clients offering ``foxglove.sdk.v1`` and
 clients offering only ``foxglove.websocket.v1`` (Lichtblick) are both served.
 
 A message is built only when a viewer subscribes to its channel (``has_sinks``), the scenes at a display's rate
@@ -66,9 +66,9 @@ from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVI
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SIMULATOR_PARAMETERS_SERVICE,
                                   SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, UMBILICAL_SHAPE, VELOCITY_REFERENCE,
                                   task_action)
-from seapup_bringup import view_scene
-from seapup_bringup.view_requests import GOTO_KEYS, VIEW_PARAMETERS, ViewRequestError
-from seapup_bringup import view_requests
+from seapup_live_view import view_scene
+from seapup_live_view.view_requests import GOTO_KEYS, VIEW_PARAMETERS, ViewRequestError
+from seapup_live_view import view_requests
 
 __all__ = ["LiveViewNode", "main", "PLOT_SCHEMA", "SCENE_TOPICS", "PLOT_TOPIC", "TF_TOPIC", "SERVICES",
            "VIEW_PARAMETERS", "EVENTS_TOPIC", "ESTIMATE_TOPIC", "MAX_CALLS_IN_FLIGHT"]
@@ -156,7 +156,7 @@ class LiveViewNode(Node):
             name="seapup", host="127.0.0.1", port=0,
             capabilities=[Capability.Time, Capability.Parameters], services=self._viewer_services(foxglove),
             supported_encodings=["json"], server_listener=_Listener(self))
-        from seapup_bringup.view_relay import Relay
+        from seapup_live_view.view_relay import Relay
         port = int(self.get_parameter("port").value)
         try:
             self.relay = Relay(port, self.server.port).start()
@@ -265,7 +265,7 @@ class LiveViewNode(Node):
             active = next((kv.value for kv in status.values if kv.key == "active"), self.active_controller)
             if active != self.active_controller:
                 if self.events_channel.has_sinks():
-                    from seapup_bringup import live_view_messages as fm
+                    from seapup_live_view import live_view_messages as fm
                     self.events_channel.log(fm.event(f"controller {self.active_controller or '(none)'} -> "
                                                      f"{active or '(none)'}", self._t_ns), log_time=self._t_ns)
                 self.active_controller = active
@@ -324,7 +324,7 @@ class LiveViewNode(Node):
             return
         self.trail.add(state[:3])
         self.server.broadcast_time(t_ns)
-        from seapup_bringup import live_view_messages as fm
+        from seapup_live_view import live_view_messages as fm
         if self.tf_channel.has_sinks():
             self.tf_channel.log(fm.frame_transforms(view_scene.frame_transforms(state), t_ns), log_time=t_ns)
         applied = self._decoded(APPLIED)
@@ -523,7 +523,7 @@ class LiveViewNode(Node):
             self.refusals += 1
             count = self.refusals
         self.get_logger().warn(f"viewer request refused ({count} so far): {text}")
-        from seapup_bringup import live_view_messages as fm
+        from seapup_live_view import live_view_messages as fm
         self.events_channel.log(fm.event(f"refused ({count} so far): {text}", self._t_ns, error=True),
                                 log_time=self._t_ns)
 
@@ -581,7 +581,7 @@ def _one_line(exc: BaseException) -> str:
 
 def main(args=None) -> int:
     import sys
-    from seapup_bringup.view import ros_arguments
+    from seapup_live_view.attach import ros_arguments
     return run_node(LiveViewNode, ros_arguments(list(sys.argv if args is None else args)))
 
 

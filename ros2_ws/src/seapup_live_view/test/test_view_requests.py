@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from seapup_bringup import view_requests as vr
-from seapup_bringup.view_requests import ViewRequestError
+from seapup_live_view import view_requests as vr
+from seapup_live_view.view_requests import ViewRequestError
 
 
 def _json(body) -> bytes:

@@ -4,8 +4,8 @@ import socket
 
 import pytest
 
-from seapup_bringup.view import check_port, ros_arguments
-from seapup_bringup.view_relay import Relay
+from seapup_live_view.attach import check_port, ros_arguments
+from seapup_live_view.view_relay import Relay
 
 
 def test_a_port_whose_last_view_just_closed_is_free_at_once():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from seapup_bringup import view_scene
+from seapup_live_view import view_scene
 from seapup_common import frames
 from seapup_common.ros import messages as conv
 from seapup_sim.seabed import Seabed

@@ -8,8 +8,8 @@ import pytest
 from tornado.httpclient import HTTPClientError
 from tornado.websocket import websocket_connect
 
-from seapup_bringup import view_relay
-from seapup_bringup.view_relay import HandshakeError, Relay, rewrite_request, rewrite_response
+from seapup_live_view import view_relay
+from seapup_live_view.view_relay import HandshakeError, Relay, rewrite_request, rewrite_response
 
 _REQUEST = (b"GET / HTTP/1.1\r\nHost: 127.0.0.1:8765\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
             b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"

@@ -1,4 +1,4 @@
-"""The live view's geometry (:mod:`seapup_bringup.view_scene`) as Foxglove messages: copies only, no maths.
+"""The live view's geometry (:mod:`seapup_live_view.view_scene`) as Foxglove messages: copies only, no maths.
 
 Stamps are the sample's sim time; every Quaternion and Color is given in full (the SDK's defaults are w = 0 and
 alpha = 0: an invisible, degenerate object).
@@ -54,7 +54,7 @@ def _rotation_x_to(direction) -> tuple:
 
 
 def frame_transforms(transforms, t_ns: int) -> FrameTransforms:
-    """:func:`~seapup_bringup.view_scene.frame_transforms` as foxglove.FrameTransforms."""
+    """:func:`~seapup_live_view.view_scene.frame_transforms` as foxglove.FrameTransforms."""
     stamp = timestamp(t_ns)
     return FrameTransforms(transforms=[FrameTransform(
         timestamp=stamp, parent_frame_id=t.parent, child_frame_id=t.child,

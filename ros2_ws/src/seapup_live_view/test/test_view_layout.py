@@ -3,8 +3,8 @@ import json
 import re
 from pathlib import Path
 
-from seapup_bringup.live_view_node import EVENTS_TOPIC, PLOT_SCHEMA, PLOT_TOPIC, SCENE_TOPICS, SERVICES
-from seapup_bringup.view_layout import layout_json
+from seapup_live_view.live_view_node import EVENTS_TOPIC, PLOT_SCHEMA, PLOT_TOPIC, SCENE_TOPICS, SERVICES
+from seapup_live_view.view_layout import layout_json
 
 SHIPPED = Path(__file__).resolve().parents[1] / "config" / "foxglove_layout.json"
 
@@ -42,7 +42,7 @@ def test_every_panel_names_a_channel_field_or_service_the_view_serves():
 
 def test_every_service_button_sends_a_request_the_view_accepts():
     """A button's payload passes the view's own checks (``view_requests``): no shipped button is refused."""
-    from seapup_bringup import view_requests
+    from seapup_live_view import view_requests
     check = dict(zip(SERVICES, (view_requests.switch_request, view_requests.current_request,
                                 view_requests.profile_request, view_requests.goto_request)))
     panels = [n for n in _walk(json.loads(layout_json())) if n.get("type") == "panel"]

@@ -1,6 +1,6 @@
 """Starting the live view beside a graph (``--view`` of ``demo``, ``launch`` and ``replay``; ``./seapup view``).
 
-The view is the ``live_view`` node (:mod:`seapup_bringup.live_view_node`) as one more node of the graph: the
+The view is the ``live_view`` node (:mod:`seapup_live_view.live_view_node`) as one more node of the graph: the
 same :class:`~seapup_common.ros.launch_graph.NodeSpec` a graph file would give it.
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ def check_port(port: int) -> None:
     """Refuse a port out of range or already taken on 127.0.0.1 (one line, before any node starts).
 
     The probe binds with ``SO_REUSEADDR``, as the view's own listener does
-    (:class:`seapup_bringup.view_relay.Relay`, and the SDK's server, whose tokio listener sets it on Unix): a port
+    (:class:`seapup_live_view.view_relay.Relay`, and the SDK's server, whose tokio listener sets it on Unix): a port
     whose last connection lingers in TIME_WAIT after the previous view closed is free to both, while a port
     another process listens on is refused by both.
     """
@@ -35,7 +35,7 @@ def check_port(port: int) -> None:
 
 def view_node(port: int = DEFAULT_PORT) -> NodeSpec:
     """The live view as a graph node (it reads the simulator's vehicle and seabed from the graph itself)."""
-    return NodeSpec(package="seapup_bringup", executable="live_view", name="live_view",
+    return NodeSpec(package="seapup_live_view", executable="live_view", name="live_view",
                     parameters=[{"port": int(port)}])
 
 
