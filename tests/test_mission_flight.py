@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,16 +156,22 @@ def test_seapup_fly_flies_a_mission_file_in_process_and_writes_its_page(tmp_path
     (lambda d: d["graph"].update(sensor="baseline"), "graph argument 'sensor' is not one of"),
     (lambda d: d["mission"][1]["switch"]["request"].update(activate=["lqr"]), "names 'lqr', not a velocity controller"),
 ])
-def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys, change, reason):
+def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys, monkeypatch, change, reason):
+    """... naming the file, which it read once (the file a user gave may change between two reads)."""
     from seapup_bringup.run_commands import fly
+    from seapup_common import input_files
+    reads = []
+    read = input_files.load_yaml_file
+    monkeypatch.setattr(input_files, "load_yaml_file", lambda path, *a, **k: reads.append(path) or read(path, *a, **k))
     document = yaml.safe_load(MISSION)
     change(document)
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(document))
     assert fly([str(path), "--out", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("seapup: error: ") and reason in err[0], err
+    assert len(err) == 1 and err[0].startswith(f"seapup: error: {path}") and reason in err[0], err
     assert not (tmp_path / "out").exists()
+    assert [Path(r) for r in reads] == [path]
 
 
 def test_a_mission_longer_than_its_bound_stops_with_the_reason_before_its_logs_grow(spec, hierarchy):

@@ -42,9 +42,10 @@ def mission_path() -> Path:
     return Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION
 
 
-def mission_config(path: Path | None = None) -> dict:
-    """A mission document (default the shipped one), checked strictly (:mod:`seapup_runs.mission`), its
-    graph arguments among those the hierarchy's launch document declares.
+def mission_config(path: Path | None = None, document=None) -> dict:
+    """A mission document (default the shipped one; ``document``: the file ``path`` already read, bounded),
+    checked strictly (:mod:`seapup_runs.mission`), its graph arguments among those the hierarchy's launch
+    document declares.
 
     Raises
     ------
@@ -54,7 +55,7 @@ def mission_config(path: Path | None = None) -> dict:
     from seapup_common.ros.launch_graph import find_graph, graph_arguments, load_graph
     from seapup_runs.mission import MissionError, load_mission
     path = path or mission_path()
-    config = load_mission(path).to_dict()
+    config = load_mission(path, document).to_dict()
     graph = find_graph(*GRAPH.split())
     declared = graph_arguments(graph)
     unknown = sorted(set(config["graph"]) - set(declared))

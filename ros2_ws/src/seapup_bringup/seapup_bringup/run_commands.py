@@ -83,8 +83,9 @@ def fly(argv: list[str]) -> int:
     parser = fly_parser()
     args = parser.parse_args(argv)
     text = text_stream(args)
-    if _is_mission(args.spec):
-        return _fly_mission(args, text)
+    mission = _mission_document(args.spec)
+    if mission is not None:
+        return _fly_mission(args, text, mission)
     try:
         spec = _load_spec(args.spec)
         if args.graph:
@@ -104,18 +105,18 @@ def fly(argv: list[str]) -> int:
     return 0
 
 
-def _is_mission(path: Path) -> bool:
-    """Does ``path`` hold a mission document (a mapping with ``mission``) rather than a run spec? Read bounded;
-    a file that cannot be read is left to the run spec's reader to refuse with its reason."""
+def _mission_document(path: Path) -> dict | None:
+    """The document in ``path`` if it is a mission (a mapping with ``mission``) rather than a run spec, else None.
+    Read bounded, once; a file that cannot be read is left to the run spec's reader to refuse with its reason."""
     from seapup_common.input_files import InputFileError, load_yaml_file
     try:
         document = load_yaml_file(path, "spec")
     except InputFileError:
-        return False
-    return isinstance(document, dict) and "mission" in document
+        return None
+    return document if isinstance(document, dict) and "mission" in document else None
 
 
-def _fly_mission(args, text) -> int:
+def _fly_mission(args, text, document: dict) -> int:
     """``./seapup fly MISSION [--graph] [--out DIR] [--json [F]]``: the mission in process or on the graph."""
     import os
     import time
@@ -128,7 +129,7 @@ def _fly_mission(args, text) -> int:
     from seapup_runs.mission import MissionError, MissionSpec
     from seapup_runs.mission_flight import MissionFlightError, run_mission
     try:
-        config = mission_config(args.spec)
+        config = mission_config(args.spec, document)
     except (MissionError, LaunchError) as exc:
         print(f"seapup: error: {exc}", file=sys.stderr)
         return 1

@@ -29,7 +29,7 @@ import numpy as np
 from seapup_common.blade_pitch import InvalidBladePitchError
 
 __all__ = ["ContractError", "Reading", "Measurement", "Reference", "StampedReferences", "Command", "VelocityController",
-           "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate"]
+           "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate", "MAX_AGE", "LatestReadings"]
 
 #: Measurement fields, their sizes (0 = scalar) and meanings.
 MEASUREMENT_FIELDS = {
@@ -332,6 +332,47 @@ class HoldCommand:
 
     def diagnostics(self) -> dict:
         return {} if self.blade_pitch is None else {"blade_pitch": self.blade_pitch.tolist()}
+
+
+#: How old [s] a field's newest reading may be at a sample and still be used (default: 1 s for the velocity,
+#: rates, attitude, depth and altitude; 5 s for the acoustic position fixes, which come at about 1 Hz).
+MAX_AGE = {"velocity": 1.0, "rates": 1.0, "attitude": 1.0, "depth": 1.0, "altitude": 1.0, "position": 5.0}
+
+
+class LatestReadings:
+    """The newest valid reading of each measurement field, and the :class:`Measurement` at a sample from them.
+
+    The one rule every reader of the sensors applies (the nodes' collectors, the in-process hierarchy): an
+    invalid reading is not kept (the previous one stands); at sample ``t`` a reading is used when it is no
+    older than its field's ``max_age`` (a dead sensor is not a reading) and not stamped after ``t`` (not yet).
+
+    Parameters
+    ----------
+    max_age : dict, optional
+        Per-field age limits [s] over :data:`MAX_AGE`.
+
+    Examples
+    --------
+    >>> store = LatestReadings()
+    >>> store.keep("depth", Reading(np.array(30.0), stamp=1.0))
+    >>> store.measurement(1.8).depth.valid, store.measurement(2.2).depth.valid, store.measurement(0.5).depth.valid
+    (True, False, False)
+    """
+
+    def __init__(self, max_age: dict | None = None):
+        self.max_age = {**MAX_AGE, **(max_age or {})}
+        self.latest: dict[str, Reading] = {}
+
+    def keep(self, name: str, reading: Reading) -> None:
+        """Keep ``reading`` as field ``name``'s newest if it is valid."""
+        if reading.valid:
+            self.latest[name] = reading
+
+    def measurement(self, t: float) -> Measurement:
+        """The measurement at time ``t`` [s] from the newest readings fresh at ``t``."""
+        fields = {name: reading for name, reading in self.latest.items()
+                  if -1e-9 <= t - reading.stamp <= self.max_age[name] + 1e-9}
+        return Measurement(float(t), **fields)
 
 
 @dataclass(frozen=True)

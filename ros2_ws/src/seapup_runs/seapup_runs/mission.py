@@ -280,9 +280,10 @@ class MissionSpec:
         return sum(leg.get("expected", 60.0) for leg in self.legs)
 
 
-def load_mission(path: str | Path) -> MissionSpec:
+def load_mission(path: str | Path, document=None) -> MissionSpec:
     """A mission file read within the size limit of a specification, duplicate keys refused
-    (:mod:`seapup_common.input_files`), and checked (:meth:`MissionSpec.load`).
+    (:mod:`seapup_common.input_files`), and checked (:meth:`MissionSpec.load`); ``document``: the file's
+    content already read that way (not read again).
 
     Raises
     ------
@@ -291,7 +292,7 @@ def load_mission(path: str | Path) -> MissionSpec:
     """
     from seapup_common.input_files import InputFileError, load_yaml_file
     try:
-        document = load_yaml_file(path, "spec")
+        document = load_yaml_file(path, "spec") if document is None else document
     except InputFileError as exc:
         raise MissionError(str(exc)) from None
     try:

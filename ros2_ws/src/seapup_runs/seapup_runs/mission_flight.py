@@ -51,7 +51,8 @@ from typing import Callable
 import numpy as np
 
 from seapup_common import frames
-from seapup_common.contract import Command, ContractError, Measurement, NavigationEstimate, StampedReferences
+from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate,
+                                     StampedReferences)
 from seapup_common.controllers import ControllerSpec, controller_type, create_controller
 from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
 
@@ -64,8 +65,6 @@ HOLD_CHUNK = 1.0
 #: [s simulated] the longest mission flown in process: a day, 432 000 samples at 5 Hz (about 100 MB of logs);
 #: a mission that would run longer (a goal that never ends) stops with the reason.
 MAX_MISSION_SECONDS = 86_400.0
-#: [s] how long a reading stays in use when its successors drop out (the nodes' MeasurementCollector).
-MAX_AGE = {"velocity": 1.0, "rates": 1.0, "attitude": 1.0, "depth": 1.0, "altitude": 1.0, "position": 5.0}
 
 
 class MissionFlightError(RuntimeError):
@@ -122,22 +121,20 @@ def _via_quaternion(attitude) -> np.ndarray:
     return frames.quaternion_to_euler(q / np.linalg.norm(q))
 
 
-class _Collector:
-    """The latest valid reading of each field; the measurement at t from those no older than their limit."""
+class _Collector(LatestReadings):
+    """A node's collector of ``fields`` (:class:`~seapup_common.contract.LatestReadings`), fed the simulator's
+    sample as the node hears its messages: stamped with the sample, the attitude through a quaternion."""
 
     def __init__(self, fields):
-        self.fields, self.latest = tuple(fields), {}
+        super().__init__()
+        self.fields = tuple(fields)
 
     def add(self, measurement: Measurement, t: float) -> None:
         for name in self.fields:
             reading = getattr(measurement, name)
             if reading.valid:
                 value = _via_quaternion(reading.value) if name == "attitude" else reading.value
-                self.latest[name] = dataclasses.replace(reading, value=value, stamp=t)
-
-    def measurement(self, t: float) -> Measurement:
-        fields = {name: r for name, r in self.latest.items() if -1e-9 <= t - r.stamp <= MAX_AGE[name] + 1e-9}
-        return Measurement(float(t), **fields)
+                self.keep(name, dataclasses.replace(reading, value=value, stamp=t))
 
 
 @dataclasses.dataclass

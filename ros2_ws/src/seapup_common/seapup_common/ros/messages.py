@@ -28,7 +28,8 @@ from tf2_msgs.msg import TFMessage
 from seapup_msgs.msg import BladePitch, Depth
 
 from seapup_common import frames
-from seapup_common.contract import Command, ContractError, Measurement, NavigationEstimate, Reading, Reference
+from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate, Reading,
+                                     Reference)
 
 __all__ = ["ns_to_stamp", "stamp_to_ns", "command_to_msg", "command_from_msg",
            "velocity_to_msg", "velocity_from_msg", "imu_to_msg", "attitude_from_imu",
@@ -373,33 +374,26 @@ def wrench_stamped(wrench, t_ns: int, frame_id: str) -> WrenchStamped:
     return msg
 
 
-class MeasurementCollector:
+class MeasurementCollector(LatestReadings):
     """Keeps the latest reading of each sensor topic and assembles a :class:`Measurement`.
 
     A controller node feeds it every sensor message as it arrives and asks
-    for the measurement at its sample time. Readings older than ``max_age``
-    [s] at that time are reported invalid (a dead sensor is not a reading);
-    readings stamped after it are not used yet.
+    for the measurement at its sample time, by the rule of
+    :class:`~seapup_common.contract.LatestReadings`: readings older than
+    ``max_age`` [s] at that time are reported invalid (a dead sensor is not a
+    reading); readings stamped after it are not used yet.
 
     Parameters
     ----------
     max_age : dict, optional
-        Per-field age limit [s] (default: 1 s for velocity, rates, attitude,
-        depth and altitude; 5 s for position fixes).
+        Per-field age limit [s] (default :data:`~seapup_common.contract.MAX_AGE`: 1 s for velocity, rates,
+        attitude, depth and altitude; 5 s for position fixes).
     """
 
-    DEFAULT_MAX_AGE = {"velocity": 1.0, "rates": 1.0, "attitude": 1.0, "depth": 1.0,
-                       "altitude": 1.0, "position": 5.0}
-
     def __init__(self, max_age: dict | None = None):
-        self.max_age = {**self.DEFAULT_MAX_AGE, **(max_age or {})}
-        self.latest: dict[str, Reading] = {}
+        super().__init__(max_age)
         self.rejected = 0
         self.last_error = ""
-
-    def _keep(self, name: str, reading: Reading) -> None:
-        if reading.valid:
-            self.latest[name] = reading
 
     @staticmethod
     def readings(msg) -> list[tuple[str, Reading]]:
@@ -427,17 +421,8 @@ class MeasurementCollector:
             self.last_error = str(exc)
             return False
         for name, reading in readings:
-            self._keep(name, reading)
+            self.keep(name, reading)
         return True
-
-    def measurement(self, t: float) -> Measurement:
-        """The measurement at time ``t`` [s] from the latest fresh readings."""
-        fields = {}
-        for name, reading in self.latest.items():
-            age = t - reading.stamp
-            if -1e-9 <= age <= self.max_age[name] + 1e-9:
-                fields[name] = reading
-        return Measurement(float(t), **fields)
 
 
 class SampleFeed:
