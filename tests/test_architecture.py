@@ -38,7 +38,7 @@ SHELLS = {
     # bringup: graphs, the SIL harness and the graph runners, benchmarks
     "seapup_bringup.launch", "seapup_bringup.sil", "seapup_bringup.sil_probe", "seapup_bringup.graph_stepper",
     "seapup_bringup.graph_runner", "seapup_bringup.mission_graph", "seapup_bringup.open_loop",
-    "seapup_bringup.graph_bench", "seapup_bringup.hierarchy_config", "seapup_bringup.hierarchy_in_process",
+    "seapup_bringup.graph_bench", "seapup_bringup.hierarchy_config",
     # the live view: the node beside a graph, and the layout of the node's topics
     "seapup_live_view.attach", "seapup_live_view.view_layout",
 }

@@ -214,7 +214,8 @@ class MissionFlight:
         self.setpoint = None           # the task controller's setpoint (PoseReference), None before the first goal
         self.answered = False          # the present sample has its command
         self.skipped = 0               # samples nobody could answer (no fresh velocity): the plant held its command
-        self.logs = {name: [] for name in ("command_t", "command", "truth_t", "truth_position", "truth_velocity",
+        self.logs = {name: [] for name in ("command_t", "command", "truth_t", "truth_position", "truth_attitude",
+                                           "truth_velocity",
                                            "setpoint_t", "setpoint", "reference_t", "reference", "estimate_t",
                                            "estimate_position", "estimate_horizontal_std")}
         self._publish()
@@ -243,6 +244,7 @@ class MissionFlight:
         logs = self.logs
         logs["truth_t"].append(stamp)
         logs["truth_position"].append(sample.state[:3].copy())
+        logs["truth_attitude"].append(_via_quaternion(sample.state[3:6]))
         logs["truth_velocity"].append(sample.state[6:12].copy())
         measurement = sample.measurement
         self.law_readings.add(measurement, t)

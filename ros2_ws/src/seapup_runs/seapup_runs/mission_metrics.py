@@ -5,8 +5,8 @@ The logs are arrays by name (a harness's probe gives them, :meth:`seapup_bringup
 simulated seconds, one row per sample heard:
 
 - ``command_t``, ``command`` (n, 4): the blade pitches commanded [rad];
-- ``truth_t``, ``truth_position`` (n, 3) [m, odom_ned], ``truth_velocity`` (n, 6) [m/s, rad/s, base_link_frd]:
-  the simulator's truth;
+- ``truth_t``, ``truth_position`` (n, 3) [m, odom_ned], ``truth_attitude`` (n, 3) [rad, roll, pitch, yaw in
+  (-pi, pi]], ``truth_velocity`` (n, 6) [m/s, rad/s, base_link_frd]: the simulator's truth;
 - ``setpoint_t``, ``setpoint`` (n, 4+): the position setpoint (x, y, z [m], yaw [rad]) in force;
 - ``reference_t``, ``reference`` (n, 4): the velocity reference (u, v, w [m/s], r [rad/s]);
 - ``estimate_t``, ``estimate_position`` (n, 3), ``estimate_horizontal_std`` (n,): the navigator's estimate
