@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from seapup_bringup.scenario_commands import scenario_command
+from seapup_bringup.verbs.scenario_commands import scenario_command
 from seapup_runs.result import RunResult
 from seapup_runs.runner import run
 from seapup_runs.scenarios import scenario_spec, scenarios
@@ -83,7 +83,7 @@ def test_a_self_tuner_through_the_ros_graph_flies_the_same_run(name, controller,
     """The registered law in the generic velocity_controller node, told the applied blade pitch by the lockstep
     protocol before each sample (needs_applied): the same commands and motion as in process, sample for sample
     (with the fouled thruster's event carried out by the simulator node)."""
-    from seapup_bringup.graph_runner import run_on_graph
+    from seapup_bringup.graph.graph_runner import run_on_graph
 
     spec = scenario_spec(name, controller=controller)
     graph, local = run_on_graph(spec, out_dir=tmp_path), run(spec)
@@ -96,7 +96,7 @@ def test_a_self_tuner_through_the_ros_graph_flies_the_same_run(name, controller,
 def test_the_computing_cost_benchmark_times_every_law_on_the_same_flight():
     """Sec. 7.7's comparison as ./seapup bench makes it (no time asserted: a benchmark, not a timed test): each
     law flies the 60 s inspection square wave and only its own calls are counted, one per control step."""
-    from seapup_bringup.graph_bench import THESIS_EXTRA_S, law_step_costs
+    from seapup_bringup.graph.graph_bench import THESIS_EXTRA_S, law_step_costs
     costs = law_step_costs(repeats=1)
     assert set(costs) == {"fixed", "scheduled", "explicit", "gmv"}
     assert all(c["steps"] == 300 and c["cpu_us"] > 0 and c["wall_us"] > 0 for c in costs.values())

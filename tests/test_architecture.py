@@ -17,6 +17,7 @@ live view's graph helpers): every other module of bringup and the live view is h
 every named shell must really reach ROS (a module that no longer does leaves the list).
 """
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -29,19 +30,27 @@ LAYER = {"seapup_msgs": 0, "seapup_common": 1, "seapup_sim": 2, "seapup_ident": 
 # (which draws the vehicle and the seabed from the simulator's configuration, and flies nothing)
 #: The modules that are rclpy shells besides ``*_node.py`` and the ``ros`` subpackages, named one by one.
 SHELLS = {
-    # bringup: the verbs (each starts or talks to a graph, or imports one that does)
-    "seapup_bringup.cli", "seapup_bringup.cli_usage", "seapup_bringup.commands", "seapup_bringup.autopilot_commands",
-    "seapup_bringup.bag_commands", "seapup_bringup.campaign_commands", "seapup_bringup.ident_commands",
-    "seapup_bringup.report_commands", "seapup_bringup.ros2_commands", "seapup_bringup.run_commands",
-    "seapup_bringup.scenario_commands", "seapup_bringup.view_commands", "seapup_bringup.demo",
-    "seapup_bringup.reproduction",
-    # bringup: graphs, the SIL harness and the graph runners, benchmarks
-    "seapup_bringup.launch", "seapup_bringup.sil", "seapup_bringup.sil_probe", "seapup_bringup.graph_stepper",
-    "seapup_bringup.graph_runner", "seapup_bringup.mission_graph", "seapup_bringup.open_loop",
-    "seapup_bringup.graph_bench", "seapup_bringup.hierarchy_config",
+    # bringup: the command line and its verbs (each starts or talks to a graph, or imports one that does)
+    "seapup_bringup.cli", "seapup_bringup.cli_usage",
+    *(f"seapup_bringup.verbs.{verb}" for verb in (
+        "autopilot_commands", "campaign_commands", "demo", "ident_commands", "model_commands", "report_commands",
+        "run_commands", "scenario_commands", "view_commands")),
+    # bringup: the ros2cli / launch / rosbag2 substitute
+    "seapup_bringup.ros2cli.launch", "seapup_bringup.ros2cli.ros2_commands", "seapup_bringup.ros2cli.bag_commands",
+    # bringup: the SIL harness, the graph runners (a run, a mission, an experiment), benchmarks; Dask campaigns
+    # (their missions' hierarchies are read from the installed launch document); the report's runs
+    *(f"seapup_bringup.graph.{name}" for name in (
+        "sil", "sil_probe", "graph_stepper", "graph_runner", "mission_graph", "identification", "open_loop",
+        "graph_bench", "hierarchy_config")),
+    "seapup_bringup.campaign_runner", "seapup_bringup.report.reproduction",
     # the live view: the node beside a graph, and the layout of the node's topics
     "seapup_live_view.attach", "seapup_live_view.view_layout",
 }
+#: Bringup's sub-packages by job (docs/contributing.md): every module of bringup is in one of them but the
+#: command line's front (its registry, usage lines and output conventions) and the Dask campaign runner.
+BRINGUP_JOBS = ("verbs", "ros2cli", "graph", "report")
+BRINGUP_TOP = {"seapup_bringup", "seapup_bringup.cli", "seapup_bringup.cli_usage", "seapup_bringup.output",
+               "seapup_bringup.campaign_runner", "seapup_bringup.dask_worker_setup"}
 ROS = re.compile(r"^(rclpy|rosidl\w*|ament_index_python|\w+_msgs|\w+_interfaces|rcl_\w+|rosgraph_msgs)(\.|$)")
 
 
@@ -57,7 +66,13 @@ def modules():
     return out
 
 
-def imports_of(path: Path) -> set[str]:
+@functools.lru_cache(maxsize=None)
+def imports_of(path: Path) -> frozenset[str]:
+    """Every absolute import in ``path`` (module level or inside functions), as ``module`` and ``module.name``."""
+    return frozenset(_imports_of(path))
+
+
+def _imports_of(path: Path) -> set[str]:
     names = set()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
@@ -109,16 +124,20 @@ def test_the_run_layer_is_pure_and_never_starts_a_node(module):
     assert not [n for n in names if n.endswith("_node") or ".ros." in n or n.endswith(".ros")], module
 
 
-def _project_closure(module: str, seen=None) -> set[str]:
+@functools.lru_cache(maxsize=None)
+def _project_closure(module: str) -> frozenset[str]:
     """Every import of ``module``, following the project's own modules."""
-    seen = set() if seen is None else seen
+    return frozenset(_closure(module, set()))
+
+
+def _closure(module: str, seen: set) -> set[str]:
     out = set()
     for name in imports_of(MODULES[module]):
         out.add(name)
         target = next((m for m in (name, name.rsplit(".", 1)[0]) if m in MODULES), None)
         if target and target not in seen:
             seen.add(target)
-            out |= _project_closure(target, seen)
+            out |= _closure(target, seen)
     return out
 
 
@@ -149,3 +168,24 @@ def test_the_checker_catches_a_violation(tmp_path):
     names = imports_of(bad)
     assert "seapup_sim.simulation" in names and any(ROS.match(n) for n in names)
     assert _simulator_names(names) == ["seapup_sim.simulation", "seapup_sim.simulation.Simulation"]
+
+
+def _is_verb(module: str) -> bool:
+    return module.startswith("seapup_bringup.verbs.") or (module.startswith("seapup_bringup.ros2cli.")
+                                                          and module.endswith("_commands"))
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if m not in ("seapup_bringup.cli", "seapup_bringup.cli_usage")))
+def test_no_product_module_imports_a_verb(module):
+    """Issue 44: a verb parses, calls the product and prints; what two verbs (or the report) share lives below
+    them. Only the command registry (and its usage lines) imports a verb module."""
+    verbs = sorted(n for n in imports_of(MODULES[module]) if _is_verb(n))
+    assert not verbs, f"{module} imports the verb module(s) {verbs}"
+
+
+def test_bringup_is_split_by_job():
+    """Issue 44: bringup's modules live in sub-packages by job, but for the command line's front."""
+    loose = sorted(m for m in MODULES if m.startswith("seapup_bringup") and m not in BRINGUP_TOP
+                   and m.split(".")[1] not in BRINGUP_JOBS)
+    assert not loose, f"modules of bringup outside {BRINGUP_JOBS}: {loose}"
+    assert all(f"seapup_bringup.{job}" in MODULES for job in BRINGUP_JOBS)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from seapup_bringup.autopilot_commands import closed_loop_command, selftest
+from seapup_bringup.verbs.autopilot_commands import closed_loop_command, selftest
 from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
@@ -45,7 +45,7 @@ def test_modes_are_labelled_two_each_where_the_largest_component_would_crowd_one
     """A constructed spectrum: six modes' eigenvectors, one of pitch's leaning more on surge (1.0) than on
     pitch (0.9). The largest component gives surge three eigenvalues and pitch one; the two-per-mode
     assignment gives the leaning one to pitch and keeps the pure integrations as position."""
-    from seapup_bringup.autopilot_commands import _label_modes, _mode_of
+    from seapup_runs.closed_loop_analysis import _label_modes, _mode_of
     states = {"surge": 6, "sway": 7, "heave": 8, "yaw": 11, "roll": 3, "pitch": 4}
     vectors, s_values = np.zeros((16, 16)), np.zeros(16, dtype=complex)
     for k, idx in enumerate((0, 1, 2, 5)):      # the four pure integrations (s = 0)

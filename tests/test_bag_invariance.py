@@ -70,7 +70,7 @@ def graph_file(spec, out, pace: float):
     """The run's graph (:func:`seapup_runs.run_graph.graph_document`; the SIL harness fills the handshake's counts
     from its lockstep roster, its probe and recorder included) with the simulator's ``lockstep_pace``, and its
     ``end_time`` as a graph argument, so the SIL harness can hold it."""
-    from seapup_bringup.graph_runner import _write_documents
+    from seapup_bringup.graph.graph_runner import _write_documents
     from seapup_runs.run_graph import graph_document
     out.mkdir(parents=True, exist_ok=True)
     document = graph_document(spec, _write_documents(spec, out))
@@ -87,10 +87,10 @@ def graph_file(spec, out, pace: float):
 
 def hold_and_step(sil, chunks) -> None:
     """Step a held graph on chunk by chunk [s simulated] through simulation_interfaces' StepSimulation
-    (:meth:`seapup_bringup.graph_stepper.GraphStepper.step_call`): each step is answered once the graph is held
+    (:meth:`seapup_bringup.graph.graph_stepper.GraphStepper.step_call`): each step is answered once the graph is held
     at the chunk's last sample and every node has answered it."""
-    from seapup_bringup.graph_stepper import GraphStepper
-    from seapup_bringup.paced import samples_to
+    from seapup_bringup.graph.graph_stepper import GraphStepper
+    from seapup_bringup.graph.paced import samples_to
     stepper = GraphStepper(sil._node, sil._executor)
     try:
         stepper.wait_ready(30.0)
@@ -109,7 +109,7 @@ def hold_and_step(sil, chunks) -> None:
 def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float]:
     """Record the mission (at ``pace``, or held at ``chunks[0]`` and stepped by the rest): its bag
     (:func:`by_topic`) and the wall seconds from the first sample heard to the last one answered."""
-    from seapup_bringup.sil import SilError, SilGraph
+    from seapup_bringup.graph.sil import SilError, SilGraph
     end = spec.duration - 1e-6
     arguments = None if chunks else {"end_time": repr(spec.duration)}
     with SilGraph(graph_file(spec, out, pace), arguments, out_dir=out, record=RECORDED, ready_status=None,

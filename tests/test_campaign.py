@@ -40,7 +40,7 @@ def _same(a, b) -> bool:
 def test_a_campaign_on_a_local_cluster_writes_every_run_s_metrics_and_resumes(tmp_path):
     import pyarrow.parquet as pq
 
-    from seapup_bringup.campaign_commands import run_campaign
+    from seapup_bringup.campaign_runner import run_campaign
     campaign = cp.load_campaign(_file(tmp_path))
     out = tmp_path / "out"
     summary = run_campaign(campaign, out, workers=2)
@@ -121,8 +121,8 @@ def test_a_mission_campaign_gives_the_same_table_on_a_local_cluster_and_on_a_sep
     import pyarrow.parquet as pq
     from distributed import LocalCluster
 
-    from seapup_bringup.campaign_commands import attach_hierarchies, run_campaign
-    from seapup_bringup.hierarchy_config import hierarchy_config
+    from seapup_bringup.campaign_runner import attach_hierarchies, run_campaign
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
     from seapup_runs.mission import MissionSpec
     from seapup_runs.mission_flight import run_mission
     path = tmp_path / "missions.yaml"
@@ -162,7 +162,7 @@ def test_a_mission_campaign_gives_the_same_table_on_a_local_cluster_and_on_a_sep
 def test_the_shipped_mission_campaign_varies_the_demo_s_current_and_fouling_legs():
     """demo-mission-robustness names the demo's legs by index: its draws and grid must land on the station-keeping
     current and the fouled thruster, in every one of its 32 missions."""
-    from seapup_bringup.campaign_commands import ship_missions
+    from seapup_bringup.campaign_runner import ship_missions
     from seapup_runs.mission import MissionSpec
     ship_missions()
     rows = cp.expand(cp.load_campaign("demo-mission-robustness"))

@@ -88,7 +88,7 @@ def _expected(series, k_surge=1.5, k_heave=2.0):
 
 @pytest.mark.graph
 def test_a_registered_law_flies_in_process_and_through_the_graph_alike(toy_package, tmp_path):
-    from seapup_bringup.graph_runner import run_on_graph
+    from seapup_bringup.graph.graph_runner import run_on_graph
     from tests.test_scenarios import assert_same_run
 
     spec = _spec(toy_package)
@@ -103,7 +103,7 @@ def test_a_registered_law_flies_in_process_and_through_the_graph_alike(toy_packa
 def test_the_controller_manager_swaps_to_a_registered_law_at_runtime(toy_package, tmp_path):
     """simulator + mfol and toy velocity_controller nodes under the controller manager: a switch request
     hands the thrusters to the toy law, which then commands exactly its law."""
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
 
     mfol = design(RunSpec(controller=ControllerSpec("mfol", {"schedule": False}), design=SelfTestDesign()))
     controller_file = tmp_path / "mfol.yaml"

@@ -1,5 +1,5 @@
 """The README's main command: ``./seapup demo`` flies the mission through the supervisory hierarchy
-(seapup_bringup.demo), records it, tabulates and plots it. The open-loop flight
+(seapup_bringup.verbs.demo), records it, tabulates and plots it. The open-loop flight
 (``./seapup open-loop``) is tested in test_open_loop.py."""
 import json
 import subprocess
@@ -14,7 +14,7 @@ from seapup_common import topics
 def _demo(out: Path, *extra: str):
     """Run ``./seapup demo`` (it leases a ROS domain of its own); the process and its summary."""
     import os
-    run = subprocess.run([sys.executable, "-m", "seapup_bringup.demo", "--out", str(out / "demo"), "--json",
+    run = subprocess.run([sys.executable, "-m", "seapup_bringup.verbs.demo", "--out", str(out / "demo"), "--json",
                           str(out / "summary.json"), *extra], env=dict(os.environ), capture_output=True, text=True,
                          timeout=900)
     assert run.returncode == 0, (run.stdout + run.stderr)[-3000:]
@@ -237,7 +237,7 @@ def test_the_demo_folder_has_a_page_a_person_can_look_at(quiet_demo, browser, tm
     """Issue 23: the demo's output folder gets index.html -- the legs (units, pass criteria, verdicts), the
     plots, the seed and configuration -- rendered in headless Chromium with every leg's row showing the
     verdict the summary's numbers give, every plot decoded and no console error."""
-    from seapup_bringup.mission_pages import PASS_CRITERIA, leg_passed as _passed
+    from seapup_runs.mission_pages import PASS_CRITERIA, leg_passed as _passed
     _, summary, out = quiet_demo
     page = out / "index.html"
     seen = browser(page, tmp_path)

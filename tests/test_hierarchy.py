@@ -12,7 +12,7 @@ pytestmark = pytest.mark.graph
 
 
 def sil_graph(controller_file, tmp_path, **arguments):
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
     # the probe hears every thruster command: the first waits for it too (and for the simulator)
     return SilGraph(arguments={"controller_file": controller_file, **arguments},
                     out_dir=tmp_path)
@@ -117,7 +117,7 @@ def test_the_manager_swaps_among_all_four_laws_mid_manoeuvre_without_a_bump(cont
     than the controllers had in the 15 s before it. The self-tuners publish their estimate every sample they
     fly (``seapup_msgs/ControllerEstimate``), commissioned on the fixed gains for their first five."""
     from rclpy.serialization import deserialize_message
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
     from seapup_common.bag import read_bag
     from seapup_common.topics import CONTROLLER_ESTIMATE_TYPE, controller_estimate
     from seapup_msgs.msg import ControllerEstimate
@@ -311,7 +311,7 @@ def _up_to(logs: dict, end: float) -> dict:
     """The per-sample logs up to ``end`` [s]: what the graph did until its final hold (an answer to the held
     sample stamped for a later one -- the setpoint for the next -- may or may not be heard when the logs are
     read)."""
-    from seapup_bringup.sil import SAMPLED
+    from seapup_bringup.graph.sil import SAMPLED
     out = dict(logs)
     for name in SAMPLED:
         keep = logs[f"{name}_t"] <= end + 1e-6

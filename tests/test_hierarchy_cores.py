@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from seapup_bringup.hierarchy_config import hierarchy_config
+from seapup_bringup.graph.hierarchy_config import hierarchy_config
 from seapup_runs.mission import MissionSpec
 from seapup_runs.mission_flight import run_mission
 from seapup_sim.seabed import Seabed

@@ -23,7 +23,7 @@ def ident(env, *args, timeout=300):
 
 @pytest.mark.graph
 def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
-    from seapup_bringup.ident_commands import bag_data
+    from seapup_bringup.graph.identification import bag_data
     from seapup_sim.analysis import hover_blade_pitch
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config
@@ -159,7 +159,7 @@ def test_closed_loop_experiment_follows_the_square_wave_and_identifies(tmp_path,
     assert significant["r"] and significant["roll"] and significant["pitch"]
     fit = ident(ros_env, "fit", doc["bag"], "--method", "els", "--orders", "2,2,2", "--json", tmp_path / "fit.json")
     assert fit.returncode == 0, fit.stdout + fit.stderr
-    from seapup_bringup.ident_commands import bag_data
+    from seapup_bringup.graph.identification import bag_data
     data = bag_data(doc["bag"])
     assert np.all(np.asarray(json.loads((tmp_path / "fit.json").read_text())["loss"]) < 0.1 * np.var(data.y, axis=0))
 
@@ -181,7 +181,7 @@ def short_record(n, period=0.2):
 
 
 def test_scope_scores_what_the_experiment_asked_for_and_says_so():
-    from seapup_bringup.ident_commands import scope
+    from seapup_bringup.graph.identification import scope
     record = short_record(425)                                 # run on to 84.8 s (issue 22's record)
     scored, doc, lines = scope(record, asked=60.0)
     assert doc["samples"] == 300 and doc["t"] == [0.0, pytest.approx(59.8)] and doc["seconds"] == pytest.approx(60)
@@ -206,7 +206,7 @@ def test_scope_scores_what_the_experiment_asked_for_and_says_so():
 
 
 def test_experiment_record_is_found_next_to_the_bag_it_names(tmp_path):
-    from seapup_bringup.ident_commands import experiment_record
+    from seapup_bringup.graph.identification import experiment_record
     bag, identifier = tmp_path / "bag", tmp_path / "identifier"
     bag.mkdir(), identifier.mkdir()
     assert experiment_record(bag) is None
@@ -222,7 +222,7 @@ def test_experiment_record_is_found_next_to_the_bag_it_names(tmp_path):
 
 
 def test_an_experiment_flies_a_whole_number_of_samples():
-    from seapup_bringup.ident_commands import experiment_samples
+    from seapup_bringup.graph.identification import experiment_samples
     assert experiment_samples(60.0, 0.2) == 300 and experiment_samples(10, 0.2) == 50
     assert experiment_samples(0.2, 0.2) == 1 and experiment_samples(3600.0, 0.2) == 18000
     for bad in (10.1, 0.1, 0.0, -5.0, math.nan, math.inf):
@@ -235,7 +235,7 @@ def test_an_experiment_ends_at_its_duration_in_graph_time(tmp_path, ros_env):
     """Issue 22: a 60 s experiment once recorded 84.8 s. The simulator now stops stepping at the
     experiment's end (its end_time), so a 10 s experiment records exactly t = 0, 0.2, ..., 10 s --
     51 samples on every sample topic -- every time, and its record says what it asked for."""
-    from seapup_bringup.ident_commands import bag_data
+    from seapup_bringup.graph.identification import bag_data
     from seapup_common.bag import read_bag
     sample_topics = ("/seapup/truth/odometry", "/seapup/sensors/velocity", "/seapup/sensors/imu",
                      "/seapup/sensors/depth", "/seapup/thrusters/applied", "/seapup/thrusters/command")
@@ -262,8 +262,8 @@ def test_an_experiment_ends_at_its_duration_in_graph_time(tmp_path, ros_env):
 @pytest.mark.unit
 def test_a_csv_source_is_read_bounded_and_refused_in_one_line(tmp_path, monkeypatch):
     """Issue 40: a row longer than the header ended in numpy's 'inhomogeneous shape'; /dev/zero was read whole."""
-    from seapup_bringup import ident_commands
-    from seapup_bringup.ident_commands import load_source
+    from seapup_bringup.graph import identification as ident_commands
+    from seapup_bringup.graph.identification import load_source
     ragged = tmp_path / "ragged.csv"
     ragged.write_text("t,y1,u1\n0,1,2\n0.2,1,2,3,4\n")
     with pytest.raises(ValueError, match=r"ragged.csv: row 3 has 5 cells, more than the header's 3$"):

@@ -12,7 +12,7 @@ import time
 import pytest
 import yaml
 
-from seapup_bringup.launch import LaunchError, load_graph
+from seapup_bringup.ros2cli.launch import LaunchError, load_graph
 
 
 class Launched:

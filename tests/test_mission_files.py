@@ -2,7 +2,8 @@
 import pytest
 import yaml
 
-from seapup_bringup import demo, mission_graph
+from seapup_bringup.verbs import demo
+from seapup_bringup.graph import mission_graph
 
 
 def write(tmp_path, document) -> str:

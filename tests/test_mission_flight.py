@@ -1,5 +1,5 @@
 """Issue 44: a mission flown in one process (seapup_runs.mission_flight.run_mission) and on the ROS graph
-(seapup_bringup.mission_graph.fly_mission) gives the same result: the same legs -- statuses, the samples
+(seapup_bringup.graph.mission_graph.fly_mission) gives the same result: the same legs -- statuses, the samples
 they start and end at, the task's and the truth's numbers -- and the same blade-pitch command at every
 sample, to the stated tolerance (docs/missions.md).
 
@@ -55,7 +55,7 @@ def spec():
 
 @pytest.fixture(scope="module")
 def hierarchy(spec):
-    from seapup_bringup.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
     return hierarchy_config(spec.graph)
 
 
@@ -119,7 +119,7 @@ def _compare_legs(graph: list, process: list) -> None:
 
 @pytest.mark.graph
 def test_the_graph_and_the_process_fly_the_mission_alike(flown, spec, tmp_path):
-    from seapup_bringup.mission_graph import fly_mission
+    from seapup_bringup.graph.mission_graph import fly_mission
     on_graph = fly_mission(tmp_path / "graph", {"graph": dict(spec.graph), **spec.to_dict()}, io.StringIO())
     assert on_graph["stopped"] is None
     _compare_legs(on_graph["legs"], flown["legs"])
@@ -131,7 +131,7 @@ def test_the_graph_and_the_process_fly_the_mission_alike(flown, spec, tmp_path):
 
 def test_seapup_fly_flies_a_mission_file_in_process_and_writes_its_page(tmp_path, capsys):
     """``./seapup fly MISSION``: the same result as run_mission, the leg table printed, the page and JSON written."""
-    from seapup_bringup.run_commands import fly
+    from seapup_bringup.verbs.run_commands import fly
     path = tmp_path / "short.yaml"
     document = yaml.safe_load(MISSION)
     document["mission"] = document["mission"][:3]
@@ -158,7 +158,7 @@ def test_seapup_fly_flies_a_mission_file_in_process_and_writes_its_page(tmp_path
 ])
 def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys, monkeypatch, change, reason):
     """... naming the file, which it read once (the file a user gave may change between two reads)."""
-    from seapup_bringup.run_commands import fly
+    from seapup_bringup.verbs.run_commands import fly
     from seapup_common import input_files
     reads = []
     read = input_files.load_yaml_file

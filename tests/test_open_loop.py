@@ -1,4 +1,4 @@
-"""``./seapup open-loop`` (seapup_bringup.open_loop): the plant flies the open-loop manoeuvres through the
+"""``./seapup open-loop`` (seapup_bringup.graph.open_loop): the plant flies the open-loop manoeuvres through the
 graph, and the bag holds everything it published, summarised per manoeuvre."""
 import json
 import re
@@ -13,7 +13,7 @@ from seapup_common.bag import read_bag
 
 
 def run_open_loop(out, env, duration=16):
-    return subprocess.run([sys.executable, "-m", "seapup_bringup.open_loop", "--duration", str(duration),
+    return subprocess.run([sys.executable, "-m", "seapup_bringup.graph.open_loop", "--duration", str(duration),
                            "--out", str(out), "--json", str(out / "summary.json")],
                           env=env, capture_output=True, text=True, timeout=180)
 

@@ -118,7 +118,7 @@ def test_lockstep_replay_drives_a_controller_sample_by_sample(ros_context, node_
     schedule: one answer per sample, stamped with it, equal to the commands recorded in the bag."""
     import json
 
-    from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_args
+    from seapup_bringup.graph.open_loop import demo_config, manoeuvres, schedule_args
     from seapup_msgs.msg import BladePitch
     from tests.test_reference_bags import DEMO
 
@@ -223,7 +223,7 @@ def test_a_malformed_parameter_rule_is_a_clear_error_not_a_traceback(ros_env):
 
 def _bag_cli(capsys, *argv):
     """``./seapup bag ...`` in this process: (exit code, stdout, stderr)."""
-    from seapup_bringup.bag_commands import bag
+    from seapup_bringup.ros2cli.bag_commands import bag
     code = bag(list(argv))
     out, err = capsys.readouterr()
     return code, out, err
@@ -276,7 +276,7 @@ def test_hostile_bags_are_refused_with_reasons_by_info_and_replay(tmp_path, caps
     """Reading errors are reasons ("ends early ... run ./seapup bag recover DIR"), never an exception's name
     ("EndOfFile:", "InvalidMagic:"), and nothing is played."""
     import os
-    from seapup_bringup.bag_commands import replay
+    from seapup_bringup.ros2cli.bag_commands import replay
     cut = _copy_reference_bag(tmp_path, "cut")
     storage_file(cut).write_bytes(storage_file(cut).read_bytes()[:800_000])
     (tmp_path / "noise").mkdir()
@@ -299,7 +299,7 @@ _EVERY_SAMPLE = ("/seapup/truth/odometry", "/seapup/odometry", "/seapup/thruster
 def record_with_the_graph(out, end: float) -> dict:
     """Fly the identification graph to ``end`` with a recorder started as one of its nodes, every per-sample
     topic typed (subscribed at its start); each topic's header stamps in the bag [ns], in the order recorded."""
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
     from seapup_common import topics
     from seapup_common.bag import header_stamp_ns
     from seapup_common.launch_format import NodeSpec

@@ -70,7 +70,7 @@ def test_demo_bag_reads_back_with_both_readers_and_one_message_per_sample():
 
 def _refly():
     """The demo flown by the pure core (no ROS) with the demo's configuration and schedule."""
-    from seapup_bringup.open_loop import demo_config, manoeuvres, schedule_times
+    from seapup_bringup.graph.open_loop import demo_config, manoeuvres, schedule_times
     from seapup_control.profiles import OpenLoop, PitchProfile
     from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
     from seapup_sim.simulation import Simulation
@@ -132,7 +132,7 @@ SELFTEST = ROOT / "bags" / "selftest_5hz"
 def test_selftest_bag_refits_to_what_the_self_test_finds_today():
     """Refit from the recorded samples (--from-bag) == the self-test flown again in process, started as the
     simulator node starts (at the hover setting)."""
-    from seapup_bringup.autopilot_commands import _from_bag
+    from seapup_bringup.verbs.autopilot_commands import _from_bag
     from seapup_runs.self_test_flight import fly_self_test
     from seapup_sim.analysis import hover_blade_pitch
     from seapup_sim.vehicle import VehicleModel

@@ -128,7 +128,7 @@ def test_bad_arguments_are_one_line_and_change_nothing(tmp_path):
 def test_the_readme_shows_this_commits_scores(report):
     """The README's score table is generated (``./seapup report --readme README.md``), never typed: it must be
     the table of a fresh report of this code."""
-    from seapup_bringup.report_commands import readme_block
+    from seapup_bringup.report.page import readme_block
     _, document, _ = report
     assert readme_block(document) in (ROOT / "README.md").read_text(), \
         "README's score table is stale: run ./seapup report --readme README.md"
@@ -140,7 +140,7 @@ def test_the_wrong_sign_surge_gains_of_fig_5_19_are_decided_from_the_gain_matric
     responses have the sign flipped, and from the same model unflipped."""
     import numpy as np
 
-    from seapup_bringup.reproduction import _surge_gains
+    from seapup_bringup.report.reproduction import _surge_gains
     from seapup_control.mfol import THESIS_POLES_5HZ, MFOLModel, design
     b0 = np.array([[.0026, .0026, .000125, .000125], [-.0001, .0001, -.0004265, .0004265],  # eq. 5.3a
                    [.0000625, .0000625, .000525, .000525], [.2629, -.2629, .001588, -.001588]])
@@ -159,7 +159,7 @@ def test_the_wrong_sign_surge_gains_of_fig_5_19_are_decided_from_the_gain_matric
 def test_whiteness_is_decided_in_the_thesis_form():
     """Sec. 6.3: residuals are white when 95 % of their autocorrelations at lags > 0 fall within 2 sigma; with
     20 lags one outside still passes, two do not."""
-    from seapup_bringup.reproduction import _whiteness
+    from seapup_bringup.report.reproduction import _whiteness
     table = {"outputs": ["u", "v", "w"], "inside": [0.95, 0.90, 1.0], "white": [False, False, True]}
     verdict = _whiteness(table)
     assert verdict["white"] == {"u": True, "v": False, "w": True} and verdict["white_on_most"]
@@ -170,7 +170,7 @@ def test_whiteness_is_decided_in_the_thesis_form():
 def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
     """``seeds: N`` (a statement about a random current decided over realisations): the mean of each finite
     number at the same place in every result; statements, lists and values some results lack are left out."""
-    from seapup_bringup.reproduction import _mean_leaves
+    from seapup_bringup.report.reproduction import _mean_leaves
     results = [{"station_keep": {"x": 1.0, "y": 2.0}, "limit_cycle": {"detected": True, "period_s": 4.0}, "t": [1, 2]},
                {"station_keep": {"x": 3.0, "y": float("nan")}, "limit_cycle": {"detected": False, "period_s": 6.0}},
                {"station_keep": {"x": 5.0, "y": 1.0}, "limit_cycle": {"detected": True, "period_s": 5.0}, "t": [3]}]
@@ -180,7 +180,7 @@ def test_a_run_over_seeds_averages_every_number_found_in_all_of_them():
 @pytest.mark.process
 def test_the_page_says_which_runs_were_flown_and_which_came_from_the_cache(report):
     """Before: "scored against fresh runs" even when every run came from the cache."""
-    from seapup_bringup.report_commands import provenance
+    from seapup_bringup.report.page import provenance
     base, document, first = report
     page = (base / "out" / "report.html").read_text()
     assert "fresh runs" not in page

@@ -6,7 +6,7 @@ import re
 import numpy as np
 import pytest
 
-from seapup_bringup.scenario_commands import scenario_command
+from seapup_bringup.verbs.scenario_commands import scenario_command
 from seapup_runs.result import RunResult
 from seapup_runs.runner import run
 from seapup_runs.scenarios import scenario_spec, scenarios
@@ -149,7 +149,7 @@ def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(name, tmp_pa
     including the events after the start -- a reference step at 15 s (fast), a current the simulator
     switches on at 10 s (current-step), a controller connected at 10 s after drifting (station-keep,
     in a stochastic current), the camera fitted and a thruster fouled mid-run."""
-    from seapup_bringup.graph_runner import run_on_graph
+    from seapup_bringup.graph.graph_runner import run_on_graph
 
     spec = scenario_spec(name)
     assert_same_run(run_on_graph(spec, out_dir=tmp_path), run(spec))
@@ -159,7 +159,7 @@ def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(name, tmp_pa
 def test_a_graph_run_read_back_from_its_bag_is_the_same_result(tmp_path):
     """The run-result loader of a recording (rosbags, the bag's own message definitions) gives back the
     object the graph runner built from what its probe heard: the same samples, signals and metrics."""
-    from seapup_bringup.graph_runner import run_on_graph
+    from seapup_bringup.graph.graph_runner import run_on_graph
     from seapup_runs.logs import result_from_bag
 
     spec = scenario_spec("current-step")

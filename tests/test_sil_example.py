@@ -24,7 +24,7 @@ def controller_file(tmp_path_factory):
 
 
 def test_goto_arrives_within_tolerance(controller_file, tmp_path):
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
 
     with SilGraph(arguments={"controller_file": controller_file}, out_dir=tmp_path) as sil:
         start = sil.logs()["truth_position"][-1]

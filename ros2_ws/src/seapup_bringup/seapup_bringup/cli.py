@@ -144,23 +144,23 @@ _shell("lock", "regenerate requirements/lock.txt from seapup.in", "seapup_bringu
 @command("demo", "the main demonstration: the self-tested Seapup flies a mission through the supervisory "
          "hierarchy (self-test, hover + controller swap, goto, inspection, seabed following, station keeping "
          "in current, a fouled thruster and the switch to a self-tuner), recorded, with a table and plots",
-         "seapup_bringup.demo:demo_parser", doc="hierarchy.md#the-demo-mission")
+         "seapup_bringup.verbs.demo:demo_parser", doc="hierarchy.md#the-demo-mission")
 def _demo(argv: list[str]) -> int:
-    from seapup_bringup.demo import main as demo
+    from seapup_bringup.verbs.demo import main as demo
     return demo(argv)
 
 
 @command("open-loop", "open-loop manoeuvres through the graph, recorded (the plant alone; bags/demo_120s)",
-         "seapup_bringup.open_loop:open_loop_parser", doc="recording.md#reference-bags")
+         "seapup_bringup.graph.open_loop:open_loop_parser", doc="recording.md#reference-bags")
 def _open_loop(argv: list[str]) -> int:
-    from seapup_bringup.open_loop import main as open_loop
+    from seapup_bringup.graph.open_loop import main as open_loop
     return open_loop(argv)
 
 
 @command("ident", "system identification (ch. 6): experiment in SIL, fit / orders / compare / residuals from a "
-         "bag or CSV", "seapup_bringup.ident_commands:ident_parser", doc="identification.md")
+         "bag or CSV", "seapup_bringup.verbs.ident_commands:ident_parser", doc="identification.md")
 def _ident(argv: list[str]) -> int:
-    from seapup_bringup.ident_commands import main as ident
+    from seapup_bringup.verbs.ident_commands import main as ident
     return ident(argv)
 
 
@@ -214,119 +214,119 @@ def _run(argv: list[str]) -> int:
 
 
 @command("view", "watch the running graph (this domain) in Foxglove or Lichtblick: a WebSocket server on "
-         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.view_commands:view_parser",
+         "127.0.0.1 with the vehicle, its frames, track, current, seabed and plots", "seapup_bringup.verbs.view_commands:view_parser",
          doc="live-view.md")
 def _view(argv: list[str]) -> int:
-    from seapup_bringup.view_commands import view_command
+    from seapup_bringup.verbs.view_commands import view_command
     return view_command(argv)
 
 
 @command("verify", "open-loop verification of the vehicle model against the thesis",
-         "seapup_bringup.commands:verify_parser", doc="model.md#verification-against-the-thesis")
+         "seapup_bringup.verbs.model_commands:verify_parser", doc="model.md#verification-against-the-thesis")
 def _verify(argv: list[str]) -> int:
-    from seapup_bringup.commands import verify
+    from seapup_bringup.verbs.model_commands import verify
     return verify(argv)
 
 
 @command("report", "the thesis's targets scored against runs of this code (flown fresh, or taken from the run "
          "cache: the page and the summary say which): report.json and one HTML page (chapters, figures, "
-         "deviation register)", "seapup_bringup.report_commands:report_parser", doc="reproduction.md#the-report")
+         "deviation register)", "seapup_bringup.verbs.report_commands:report_parser", doc="reproduction.md#the-report")
 def _report(argv: list[str]) -> int:
-    from seapup_bringup.report_commands import report_command
+    from seapup_bringup.verbs.report_commands import report_command
     return report_command(argv)
 
 
-@command("check-model", "model checker (symmetry, damping, stability)", "seapup_bringup.commands:check_model_parser",
+@command("check-model", "model checker (symmetry, damping, stability)", "seapup_bringup.verbs.model_commands:check_model_parser",
          doc="model.md#the-equations-seapup_sim")
 def _check_model(argv: list[str]) -> int:
-    from seapup_bringup.commands import check_model
+    from seapup_bringup.verbs.model_commands import check_model
     return check_model(argv)
 
 
 @command("bench", "benchmarks (model, umbilical, verify, report, control laws, ROS graph)",
-         "seapup_bringup.commands:bench_parser", doc="model.md#benchmarks")
+         "seapup_bringup.verbs.model_commands:bench_parser", doc="model.md#benchmarks")
 def _bench(argv: list[str]) -> int:
-    from seapup_bringup.commands import bench
+    from seapup_bringup.verbs.model_commands import bench
     return bench(argv)
 
 
 @command("selftest", "the self-test through the action in SIL (recorded), in process, or refitted from a bag",
-         "seapup_bringup.autopilot_commands:selftest_parser", doc="autopilot.md#the-self-test")
+         "seapup_bringup.verbs.autopilot_commands:selftest_parser", doc="autopilot.md#the-self-test")
 def _selftest(argv: list[str]) -> int:
-    from seapup_bringup.autopilot_commands import selftest
+    from seapup_bringup.verbs.autopilot_commands import selftest
     return selftest(argv)
 
 
 @command("closed-loop", "closed-loop eigenvalues over surge speed under the self-tested controller (sec. 5.4.1)",
-         "seapup_bringup.autopilot_commands:closed_loop_parser", doc="autopilot.md#closed-loop-eigenvalues")
+         "seapup_bringup.verbs.autopilot_commands:closed_loop_parser", doc="autopilot.md#closed-loop-eigenvalues")
 def _closed_loop(argv: list[str]) -> int:
-    from seapup_bringup.autopilot_commands import closed_loop_command
+    from seapup_bringup.verbs.autopilot_commands import closed_loop_command
     return closed_loop_command(argv)
 
 
 @command("scenario", "a closed-loop case of the thesis (sec. 5.4, 7.4) flown by a registered controller "
-         "(default the self-tested one)", "seapup_bringup.scenario_commands:scenario_parser",
+         "(default the self-tested one)", "seapup_bringup.verbs.scenario_commands:scenario_parser",
          doc="autopilot.md#scenarios-sec-54")
 def _scenario(argv: list[str]) -> int:
-    from seapup_bringup.scenario_commands import scenario_command
+    from seapup_bringup.verbs.scenario_commands import scenario_command
     return scenario_command(argv)
 
 
 @command("fly", "fly a run specification (YAML/JSON: vehicle, controller by name, reference, events) in process "
-         "or through the ROS graph; the run-result JSON", "seapup_bringup.run_commands:fly_parser",
+         "or through the ROS graph; the run-result JSON", "seapup_bringup.verbs.run_commands:fly_parser",
          doc="run-result.md#the-run-specification")
 def _fly(argv: list[str]) -> int:
-    from seapup_bringup.run_commands import fly
+    from seapup_bringup.verbs.run_commands import fly
     return fly(argv)
 
 
 @command("campaign", "a Monte Carlo campaign: a run spec x a grid and random draws x seeds, flown on Dask "
          "(a LocalCluster or --scheduler ADDRESS); a Parquet table and a page of distributions and worst runs",
-         "seapup_bringup.campaign_commands:_parser", doc="campaigns.md")
+         "seapup_bringup.verbs.campaign_commands:_parser", doc="campaigns.md")
 def _campaign(argv: list[str]) -> int:
-    from seapup_bringup.campaign_commands import campaign_command
+    from seapup_bringup.verbs.campaign_commands import campaign_command
     return campaign_command(argv)
 
 
 @command("controllers", "the registered velocity controllers (control laws by name) and their parameters",
-         "seapup_bringup.run_commands:controllers_parser", doc="run-result.md#controllers-by-name")
+         "seapup_bringup.verbs.run_commands:controllers_parser", doc="run-result.md#controllers-by-name")
 def _controllers(argv: list[str]) -> int:
-    from seapup_bringup.run_commands import controllers
+    from seapup_bringup.verbs.run_commands import controllers
     return controllers(argv)
 
 
 @command("record", "record topics into a rosbag2/MCAP bag (Ctrl-C finalises it)",
-         "seapup_bringup.bag_commands:record_parser", doc="recording.md")
+         "seapup_bringup.ros2cli.bag_commands:record_parser", doc="recording.md")
 def _record(argv: list[str]) -> int:
-    from seapup_bringup.bag_commands import record
+    from seapup_bringup.ros2cli.bag_commands import record
     return record(argv)
 
 
 @command("bag", "bag info DIR (what ros2 bag info shows) | bag recover DIR (after a crash)",
-         "seapup_bringup.bag_commands:bag_parser", doc="recording.md")
+         "seapup_bringup.ros2cli.bag_commands:bag_parser", doc="recording.md")
 def _bag(argv: list[str]) -> int:
-    from seapup_bringup.bag_commands import bag
+    from seapup_bringup.ros2cli.bag_commands import bag
     return bag(argv)
 
 
 @command("replay", "publish a bag's messages with their recorded QoS and timing, or lockstep into a node",
-         "seapup_bringup.bag_commands:replay_parser", doc="recording.md#replay")
+         "seapup_bringup.ros2cli.bag_commands:replay_parser", doc="recording.md#replay")
 def _replay(argv: list[str]) -> int:
-    from seapup_bringup.bag_commands import replay
+    from seapup_bringup.ros2cli.bag_commands import replay
     return replay(argv)
 
 
 def _ros2_verb(name: str, summary: str):
     def run(argv: list[str]) -> int:
-        from seapup_bringup import ros2_commands
+        from seapup_bringup.ros2cli import ros2_commands
         return getattr(ros2_commands, name)(argv)
-    command(name, summary, f"seapup_bringup.ros2_commands:{name}_parser", doc="command-line.md#the-ros-2-verbs")(run)
+    command(name, summary, f"seapup_bringup.ros2cli.ros2_commands:{name}_parser", doc="command-line.md#the-ros-2-verbs")(run)
 
 
 @command("launch", "start a graph from a ROS 2 YAML launch file, as 'ros2 launch' (Ctrl-C stops them all)",
-         "seapup_bringup.launch:launch_parser", doc="command-line.md#launch-graphs")
+         "seapup_bringup.ros2cli.launch:launch_parser", doc="command-line.md#launch-graphs")
 def _launch(argv: list[str]) -> int:
-    from seapup_bringup.launch import launch
+    from seapup_bringup.ros2cli.launch import launch
     return launch(argv)
 
 

@@ -2,9 +2,9 @@
 
 Ctrl-C reaches every process of the terminal's foreground group, the cluster's worker processes too; a
 worker that takes it prints a screen of KeyboardInterrupt and CancelledError tracebacks while the command
-stops it anyway (:func:`seapup_bringup.campaign_commands.run_campaign` ends its workers itself). The
+stops it anyway (:func:`seapup_bringup.campaign_runner.run_campaign` ends its workers itself). The
 workers started with the cluster inherit an ignored SIGINT from the command
-(:func:`seapup_bringup.campaign_commands._client`); this preload ignores it in a worker the nanny starts
+(:func:`seapup_bringup.campaign_runner._client`); this preload ignores it in a worker the nanny starts
 later (a restart), before the worker registers with the scheduler.
 """
 from __future__ import annotations

@@ -76,7 +76,7 @@ def test_did_you_mean_never_suggests_the_mistyped_name_itself():
     """The graph lists a service once a client asks for it, so the probe's own client for the typo was the
     "nearest" name: "service /seapup/simulatr/get_parameters is not available; did you mean
     /seapup/simulatr/get_parameters?"."""
-    from seapup_bringup.ros2_commands import _did_you_mean
+    from seapup_bringup.ros2cli.ros2_commands import _did_you_mean
     typo, right = "/seapup/simulatr/get_parameters", "/seapup/simulator/get_parameters"
     assert _did_you_mean(typo, [typo, right, "/seapup/navigator/get_parameters"]) == f"; did you mean {right}?"
     assert _did_you_mean(typo, [typo]) == ""

@@ -3,8 +3,8 @@
 sample at once, until the graph falls silent)."""
 import pytest
 
-from seapup_bringup.graph_stepper import StepFailed, Stepped
-from seapup_bringup.paced import PacedGraph, next_boundary, samples_to, stamp_of, task_settle
+from seapup_bringup.graph.graph_stepper import StepFailed, Stepped
+from seapup_bringup.graph.paced import PacedGraph, next_boundary, samples_to, stamp_of, task_settle
 from seapup_common.lockstep.server import STEP_DONE, LockstepServer
 
 T = 0.2

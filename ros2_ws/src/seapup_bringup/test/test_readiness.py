@@ -1,7 +1,7 @@
 """Readiness rules (``readiness.py``) over real ``diagnostic_msgs`` messages and a stated reader count."""
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from seapup_bringup import readiness
+from seapup_bringup.graph import readiness
 
 READERS = {"/seapup/navigation/odometry": 3, "/seapup/reference/position": 1}
 

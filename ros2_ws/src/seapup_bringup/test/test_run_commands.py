@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from seapup_bringup.run_commands import controllers, fly
+from seapup_bringup.verbs.run_commands import controllers, fly
 from seapup_runs.result import RunResult
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "seapup_runs" / "seapup_runs" / "data" / "specs" / "drift_then_hold.yaml"

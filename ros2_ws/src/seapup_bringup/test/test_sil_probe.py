@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from seapup_bringup.sil_probe import TOPICS, import_path, log_arrays, once_per_stamp
+from seapup_bringup.graph.sil_probe import TOPICS, import_path, log_arrays, once_per_stamp
 
 
 def message(name, t):

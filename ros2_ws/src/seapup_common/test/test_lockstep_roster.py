@@ -78,8 +78,8 @@ def test_without_an_initial_controller_the_unconfigured_controllers_are_not_wait
 def test_the_demo_harness_adds_its_probe_and_recorder():
     """mission.yaml's hand count (probe and recorder on the truth and altitude, the probe on the applied pitch,
     3 command subscribers), plus what the recorder now hears typed from the start (issue 43)."""
-    from seapup_bringup.mission_graph import RECORDED
-    from seapup_bringup.sil import INSTRUMENTS, TOPICS
+    from seapup_bringup.graph.mission_graph import RECORDED
+    from seapup_bringup.graph.sil import INSTRUMENTS, TOPICS
     probe = Listener("probe", tuple(t for name, (t, _) in TOPICS.items() if name not in INSTRUMENTS))
     plan = roster(shipped("hierarchy.launch.yaml", initial_controller="''"),
                   [probe, Listener.recorder("recorder", RECORDED)])

@@ -1,6 +1,6 @@
 """A run's series from what a graph published: the SIL probe's logs or a recorded bag, one shape.
 
-The graph runner's probe (``seapup_bringup.sil.SilGraph.logs``) and a rosbag2 recording of the same
+The graph runner's probe (``seapup_bringup.graph.sil.SilGraph.logs``) and a rosbag2 recording of the same
 topics (:func:`logs_from_bag`, read with rosbags from the bag's own message definitions, no ROS)
 both give a mapping of stamped arrays; :func:`series_from_logs` turns it into the
 :class:`~seapup_runs.result.Series` of a spec, one row per control sample, and

@@ -60,7 +60,7 @@ __all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "
            "MAX_MISSION_SECONDS"]
 
 #: [s simulated] the SIL harness runs a lockstep graph between holds in chunks of this much, and holds it
-#: after a goal's end at the first chunk boundary at least a chunk later (seapup_bringup.sil's ``chunk``).
+#: after a goal's end at the first chunk boundary at least a chunk later (seapup_bringup.graph.sil's ``chunk``).
 HOLD_CHUNK = 1.0
 #: [s simulated] the longest mission flown in process: a day, 432 000 samples at 5 Hz (about 100 MB of logs);
 #: a mission that would run longer (a goal that never ends) stops with the reason.
@@ -86,7 +86,7 @@ def next_boundary(t: float, chunk: float = HOLD_CHUNK) -> float:
 @dataclasses.dataclass(frozen=True)
 class HierarchyConfig:
     """The hierarchy's nodes as plain data: what a launch document and the nodes' parameter files say
-    (``seapup_bringup.hierarchy_config`` reads them; picklable, so a campaign ships it to its workers).
+    (``seapup_bringup.graph.hierarchy_config`` reads them; picklable, so a campaign ships it to its workers).
 
     Parameters
     ----------
@@ -461,7 +461,7 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
     spec : MissionSpec
         The mission (:mod:`seapup_runs.mission`); its ``graph`` arguments are already in ``hierarchy``.
     hierarchy : HierarchyConfig
-        The nodes' parameters (``seapup_bringup.hierarchy_config.hierarchy_config(spec.graph)``).
+        The nodes' parameters (``seapup_bringup.graph.hierarchy_config.hierarchy_config(spec.graph)``).
     progress : callable, optional
         ``progress(leg name, fraction of the mission's expected time)``.
     max_seconds : float
@@ -494,7 +494,7 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
 
 
 def _fly_leg(flight: MissionFlight, leg: dict, swap: dict, during: tuple | None = None) -> dict:
-    """One leg as ``seapup_bringup.mission_graph`` flies it on the graph (its numbers: status, t0, t1, the task's)."""
+    """One leg as ``seapup_bringup.graph.mission_graph`` flies it on the graph (its numbers: status, t0, t1, the task's)."""
     kind = leg["kind"]
     if kind == "fouling":
         return _fly_fouling(flight, leg, swap)

@@ -1,7 +1,7 @@
 """A mission leg's numbers from the flight's logs: pure (numpy), the same for a mission flown on the graph or in
 process (``./seapup demo``'s table, page and ``summary.json``).
 
-The logs are arrays by name (a harness's probe gives them, :meth:`seapup_bringup.sil.SilGraph.logs`), times in
+The logs are arrays by name (a harness's probe gives them, :meth:`seapup_bringup.graph.sil.SilGraph.logs`), times in
 simulated seconds, one row per sample heard:
 
 - ``command_t``, ``command`` (n, 4): the blade pitches commanded [rad];

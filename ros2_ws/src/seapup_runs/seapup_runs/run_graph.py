@@ -22,7 +22,7 @@ these nodes' lockstep roles and the harness's listeners (:mod:`seapup_common.loc
 two controllers and one probe the simulator waits for three subscribers of the velocity, each controller's
 first command for the simulator and the probe, the first reference for both controllers and the probe.
 
-``seapup_bringup.graph_runner.run_on_graph`` writes this document to a file
+``seapup_bringup.graph.graph_runner.run_on_graph`` writes this document to a file
 and starts it through the SIL harness.
 """
 from __future__ import annotations

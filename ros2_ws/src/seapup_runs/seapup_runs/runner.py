@@ -17,7 +17,7 @@ is logged each sample as the series' ``estimate``; its mode changes (jacketing) 
 :func:`design` first fills the design documents the spec leaves to its
 :class:`~seapup_runs.spec.SelfTestDesign` (the self-test flown in this
 process; cached per design and period, since one self-test serves many runs).
-The ROS graph runner (``seapup_bringup.graph_runner.run_on_graph``) flies the
+The ROS graph runner (``seapup_bringup.graph.graph_runner.run_on_graph``) flies the
 same designed spec and gives the same :class:`~seapup_runs.result.RunResult`.
 """
 from __future__ import annotations

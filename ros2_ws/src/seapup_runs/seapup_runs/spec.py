@@ -3,7 +3,7 @@
 A :class:`RunSpec` is frozen, picklable and JSON-able (:meth:`RunSpec.to_dict`
 / :meth:`RunSpec.from_dict`, unknown keys refused): the same object is flown
 in this process (:func:`seapup_runs.runner.run`) or through the ROS graph
-(``seapup_bringup.graph_runner.run_on_graph``, whose node parameters come from
+(``seapup_bringup.graph.graph_runner.run_on_graph``, whose node parameters come from
 :func:`seapup_runs.run_graph.graph_nodes`), and both give a
 :class:`~seapup_runs.result.RunResult` that holds the spec it came from.
 

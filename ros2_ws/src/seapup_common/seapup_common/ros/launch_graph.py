@@ -33,7 +33,7 @@ substitutions) is refused with a one-line :class:`LaunchError` naming it: it sta
 
 Each :class:`NodeSpec` becomes a command by :func:`command_line` (executable, ``--ros-args`` with the
 name, namespace, parameters and remappings). Shared by the launcher (seapup_bringup) and the SIL harness
-(:mod:`seapup_bringup.sil`), so both read the same files the same way.
+(:mod:`seapup_bringup.graph.sil`), so both read the same files the same way.
 """
 from __future__ import annotations
 

@@ -150,7 +150,7 @@ def _plot_self_test(run, description: dict, out: Path) -> str:
 
 
 def _scenario(description: dict, out: Path) -> tuple[dict, list]:
-    from seapup_bringup.scenario_commands import plot_scenario
+    from seapup_runs.run_plots import plot_scenario
     from seapup_runs.runner import run
     from seapup_runs.scenarios import scenario_spec
     def spec(seed):
@@ -217,18 +217,14 @@ def _batch_identification(description: dict, out: Path) -> tuple[dict, list]:
 
 
 def _ident_command(argv: list) -> dict:
-    """``./seapup ident ARGV --json F`` in this process, quietly; its JSON document."""
-    import contextlib
-    import io
-    from seapup_bringup.ident_commands import main as ident_main
-    with tempfile.TemporaryDirectory() as tmp:
-        document = Path(tmp) / "out.json"
-        text = io.StringIO()
-        with contextlib.redirect_stdout(text), contextlib.redirect_stderr(text):
-            code = ident_main([*map(str, argv), "--json", str(document)])
-        if code != 0 or not document.is_file():
-            raise ReproductionError(f"./seapup ident {' '.join(map(str, argv))} failed: {text.getvalue()[-400:]}")
-        return json.loads(read_text(document, "data"))
+    """``./seapup ident ARGV`` carried out in this process (:func:`seapup_bringup.graph.identification.identify`):
+    its result; what stops it as a ReproductionError naming the request."""
+    from seapup_bringup.graph.identification import identify
+    from seapup_bringup.graph.sil import SilError
+    try:
+        return identify(argv)
+    except (ValueError, OSError, SilError) as exc:
+        raise ReproductionError(f"./seapup ident {' '.join(map(str, argv))} failed: {exc}") from None
 
 
 def _identification(description: dict, out: Path) -> tuple[dict, list]:
@@ -296,7 +292,7 @@ def _closed_loop(description: dict, out: Path) -> tuple[dict, list]:
     plant ``config`` under the controller the self-test designs on the baseline (5 Hz, realistic, operating
     points 0 and 0.7 m/s; fixed gains or ``scheduled``), labelled by mode, with the figures of the loci
     (figs 5.4-5.9, 5.25-5.30) and the statements the thesis makes of them."""
-    from seapup_bringup.autopilot_commands import MODES, analyse, plot_loci
+    from seapup_runs.closed_loop_analysis import MODES, analyse, plot_loci
     from seapup_runs.self_test_flight import fly_self_test
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config

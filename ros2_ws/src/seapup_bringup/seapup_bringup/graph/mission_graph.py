@@ -1,7 +1,7 @@
 """A mission flown on the ROS graph: the hierarchy's launch document in lockstep, driven leg by leg through ROS.
 
 :func:`fly_mission` starts ``seapup_bringup/launch/hierarchy.launch.yaml`` with a mission's ``graph``
-arguments under :class:`seapup_bringup.sil.SilGraph` (every node its own process, plus the recorder) and
+arguments under :class:`seapup_bringup.graph.sil.SilGraph` (every node its own process, plus the recorder) and
 flies the legs through ROS only: the self-test through its action, task goals through the task
 controller's actions, controller switches through the manager, the current and a fouling through the
 simulator's services -- each made while the graph is held at one sample. The result has the shape of
@@ -86,8 +86,8 @@ def _set_parameter(sil, node: str, name: str, value: str) -> None:
 def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     """Fly the mission in a SIL graph (with ``extra_nodes``: the live view); the per-leg numbers (and the logs
     as arrays under ``logs``)."""
-    from seapup_bringup.hierarchy_config import hierarchy_config
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.sil import SilGraph
 
     graph = config["graph"]
     seabed = hierarchy_config(graph).simulator["environment"]["seabed"]

@@ -47,7 +47,7 @@ def thrash(leg: dict) -> str:
 
 def marked(leg: dict) -> str:
     """The page's note on a leg marked for its actuators ("" for none)."""
-    from seapup_bringup.pages import esc
+    from seapup_runs.pages import esc
     verdict = leg.get("actuator_verdict")
     return f"<div class=reason>marked: {esc(verdict)}</div>" if verdict else ""
 
@@ -134,7 +134,7 @@ def leg_passed(leg: dict) -> bool:
 
 def index_page(summary: dict, config: dict, out: Path) -> Path:
     """``out/index.html``: the legs (units, pass criteria, verdicts), the plots, the seed and configuration."""
-    from seapup_bringup.pages import CSS, esc, figure, fmt
+    from seapup_runs.pages import CSS, esc, figure, fmt
     rows = []
     for leg in summary["legs"]:
         swap = leg.get("switch_step_deg")
@@ -197,7 +197,7 @@ self-tested gains / under the self-tuner from <code>tune_in</code> s after the s
 
 def report_mission(result: dict, config: dict, out: Path | None, text, label: str, plots: bool = True) -> tuple:
     """A flown mission (:func:`seapup_runs.mission_flight.run_mission`'s or
-    :func:`seapup_bringup.mission_graph.fly_mission`'s result) shown: the leg table printed and, into ``out``
+    :func:`seapup_bringup.graph.mission_graph.fly_mission`'s result) shown: the leg table printed and, into ``out``
     (None: nothing written), the plots, ``summary.json`` and ``index.html``; what did not go well said in a line
     each. (the summary -- the result without its logs --, the exit code: 1 if a leg failed or the truth
     contradicts its verdict)."""

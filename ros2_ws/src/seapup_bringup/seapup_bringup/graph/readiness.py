@@ -3,7 +3,7 @@
 Pure functions over ``diagnostic_msgs`` messages (duck-typed: anything with
 ``status``/``name``/``level``/``values``/``key``/``value`` and a header) and a
 ``count_subscribers(topic)`` function (the probe's view of the graph), used by
-:class:`seapup_bringup.sil.SilGraph`.
+:class:`seapup_bringup.graph.sil.SilGraph`.
 
 A node's status may report each of its publishers' matched readers
 (``subscribers:<topic>``: n, the writer's side, which decides delivery). A

@@ -3,7 +3,7 @@
 A driver that acts on a graph (sends a goal, switches a controller) does so
 while the graph is held at a sample every node has answered, so what it does
 takes effect at that sample however busy the machine is. Between its actions
-:class:`PacedGraph` steps the graph (:class:`~seapup_bringup.graph_stepper.GraphStepper`,
+:class:`PacedGraph` steps the graph (:class:`~seapup_bringup.graph.graph_stepper.GraphStepper`,
 ``SimulateSteps``) in chunks of ``chunk`` simulated seconds, holding it at each
 chunk's end; something the driver waits for (a goal's result, heard on
 another channel at a wall time that depends on the machine) is acted on at

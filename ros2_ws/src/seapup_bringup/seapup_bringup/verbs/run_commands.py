@@ -6,7 +6,7 @@ fly          a run specification (YAML or JSON, :class:`seapup_runs.spec.RunSpec
              and plotted with ``--plots``. A mission document (``graph`` and ``mission`` keys,
              ``docs/missions.md``) is flown the same two ways, through the whole hierarchy
              (:func:`seapup_runs.mission_flight.run_mission`; on the graph
-             :func:`seapup_bringup.mission_graph.fly_mission`): the leg table printed, and with ``--out``
+             :func:`seapup_bringup.graph.mission_graph.fly_mission`): the leg table printed, and with ``--out``
              the plots, ``summary.json`` and a page (on the graph also the bag). A new experiment is a
              new file, not a new verb.
 controllers  the registered control laws (entry points ``seapup.velocity_controllers``) with their
@@ -73,7 +73,7 @@ def fly_parser() -> argparse.ArgumentParser:
 
 def fly(argv: list[str]) -> int:
     """``./seapup fly SPEC [--graph] [--out DIR] [--plots DIR] [--json [F]]``."""
-    from seapup_bringup.sil import SilError
+    from seapup_bringup.graph.sil import SilError
     from seapup_common.controllers import ControllerRegistryError
     from seapup_runs.runner import DesignFailed, run
     from seapup_runs.spec import RunSpecError
@@ -89,7 +89,7 @@ def fly(argv: list[str]) -> int:
     try:
         spec = _load_spec(args.spec)
         if args.graph:
-            from seapup_bringup.graph_runner import run_on_graph
+            from seapup_bringup.graph.graph_runner import run_on_graph
             result = run_on_graph(spec, out_dir=args.out, progress=lambda f: progress(spec.name, f))
         else:
             result = run(spec, progress=lambda f: progress(spec.name, f))
@@ -99,7 +99,7 @@ def fly(argv: list[str]) -> int:
         return 1
     _summary(result, text)
     if args.plots:
-        from seapup_bringup.scenario_commands import plot_scenario
+        from seapup_runs.run_plots import plot_scenario
         print(f"wrote {plot_scenario(result, args.plots)}", file=text)
     emit_json(args, result.to_dict())
     return 0
@@ -121,9 +121,9 @@ def _fly_mission(args, text, document: dict) -> int:
     import os
     import time
 
-    from seapup_bringup.hierarchy_config import hierarchy_config
-    from seapup_bringup.mission_graph import fly_mission, mission_config
-    from seapup_bringup.mission_pages import report_mission
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.mission_graph import fly_mission, mission_config
+    from seapup_runs.mission_pages import report_mission
     from seapup_bringup.output import stopped_by_signal
     from seapup_common.ros.launch_graph import LaunchError
     from seapup_runs.mission import MissionError, MissionSpec

@@ -1,7 +1,7 @@
 """The node processes of a SIL graph: started one process group each, stopped together, read back.
 
 :class:`GraphProcesses` is a dict label -> :class:`seapup_common.processes.NodeProcess`
-(what :attr:`seapup_bringup.sil.SilGraph.processes` is), with what the harness
+(what :attr:`seapup_bringup.graph.sil.SilGraph.processes` is), with what the harness
 does to them as a whole: start a node, say which have exited, stop them all
 (the recorder last, so it has everything), kill one (a crash), and read the
 reason a node logged for refusing a goal.

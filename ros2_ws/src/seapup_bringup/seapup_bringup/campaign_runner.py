@@ -1,4 +1,4 @@
-"""``./seapup campaign SPEC.yaml``: a Monte Carlo campaign on Dask, its table and its page (issue 26).
+"""A Monte Carlo campaign flown on Dask, its table and its page (issue 26; ``./seapup campaign SPEC.yaml``).
 
 The campaign file (:mod:`seapup_runs.campaign`) expands into runs; they are grouped into tasks of
 ``runs_per_task`` and each task is flown by a Dask worker (:func:`seapup_runs.campaign.fly_rows`): on a
@@ -13,10 +13,8 @@ distributions of the summary's metrics by the first grid axis and the worst runs
 """
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
-import math
 import os
 import shutil
 import signal
@@ -25,56 +23,9 @@ import threading
 import time
 from pathlib import Path
 
-from seapup_bringup.output import SIGNALS, add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import SIGNALS, progress
 
-__all__ = ["campaign_command", "run_campaign", "campaign_rates"]
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="./seapup campaign", description=__doc__.split("\n\n")[0])
-    p.add_argument("spec", type=Path, help="the campaign file (YAML; see docs/campaigns.md) or a shipped "
-                   "campaign's name (controller-robustness, adaptive-500, demo-mission-robustness)")
-    p.add_argument("--scheduler", help="address of an existing Dask scheduler (default: a LocalCluster here)")
-    p.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
-                   help="seconds to keep trying to reach --scheduler (default 30)")
-    p.add_argument("--workers", type=int, default=None, help="LocalCluster worker processes (default: the CPUs)")
-    p.add_argument("--out", type=Path, default=None, help="output directory (default runs/campaigns/NAME)")
-    p.add_argument("--resume", action="store_true", help="keep the finished tasks of an interrupted campaign")
-    p.add_argument("--limit", type=int, default=None, help="fly only the first N runs (a trial of the file)")
-    add_json_argument(p)
-    return p
-
-
-def campaign_command(argv: list[str]) -> int:
-    """``./seapup campaign``: see the module docstring."""
-    from seapup_runs.campaign import CampaignError, load_campaign
-    args = _parser().parse_args(argv)
-    text = text_stream(args)
-    if args.workers is not None and args.workers < 1:
-        print("seapup: error: --workers must be >= 1", file=sys.stderr)
-        return 2
-    if args.limit is not None and args.limit < 1:
-        print("seapup: error: --limit must be >= 1", file=sys.stderr)
-        return 2
-    if not math.isfinite(args.connect_timeout) or args.connect_timeout <= 0:
-        print(f"seapup: error: --connect-timeout must be a positive number of seconds, got {args.connect_timeout}",
-              file=sys.stderr)
-        return 2
-    try:
-        ship_missions()
-        campaign = load_campaign(args.spec)
-    except CampaignError as exc:
-        print(f"seapup: error: {exc}", file=sys.stderr)
-        return 1
-    out = args.out or Path(os.environ.get("SEAPUP_ROOT", ".")) / "runs" / "campaigns" / campaign.name
-    try:
-        summary = run_campaign(campaign, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                               limit=args.limit, text=text, connect_timeout=args.connect_timeout)
-    except CampaignError as exc:
-        print(f"seapup: error: {exc}", file=sys.stderr)
-        return 1
-    emit_json(args, summary)
-    return 0 if summary["runs"] else 1
+__all__ = ["run_campaign", "ship_missions", "attach_hierarchies", "campaign_rates", "mission_campaign_rate"]
 
 
 def _client(scheduler: str | None, workers: int | None, connect_timeout: float = 30.0):
@@ -92,6 +43,7 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float =
             raise CampaignError(f"no Dask scheduler at {scheduler}: {exc}") from None
     from seapup_common.processes import watch_descendants
     watch_descendants()   # the cluster's nannies and workers end with this process, however it ends
+    _quiet_resource_tracker()
     cluster = None
     try:
         with _sigint_ignored():   # the workers start with Ctrl-C ignored: only this process answers it
@@ -105,6 +57,21 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float =
             cluster.close(timeout=2)
         raise
     return client, cluster
+
+
+def _quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (if it is not running yet) with its leak warning off.
+
+    Workers stopped at once (Ctrl-C, SIGTERM) leave the semaphores they made to the tracker, which unlinks them
+    when this process ends and says so on the terminal it inherited ("There appear to be 12 leaked semaphore
+    objects to clean up"): two more lines after "seapup: interrupted", seen on a loaded machine. The clean-up
+    stays; the warning goes (the tracker takes its warning filters from the environment at its start)."""
+    entry = "ignore:resource_tracker:UserWarning"
+    present = os.environ.get("PYTHONWARNINGS", "")
+    if entry not in present.split(","):
+        os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [present, entry]))
+    from multiprocessing import resource_tracker
+    resource_tracker.ensure_running()
 
 
 @contextlib.contextmanager
@@ -146,7 +113,7 @@ def _stop_workers_now(cluster) -> None:
 
 def ship_missions() -> None:
     """Let a campaign name the shipped mission (``base: {mission: demo}``: ``seapup_bringup/config/mission.yaml``)."""
-    from seapup_bringup.mission_graph import mission_path
+    from seapup_bringup.graph.mission_graph import mission_path
     from seapup_runs.campaign import SHIPPED_MISSIONS
     SHIPPED_MISSIONS.setdefault("demo", mission_path())
 
@@ -157,7 +124,7 @@ def attach_hierarchies(rows: list[dict]) -> None:
     does not declare is refused (CampaignError, one line) before anything flies."""
     import dataclasses
 
-    from seapup_bringup.hierarchy_config import HIERARCHY, hierarchy_config
+    from seapup_bringup.graph.hierarchy_config import HIERARCHY, hierarchy_config
     from seapup_common.ros.launch_graph import LaunchError, find_graph, graph_arguments
     from seapup_runs.campaign import CampaignError
     declared = set(graph_arguments(find_graph(*HIERARCHY)))
@@ -306,7 +273,7 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from seapup_bringup.pages import CSS, esc, figure, fmt
+    from seapup_runs.pages import CSS, esc, figure, fmt
     summary = campaign.summary
     ok = [r for r in records if r["status"] == "ok"]
     metric_names = sorted({k for r in ok for k, v in r.items() if k.startswith("metric.") and isinstance(v, float)})

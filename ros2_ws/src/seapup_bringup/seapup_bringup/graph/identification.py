@@ -1,4 +1,4 @@
-"""``./seapup ident``: identification experiments and fits from bags or CSV files (thesis ch. 6).
+"""Identification experiments on the graph and fits from bags or CSV files (thesis ch. 6): ``./seapup ident``.
 
 - ``experiment``: the identification experiments of sec. 6.5 in SIL, recorded to a bag under
   ``bags/`` next to the identifier's own run bag: open loop (sec. 6.5.1-6.5.4, graph
@@ -22,7 +22,8 @@ next to the bag. Every fit reports the samples and times it scored (``scope`` in
 ``--duration`` (score the first D s; default: what the experiment asked for, when the record says)
 and ``--points``; a record longer than its experiment asked for is said so in one line.
 
-The computations are :mod:`seapup_ident.identify`; this module reads the data and prints.
+The computations are :mod:`seapup_ident.identify`; this module reads the data, flies the experiment on the
+graph and prints; ``./seapup ident`` (:mod:`seapup_bringup.verbs.ident_commands`) parses and writes JSON.
 """
 from __future__ import annotations
 
@@ -35,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
+from seapup_bringup.output import add_json_argument, progress
 from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, TRUTH_ODOMETRY, VELOCITY, VELOCITY_REFERENCE,
                                   typed)
 
-__all__ = ["main", "bag_data", "load_source", "experiment_record", "scope", "OUTPUT_SETS", "EXPERIMENT_RECORD"]
+__all__ = ["handle", "identify", "ident_parser", "bag_data", "load_source", "experiment_record", "scope", "OUTPUT_SETS", "EXPERIMENT_RECORD"]
 
 #: The experiment's request, written next to its bag (``OUT/bag``) by ``ident experiment``.
 EXPERIMENT_RECORD = "experiment.json"
@@ -438,7 +439,7 @@ def _residuals(args, text) -> dict:
 
 
 def _experiment(args, text) -> dict:
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
 
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
@@ -572,7 +573,7 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
 
 def ident_parser() -> argparse.ArgumentParser:
     """The parser of ``./seapup ident`` (its usage line in ``./seapup help`` is generated from it)."""
-    parser = argparse.ArgumentParser(prog="./seapup ident", description=__doc__.splitlines()[0],
+    parser = argparse.ArgumentParser(prog="./seapup ident", description="``./seapup ident``: identification experiments and fits from bags or CSV files (thesis ch. 6).",
                                      epilog="Every subcommand takes --json [FILE]: its result as JSON to FILE "
                                             "(stdout without FILE; text then goes to stderr).")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -628,17 +629,33 @@ def ident_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv=None) -> int:
-    parser = ident_parser()
-    args = parser.parse_args(argv)
-    text = text_stream(args)
+def handle(args, text) -> dict:
+    """The ``ident`` request ``args`` (parsed by :func:`ident_parser`) carried out; its result. Lines of progress
+    go to ``text``.
+
+    Raises
+    ------
+    ValueError, OSError, seapup_bringup.graph.sil.SilError
+        What stops it, in one line.
+    """
     handlers = {"fit": _fit, "orders": _orders, "compare": _compare, "residuals": _residuals,
                 "experiment": _experiment}
-    from seapup_bringup.sil import SilError
+    return handlers[args.command](args, text)
+
+
+def identify(argv: list, text=None) -> dict:
+    """``./seapup ident ARGV`` in this process (the reproduction report's identification runs): the result
+    :func:`handle` gives as ``--json`` writes it (plain lists and numbers), its lines to ``text`` (default:
+    dropped). Raises as :func:`handle` does, and
+    ValueError for arguments the parser refuses."""
+    import contextlib
+    import io
+    stream = io.StringIO()
     try:
-        result = handlers[args.command](args, text)
-    except (ValueError, OSError, SilError) as exc:  # one line, never a traceback
-        print(f"seapup ident {args.command}: error: {exc}", file=text)
-        return 1
-    emit_json(args, result)
-    return 0
+        with contextlib.redirect_stderr(stream):
+            args = ident_parser().parse_args([str(a) for a in argv])
+    except SystemExit:   # the parser's one line (usage, then "error: ...")
+        lines = stream.getvalue().strip().splitlines()
+        raise ValueError(lines[-1] if lines else f"ident {' '.join(map(str, argv))}: refused") from None
+    from seapup_common.jsondata import jsonable
+    return jsonable(handle(args, text if text is not None else io.StringIO()))   # as --json writes it

@@ -530,8 +530,8 @@ def hierarchy_rate(sim_seconds: float = 300.0, log_dir="/tmp") -> dict:
     """
     import tempfile
 
-    from seapup_bringup.mission_graph import RECORDED
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.mission_graph import RECORDED
+    from seapup_bringup.graph.sil import SilGraph
     control_period = 0.2
     with tempfile.TemporaryDirectory(dir=log_dir) as tmp:
         path = _controller_file(Path(tmp), control_period)

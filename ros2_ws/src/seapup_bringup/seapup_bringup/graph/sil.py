@@ -5,7 +5,7 @@ A test (or a script) describes the graph with a graph file (the format of
 supervisory hierarchy in lockstep), then drives it with goals and service
 calls; every node runs in its own process, exactly as on a vehicle::
 
-    from seapup_bringup.sil import SilGraph
+    from seapup_bringup.graph.sil import SilGraph
 
     with SilGraph(arguments={"controller_file": "ctrl.yaml"}, out_dir=tmp_path) as sil:
         result = sil.goal("goto", x=5.0, y=3.0, z=31.0, yaw=1.0)
@@ -18,8 +18,8 @@ for its simulator (``hierarchy.launch.yaml`` does) is *held*: it starts held
 at the first sample at or after ``start_at`` (its ``end_time``; at t_0:
 ``start_held``) and the harness steps it on through the simulator's
 ``simulation_interfaces`` control surface
-(:class:`seapup_bringup.graph_stepper.GraphStepper`, ``SimulateSteps``) in
-chunks of ``chunk`` simulated seconds (:class:`seapup_bringup.paced.PacedGraph`).
+(:class:`seapup_bringup.graph.graph_stepper.GraphStepper`, ``SimulateSteps``) in
+chunks of ``chunk`` simulated seconds (:class:`seapup_bringup.graph.paced.PacedGraph`).
 A step is answered once the graph is held at its last sample and every node
 has answered that sample, so every goal, cancel, controller switch and
 service call is made while the graph is held at a sample every node has
@@ -35,7 +35,7 @@ parallel runs never hear each other), keeps DDS on loopback, starts each
 node in its own process group (stopped with SIGINT, SIGTERM, SIGKILL at the
 end, also when the test fails), optionally records topics to an MCAP bag
 with the ``recorder`` node, and listens in with a probe node of its own on a
-private rclpy Context (:mod:`seapup_bringup.sil_probe`). ``tests/test_sil_example.py`` is a complete example to
+private rclpy Context (:mod:`seapup_bringup.graph.sil_probe`). ``tests/test_sil_example.py`` is a complete example to
 copy for your own velocity controller: put your node in the graph file (or
 pass your own file) and register it with the controller manager.
 """
@@ -47,11 +47,11 @@ from pathlib import Path
 
 import numpy as np
 
-from seapup_bringup import readiness
+from seapup_bringup.graph import readiness
 from seapup_bringup.output import stopped_by_signal
-from seapup_bringup.paced import result_end_time, task_settle
-from seapup_bringup.sil_processes import SilError
-from seapup_bringup.sil_probe import INSTRUMENTS, SAMPLED, TOPICS, SilProbe, import_path, log_arrays, stamp_s
+from seapup_bringup.graph.paced import result_end_time, task_settle
+from seapup_bringup.graph.sil_processes import SilError
+from seapup_bringup.graph.sil_probe import INSTRUMENTS, SAMPLED, TOPICS, SilProbe, import_path, log_arrays, stamp_s
 from seapup_common import topics
 
 __all__ = ["SilGraph", "SilError", "TOPICS", "INSTRUMENTS", "SAMPLED"]
@@ -84,7 +84,7 @@ class SilGraph:
         Also log the instruments (:data:`INSTRUMENTS`); extra listeners of the graph's lockstep roster.
     ready_status : str or tuple of str, optional
         The graph is ready once the latest ``/diagnostics`` statuses of these names say OK and matched
-        (:mod:`seapup_bringup.readiness`; default :data:`~seapup_bringup.readiness.DEFAULT_READY`); "" waits
+        (:mod:`seapup_bringup.graph.readiness`; default :data:`~seapup_bringup.graph.readiness.DEFAULT_READY`); "" waits
         only for the first estimate (and the navigator matched), None only for the first truth sample.
     extra_nodes : list of NodeSpec
         Nodes started with the graph's own (the live view of ``./seapup demo --view``).
@@ -121,7 +121,7 @@ class SilGraph:
         self.close(hurry=exc is not None and stopped_by_signal(exc))
 
     def _start(self) -> None:
-        from seapup_bringup.sil_processes import GraphProcesses
+        from seapup_bringup.graph.sil_processes import GraphProcesses
         from seapup_common.processes import DomainLease, ros_environment
         from seapup_common.ros.launch_graph import command_line, find_graph, graph_arguments, load_graph
 
@@ -154,8 +154,8 @@ class SilGraph:
     def _hold_at_start(self) -> None:
         """Paced: wait until the simulator says PAUSED at its first hold (``start_at``: its ``end_time``, or
         t_0: ``start_held``) and the probe has heard every node answer that sample."""
-        from seapup_bringup.graph_stepper import GraphStepper, StepFailed
-        from seapup_bringup.paced import PacedGraph, samples_to
+        from seapup_bringup.graph.graph_stepper import GraphStepper, StepFailed
+        from seapup_bringup.graph.paced import PacedGraph, samples_to
         self._stepper, deadline = GraphStepper(self._node, self._executor), time.monotonic() + self.ready_timeout
         try:
             self._stepper.wait_ready(self.ready_timeout)
@@ -170,7 +170,7 @@ class SilGraph:
         self.probe.hear(self.held, None, answered=self.start_at > 0)   # t_0: nobody answers before the harness
 
     def _wait_ready(self) -> None:
-        """Spin until the graph is ready (``ready_status``, :mod:`seapup_bringup.readiness`)."""
+        """Spin until the graph is ready (``ready_status``, :mod:`seapup_bringup.graph.readiness`)."""
         names, matched_only = readiness.required(self.ready_status)
         count = self._node.count_subscribers
 
@@ -189,9 +189,9 @@ class SilGraph:
                            f"node logs in {self.out_dir}" + self._dead())
 
     def _with_roster(self, specs: list) -> list:
-        """The graph's nodes and the extra ones with their lockstep rosters (:func:`seapup_bringup.launch.with_roster`):
+        """The graph's nodes and the extra ones with their lockstep rosters (:func:`seapup_bringup.ros2cli.launch.with_roster`):
         the probe and the recorder are extra listeners, waited for as the graph's own nodes."""
-        from seapup_bringup.launch import with_roster
+        from seapup_bringup.ros2cli.launch import with_roster
         from seapup_common.lockstep.roster import Listener
         listeners = [Listener("sil_probe", self.probe.topics)]
         listeners += [Listener.recorder("recorder", self.record)] if self.record else []
@@ -238,7 +238,7 @@ class SilGraph:
         return found
 
     def logs(self) -> dict[str, np.ndarray]:
-        """Everything heard so far as arrays (:func:`seapup_bringup.sil_probe.log_arrays`), caught up."""
+        """Everything heard so far as arrays (:func:`seapup_bringup.graph.sil_probe.log_arrays`), caught up."""
         self.catch_up()
         return log_arrays(self.log)
 
@@ -255,7 +255,7 @@ class SilGraph:
 
     def _advance(self, until: float | None, done=None, end_time=None, timeout: float = 600.0, settle=None) -> str:
         """Paced: :meth:`PacedGraph.advance` (hold at ``until`` or after what ``done`` waited for)."""
-        from seapup_bringup.graph_stepper import StepFailed
+        from seapup_bringup.graph.graph_stepper import StepFailed
         try:
             return self._pacing.advance(until, done, end_time, timeout, settle)
         except StepFailed as exc:

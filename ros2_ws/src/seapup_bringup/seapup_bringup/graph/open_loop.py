@@ -2,7 +2,7 @@
 
 The thesis's open-loop manoeuvres (Table 3.2 style) with the full plant, as
 separate processes on a private ROS domain in the SIL harness
-(:class:`seapup_bringup.sil.SilGraph`): the ``simulator`` (seapup_sim) in
+(:class:`seapup_bringup.graph.sil.SilGraph`): the ``simulator`` (seapup_sim) in
 lockstep with a Gauss-Markov current and the baseline sensors, ending at the
 flight's duration, ``open_loop`` (seapup_control) answering every sample with
 a blade-pitch schedule -- hover (eq. 5.2), surge (both mains +35 deg), sway
@@ -95,7 +95,7 @@ def _simulator_status(diags: list) -> dict:
 def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     """Fly ``args.duration`` simulated seconds through the graph in the SIL harness, recorded; the run's
     numbers, or None if the graph failed (the reason printed)."""
-    from seapup_bringup.sil import SilError, SilGraph
+    from seapup_bringup.graph.sil import SilError, SilGraph
 
     graph = out / "graph.launch.yaml"
     graph.write_text(yaml.safe_dump(graph_document(args.duration, plan), sort_keys=False))

@@ -2,7 +2,7 @@
 
 Starts the whole graph (``seapup_bringup/launch/hierarchy.launch.yaml`` in lockstep,
 faster than real time, every node its own process, plus the recorder) with
-:class:`seapup_bringup.sil.SilGraph`, then flies, through ROS only:
+:class:`seapup_bringup.graph.sil.SilGraph`, then flies, through ROS only:
 
 1. the self-test (sec. 4.5.2) through its action; both velocity controllers
    are configured from its result and the fixed-gain one is activated;
@@ -33,8 +33,8 @@ import os
 import time
 from pathlib import Path
 
-from seapup_bringup.mission_graph import fly_mission, mission_config
-from seapup_bringup.mission_pages import report_mission
+from seapup_bringup.graph.mission_graph import fly_mission, mission_config
+from seapup_runs.mission_pages import report_mission
 from seapup_bringup.output import add_json_argument, emit_json, stopped_by_signal, text_stream
 
 __all__ = ["main", "demo_parser"]

@@ -65,10 +65,10 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
 
     Raises
     ------
-    seapup_bringup.sil.SilError
+    seapup_bringup.graph.sil.SilError
         If the graph does not come up, a node dies, or the run does not finish in time.
     """
-    from seapup_bringup.sil import SilError, SilGraph
+    from seapup_bringup.graph.sil import SilError, SilGraph
 
     spec = design(spec)
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="seapup_run_"))

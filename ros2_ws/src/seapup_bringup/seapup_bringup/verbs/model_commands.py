@@ -192,11 +192,11 @@ def bench(argv: list[str]) -> int:
     per_cable = out["model_umbilical"]["step_us"] * 1e-6
     out["model_umbilical"]["extra_percent"] = 100.0 * (per_cable / per_step - 1.0)
     if not args.no_campaign:
-        from seapup_bringup.campaign_commands import campaign_rates
+        from seapup_bringup.campaign_runner import campaign_rates
         print("campaign: 128 fixed-gain runs in tasks of 32 on a LocalCluster of 1, then 2 worker processes...", file=out_text,
               flush=True)
         out["campaign"] = campaign_rates()
-        from seapup_bringup.campaign_commands import mission_campaign_rate
+        from seapup_bringup.campaign_runner import mission_campaign_rate
         print("campaign: 8 missions of demo-mission-robustness on a LocalCluster of 2 worker processes...",
               file=out_text, flush=True)
         mc = out["mission_campaign"] = mission_campaign_rate()
@@ -206,7 +206,7 @@ def bench(argv: list[str]) -> int:
     t0 = time.perf_counter()
     run_verify(model)
     out["verify"] = {"seconds": time.perf_counter() - t0}
-    from seapup_bringup.graph_bench import mfol_step_us
+    from seapup_bringup.graph.graph_bench import mfol_step_us
     out["mfol_law"] = mfol_step_us()
     out["estimator"] = _estimator_step_us()
     print("mission: the demo's mission flown in process (the hierarchy's cores, sample for sample)...", file=out_text,
@@ -214,7 +214,7 @@ def bench(argv: list[str]) -> int:
     m = out["mission_in_process"] = _mission_rate()
     print(f"mission_in_process: {m['rtf']:.0f}x real time ({m['simulated_s']:.0f} s simulated in {m['wall_s']:.2f} s "
           f"wall, {m['cpu_s']:.2f} s CPU; target >= 2000x)", file=out_text)
-    from seapup_bringup.graph_bench import law_step_costs
+    from seapup_bringup.graph.graph_bench import law_step_costs
     print("control laws: each flown on square-inspection, its own calls timed (sec. 7.7)...", file=out_text, flush=True)
     out["control_laws"] = law_step_costs()
     if not args.no_report:
@@ -225,7 +225,7 @@ def bench(argv: list[str]) -> int:
               f"<= 600 s), warm {r['warm']['wall_s']:.1f} s wall ({r['warm']['cpu_s']:.1f} s CPU; target <= 30 s)",
               file=out_text)
     if not args.no_graph:
-        from seapup_bringup import graph_bench
+        from seapup_bringup.graph import graph_bench
         print("graph: simulator + open_loop in lockstep (separate processes)...", file=out_text, flush=True)
         out["graph_lockstep_5hz"] = graph_bench.lockstep_rate(0.2, sim_seconds=120.0)
         out["graph_lockstep_20hz"] = graph_bench.lockstep_rate(0.05, sim_seconds=30.0)
@@ -309,33 +309,34 @@ def bench(argv: list[str]) -> int:
 
 
 def _report_times() -> dict:
-    """``./seapup report`` from a cold cache and again from the warm one: wall and CPU seconds (this
-    process and its run workers), with as many jobs as CPUs."""
-    import contextlib
-    import io
+    """``./seapup report`` from a cold cache and again from the warm one, each as its own process (as a user
+    runs it): wall and CPU seconds (it and its run workers), with as many jobs as CPUs."""
     import os
+    import subprocess
+    import sys
     import tempfile
     from pathlib import Path
-    from seapup_bringup.report_commands import report_command
+
+    from seapup_common.processes import spawn
     jobs = os.cpu_count() or 1
     out = {"jobs": jobs}
     with tempfile.TemporaryDirectory() as tmp:
         for label in ("cold", "warm"):
             before, wall = os.times(), time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-                code = report_command(["--out", str(Path(tmp) / label), "--cache", str(Path(tmp) / "cache"),
-                                       "--jobs", str(jobs)])
+            child = spawn([sys.executable, "-m", "seapup_bringup.cli", "report", "--out", str(Path(tmp) / label),
+                           "--cache", str(Path(tmp) / "cache"), "--jobs", str(jobs)],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            code = child.wait()
             after = os.times()
             cpu = sum(getattr(after, k) - getattr(before, k) for k in ("user", "system", "children_user", "children_system"))
             out[label] = {"wall_s": time.perf_counter() - wall, "cpu_s": cpu, "exit": code}
     return out
 
-
 def _mission_rate() -> dict:
     """The shipped mission (``seapup_bringup/config/mission.yaml``) flown in process
     (:func:`seapup_runs.mission_flight.run_mission`): simulated seconds per wall second, CPU beside wall."""
-    from seapup_bringup.hierarchy_config import hierarchy_config
-    from seapup_bringup.mission_graph import mission_path
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.mission_graph import mission_path
     from seapup_runs.mission import load_mission
     from seapup_runs.mission_flight import run_mission
     spec = load_mission(mission_path())

@@ -7,7 +7,7 @@ The case (``seapup_runs/data/scenarios.yaml``) becomes a run spec
 designed or commissioned by the self-test on the baseline vehicle, sec. 5.5)
 flown in this process
 (:func:`seapup_runs.runner.run`) or through the ROS graph in lockstep
-(:func:`seapup_bringup.graph_runner.run_on_graph`); both give the same
+(:func:`seapup_bringup.graph.graph_runner.run_on_graph`); both give the same
 :class:`~seapup_runs.result.RunResult`, printed beside the thesis's numbers,
 plotted, and written with ``--json`` in the run-result shape
 (``docs/run-result.md``).
@@ -19,12 +19,11 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_common.controllers import ControllerRegistryError
-from seapup_bringup.sil import SilError
+from seapup_bringup.graph.sil import SilError
 from seapup_runs.result import RunResult
+from seapup_runs.run_plots import plot_scenario
 from seapup_runs.runner import DesignFailed, run
 from seapup_runs.scenarios import scenario_spec, scenarios
 from seapup_runs.targets import thesis_by_metric
@@ -32,7 +31,7 @@ from seapup_runs.spec import RunSpecError
 from seapup_runs.thesis_designs import DESIGNS
 from seapup_sim.vehicle_config import ConfigError, available_configs
 
-__all__ = ["scenario_command", "print_scenario", "plot_scenario"]
+__all__ = ["scenario_command", "print_scenario"]
 
 
 def print_scenario(result: RunResult, text) -> None:
@@ -96,46 +95,6 @@ def print_scenario(result: RunResult, text) -> None:
               + (f" ({thesis['recovery_5pct_s']:g})" if "recovery_5pct_s" in thesis else ""), file=text)
 
 
-def plot_scenario(result: RunResult, out_dir: Path) -> Path:
-    """A figure like figs 5.10-5.24: velocities, roll and pitch, blade pitches."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    spec, series = result.spec, result.series
-    estimate = series.estimate
-    fig, axes = plt.subplots(6 if estimate else 4, 1, figsize=(7, 13 if estimate else 9), sharex=True)
-    for key, unit in (("u", "m/s"), ("v", "m/s"), ("w", "m/s")):
-        axes[0].plot(series.t, series.truth[key], label=f"{key} [{unit}]")
-    axes[1].plot(series.t, np.degrees(series.truth["r"]), label="r [deg/s]")
-    axes[2].plot(series.t, np.degrees(series.truth["roll"]), label="roll [deg]")
-    axes[2].plot(series.t, np.degrees(series.truth["pitch"]), label="pitch [deg]")
-    for j, key in enumerate(("main port", "main stbd", "vect stbd", "vect port")):
-        axes[3].plot(series.t, np.degrees(series.applied[:, j]), label=key)
-    if estimate:  # the self-tuner's parameter traces (figs 7.10, 7.17, 7.19, 7.25)
-        for j, name in enumerate(estimate["names"]):
-            if name == "trace_P":
-                continue
-            panel = axes[4] if name.startswith(("a_", "f0_")) else axes[5]
-            panel.plot(series.t, estimate["values"][:, j], label=name)
-    axes[-1].set_xlabel("time [s]")
-    for ax in axes:
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3)
-    rate = 1.0 / spec.control_period
-    last = spec.controller_timeline()[-1][1]
-    scheduled = bool(last.parameters.get("schedule", False))
-    tuner = "" if last.type in ("mfol", "hold") else last.type
-    axes[0].set_title(f"{spec.name} ({spec.vehicle}, {rate:g} Hz{', gain-scheduled' if scheduled else ''}"
-                      f"{', ' + tuner if tuner else ''})")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / (f"scenario_{spec.name}_{spec.vehicle}_{int(round(rate))}hz{'_scheduled' if scheduled else ''}"
-                      f"{'_' + tuner if tuner else ''}.png")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
-
-
 def scenario_parser() -> argparse.ArgumentParser:
     """The parser of ``./seapup scenario`` (its usage line in ``./seapup help`` is generated from it)."""
     parser = argparse.ArgumentParser(prog="./seapup scenario", description=__doc__.splitlines()[0])
@@ -173,7 +132,7 @@ def scenario_command(argv: list[str]) -> int:
         spec = scenario_spec(args.name, args.config, args.rate, args.schedule, args.seed, args.controller,
                              _parameters(args.param), args.sensors, args.design)
         if args.graph:
-            from seapup_bringup.graph_runner import run_on_graph
+            from seapup_bringup.graph.graph_runner import run_on_graph
             result = run_on_graph(spec, progress=lambda f: progress(args.name, f))
         else:
             result = run(spec, progress=lambda f: progress(args.name, f))
