@@ -40,7 +40,8 @@ SHELLS = {
     # bringup: the SIL harness, the graph runners (a run, a mission, an experiment), benchmarks; Dask campaigns
     # (their missions' hierarchies are read from the installed launch document); the report's runs
     *(f"seapup_bringup.graph.{name}" for name in (
-        "sil", "sil_probe", "graph_stepper", "graph_runner", "mission_graph", "identification", "open_loop",
+        "sil", "sil_probe", "graph_stepper", "graph_runner", "mission_graph", "identification", "self_test_graph",
+        "open_loop",
         "graph_bench", "hierarchy_config")),
     "seapup_bringup.campaign_runner", "seapup_bringup.report.reproduction",
     # the live view: the node beside a graph, and the layout of the node's topics
@@ -189,3 +190,11 @@ def test_bringup_is_split_by_job():
                    and m.split(".")[1] not in BRINGUP_JOBS)
     assert not loose, f"modules of bringup outside {BRINGUP_JOBS}: {loose}"
     assert all(f"seapup_bringup.{job}" in MODULES for job in BRINGUP_JOBS)
+
+
+def test_only_the_graph_package_composes_a_graph():
+    """Issue 44: a verb, the report and the campaigns fly on the graph through the graph runners of
+    ``seapup_bringup.graph``; none of them starts a SIL harness of its own."""
+    composing = sorted(m for m, path in MODULES.items()
+                       if not m.startswith("seapup_bringup.graph.") and re.search(r"\bSilGraph\(", path.read_text()))
+    assert not composing, f"modules that start a SIL harness outside seapup_bringup.graph: {composing}"

@@ -132,7 +132,7 @@ SELFTEST = ROOT / "bags" / "selftest_5hz"
 def test_selftest_bag_refits_to_what_the_self_test_finds_today():
     """Refit from the recorded samples (--from-bag) == the self-test flown again in process, started as the
     simulator node starts (at the hover setting)."""
-    from seapup_bringup.verbs.autopilot_commands import _from_bag
+    from seapup_bringup.graph.self_test_graph import self_test_from_bag as _from_bag
     from seapup_runs.self_test_flight import fly_self_test
     from seapup_sim.analysis import hover_blade_pitch
     from seapup_sim.vehicle import VehicleModel

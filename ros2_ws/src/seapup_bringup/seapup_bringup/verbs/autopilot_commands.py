@@ -12,27 +12,21 @@ closed-loop  the closed-loop eigenvalues of the linearised vehicle under the
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, SELF_TEST_ACTION, SELF_TEST_SAMPLES,
-                                  TRUTH_ODOMETRY, VELOCITY, typed)
+from seapup_bringup.graph.self_test_graph import SelfTestFailed, fly_self_test_graph, self_test_from_bag
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_runs.closed_loop_analysis import MODES, analyse, plot_loci
 from seapup_runs.self_test_flight import fly_self_test
 from seapup_runs.targets import thesis_value
-from seapup_control.self_test import SelfTestConfig
 from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import ConfigError, available_configs, load_vehicle_config
 
 __all__ = ["selftest", "closed_loop_command", "SelfTestFailed"]
 
-
-class SelfTestFailed(RuntimeError):
-    """A self-test or closed-loop analysis that cannot go on: the reason says why (and where the logs are)."""
 
 def _thesis_point(surge: float, mode: str, rate: float, config: str) -> dict | None:
     """The thesis's self-test result at an operating point (Tables 5.1, 5.2: the column of ``mode``'s
@@ -75,92 +69,11 @@ def _fly(args, text):
     return run
 
 
-#: What a self-test run records (typed: subscribed before the publishers exist).
-SELF_TEST_TOPICS = (CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY, SELF_TEST_SAMPLES)
-
-
-def _fly_graph(args, out: Path, bag: Path, text) -> dict:
-    """The self-test through the ROS graph in lockstep (``seapup_bringup/launch/self_test.launch.yaml``: simulator
-    and self_test action server) in the SIL harness, recorded to ``bag``; this process is the action client.
-
-    Raises
-    ------
-    SelfTestFailed
-        If the goal is refused or the self-test does not succeed; the harness's SilError if the graph
-        does not come up.
-    """
-    from seapup_bringup.graph.sil import SilGraph
-    from seapup_runs.spec import PHYSICS_STEP
-
-    speeds = _speeds(args)
-    period = 1.0 / args.rate
-    # the first sample, command and self-test sample wait for every reader of them -- the recorder and the
-    # probe included (the lockstep roster the harness fills): nothing of the run is lost
-    arguments = {"vehicle": args.config, "control_period": period, "physics_step": min(PHYSICS_STEP, period),
-                 "start_depth": 50.0, "result_dir": str(out.resolve())}
-    with SilGraph("seapup_bringup self_test.launch.yaml", arguments, out_dir=out, record=typed(*SELF_TEST_TOPICS),
-                  ready_status=None) as sil:
-        print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
-              f"(domain {sil.env['ROS_DOMAIN_ID']}); output in {out}", file=text, flush=True)
-        result = sil.action(SELF_TEST_ACTION, "seapup_msgs/action/SelfTest",
-                            {"sample_period": period, "operating_points": speeds}, timeout=3600.0, ready_timeout=60.0,
-                            feedback=lambda f: progress(f"{f.phase} c{f.cycle} t{f.thruster}", f.progress))
-        bag_dir = sil.bag
-    if not result.success:
-        raise SelfTestFailed(f"the self-test did not succeed: {result.message}; see {out}")
-    if bag_dir != bag:
-        shutil.move(str(bag_dir), str(bag))
-    return {"result": result, "bag": bag}
-
-
 def _speeds(args) -> list[float]:
     try:
         return [float(s) for s in args.speeds.split(",")]
     except ValueError:
         raise SelfTestFailed(f"--speeds must be numbers separated by commas, got {args.speeds!r}")
-
-
-def _from_bag(bag_dir: Path) -> dict:
-    """Refit a recorded run from its /seapup/self_test/samples and measure its space from the truth."""
-    from nav_msgs.msg import Odometry
-    from rclpy.serialization import deserialize_message
-    from seapup_msgs.msg import SelfTestSample
-
-    from seapup_common.bag import read_bag
-    from seapup_control.mfol import DesignError
-    from seapup_control.self_test import refit, tests_from_samples
-    from seapup_control.step_identification import IdentificationError
-    records, positions, stamps = [], [], []
-    for m in read_bag(bag_dir, [SELF_TEST_SAMPLES, TRUTH_ODOMETRY]):
-        if m.topic == TRUTH_ODOMETRY:
-            odometry = deserialize_message(m.cdr, Odometry)
-            p, stamp = odometry.pose.pose.position, odometry.header.stamp
-            positions.append((stamp.sec + stamp.nanosec * 1e-9, p.x, p.y, p.z))
-            continue
-        s = deserialize_message(m.cdr, SelfTestSample)
-        t = s.header.stamp.sec + s.header.stamp.nanosec * 1e-9
-        stamps.append(t)
-        records.append({"t": t, "test_index": s.test_index, "cycle": s.cycle, "surge": s.surge,
-                        "thruster": s.thruster, "step": s.step, "quiescent_input": list(s.quiescent_input),
-                        "equilibrium": list(s.equilibrium), "velocity": list(s.velocity),
-                        "sample_period": s.sample_period, "phase": s.phase})
-    if not records:
-        raise SelfTestFailed(f"{bag_dir} has no {SELF_TEST_SAMPLES}: not a self-test bag")
-    last = max(records, key=lambda r: r["t"])
-    if last["phase"] not in ("done", "failed", "cancelled"):
-        raise SelfTestFailed(f"{bag_dir}: its self-test record ends at t = {last['t']:.3f} s in phase "
-                             f"{last['phase']!r}: the recording stopped before the self-test ended")
-    try:
-        config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
-        points = refit(tests_from_samples(records, config.sample_period), config.sample_period, config.poles,
-                       config.max_condition)
-    except (ConfigError, IdentificationError, DesignError) as exc:
-        raise SelfTestFailed(f"{bag_dir}: {exc}") from None
-    # the box of water of the run itself: truth from its first to its last sample
-    position = np.array([p[1:] for p in positions if min(stamps) - 1e-9 <= p[0] <= max(stamps) + 1e-9]
-                        or [(0.0, 0.0, 0.0)])
-    return {"points": points, "duration": max(stamps) - min(stamps),
-            "space": position.max(axis=0) - position.min(axis=0)}
 
 
 def selftest_parser() -> argparse.ArgumentParser:
@@ -183,7 +96,7 @@ def _selftest(argv: list[str]) -> int:
     text = text_stream(args)
     bag = None
     if args.from_bag:
-        refitted = _from_bag(args.from_bag)
+        refitted = self_test_from_bag(args.from_bag)
         points, duration, space, bag = refitted["points"], refitted["duration"], refitted["space"], args.from_bag
         print(f"refitted from {args.from_bag}", file=text)
     elif args.in_process or args.mode == "artificial":
@@ -196,9 +109,9 @@ def _selftest(argv: list[str]) -> int:
         bag_dir = args.bag or out / "bag"
         if bag_dir.exists():
             parser.error(f"{bag_dir} exists: a bag is never overwritten")
-        flown = _fly_graph(args, out, bag_dir, text)
+        flown = fly_self_test_graph(args.config, args.rate, _speeds(args), out, bag_dir, text)
         bag = flown["bag"]
-        refitted = _from_bag(bag)  # the bag holds everything: the table and the space come from it
+        refitted = self_test_from_bag(bag)  # the bag holds everything: the table and the space come from it
         points, duration, space = refitted["points"], flown["result"].duration, refitted["space"]
         live = np.reshape(flown["result"].b1_inverse, (-1, 4, 4))
         refitted_b1 = np.reshape([p.model.B1inv for p in points], (-1, 4, 4))
