@@ -44,6 +44,58 @@ def pytest_sessionstart(session):
     import matplotlib.font_manager  # noqa: F401  (builds the cache if missing; reads it otherwise)
 
 
+#: Each test file's measured seconds (setup, call and teardown of its tests, summed), written by
+#: ``./seapup test --store-durations``: the suite's workers take the longest files first (below).
+DURATIONS = REPO_ROOT / "tests" / "durations.json"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--store-durations", action="store_true",
+                     help=f"seapup: after the run, write each test file's seconds into {DURATIONS.relative_to(REPO_ROOT)} "
+                          "(the files the run went through; the others are kept)")
+
+
+def _file_of(nodeid: str) -> str:
+    return nodeid.split("::", 1)[0]
+
+
+def _file_weights() -> dict:
+    try:
+        weights = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        return {}
+    return {k: float(v) for k, v in weights.items() if isinstance(v, (int, float))} if isinstance(weights, dict) else {}
+
+
+def _longest_files_first(items) -> None:
+    """Order the files by their measured seconds, longest first, each file's tests in their own order: the
+    workers (``--dist loadfile``: a file to a worker) then start with the long files and end with the short
+    ones, so neither waits long for the other at the end (longest-processing-time first). A file not measured
+    yet goes last."""
+    weights = _file_weights()
+    if not weights:
+        return
+    first: dict[str, int] = {}
+    for i, item in enumerate(items):
+        first.setdefault(_file_of(item.nodeid), i)
+    items.sort(key=lambda item: (-weights.get(_file_of(item.nodeid), 0.0), first[_file_of(item.nodeid)]))
+
+
+_MEASURED: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report):
+    _MEASURED[_file_of(report.nodeid)] = _MEASURED.get(_file_of(report.nodeid), 0.0) + report.duration
+
+
+def pytest_sessionfinish(session, exitstatus):
+    config = session.config
+    if not config.getoption("--store-durations") or hasattr(config, "workerinput") or not _MEASURED:
+        return
+    weights = {**_file_weights(), **{k: round(v, 1) for k, v in _MEASURED.items()}}
+    DURATIONS.write_text(json.dumps(dict(sorted(weights.items())), indent=0) + "\n")
+
+
 def pytest_collection_modifyitems(config, items):
     """Every test is ``unit`` (pure cores, message conversions: seconds), ``sweep`` (pure, but a sweep over
     many runs: tens of seconds), ``process`` (it starts child processes -- a command, Chromium, a Dask
@@ -55,6 +107,7 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.graph)
         elif not any(item.get_closest_marker(kind) for kind in ("graph", "process", "sweep")):
             item.add_marker(pytest.mark.unit)
+    _longest_files_first(items)
 
 
 class _ProcessGuard:
