@@ -155,9 +155,9 @@ def test_action_list_and_send_goal_run_the_self_test(node_process, ros_env, tmp_
     assert result["status"] == "succeeded" and result["result"]["success"] is True
     assert len(result["result"]["b0_inverse"]) == 16 and result["result"]["surge_speeds"] == [0.0]
     phases = {f["phase"] for f in result["feedback"]}
-    # the feedback reports progress to near the end: its last messages may race the result on a loaded machine
-    # (rclpy drops feedback heard after the result; beside two CPU burners the last one shown was at 0.978)
-    assert {"quiesce", "step"} <= phases and max(f["progress"] for f in result["feedback"]) > 0.9
+    # the feedback reports progress to the end, also what arrives just after the result (beside two CPU burners the
+    # last one shown was once at 0.978: rclpy had dropped the goal's feedback callback with its result)
+    assert {"quiesce", "step"} <= phases and max(f["progress"] for f in result["feedback"]) > 0.99
     assert "Goal finished with status: SUCCEEDED" in run.stderr and "Feedback:\nphase: " in run.stderr
     # a goal the server refuses: exit 1, said so
     refused = cli(ros_env, "action", "send_goal", "/seapup/self_test", "seapup_msgs/action/SelfTest",

@@ -643,8 +643,11 @@ def action(argv: list[str]) -> int:
             print("Goal canceled.")
             raise
         answer = future.result()
-        # feedback sent before the result travels on its own topic and may arrive just after it: take it too
-        probe.spin_until(lambda: False, 0.3)
+        # feedback sent before the result travels on its own topic and may arrive just after it (on a loaded
+        # machine the last ones did); rclpy forgets a goal's feedback callback once its result is in (a done
+        # callback of the result, which may run a spin later), so it is handed back at every turn of this wait
+        callbacks, goal_key = client._feedback_callbacks, bytes(handle.goal_id.uuid)
+        probe.spin_until(lambda: callbacks.setdefault(goal_key, on_feedback) is None, 0.3)
         status = _STATUS.get(answer.status, str(answer.status))
         print("Result:\n" + to_yaml(answer.result) + f"\n\nGoal finished with status: {status}")
         args.result = {"action": args.action_name, "accepted": True, "status": status.lower(),
