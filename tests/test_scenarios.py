@@ -222,3 +222,42 @@ def test_a_steady_state_error_is_seen_where_a_thruster_saturates_and_not_under_i
     assert inspection["good_response"]["ok"]
     assert not any(inspection["outputs"][k]["steady_error_seen"] for k in ("u", "v", "w"))
     assert "steady_error_seen" not in inspection["outputs"]["r"]  # asked to stay at zero: an interaction
+
+
+def test_a_probe_that_missed_samples_fails_the_graph_run_naming_the_topic(tmp_path):
+    """A graph run whose probe did not hear every sample of a per-sample topic (a transport loss) is an error
+    naming the topic, the count heard and what DDS said of it -- not a result with NaN where the samples were."""
+    from types import SimpleNamespace
+
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+
+    from seapup_bringup.graph.graph_runner import _check_heard
+    from seapup_bringup.graph.sil import SilError
+    from seapup_bringup.graph.sil_probe import SilProbe
+
+    spec = scenario_spec("fast")
+    n = spec.samples
+
+    def stamped(kind, k):
+        msg = kind()
+        t = k * spec.control_period
+        msg.header.stamp = Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)))
+        return msg
+    probe = SilProbe(instruments=True)
+    for name in ("truth", "applied", "velocity", "imu", "depth"):
+        probe.log[name] = [stamped(Odometry, k) for k in range(n + 1)]
+    probe.log["reference"] = [stamped(TwistStamped, k) for k in range(n)] + [stamped(TwistStamped, n - 1)]
+    sil = SimpleNamespace(log=probe.log, probe=probe)
+    _check_heard(sil, spec, tmp_path)                      # every sample heard (a repeat counts once)
+
+    probe.log["reference"] = probe.log["reference"][:1]    # the failure seen: the reference at t_0 only
+    probe.lost["reference"] = 3
+    probe.matches["reference"] = [(0.0, 1), (1.0, 0)]
+    with pytest.raises(SilError) as caught:
+        _check_heard(sil, spec, tmp_path)
+    text = str(caught.value)
+    assert f"/seapup/velocity_controller/reference: 1 of {n} samples heard" in text
+    assert "3 reported lost by DDS" in text and "[1, 0]" in text and str(tmp_path) in text
+    assert "/seapup/truth" not in text and "\n" not in text

@@ -19,7 +19,7 @@ from seapup_common.contract import Measurement, Reference
 from seapup_common.ros.messages import command_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
-from seapup_control.ros.sample_publisher import SamplePublisher
+from seapup_control.ros.sample_publisher import SamplePublisher, sample_publisher_events
 from seapup_control.profiles import OpenLoop, PitchProfile
 
 __all__ = ["OpenLoopNode", "main"]
@@ -46,7 +46,8 @@ class OpenLoopNode(Node):
                     "wait_for_command_subscribers": (0, 100)})
         self.schedule = PitchProfile(p["times"], p["pitches"], p["blade_pitch_limit"])
         self.controller = OpenLoop(self.schedule, p["sample_period"])
-        self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS)
+        self.publisher = self.create_publisher(BladePitch, "thrusters/command", STREAM_QOS,
+            event_callbacks=sample_publisher_events(self, lambda: getattr(self, "sampler", None)))
         # answer nothing until the plant (and e.g. a recorder) listens: no command is lost at start
         self.sampler = SamplePublisher(self, self.publisher, self._command, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],

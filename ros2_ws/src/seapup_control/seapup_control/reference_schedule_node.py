@@ -18,7 +18,7 @@ from rclpy.node import Node
 from seapup_common.ros.messages import reference_to_msg
 from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
-from seapup_control.ros.sample_publisher import SamplePublisher
+from seapup_control.ros.sample_publisher import SamplePublisher, sample_publisher_events
 from seapup_control.profiles import ReferenceProfile
 
 __all__ = ["ReferenceScheduleNode", "main"]
@@ -37,7 +37,8 @@ class ReferenceScheduleNode(Node):
             ranges={"times": (0.0, 1e9), "references": (-10.0, 10.0),  # [m/s], [rad/s]
                     "period": (0.0, 1e9), "wait_for_reference_subscribers": (0, 100)})
         self.schedule = ReferenceProfile(p["times"], p["references"], p["period"])
-        self.publisher = self.create_publisher(TwistStamped, "velocity_controller/reference", STREAM_QOS)
+        self.publisher = self.create_publisher(TwistStamped, "velocity_controller/reference", STREAM_QOS,
+            event_callbacks=sample_publisher_events(self, lambda: getattr(self, "sampler", None)))
         self.sampler = SamplePublisher(self, self.publisher, self._reference, lockstep=p["lockstep"],
                                        sample_period=p["sample_period"],
                                        wait_for_subscribers=p["wait_for_reference_subscribers"])

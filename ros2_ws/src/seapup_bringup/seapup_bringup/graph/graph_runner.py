@@ -98,9 +98,33 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
         while not quiet() and time.monotonic() < deadline:
             sil.spin_until(lambda: False, 0.2)
         logs = sil.logs()
+        _check_heard(sil, spec, out)
     result = RunResult(spec, series_from_logs(spec, logs), transport=GRAPH_TRANSPORT)
     result.metrics = compute(result)
     return result
+
+
+#: Per-sample topics every run graph publishes at each sample it flies (name in the probe's log, samples
+#: expected beyond the spec's count): the simulator's, at t_0 ... t_N, and the reference schedule's, at
+#: t_0 ... t_N-1. (The commands are not: a controller may take charge after the start.)
+_EVERY_SAMPLE = {"truth": 1, "applied": 1, "velocity": 1, "imu": 1, "depth": 1, "reference": 0}
+
+
+def _check_heard(sil, spec: RunSpec, out: Path) -> None:
+    """Raise :class:`SilError` if the probe missed a sample of a topic the graph published at every sample: a
+    result with a hole would differ from the flight without saying why (the message names the topic, what
+    was heard and what the transport said of it)."""
+    from seapup_bringup.graph.sil import SilError
+    from seapup_bringup.graph.sil_probe import TOPICS, stamp_s
+    short = []
+    for name, extra in _EVERY_SAMPLE.items():
+        heard = len({round(stamp_s(m), 6) for m in sil.log[name]})
+        if heard < spec.samples + extra:
+            short.append(f"{TOPICS[name][0]}: {heard} of {spec.samples + extra} samples heard "
+                         f"({sil.probe.account(name)})")
+    if short:
+        raise SilError("the harness's probe missed samples the graph published -- " + "; ".join(short)
+                       + f"; node logs in {out}")
 
 
 def _report(progress, fraction: float) -> bool:

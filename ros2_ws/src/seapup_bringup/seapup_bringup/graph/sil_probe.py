@@ -161,6 +161,10 @@ class SilProbe:
     def __init__(self, instruments: bool = False):
         self.instruments = bool(instruments)
         self.log: dict[str, list] = {name: [] for name in TOPICS}
+        #: per name: samples DDS reported lost to the probe's subscription (a reliable writer that dropped
+        #: them before repairing them), and the (wall time, publishers matched) of every change of its match
+        self.lost: dict[str, int] = {}
+        self.matches: dict[str, list[tuple[float, int]]] = {name: [] for name in TOPICS}
         self.node = self.executor = self._context = None
 
     @property
@@ -178,10 +182,27 @@ class SilProbe:
         self.node = rclpy.create_node("sil_probe", context=self._context)
         self.executor = SingleThreadedExecutor(context=self._context)
         self.executor.add_node(self.node)
+        from rclpy.event_handler import SubscriptionEventCallbacks
         for name, (topic, kind) in TOPICS.items():
             if self.instruments or name not in INSTRUMENTS:
-                self.node.create_subscription(import_path(kind), topic, self.log[name].append, 10000)
+                events = SubscriptionEventCallbacks(
+                    message_lost=lambda status, n=name: self._on_lost(n, status),
+                    matched=lambda status, n=name: self.matches[n].append((time.monotonic(),
+                                                                            int(status.current_count))),
+                    use_default_callbacks=False)
+                self.node.create_subscription(import_path(kind), topic, self.log[name].append, 10000,
+                                              event_callbacks=events)
         return self
+
+    def _on_lost(self, name: str, status) -> None:
+        self.lost[name] = self.lost.get(name, 0) + int(status.total_count_change)
+
+    def account(self, name: str) -> str:
+        """What the probe knows of one topic's transport: samples DDS reported lost, and its publishers'
+        matches over time (a writer that unmatched mid-run shows as a drop of the count)."""
+        counts = [count for _, count in self.matches.get(name, [])]
+        return (f"{self.lost.get(name, 0)} reported lost by DDS; publishers matched over time "
+                f"{counts or 'never'}")
 
     def close(self) -> None:
         """Destroy the node and its context: alive, its DDS participant keeps announcing itself on a domain

@@ -4,7 +4,9 @@ With ``lockstep`` the publisher answers each ``/clock`` sample t_k of a lockstep
 stamped t_k, with the schedule's value at t_k (the simulator repeats t_k until it is answered);
 otherwise it publishes on a timer every ``sample_period`` for the time since it started (node
 clock, so ``use_sim_time`` works). Nothing is sent before ``wait_for_subscribers`` subscriptions
-are matched (the plant, a recorder), so no sample is lost at start.
+are matched (the plant, a recorder), so no sample is lost at start. Every change of the publisher's matched
+subscriptions after the first message is logged (:func:`sample_publisher_events`): a listener that drops out
+mid-run shows in the node's log.
 """
 from __future__ import annotations
 
@@ -18,7 +20,21 @@ from seapup_common.ros.messages import stamp_to_ns
 from seapup_common.ros.node import RELIABLE_QOS
 from seapup_common.topics import CLOCK
 
-__all__ = ["SamplePublisher"]
+__all__ = ["SamplePublisher", "sample_publisher_events"]
+
+
+def sample_publisher_events(node: Node, sampler: Callable[[], "SamplePublisher | None"]):
+    """Event callbacks for a :class:`SamplePublisher`'s publisher: a subscription matched or unmatched once
+    samples flow is logged with the count (``sampler`` gives the publisher's sampler, None while it is built)."""
+    from rclpy.event_handler import PublisherEventCallbacks
+
+    def matched(status) -> None:
+        current = sampler()
+        if current is not None and current.sent:
+            change = int(status.current_count_change)
+            node.get_logger().info(f"{'a subscription matched' if change > 0 else 'a subscription left'} after "
+                                   f"{current.sent} sample(s) sent: {int(status.current_count)} matched now")
+    return PublisherEventCallbacks(matched=matched, use_default_callbacks=False)
 
 
 class SamplePublisher:
