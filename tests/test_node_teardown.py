@@ -46,3 +46,33 @@ def test_destroy_actions_takes_servers_and_clients_and_leaves_the_rest(ros_conte
     destroy_actions(node)
     assert _actions(node) == [] and publisher in node.publishers
     node.destroy_node()
+
+
+class _Queued:
+    """An executor that is not rclpy's SingleThreadedExecutor: each step runs the next queued callback (a
+    message taken, or a timer's that takes none), as :func:`seapup_common.ros.node._spin_step` drives it."""
+
+    def __init__(self, node, queue):
+        self.node, self.queue = node, list(queue)
+
+    def spin_until_future_complete(self, until, timeout_sec):
+        if self.queue:
+            if self.queue.pop(0) == "message":
+                self.node.received += 1
+
+
+def test_a_draining_recorder_takes_every_queued_message_past_a_timer_callback():
+    """A stopping recorder drains what it has received (run_node's ``_drain``): a step that runs a timer's
+    callback (the flush) takes no message, and must not end the drain while messages still wait -- under load
+    a bag lost the last 12 s of a self-test that way. An idle node stops after ``idle`` seconds."""
+    import time
+    from types import SimpleNamespace
+
+    from seapup_common.ros.node import _drain
+    node = SimpleNamespace(received=0)
+    queue = ["message"] * 3 + ["timer"] + ["message"] * 50 + ["timer", "timer"] + ["message"] * 7
+    _drain(_Queued(node, queue), node, budget=5.0, idle=0.05)
+    assert node.received == 60
+    t0 = time.monotonic()
+    _drain(_Queued(node, []), node, budget=5.0, idle=0.05)
+    assert node.received == 60 and time.monotonic() - t0 < 1.0

@@ -451,10 +451,19 @@ def refuse_invalid_transitions(node) -> None:
 ACK_BUDGET = 4.0
 
 
-def _drain(executor, node, budget: float = 1.5) -> None:
-    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until a
-    short wait brings nothing new (a live graph keeps publishing; what arrives after the stop is not
-    waited for) or ``budget`` seconds pass (a stopped process must end promptly: its parent may be gone)."""
+#: [s wall] How long a draining node must take no new message before it stops (:func:`_drain`).
+DRAIN_IDLE = 0.25
+
+
+def _drain(executor, node, budget: float = 1.5, idle: float = DRAIN_IDLE) -> None:
+    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until no new
+    message (the node's ``received`` count) has been taken for ``idle`` seconds (a live graph keeps
+    publishing; what arrives after the stop is not waited for) or ``budget`` seconds pass (a stopped process
+    must end promptly: its parent may be gone).
+
+    Not until the first step that takes nothing: a step runs one callback, and a timer's (a recorder's
+    flush) or a service's takes none -- a recorder stopped that way under load closed its bag with the last
+    12 s of a self-test's samples, acknowledged to their writers, still queued."""
     import threading
     deadline = time.monotonic() + budget
     spent = _Stop()   # the events executor's steps may overrun their timeout: the budget ends them (_spin_step)
@@ -462,10 +471,15 @@ def _drain(executor, node, budget: float = 1.5) -> None:
     timer.daemon = True
     timer.start()
     try:
+        quiet_since = None
         while time.monotonic() < deadline:
             before = getattr(node, "received", None)
             _spin_step(executor, spent, 0.01)
-            if getattr(node, "received", None) == before:
+            if getattr(node, "received", None) != before:
+                quiet_since = None
+            elif quiet_since is None:
+                quiet_since = time.monotonic()
+            elif time.monotonic() - quiet_since >= idle:
                 break
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
