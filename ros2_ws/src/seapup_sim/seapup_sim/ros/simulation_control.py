@@ -49,6 +49,8 @@ from seapup_sim.simulator_services import (ENTITY, InvalidPose, entity_state_enu
 __all__ = ["SimulationControl", "deferred_service", "FEATURES"]
 
 F = SimulatorFeatures
+#: [s wall] How long a ``simulate_steps`` goal waits for its feedback topic's subscription before stepping.
+FEEDBACK_WAIT = 2.0
 #: What this simulator supports (GetSimulatorFeatures).
 FEATURES = [F.SIMULATION_STATE_GETTING, F.SIMULATION_STATE_SETTING, F.SIMULATION_STATE_PAUSE,
             F.STEP_SIMULATION_SINGLE, F.STEP_SIMULATION_MULTIPLE, F.STEP_SIMULATION_ACTION,
@@ -103,7 +105,7 @@ class SimulationControl:
     def __init__(self, node):
         self.node = node
         self._steps: dict[int, list] = {}   # id(StepRecord) -> [done future, goal or None, samples reported]
-        group = ReentrantCallbackGroup()
+        group = self._group = ReentrantCallbackGroup()
         plain = {"get_simulator_features": (GetSimulatorFeatures, self._features),
                  "get_simulation_state": (GetSimulationState, self._get_state),
                  "set_simulation_state": (SetSimulationState, self._set_state),
@@ -264,7 +266,28 @@ class SimulationControl:
         return response
 
     # -- the action --------------------------------------------------------------------------------
+    def _feedback_listened(self, timeout: float = FEEDBACK_WAIT) -> Future:
+        """A future done once this server knows a subscription of its feedback topic, or after ``timeout``
+        wall seconds. A client learns the action server's services first (``server_is_ready``), and the
+        feedback topic is discovered on its own: a goal sent at once was stepped before the feedback
+        writer had matched its reader, and the first feedback was lost (seen under load). The graph is held
+        meanwhile, so the wait changes no sample."""
+        done, deadline = Future(), time.monotonic() + timeout
+        topic = SIMULATION_CONTROL["simulate_steps"][0] + "/_action/feedback"
+
+        def check() -> None:
+            if done.done():
+                return
+            if self.node.count_subscribers(topic) > 0 or time.monotonic() >= deadline:
+                done.set_result(None)
+                timer.cancel()
+                self.node.destroy_timer(timer)
+        timer = self.node.create_timer(0.01, check, callback_group=self._group)
+        check()
+        return done
+
     async def _simulate(self, goal):
+        await self._feedback_listened()
         future, result = self._start_step(goal.request.steps, goal)
         if future is not None:
             record = await future
