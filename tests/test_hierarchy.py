@@ -41,22 +41,6 @@ def test_hover_holds_station_in_the_stochastic_current(controller_file, tmp_path
     assert np.sqrt(np.mean(error ** 2)) < 0.3
 
 
-def test_follow_seabed_holds_altitude_on_a_slope(controller_file, tmp_path):  # noqa: F811
-    """Seabed rising 1 in 10 northwards (40 m deep at the origin); follow it at 8 m, heading north, 0.2 m/s."""
-    with sil_graph(controller_file, tmp_path, seabed_kind="slope", seabed_depth=40.0, seabed_gradient=-0.1) as sil:
-        result = sil.goal("follow_seabed", altitude=8.0, yaw=0.0, speed=0.2, duration=100.0)
-        logs = sil.logs()
-    assert result["status"] == "succeeded", result
-    t, x, depth = logs["truth_t"], logs["truth_position"][:, 0], logs["truth_position"][:, 2]
-    altitude = (40.0 - 0.1 * x) - depth  # true height over the seabed below the vehicle
-    settled = t >= t[-1] - 70.0         # after the first 30 s (2 m of descent at the heave limit)
-    print(f"seabed following: altitude error max {abs(altitude[settled] - 8).max():.3f} m, "
-          f"travelled {x[-1] - x[0]:.1f} m north, climbed {depth[settled][0] - depth[-1]:.2f} m in the last 70 s")
-    assert abs(altitude[settled] - 8.0).max() <= 0.3
-    climbed = depth[settled][0] - depth[-1]
-    assert x[-1] - x[0] > 15.0 and climbed > 0.1 * 13.0  # it went up the slope: 0.2 m/s x 70 s x 1 in 10
-
-
 def _step_sizes(logs, t0, t1):
     t, c = logs["command_t"], logs["command"]
     keep = (t >= t0) & (t <= t1)

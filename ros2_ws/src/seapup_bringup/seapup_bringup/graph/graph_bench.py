@@ -530,14 +530,15 @@ def hierarchy_rate(sim_seconds: float = 300.0, log_dir="/tmp") -> dict:
     """
     import tempfile
 
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
     from seapup_bringup.graph.mission_graph import RECORDED
-    from seapup_bringup.graph.sil import SilGraph
     control_period = 0.2
     with tempfile.TemporaryDirectory(dir=log_dir) as tmp:
         path = _controller_file(Path(tmp), control_period)
         end = 5.0 + float(sim_seconds)
         arguments = {"controller_file": str(path), "end_time": repr(end), "lockstep_timeout": "10.0"}
-        with SilGraph(arguments=arguments, out_dir=Path(tmp) / "graph", record=RECORDED, ready_status="") as sil:
+
+        def flight(sil) -> tuple:
             sil.spin_until(lambda: sil.t >= 5.0, 300.0)
             t0, wall0 = sil.t, time.monotonic()
             cpu0 = {name: _cpu_s(p.popen.pid) for name, p in sil.processes.items() if p.running}
@@ -547,6 +548,8 @@ def hierarchy_rate(sim_seconds: float = 300.0, log_dir="/tmp") -> dict:
             steps = max(1, round((sil.t - t0) / control_period))
             cpu = {name: (_cpu_s(sil.processes[name].popen.pid) - c0) / steps * 1e6 for name, c0 in cpu0.items()
                    if sil.processes[name].running}
-            sim = sil.t - t0
+            return wall, steps, cpu, sil.t - t0
+        spec = GraphSpec("hierarchy benchmark", arguments=arguments, record=tuple(RECORDED), ready_status="")
+        wall, steps, cpu, sim = fly_graph(spec, Path(tmp) / "graph", flight, logs=False).outcome
     return {"rtf": sim / wall, "wall_s": wall, "sim_s": sim, "steps": steps, "cpu_us_per_step": cpu,
             "total_cpu_us_per_step": sum(cpu.values())}

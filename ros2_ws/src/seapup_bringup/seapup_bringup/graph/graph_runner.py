@@ -1,6 +1,19 @@
-"""The graph runner: a :class:`~seapup_runs.spec.RunSpec` flown through the ROS graph, in lockstep.
+"""The graph runner: every experiment seapup flies on a ROS graph, and a :class:`~seapup_runs.spec.RunSpec`
+flown through the graph in lockstep.
 
-:func:`run_on_graph` designs the spec's controllers as the in-process runner
+**One runner.** A graph experiment is a :class:`GraphSpec` -- data: the graph file, its arguments, what the
+recorder writes, which probe topics and readiness the harness waits for, the first hold -- flown by
+:func:`fly_graph` with a *flight* (a function of the started harness: fly to an end time, send the
+self-test's goal, fly a mission's legs) into one :class:`GraphResult` (the output directory, the bag, the
+domain, the simulated and wall time, the probe's logs as arrays, and what the flight returned). The run
+specs (:func:`run_on_graph`), the missions and the demo (:mod:`~seapup_bringup.graph.mission_graph`), the
+self-test in SIL (:mod:`~seapup_bringup.graph.self_test_graph`), the identification experiment
+(:mod:`~seapup_bringup.graph.identification`), the open-loop run (:mod:`~seapup_bringup.graph.open_loop`) and
+the hierarchy benchmark (:mod:`~seapup_bringup.graph.graph_bench`) are such specs; this module is the only
+product code that starts the SIL harness. The common flights: :func:`fly_to` (until an end time, every
+answer to it heard) and :func:`send_goal` (one action goal, its result).
+
+**Run specs.** :func:`run_on_graph` designs the spec's controllers as the in-process runner
 does (:func:`seapup_runs.runner.design`), writes their documents and the graph
 of :func:`seapup_runs.run_graph.graph_document` into the run's directory, starts
 it through the SIL harness (a private domain, a process per node, a probe
@@ -14,9 +27,11 @@ from __future__ import annotations
 
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Mapping
 
+import numpy as np
 import yaml
 
 from seapup_common.topics import typed
@@ -27,9 +42,165 @@ from seapup_runs.result import RunResult
 from seapup_runs.runner import design
 from seapup_runs.spec import RunSpec
 
-__all__ = ["run_on_graph", "GRAPH_TRANSPORT"]
+__all__ = ["GraphSpec", "GraphResult", "fly_graph", "fly_to", "send_goal", "run_on_graph", "GRAPH_TRANSPORT"]
 
 GRAPH_TRANSPORT = "ros graph (lockstep)"
+
+#: The whole supervisory hierarchy in lockstep (the SIL harness's default graph).
+HIERARCHY_GRAPH = "seapup_bringup hierarchy.launch.yaml"
+
+
+@dataclass(frozen=True)
+class GraphSpec:
+    """A graph experiment as data (see the module docstring).
+
+    Parameters
+    ----------
+    name : str
+        What the experiment is (shown in errors and results).
+    graph : str or Path
+        ``"PACKAGE FILE"`` (a graph in the package's ``launch`` directory) or a graph file's path.
+    arguments : mapping
+        The graph file's arguments.
+    record : tuple of str
+        Topics the recorder writes to ``OUT/bag`` (typed ``/t:pkg/msg/Type`` ones are subscribed before the
+        graph starts); empty: no recorder.
+    instruments : bool
+        The probe also logs the instruments (extra listeners of the graph's lockstep roster).
+    ready_status : str, tuple or None
+        When the graph is ready (:class:`~seapup_bringup.graph.sil.SilGraph`): None, its first truth sample.
+    ready_timeout : float
+        Wall seconds for the graph to come up.
+    start_at : float
+        A paced graph's first hold [s simulated] (0: held at t_0).
+    extra_nodes : tuple of NodeSpec
+        Nodes started with the graph's own (the live view).
+    banner : str
+        Printed once the graph is up, ``{domain}`` and ``{out}`` filled in.
+    """
+
+    name: str
+    graph: str | Path = HIERARCHY_GRAPH
+    arguments: Mapping[str, Any] = field(default_factory=dict)
+    record: tuple[str, ...] = ()
+    instruments: bool = False
+    ready_status: Any = None
+    ready_timeout: float = 120.0
+    start_at: float = 10.0
+    extra_nodes: tuple = ()
+    banner: str = ""
+
+
+@dataclass
+class GraphResult:
+    """What :func:`fly_graph` returns, whatever the experiment.
+
+    Attributes
+    ----------
+    name : str
+        The spec's name.
+    out : Path
+        The output directory (graph file, node logs, the bag).
+    bag : Path or None
+        The recording (None without ``record``).
+    domain : int
+        The ROS domain the graph flew on.
+    sim_s, wall_s : float
+        Simulated seconds flown (the probe's last truth sample) and the wall seconds of the flight.
+    held : float or None
+        A paced graph: the sample [s] it was held at when it stopped.
+    logs : dict of str to ndarray
+        What the probe heard, as arrays (:func:`~seapup_bringup.graph.sil_probe.log_arrays`); empty if the
+        flight did not ask for them (``logs=False``).
+    outcome : any
+        What the flight returned (an action's result, a mission's legs, a run's numbers).
+    """
+
+    name: str
+    out: Path
+    bag: Path | None
+    domain: int
+    sim_s: float
+    wall_s: float
+    held: float | None
+    logs: dict[str, np.ndarray]
+    outcome: Any
+
+
+def fly_graph(spec: GraphSpec, out: str | Path, flight: Callable[[Any], Any], *, logs: bool = True,
+              text=None) -> GraphResult:
+    """Start ``spec``'s graph in the SIL harness (:class:`~seapup_bringup.graph.sil.SilGraph`: a private
+    domain, a process per node, the recorder, the probe), fly it with ``flight(harness)``, stop it, and
+    return the :class:`GraphResult` (``logs``: the probe's logs caught up and as arrays).
+
+    Raises
+    ------
+    seapup_bringup.graph.sil.SilError
+        If the graph does not come up, a node dies, or the flight says the graph stopped.
+    """
+    from seapup_bringup.graph.sil import SilGraph
+
+    out = Path(out)
+    with SilGraph(spec.graph, dict(spec.arguments), out_dir=out, record=list(spec.record) or None,
+                  ready_status=spec.ready_status, ready_timeout=spec.ready_timeout, instruments=spec.instruments,
+                  start_at=spec.start_at, extra_nodes=spec.extra_nodes) as sil:
+        domain = int(sil.env["ROS_DOMAIN_ID"])
+        if spec.banner and text is not None:
+            print(spec.banner.replace("{domain}", str(domain)).replace("{out}", str(out)), file=text, flush=True)
+        wall = time.monotonic()
+        outcome = flight(sil)
+        wall = time.monotonic() - wall
+        arrays = sil.logs() if logs else {}
+        result = GraphResult(spec.name, out, getattr(sil, "bag", None), domain, sil.t, wall, sil.held, arrays,
+                             outcome)
+    return result
+
+
+def fly_to(duration: float, progress: Callable[[float], Any] | None = None, timeout: float = 600.0,
+           answered_by: str | None = None) -> Callable[[Any], dict]:
+    """A flight to ``duration`` simulated seconds: until the probe has the simulator's sample there (a graph
+    with that ``end_time`` steps no further) and, with ``answered_by`` (a probe log: ``"command"``), the
+    answer to it; then until the probe has everything in flight. Raises SilError if the graph stops short."""
+    def flight(sil) -> dict:
+        from seapup_bringup.graph.sil import SilError
+        end = duration - 1e-6
+        flown = sil.spin_until(lambda: (progress is not None and progress(min(max(sil.t / duration, 0.0), 1.0)))
+                               or sil.t >= end, timeout)
+        if not flown:
+            raise SilError(f"the graph flew {sil.t:.1f} of {duration:g} s in {timeout:g} s; node logs in "
+                           f"{sil.out_dir}" + sil._dead())
+        if answered_by is not None:
+            sil.spin_until(lambda: sil.log[answered_by] and _stamp(sil.log[answered_by][-1]) >= end, 10.0)
+        _quiet(sil)
+        return {"flown": sil.t}
+    return flight
+
+
+def send_goal(action: str, kind: str, goal: dict, *, timeout: float = 3600.0, ready_timeout: float = 60.0,
+              feedback: Callable | None = None) -> Callable[[Any], Any]:
+    """A flight that sends one action goal (``action``: its name; ``kind``: ``pkg/action/Type``; ``goal``:
+    its fields) and returns the result once the graph has flown it."""
+    def flight(sil):
+        return sil.action(action, kind, goal, timeout=timeout, ready_timeout=ready_timeout, feedback=feedback)
+    return flight
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def _quiet(sil, budget: float = 5.0) -> None:
+    """Spin until the probe's logs stop growing for 0.2 s (a graph held at its end: everything in flight
+    heard), at most ``budget`` wall seconds."""
+    counts = [-1]
+
+    def quiet() -> bool:
+        now = sum(len(v) for v in sil.log.values())
+        settled, counts[0] = now == counts[0], now
+        return settled
+    deadline = time.monotonic() + budget
+    while not quiet() and time.monotonic() < deadline:
+        sil.spin_until(lambda: False, 0.2)
 
 
 def _write_documents(spec: RunSpec, out: Path) -> list[str]:
@@ -68,7 +239,7 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
     seapup_bringup.graph.sil.SilError
         If the graph does not come up, a node dies, or the run does not finish in time.
     """
-    from seapup_bringup.graph.sil import SilError, SilGraph
+    from seapup_bringup.graph.sil import SilError
 
     spec = design(spec)
     out = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="seapup_run_"))
@@ -78,27 +249,21 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
     graph.write_text(yaml.safe_dump(graph_document(spec, _write_documents(spec, out)),
                                     sort_keys=False))
     limit = 60.0 + 2.0 * spec.duration if timeout is None else float(timeout)
-    with SilGraph(graph, out_dir=out, ready_status=None, ready_timeout=60.0, instruments=True,
-                  record=typed(*RECORDED_TOPICS) if record else None) as sil:
+
+    def flight(sil) -> None:
         end = spec.duration - 1e-6
-        flown = sil.spin_until(lambda: _report(progress, sil.t / spec.duration) or sil.t >= end, limit)
-        if not flown:
+        if not sil.spin_until(lambda: _report(progress, sil.t / spec.duration) or sil.t >= end, limit):
             raise SilError(f"the graph flew {sil.t:.1f} of {spec.duration:g} s in {limit:g} s; node logs in {out}"
                            + sil._dead())
         # the simulator stops at the spec's end (end_time): once nothing more arrives, the probe has it all
-        counts = [-1]
-
-        def quiet() -> bool:
-            now = sum(len(v) for v in sil.log.values())
-            settled, counts[0] = now == counts[0], now
-            return settled
         sil.spin_until(lambda: min(len(sil.log[name]) for name in ("applied", "velocity", "imu", "depth")) > spec.samples
                        and min(len(sil.log["command"]), len(sil.log["reference"])) >= spec.samples, 5.0)
-        deadline = time.monotonic() + 5.0
-        while not quiet() and time.monotonic() < deadline:
-            sil.spin_until(lambda: False, 0.2)
-        logs = sil.logs()
+        _quiet(sil)
+        sil.catch_up()
         _check_heard(sil, spec, out)
+    flown = fly_graph(GraphSpec(spec.name, graph, ready_timeout=60.0, instruments=True,
+                                record=tuple(typed(*RECORDED_TOPICS)) if record else ()), out, flight)
+    logs = flown.logs
     result = RunResult(spec, series_from_logs(spec, logs), transport=GRAPH_TRANSPORT)
     result.metrics = compute(result)
     return result

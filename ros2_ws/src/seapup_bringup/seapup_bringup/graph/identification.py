@@ -439,7 +439,7 @@ def _residuals(args, text) -> dict:
 
 
 def _experiment(args, text) -> dict:
-    from seapup_bringup.graph.sil import SilGraph
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
 
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
@@ -458,11 +458,10 @@ def _experiment(args, text) -> dict:
     # nothing -- the recorder and the probe): a run that ends at end_time never says them again to a late reader
     record = typed(CLOCK, COMMAND, APPLIED, VELOCITY, IMU, DEPTH, TRUTH_ODOMETRY,
                    *([VELOCITY_REFERENCE] if args.closed_loop else []))
-    with SilGraph(graph, arguments, out_dir=out, record=record, ready_status=None) as sil:
-        print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s; "
-              f"ROS domain {sil.env['ROS_DOMAIN_ID']}, output in {out}", file=text)
-        _fly_to_end(sil, args.duration)
-        bag = sil.bag
+    spec = GraphSpec("identification experiment", graph, arguments, record=tuple(record),
+                     banner=f"ident experiment: {excitation['description']}, {args.dynamics} model, "
+                            f"{args.duration:g} s; ROS domain {{domain}}, output in {{out}}")
+    bag = fly_graph(spec, out, lambda sil: _fly_to_end(sil, args.duration), logs=False, text=text).bag
     expected = [round(k * EXPERIMENT_PERIOD * 1e9) for k in range(samples + 1)]
     for topic, stamps in _recorded_samples(bag).items():   # every per-sample topic whole, not the truth alone
         if stamps != expected:

@@ -86,46 +86,49 @@ def _set_parameter(sil, node: str, name: str, value: str) -> None:
 def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     """Fly the mission in a SIL graph (with ``extra_nodes``: the live view); the per-leg numbers (and the logs
     as arrays under ``logs``)."""
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
     from seapup_bringup.graph.hierarchy_config import hierarchy_config
-    from seapup_bringup.graph.sil import SilGraph
 
     graph = config["graph"]
     seabed = hierarchy_config(graph).simulator["environment"]["seabed"]
     legs, swap = [], {}
     plan = [dict(leg, index=i) for i, leg in enumerate(config["mission"])]
     total = sum(leg.get("expected", 60.0) for leg in plan)
-    done = 0.0
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
     logs, bag, held = {}, out / "bag", None
-    try:
-        with SilGraph(GRAPH, arguments=graph, out_dir=out, record=RECORDED, ready_status="", start_at=0.0,
-                      extra_nodes=extra_nodes) as sil:
-            print(f"seapup demo: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}", file=text)
-            for leg in plan:
-                start, wall = sil.t, time.monotonic()
-                progress(f"{leg['name']:<18}", done / total)
-                try:
-                    numbers = _fly_leg(sil, leg, swap)
-                except BaseException as exc:  # interrupted: the legs flown so far still get their numbers
-                    if not stopped_by_signal(exc):
-                        raise
-                    stopped = exc
-                    print(f"\nseapup demo: interrupted in leg {leg['name']}; reporting the {len(legs)} legs flown",
-                          file=text)
-                    break
-                numbers.setdefault("t0", start)
-                numbers.setdefault("t1", sil.t)
-                done += leg.get("expected", 60.0)
-                legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
-                             "hold_from": float(leg.get("hold_from", 0.0)),
-                             "wall_s": time.monotonic() - wall, **numbers})
-                print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
-                      f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)",
+
+    def flight(sil) -> None:
+        nonlocal stopped
+        done = 0.0
+        for leg in plan:
+            start, wall = sil.t, time.monotonic()
+            progress(f"{leg['name']:<18}", done / total)
+            try:
+                numbers = _fly_leg(sil, leg, swap)
+            except BaseException as exc:  # interrupted: the legs flown so far still get their numbers
+                if not stopped_by_signal(exc):
+                    raise
+                stopped = exc
+                print(f"\nseapup demo: interrupted in leg {leg['name']}; reporting the {len(legs)} legs flown",
                       file=text)
-            if stopped is None:
-                progress("mission", 1.0)
-            logs = sil.logs()
-            bag, held = sil.bag, sil.held
+                break
+            numbers.setdefault("t0", start)
+            numbers.setdefault("t1", sil.t)
+            done += leg.get("expected", 60.0)
+            legs.append({"name": leg["name"], "kind": leg["kind"], "goal": leg.get("goal", {}),
+                         "hold_from": float(leg.get("hold_from", 0.0)),
+                         "wall_s": time.monotonic() - wall, **numbers})
+            print(f"seapup demo: {leg['name']}: {numbers.get('status', 'done')} in "
+                  f"{numbers['t1'] - numbers['t0']:.1f} s simulated ({time.monotonic() - wall:.1f} s wall)",
+                  file=text)
+        if stopped is None:
+            progress("mission", 1.0)
+    spec = GraphSpec("mission", GRAPH, graph, record=tuple(RECORDED), ready_status="", start_at=0.0,
+                     extra_nodes=tuple(extra_nodes),
+                     banner="seapup demo: ROS domain {domain} (loopback only), output in {out}")
+    try:
+        flown = fly_graph(spec, out, flight, text=text)
+        logs, bag, held = flown.logs, flown.bag, flown.held
     except BaseException as exc:  # interrupted while the graph started or stopped: nothing (more) flown
         if stopped is not None or not stopped_by_signal(exc):
             raise

@@ -95,7 +95,8 @@ def _simulator_status(diags: list) -> dict:
 def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
     """Fly ``args.duration`` simulated seconds through the graph in the SIL harness, recorded; the run's
     numbers, or None if the graph failed (the reason printed)."""
-    from seapup_bringup.graph.sil import SilError, SilGraph
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
+    from seapup_bringup.graph.sil import SilError
 
     graph = out / "graph.launch.yaml"
     graph.write_text(yaml.safe_dump(graph_document(args.duration, plan), sort_keys=False))
@@ -103,27 +104,31 @@ def _fly(args, out: Path, bag_dir: Path, plan, text) -> dict | None:
 
     def counters(diags) -> dict:
         return {k: v for k, v in _simulator_status(diags).items() if k not in steady}
+
+    def flight(sil) -> dict | None:
+        wall0 = time.monotonic()
+        flown = sil.spin_until(lambda: progress("flying", sil.t / args.duration) or sil.t >= args.duration - 1e-6,
+                               600.0)
+        wall = time.monotonic() - wall0
+        if not flown:
+            print(f"seapup open-loop: the graph stopped at {sil.t:.1f} s; see the logs in {out}", file=text)
+            return None
+        # the simulator holds at its end: two successive reports with the same counters, nothing in flight
+        seen = len(sil.log["diagnostics"])
+        sil.spin_until(lambda: len(sil.log["diagnostics"]) >= seen + 3
+                       and counters(sil.log["diagnostics"][-1:]) == counters(sil.log["diagnostics"][-2:-1]), 10.0)
+        return {"final": _simulator_status(sil.log["diagnostics"]), "sim_seconds": sil.t, "wall": wall}
     try:
-        with SilGraph(graph, out_dir=out, record=typed(*TOPICS), ready_status=None) as sil:
-            print(f"seapup open-loop: ROS domain {sil.env['ROS_DOMAIN_ID']} (loopback only), output in {out}",
-                  file=text)
-            wall0 = time.monotonic()
-            flown = sil.spin_until(lambda: progress("flying", sil.t / args.duration) or sil.t >= args.duration - 1e-6,
-                                   600.0)
-            wall = time.monotonic() - wall0
-            if not flown:
-                print(f"seapup open-loop: the graph stopped at {sil.t:.1f} s; see the logs in {out}", file=text)
-                return None
-            # the simulator holds at its end: two successive reports with the same counters, nothing in flight
-            seen = len(sil.log["diagnostics"])
-            sil.spin_until(lambda: len(sil.log["diagnostics"]) >= seen + 3
-                           and counters(sil.log["diagnostics"][-1:]) == counters(sil.log["diagnostics"][-2:-1]), 10.0)
-            final = _simulator_status(sil.log["diagnostics"])
-            sim_seconds = sil.t
-            bag_written = sil.bag
+        flown = fly_graph(GraphSpec("open-loop run", graph, record=tuple(typed(*TOPICS)),
+                                    banner="seapup open-loop: ROS domain {domain} (loopback only), output in {out}"),
+                          out, flight, logs=False, text=text)
     except SilError as exc:
         print(f"seapup open-loop: {exc}", file=text)
         return None
+    if flown.outcome is None:
+        return None
+    final, sim_seconds, wall, bag_written = (flown.outcome["final"], flown.outcome["sim_seconds"],
+                                             flown.outcome["wall"], flown.bag)
     if bag_written != bag_dir:
         shutil.move(str(bag_written), str(bag_dir))
     per_sample = [t for t, each in RECORDED if each]

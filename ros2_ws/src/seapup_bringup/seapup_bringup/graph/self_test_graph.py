@@ -37,7 +37,7 @@ def fly_self_test_graph(config: str, rate: float, speeds: list, out: Path, bag: 
         If the goal is refused or the self-test does not succeed; the harness's SilError if the graph
         does not come up.
     """
-    from seapup_bringup.graph.sil import SilGraph
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph, send_goal
     from seapup_runs.spec import PHYSICS_STEP
 
     period = 1.0 / rate
@@ -45,14 +45,14 @@ def fly_self_test_graph(config: str, rate: float, speeds: list, out: Path, bag: 
     # probe included (the lockstep roster the harness fills): nothing of the run is lost
     arguments = {"vehicle": config, "control_period": period, "physics_step": min(PHYSICS_STEP, period),
                  "start_depth": 50.0, "result_dir": str(out.resolve())}
-    with SilGraph("seapup_bringup self_test.launch.yaml", arguments, out_dir=out, record=typed(*SELF_TEST_TOPICS),
-                  ready_status=None) as sil:
-        print(f"self-test: {config}, {rate:g} Hz, operating points {speeds} m/s, through the ROS graph "
-              f"(domain {sil.env['ROS_DOMAIN_ID']}); output in {out}", file=text, flush=True)
-        result = sil.action(SELF_TEST_ACTION, "seapup_msgs/action/SelfTest",
-                            {"sample_period": period, "operating_points": speeds}, timeout=3600.0, ready_timeout=60.0,
-                            feedback=lambda f: progress(f"{f.phase} c{f.cycle} t{f.thruster}", f.progress))
-        bag_dir = sil.bag
+    spec = GraphSpec("self-test", "seapup_bringup self_test.launch.yaml", arguments,
+                     record=tuple(typed(*SELF_TEST_TOPICS)),
+                     banner=f"self-test: {config}, {rate:g} Hz, operating points {speeds} m/s, through the ROS "
+                            "graph (domain {domain}); output in {out}")
+    flown = fly_graph(spec, out, send_goal(
+        SELF_TEST_ACTION, "seapup_msgs/action/SelfTest", {"sample_period": period, "operating_points": speeds},
+        feedback=lambda f: progress(f"{f.phase} c{f.cycle} t{f.thruster}", f.progress)), logs=False, text=text)
+    result, bag_dir = flown.outcome, flown.bag
     if not result.success:
         raise SelfTestFailed(f"the self-test did not succeed: {result.message}; see {out}")
     if bag_dir != bag:
