@@ -49,30 +49,44 @@ def test_destroy_actions_takes_servers_and_clients_and_leaves_the_rest(ros_conte
 
 
 class _Queued:
-    """An executor that is not rclpy's SingleThreadedExecutor: each step runs the next queued callback (a
-    message taken, or a timer's that takes none), as :func:`seapup_common.ros.node._spin_step` drives it."""
+    """An executor that is not rclpy's SingleThreadedExecutor: each step runs the next queued callback -- a
+    message received before the stop, a timer's that takes none -- and, once they are done, a message of a
+    graph that keeps publishing (``live``: received now), as :func:`seapup_common.ros.node._spin_step` drives it."""
 
-    def __init__(self, node, queue):
-        self.node, self.queue = node, list(queue)
+    def __init__(self, node, queue, live=False):
+        self.node, self.queue, self.live, self.backlog_taken = node, list(queue), live, 0
 
     def spin_until_future_complete(self, until, timeout_sec):
+        import time
         if self.queue:
             if self.queue.pop(0) == "message":
                 self.node.received += 1
+                self.node.last_received_ns = 1   # long before the stop
+                self.backlog_taken += 1
+        elif self.live:
+            self.node.received += 1
+            self.node.last_received_ns = time.time_ns()
+            time.sleep(0.001)
 
 
-def test_a_draining_recorder_takes_every_queued_message_past_a_timer_callback():
-    """A stopping recorder drains what it has received (run_node's ``_drain``): a step that runs a timer's
-    callback (the flush) takes no message, and must not end the drain while messages still wait -- under load
-    a bag lost the last 12 s of a self-test that way. An idle node stops after ``idle`` seconds."""
+def test_a_draining_recorder_takes_every_queued_message_and_no_more():
+    """A stopping recorder drains what it received before the stop (run_node's ``_drain``): a step that runs
+    a timer's callback (the flush) takes no message and must not end the drain while messages still wait --
+    under load a bag lost the last 12 s of a self-test that way -- and a graph that keeps publishing must not
+    keep it draining to its budget (a recorder SIGKILLed at its stop): it ends ``idle`` seconds after the
+    last message received before the stop, or with nothing queued."""
     import time
     from types import SimpleNamespace
 
     from seapup_common.ros.node import _drain
-    node = SimpleNamespace(received=0)
     queue = ["message"] * 3 + ["timer"] + ["message"] * 50 + ["timer", "timer"] + ["message"] * 7
-    _drain(_Queued(node, queue), node, budget=5.0, idle=0.05)
-    assert node.received == 60
+    for live in (False, True):
+        node = SimpleNamespace(received=0, last_received_ns=0)
+        executor = _Queued(node, queue, live)
+        t0 = time.monotonic()
+        _drain(executor, node, budget=5.0, idle=0.05)
+        assert executor.backlog_taken == 60 and time.monotonic() - t0 < 1.0, (live, executor.backlog_taken)
+    node = SimpleNamespace(received=0, last_received_ns=0)
     t0 = time.monotonic()
     _drain(_Queued(node, []), node, budget=5.0, idle=0.05)
-    assert node.received == 60 and time.monotonic() - t0 < 1.0
+    assert node.received == 0 and time.monotonic() - t0 < 1.0

@@ -107,15 +107,15 @@ def test_typed_topic_gets_what_a_latched_publisher_said_before_they_matched(ros_
     from std_msgs.msg import String
 
     bag_dir = tmp_path / "bag"
-    rec = start_recorder(node_process, bag_dir, ["/latched:std_msgs/msg/String"], "/latched",
-                         "discovery_period:=0.1")
     node = rclpy.create_node("latched_source", context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     pub = node.create_publisher(String, "/latched", QoSProfile(
         depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    # said before the recorder exists, so before any match whatever discovery's speed: only the latch has it
     pub.publish(String(data="said once, before any match"))
-    assert pub.get_subscription_count() == 0  # published before the recorder matched: only the latch has it
+    rec = start_recorder(node_process, bag_dir, ["/latched:std_msgs/msg/String"], "/latched",
+                         "discovery_period:=0.1")
     assert spin(executor, lambda: "first message on /latched" in rec.log_text(), 20.0), rec.log_text()
     spin(executor, lambda: pub.get_subscription_count() >= 1, 5.0)
     assert rec.stop() == 0, rec.log_text()

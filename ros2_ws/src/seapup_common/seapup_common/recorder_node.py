@@ -128,6 +128,7 @@ class RecorderNode(Node):
         self.drain_on_shutdown = True  # run_node takes the messages already received before closing,
         self.drain_budget = 8.0        # however many a recorder behind a fast graph has queued (it stops when idle)
         self.received = 0
+        self.last_received_ns = 0
         self._heard: set[str] = set()  # topics a message has arrived on
         self.max_duration = float(p["max_duration"])
         self._first_ns: int | None = None
@@ -224,6 +225,8 @@ class RecorderNode(Node):
 
     def _record(self, topic: str, raw: bytes, info) -> None:
         self.received += 1
+        # when the middleware received it (the drain at a stop takes what came before the stop)
+        self.last_received_ns = int(info.get("received_timestamp", 0)) or time.time_ns()
         if topic not in self.bag.topics:  # first message of a typed topic: its publisher exists now
             self._add_to_bag(topic, self.subscribed[topic], self.get_publishers_info_by_topic(topic))
         if topic not in self._heard:

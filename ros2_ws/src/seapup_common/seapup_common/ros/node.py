@@ -456,16 +456,19 @@ DRAIN_IDLE = 0.25
 
 
 def _drain(executor, node, budget: float = 1.5, idle: float = DRAIN_IDLE) -> None:
-    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until no new
-    message (the node's ``received`` count) has been taken for ``idle`` seconds (a live graph keeps
-    publishing; what arrives after the stop is not waited for) or ``budget`` seconds pass (a stopped process
-    must end promptly: its parent may be gone).
+    """Run the callbacks already queued (e.g. a recorder's received messages) before stopping: until no
+    message received *before the stop* has been taken for ``idle`` seconds, or ``budget`` seconds pass (a
+    stopped process must end promptly: its parent may be gone). A message is the node's ``received`` count
+    growing; when it was received, the node's ``last_received_ns`` (the middleware's reception time of the
+    newest message taken, ``time.time_ns``'s clock): a live graph keeps publishing, and what arrives after
+    the stop is not waited for.
 
     Not until the first step that takes nothing: a step runs one callback, and a timer's (a recorder's
     flush) or a service's takes none -- a recorder stopped that way under load closed its bag with the last
-    12 s of a self-test's samples, acknowledged to their writers, still queued."""
+    12 s of a self-test's samples, acknowledged to their writer, still queued."""
     import threading
     deadline = time.monotonic() + budget
+    stop_ns = time.time_ns()
     spent = _Stop()   # the events executor's steps may overrun their timeout: the budget ends them (_spin_step)
     timer = threading.Timer(budget, spent.request)
     timer.daemon = True
@@ -475,7 +478,9 @@ def _drain(executor, node, budget: float = 1.5, idle: float = DRAIN_IDLE) -> Non
         while time.monotonic() < deadline:
             before = getattr(node, "received", None)
             _spin_step(executor, spent, 0.01)
-            if getattr(node, "received", None) != before:
+            backlog = (getattr(node, "received", None) != before
+                       and getattr(node, "last_received_ns", 0) < stop_ns)
+            if backlog:
                 quiet_since = None
             elif quiet_since is None:
                 quiet_since = time.monotonic()
