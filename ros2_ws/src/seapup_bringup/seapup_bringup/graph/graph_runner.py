@@ -10,8 +10,7 @@ specs (:func:`run_on_graph`), the missions and the demo (:mod:`~seapup_bringup.g
 self-test in SIL (:mod:`~seapup_bringup.graph.self_test_graph`), the identification experiment
 (:mod:`~seapup_bringup.graph.identification`), the open-loop run (:mod:`~seapup_bringup.graph.open_loop`) and
 the hierarchy benchmark (:mod:`~seapup_bringup.graph.graph_bench`) are such specs; this module is the only
-product code that starts the SIL harness. The common flights: :func:`fly_to` (until an end time, every
-answer to it heard) and :func:`send_goal` (one action goal, its result).
+product code that starts the SIL harness. A shared flight: :func:`send_goal` (one action goal, its result).
 
 **Run specs.** :func:`run_on_graph` designs the spec's controllers as the in-process runner
 does (:func:`seapup_runs.runner.design`), writes their documents and the graph
@@ -42,7 +41,7 @@ from seapup_runs.result import RunResult
 from seapup_runs.runner import design
 from seapup_runs.spec import RunSpec
 
-__all__ = ["GraphSpec", "GraphResult", "fly_graph", "fly_to", "send_goal", "run_on_graph", "GRAPH_TRANSPORT"]
+__all__ = ["GraphSpec", "GraphResult", "fly_graph", "send_goal", "run_on_graph", "GRAPH_TRANSPORT"]
 
 GRAPH_TRANSPORT = "ros graph (lockstep)"
 
@@ -156,26 +155,6 @@ def fly_graph(spec: GraphSpec, out: str | Path, flight: Callable[[Any], Any], *,
     return result
 
 
-def fly_to(duration: float, progress: Callable[[float], Any] | None = None, timeout: float = 600.0,
-           answered_by: str | None = None) -> Callable[[Any], dict]:
-    """A flight to ``duration`` simulated seconds: until the probe has the simulator's sample there (a graph
-    with that ``end_time`` steps no further) and, with ``answered_by`` (a probe log: ``"command"``), the
-    answer to it; then until the probe has everything in flight. Raises SilError if the graph stops short."""
-    def flight(sil) -> dict:
-        from seapup_bringup.graph.sil import SilError
-        end = duration - 1e-6
-        flown = sil.spin_until(lambda: (progress is not None and progress(min(max(sil.t / duration, 0.0), 1.0)))
-                               or sil.t >= end, timeout)
-        if not flown:
-            raise SilError(f"the graph flew {sil.t:.1f} of {duration:g} s in {timeout:g} s; node logs in "
-                           f"{sil.out_dir}" + sil._dead())
-        if answered_by is not None:
-            sil.spin_until(lambda: sil.log[answered_by] and _stamp(sil.log[answered_by][-1]) >= end, 10.0)
-        _quiet(sil)
-        return {"flown": sil.t}
-    return flight
-
-
 def send_goal(action: str, kind: str, goal: dict, *, timeout: float = 3600.0, ready_timeout: float = 60.0,
               feedback: Callable | None = None) -> Callable[[Any], Any]:
     """A flight that sends one action goal (``action``: its name; ``kind``: ``pkg/action/Type``; ``goal``:
@@ -183,10 +162,6 @@ def send_goal(action: str, kind: str, goal: dict, *, timeout: float = 3600.0, re
     def flight(sil):
         return sil.action(action, kind, goal, timeout=timeout, ready_timeout=ready_timeout, feedback=feedback)
     return flight
-
-
-def _stamp(msg) -> float:
-    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
 def _quiet(sil, budget: float = 5.0) -> None:
