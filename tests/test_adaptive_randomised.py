@@ -10,6 +10,7 @@ import pytest
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.controllers import ControllerSpec
+from seapup_runs.batch_runner import batch_key, batch_reason, fly_batch
 from seapup_runs.randomised import CASES, random_adaptive_spec
 from seapup_runs.runner import run
 
@@ -17,9 +18,12 @@ RUNS = 100
 OUTPUTS = ("u", "v", "w", "r")
 
 
-def _flown(spec):
-    """(velocity-tracking RMS per output, largest |u, v, w, r|, the result) over the answered samples."""
-    result = run(spec)
+def _flown(spec, result=None):
+    """(velocity-tracking RMS per output, largest |u, v, w, r|, the result) over the answered samples of
+    ``spec`` flown (or of its ``result``, flown already)."""
+    result = run(spec) if result is None else result
+    if isinstance(result, Exception):   # a batch's run that diverged: what its single run would raise
+        raise result
     s = result.series
     answered = slice(0, len(s.t) - 1)        # the last sample ends the run: no reference, no command
     y = np.column_stack([s.truth[k] for k in OUTPUTS])[answered]
@@ -50,10 +54,21 @@ def test_the_draws_are_reproducible_and_cover_the_space():
 @pytest.mark.timeout(900)
 def test_a_hundred_randomised_self_tuner_runs_stay_finite_and_bounded():
     rows, jacket = [], {}
-    for n in range(RUNS):
-        spec = random_adaptive_spec(n)
+    specs = [random_adaptive_spec(n) for n in range(RUNS)]
+    # the self-tested fixed gains on the same draws, flown as campaigns fly them: in batches of one sample grid
+    # (each run the one run() gives: test/test_batch_runner.py)
+    fixed_specs = [dataclasses.replace(spec, controller=ControllerSpec("mfol", {"schedule": False})) for spec in specs]
+    fixed = [None] * RUNS
+    groups = {}
+    for n, spec in enumerate(fixed_specs):
+        assert batch_reason(spec) is None, (spec.name, batch_reason(spec))
+        groups.setdefault(batch_key(spec), []).append(n)
+    for members in groups.values():
+        for n, result in zip(members, fly_batch([fixed_specs[n] for n in members])):
+            fixed[n] = result
+    for n, spec in enumerate(specs):
         rms, peak, result = _flown(spec)
-        fixed_rms, _, _ = _flown(dataclasses.replace(spec, controller=ControllerSpec("mfol", {"schedule": False})))
+        fixed_rms, _, _ = _flown(fixed_specs[n], fixed[n])
         counts = result.metrics["jacket"]
         assert counts["commissioning"] == 5 and \
             counts["commissioning"] + counts["adaptive"] + counts["fallback"] == counts["samples"], spec.name

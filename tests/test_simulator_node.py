@@ -49,12 +49,36 @@ class Probe:
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self._spin = spin
-        self.msgs = {}
+        self.msgs, self.info, self.matches, self.lost, self.subscriptions, self.types = {}, {}, {}, {}, {}, {}
         self.cmd = self.node.create_publisher(BladePitch, "/seapup/thrusters/command", QOS)
 
     def record(self, topic, msg_type):
-        self.msgs[topic] = []
-        self.node.create_subscription(msg_type, topic, self.msgs[topic].append, QOS)
+        """Record ``topic`` into a new list ``self.msgs[topic]``, from a new subscription (one recording it
+        before is destroyed: what it still had queued -- a stopped simulator's last samples, taken late on a
+        loaded machine -- is not heard as new). Per topic also what DDS reported lost, every change of the
+        publishers matched (wall time, count), and each message's (reception wall time, publication sequence
+        number)."""
+        from rclpy.event_handler import SubscriptionEventCallbacks
+        if topic in self.subscriptions:
+            self.node.destroy_subscription(self.subscriptions.pop(topic))
+        msgs, info, matches = [], [], []
+        self.msgs[topic], self.info[topic], self.matches[topic], self.lost[topic] = msgs, info, matches, 0
+
+        def take(msg, message_info):
+            msgs.append(msg)
+            info.append((time.monotonic(), message_info["publication_sequence_number"]))
+
+        def lost(status, topic=topic):
+            self.lost[topic] += int(status.total_count_change)
+        events = SubscriptionEventCallbacks(
+            message_lost=lost, matched=lambda status: matches.append((round(time.monotonic(), 2), status.current_count)))
+        self.subscriptions[topic] = self.node.create_subscription(msg_type, topic, take, QOS, event_callbacks=events)
+        self.types[topic] = msg_type
+
+    def renew(self):
+        """Record every recorded topic afresh (:meth:`record`)."""
+        for topic, msg_type in list(self.types.items()):
+            self.record(topic, msg_type)
 
     def spin(self, predicate, timeout):
         return self._spin(self.executor, predicate, timeout)
@@ -171,12 +195,54 @@ SCHEDULE_TIMES = [0.0, 4.0]
 SCHEDULE_PITCHES = [0.6, 0.6, 0.0, 0.0, 0.3, -0.1, 0.4, -0.4]
 
 
+def _processes_on_domain(domain: int) -> list[str]:
+    """Every process on this machine whose environment says ``ROS_DOMAIN_ID=domain``: pid, parent, command."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            env = (proc / "environ").read_bytes().split(b"\0")
+            if f"ROS_DOMAIN_ID={domain}".encode() not in env:
+                continue
+            ppid = (proc / "stat").read_text().rsplit(")", 1)[1].split()[1]
+            command = (proc / "cmdline").read_bytes().replace(b"\0", b" ")[:200].decode(errors="replace")
+            found.append(f"{proc.name} (parent {ppid}): {command}")
+        except OSError:
+            continue
+    return found
+
+
+def _assert_own_samples(probe, truth, nodes):
+    """The truth heard is this run's simulator's alone, sample after sample from t_0 (twice, under load, a run
+    heard another simulator's truth on its own leased domain): if not, fail naming every publisher of the topic
+    and every process on the domain, to tell whose it was."""
+    stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in truth]
+    if stamps == [k * 200_000_000 for k in range(len(stamps))]:
+        return
+    domain = probe.node.context.get_domain_id()
+    publishers = [(i.node_name, i.node_namespace, bytes(i.endpoint_gid).hex())
+                  for i in probe.node.get_publishers_info_by_topic("/seapup/truth/odometry")]
+    odd = [(s * 1e-9, round(m.pose.pose.position.x, 2), round(m.pose.pose.position.z, 2))
+           for s, m in zip(stamps, truth) if s % 200_000_000 or s > 200_000_000 * len(stamps)]
+    topic = "/seapup/truth/odometry"
+    heard = [(round(t, 2), seq, m.header.stamp.sec + m.header.stamp.nanosec * 1e-9)
+             for (t, seq), m in zip(probe.info[topic], probe.msgs[topic])]
+    raise AssertionError(
+        f"domain {domain} (this process {os.getpid()}, its nodes {[p.popen.pid for p in nodes]}) heard truth that "
+        f"is not its simulator's: stamps {[round(s * 1e-9, 1) for s in stamps]}; odd samples (t, x, z) {odd[:5]}; "
+        f"publishers {publishers}; processes on the domain {_processes_on_domain(domain)}; DDS reported "
+        f"{probe.lost[topic]} lost; matches {probe.matches[topic]}; controller started {probe.started:.2f}, now "
+        f"{time.monotonic():.2f}; heard (wall, "
+        f"sequence number, stamp) {heard[:60]}")
+
+
 def run_lockstep_with_open_loop(node_process, probe, seed, duration, pace=0.0):
     """One lockstep run (simulator + open_loop in their own processes, the simulator paced at ``pace`` x real
     time); returns the truth and measured-velocity histories and the wall seconds from the controller's start
     to the last sample, and stops both nodes."""
-    for topic in probe.msgs:
-        probe.msgs[topic].clear()
+    probe.renew()   # not clear(): the last run's simulator went on after its probe had heard enough, and what
+    # its subscriptions still held would be taken into this run's lists (seen under load: t = 19.2 s before t_0)
     sim = node_process(package="seapup_sim", executable="simulator",
                        args=["--ros-args", "-p", "lockstep_timeout:=30.0", "-p", f"seed:={seed}",
                              "-p", "environment.current.enabled:=true", "-p", "environment.sensors:=baseline",
@@ -195,7 +261,7 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration, pace=0.0):
     ctl = node_process(package="seapup_control", executable="open_loop",
                        args=["--ros-args", "-p", "lockstep:=true", "-p", f"times:={SCHEDULE_TIMES}",
                              "-p", f"pitches:={SCHEDULE_PITCHES}"], name="open_loop")
-    started = time.monotonic()
+    started = probe.started = time.monotonic()
     n = int(round(duration / 0.2)) + 1
 
     def first_per_stamp(msgs):  # t_0 may have been re-sent while waiting
@@ -207,6 +273,7 @@ def run_lockstep_with_open_loop(node_process, probe, seed, duration, pace=0.0):
     assert probe.spin(lambda: len(first_per_stamp(odom)) >= n
                       and len(first_per_stamp(probe.msgs["/seapup/sensors/velocity"])) >= n, 60.0), sim.log_text()
     wall = time.monotonic() - started
+    _assert_own_samples(probe, first_per_stamp(odom)[:n], [sim, ctl])
     ctl.stop()
     sim.stop()
     probe.spin(lambda: False, 0.5)  # drain what was still in flight
