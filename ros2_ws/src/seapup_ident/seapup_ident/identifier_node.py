@@ -46,6 +46,10 @@ _TOPICS = {"velocity": (VELOCITY, TwistWithCovarianceStamped), "attitude": (IMU,
 class IdentifierNode(Node):
     """rclpy shell around :class:`OnlineIdentifier` (see the module docstring)."""
 
+    #: Its readings' callbacks take the message info (the middleware's reception time, for the drain at the
+    #: stop): spun by the SingleThreadedExecutor (seapup_common.ros.node.DEFAULT_EXECUTOR).
+    MESSAGE_INFO = True
+
     def __init__(self, **kwargs):
         super().__init__("identifier", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_ident", "identifier.yaml", section="identifier", ranges={
@@ -70,10 +74,15 @@ class IdentifierNode(Node):
         self.create_timer(1.0, self._diagnose)
         self.bag = self._open_bag(p["bag_path"])
         self._held: dict[int, dict] = {}   # readings (as CDR) of samples not complete yet, for the bag
-        self.drain_on_shutdown = True      # run_node takes the readings already received before closing
+        # run_node takes the readings received before the stop (behind a fast graph on a loaded machine, dozens of
+        # samples were still queued when the graph stopped at its end_time, and their models went unestimated):
+        # it counts them, and when the middleware received the newest (seapup_common.ros.node._drain)
+        self.drain_on_shutdown = True
+        self.drain_budget = 8.0
+        self.received, self.last_received_ns = 0, 0
         for kind, (topic, msg_type) in _TOPICS.items():
             if kind in self.core.kinds:
-                self.create_subscription(msg_type, topic, lambda msg, kind=kind: self._on_reading(kind, msg),
+                self.create_subscription(msg_type, topic, lambda msg, info, kind=kind: self._on_reading(kind, msg, info),
                                          COMMAND_QOS)
         self.get_logger().info(f"identifying {outputs} with {p['method']} orders ({na}, {nb}, {nc})"
                                + (f"; recording into {self.bag.path}" if self.bag else ""))
@@ -90,7 +99,9 @@ class IdentifierNode(Node):
         bag.add_topic(IDENTIFIED_MODEL, TOPIC_TYPES[IDENTIFIED_MODEL])
         return bag
 
-    def _on_reading(self, kind: str, msg) -> None:
+    def _on_reading(self, kind: str, msg, info=None) -> None:
+        self.received += 1
+        self.last_received_ns = int((info or {}).get("received_timestamp", 0)) or time.time_ns()
         stamp = stamp_to_ns(msg.header.stamp)
         try:   # the message's own checks (frame, finite, unit quaternion): refused here, counted here
             values = self._values(kind, msg)

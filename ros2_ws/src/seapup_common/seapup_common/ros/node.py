@@ -900,6 +900,9 @@ def run_node(make_node, args=None) -> int:
         if stop:   # told to stop while rclpy started: the node is not built
             return 0
         node = make_node()
+        if getattr(node, "drain_on_shutdown", False) and not hasattr(node, "received"):
+            raise TypeError(f"{type(node).__name__} drains at its stop but counts no received message "
+                            "(its 'received' and 'last_received_ns': _drain would stop after its idle time)")
         choice = declare_executor(node)
         refuse_unknown_overrides(node)
         routed = _route_core_logs(node)
