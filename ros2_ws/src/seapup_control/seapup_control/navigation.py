@@ -20,7 +20,7 @@ State and model (sample period T, world frame ``odom_ned``)::
 The filter is linear (R is known from the attitude measurement each sample),
 so it is the standard predict/update (Kalman 1960) in Joseph form. A fix
 whose normalised innovation squared exceeds the chi-square quantile
-``gate_probability`` for 3 degrees of freedom (``scipy.stats.chi2``) is an
+``gate_probability`` for 3 degrees of freedom (:func:`chi2_quantile`) is an
 outlier (multipath, sec. 1.3): rejected and counted, never fused. A missing
 velocity reading makes the prediction hold the last velocity with the
 process noise inflated by ``coast_inflation``.
@@ -40,12 +40,19 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from seapup_common.contract import ContractError, Measurement, NavigationEstimate
 from seapup_common.frames import rotation_body_to_ned
 
-__all__ = ["NavigatorParams", "Navigator", "SHELL_PARAMETERS"]
+__all__ = ["NavigatorParams", "Navigator", "SHELL_PARAMETERS", "chi2_quantile"]
+
+
+def chi2_quantile(probability: float, dof: int) -> float:
+    """The chi-square quantile: ``scipy.stats.chi2.ppf(probability, dof)``, computed as scipy.stats computes it
+    (twice the inverse regularised lower incomplete gamma function at ``dof / 2``) from ``scipy.special``, whose
+    import costs a node a fraction of ``scipy.stats``' (about 0.3 s of CPU against 0.9 s at each navigator start)."""
+    return float(2.0 * special.gammaincinv(dof / 2.0, probability))
 
 #: Keys of ``config/navigator.yaml`` that belong to the node shell (when a sample is complete), not to
 #: the filter: :meth:`NavigatorParams.from_mapping` takes the rest.
@@ -134,9 +141,9 @@ class Navigator:
     def __init__(self, params: NavigatorParams | None = None):
         self.params = params or NavigatorParams()
         self.chi2_gate = (math.inf if self.params.gate_probability >= 1
-                          else float(stats.chi2.ppf(self.params.gate_probability, 3)))
+                          else chi2_quantile(self.params.gate_probability, 3))
         self.chi2_gate_depth = (math.inf if self.params.gate_probability >= 1
-                                else float(stats.chi2.ppf(self.params.gate_probability, 1)))
+                                else chi2_quantile(self.params.gate_probability, 1))
         self.reset()
 
     def reset(self) -> None:

@@ -105,3 +105,15 @@ def test_a_diverged_estimate_reacquires_the_fix_but_sporadic_outliers_do_not_mov
                                      position=tuple(np.array([0.0, 0.0, 30.0]) + offset)))
     assert nav.counts["reacquisitions"] == 1 and nav.counts["fixes_rejected"] >= 4 + 30
     assert np.linalg.norm(nav.x[:2]) < 0.5
+
+
+def test_the_gates_chi_square_quantile_is_scipy_stats_own():
+    """The gate's quantile equals scipy.stats.chi2.ppf, bit for bit, over the gate probabilities a user may set
+    (the navigator computes it from scipy.special so that its node need not import scipy.stats)."""
+    from scipy import stats
+
+    from seapup_control.navigation import chi2_quantile
+    for dof in (1, 3):
+        for p in (1e-6, 0.05, 0.5, 0.9, 0.95, 0.99, 0.997, 0.999, 0.9999, 1 - 1e-9):
+            assert chi2_quantile(p, dof) == float(stats.chi2.ppf(p, dof)), (p, dof)
+    assert abs(chi2_quantile(0.95, 3) - 7.814727903251178) < 1e-12   # the textbook table's 7.815
