@@ -309,3 +309,49 @@ def test_ctrl_c_on_a_graph_run_stops_its_nodes_at_once_with_one_line(tmp_path):
     assert gone_within(children, 5.0)
     logs = "".join(p.read_text(errors="replace") for p in (tmp_path / "run").glob("*.log"))
     assert "Traceback" not in logs, logs[-2000:]
+
+
+#: A command whose clean-up, after the Ctrl-C, drops an object whose finaliser fails and a coroutine never
+#: awaited -- what Dask's futures and rclpy's executor left behind when a campaign or a graph run was interrupted.
+_NOISY_TEARDOWN = """
+import os, signal, sys, time
+from types import SimpleNamespace
+from seapup_bringup import cli
+
+class HalfBuilt:
+    def __del__(self):
+        raise AttributeError("'Future' object has no attribute '_cleared'")
+
+async def callback():
+    pass
+
+def run(argv):
+    left = [HalfBuilt(), callback()]
+    try:
+        print("started", flush=True)
+        time.sleep(30)
+    finally:
+        left.clear()
+    return 0
+
+sys.exit(cli._dispatch(SimpleNamespace(name="noisy", run=run), [], debug=len(sys.argv) > 1))
+"""
+
+
+@pytest.mark.process
+def test_an_interrupted_command_says_one_line_whatever_its_libraries_leave_behind():
+    """Ctrl-C: the libraries' teardown noise (an unraisable exception in a finaliser, a coroutine never awaited)
+    does not reach the user -- only ``seapup: interrupted``, exit 130 (seen on a fresh clone: a Dask future's
+    ``__del__`` traceback, rclpy's RuntimeWarning); with ``--debug`` they still show."""
+    import signal
+    for debug in (False, True):
+        popen = subprocess.Popen([sys.executable, "-c", _NOISY_TEARDOWN, *(["debug"] if debug else [])],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+        assert popen.stdout.readline().strip() == "started"
+        popen.send_signal(signal.SIGINT)
+        out, err = popen.communicate(timeout=30)
+        assert popen.returncode == 130, err
+        if debug:
+            assert "Exception ignored in" in err and "never awaited" in err, err
+        else:
+            assert err.splitlines() == ["seapup: interrupted"], err

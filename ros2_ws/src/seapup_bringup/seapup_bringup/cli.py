@@ -446,12 +446,24 @@ def _closed_pipe() -> int:
     return 128 + signal.SIGPIPE
 
 
+def _quiet_teardown() -> None:
+    """After the user's interrupt, the command's clean-up says nothing of the libraries' own teardown noise:
+    objects collected half-built ("Exception ignored in: <function Future.__del__ ...>", a Dask future made as
+    the Ctrl-C came) and warnings (rclpy's "coroutine 'await_or_execute' was never awaited", a callback cut
+    short) went to the terminal before ``seapup: interrupted`` on a loaded machine. ``--debug`` keeps them."""
+    import warnings
+    warnings.simplefilter("ignore")
+    sys.unraisablehook = lambda unraisable: None
+
+
 def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
     """Run a command under the shared conventions (module docstring)."""
     from seapup_bringup.output import SIGNALS
 
     def on_signal(signum, frame):
         SIGNALS.append(signum)
+        if not debug:
+            _quiet_teardown()
         raise KeyboardInterrupt if signum == signal.SIGINT else Interrupted(signum)
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, on_signal)
