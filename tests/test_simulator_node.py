@@ -447,11 +447,9 @@ def test_services_and_parameter_validation(ros_context, node_process, spin):
                       and float(probe.counters()["sim_time"]) > 1.0, 10.0)
 
     client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
-    def set_params(*ps):
-        assert probe.spin(client.service_is_ready, 10.0)
-        fut = client.call_async(SetParameters.Request(parameters=list(ps)))
-        assert probe.spin(fut.done, 10.0)
-        return fut.result().results[0]
+    def set_params(*ps):   # asked again if a loaded server drops its answer (call_idempotent)
+        request = SetParameters.Request(parameters=list(ps))
+        return call_idempotent(probe.executor, client, request, ready_timeout=10.0, response_timeout=10.0).results[0]
     res = set_params(param("real_time_factor", -1.0))
     assert not res.successful and res.reason
     res = set_params(param("mode", "realtime"))
@@ -517,10 +515,10 @@ def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_mea
                    for d in probe.msgs["/diagnostics"][-3:] for st in d.status)
     client = probe.node.create_client(SetParameters, "/seapup/simulator/set_parameters")
 
-    def set_end(value):
-        assert probe.spin(client.service_is_ready, 10.0)
-        future = client.call_async(SetParameters.Request(parameters=[param("end_time", value)]))
-        assert probe.spin(future.done, 10.0) and future.result().results[0].successful
+    def set_end(value):   # asked again if a loaded server drops its answer (call_idempotent)
+        request = SetParameters.Request(parameters=[param("end_time", value)])
+        assert call_idempotent(probe.executor, client, request, ready_timeout=10.0,
+                               response_timeout=10.0).results[0].successful
     # start_held: t_0 is published and held, with no lockstep time-out however long nobody answers it
     assert probe.spin(lambda: holding(0), 20.0)
     probe.spin(lambda: False, 1.0)

@@ -180,20 +180,19 @@ SERIAL_OPTIONS = ("-n", "--numprocesses", "--dist", "-h", "--help", "--co", "--c
 
 def pytest_arguments(argv: list[str], cpus: int | None = None) -> list[str]:
     """``./seapup test``'s pytest arguments: the given ones, and -- unless they choose for themselves (an option
-    of :data:`SERIAL_OPTIONS`, or ``-p no:xdist``) -- one pytest-xdist worker more than there are CPUs, whole
-    files to a worker (``--dist loadfile``: a file's fixtures are set up once and its graph tests never run beside
-    each other).
+    of :data:`SERIAL_OPTIONS`, or ``-p no:xdist``) -- one pytest-xdist worker per CPU, whole files to a worker
+    (``--dist loadfile``: a file's fixtures are set up once and its graph tests never run beside each other).
 
     The graph tests wait on discovery, pacing and timers: with a worker per CPU the two CPUs of the reference
-    machine were busy 78 % of the suite's time (14 min 7 s); one worker more keeps them busier (13 min 3 s, and
-    2 120 passed in 18 min 24 s beside two CPU burners). It was tried before and withdrawn when a lockstep test
-    heard samples it could not place; they were the test's own first run's, left queued in its probe under load
-    (issue 43's note), and the load defects the extra worker showed are mended.
+    machine were busy 78 % of the suite's time (14 min 7 s), and one worker more took 13 min 3 - 13 min 28 s
+    (``-n 3 --dist loadfile`` asks for it). It is not the default: its load showed defects a worker per CPU
+    rarely meets, and not all are mended (a paced hierarchy flown beside two burners left its quiet twin at
+    t = 10.8 s once; issue 43's note).
 
     Examples
     --------
     >>> pytest_arguments(["-m", "unit"], cpus=2)
-    ['-n', '3', '--dist', 'loadfile', '-m', 'unit']
+    ['-n', '2', '--dist', 'loadfile', '-m', 'unit']
     >>> pytest_arguments(["-x", "tests/test_demo.py"], cpus=2)
     ['-x', 'tests/test_demo.py']
     >>> pytest_arguments(["-m", "unit"], cpus=1)
@@ -203,7 +202,7 @@ def pytest_arguments(argv: list[str], cpus: int | None = None) -> list[str]:
     chosen = any(a.split("=", 1)[0] in SERIAL_OPTIONS or (a.startswith("-n") and a[2:].isdigit()) for a in argv)
     if chosen or cpus < 2 or "no:xdist" in " ".join(argv):
         return list(argv)
-    return ["-n", str(cpus + 1), "--dist", "loadfile", *argv]
+    return ["-n", str(cpus), "--dist", "loadfile", *argv]
 
 
 @command("run", "start one node, like 'ros2 run' on a ROS install", "seapup_bringup.cli:run_parser",
