@@ -106,9 +106,10 @@ def hold_and_step(sil, chunks) -> None:
         stepper.destroy()
 
 
-def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float]:
+def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float, dict]:
     """Record the mission (at ``pace``, or held at ``chunks[0]`` and stepped by the rest): its bag
-    (:func:`by_topic`) and the wall seconds from the first sample heard to the last one answered."""
+    (:func:`by_topic`), the wall seconds from the first sample heard to the last one answered, and the waits a
+    wall-clock limit ended (``SilGraph.ended_waits``: none, or the run is the machine's)."""
     from seapup_bringup.graph.sil import SilError, SilGraph
     end = spec.duration - 1e-6
     arguments = None if chunks else {"end_time": repr(spec.duration)}
@@ -126,7 +127,8 @@ def fly(spec, out, pace: float = 0.0, chunks=None) -> tuple[dict, float]:
         if not sil.spin_until(answered, 60.0 + spec.duration * (1.0 / pace if pace else 0.0)):
             raise SilError(f"flew {sil.t:.1f} of {spec.duration:g} s; node logs in {out}")
         flight = time.monotonic() - first
-    return by_topic(out / "bag"), flight
+        ended = sil.ended_waits()
+    return by_topic(out / "bag"), flight, ended
 
 
 def stamp_s(msg) -> float:
@@ -194,11 +196,14 @@ def test_a_lockstep_bag_is_the_same_at_any_speed_held_or_loaded(mission, tmp_pat
     said_again = {label: re.findall(r"\((\d+) repeats of a sample", (tmp_path / out / "recorder.log").read_text())
                   for label, out in (("unpaced", "unpaced"), ("1x", "pace1"), ("10x", "pace10"), ("held", "held"),
                                      ("loaded", "loaded"))}
-    print({label: f"{flight:.2f} s wall, {said_again[label] or ['no']} repeats" for label, (_, flight) in runs.items()})
+    print({label: f"{flight:.2f} s wall, {said_again[label] or ['no']} repeats"
+           for label, (_, flight, _) in runs.items()})
     # paced: samples no faster than the pace (the first heard at once, the last 4 s later at 1x)
     for label, pace in (("1x", 1.0), ("10x", 10.0)):
         assert runs[label][1] >= 0.9 * MISSION_S / pace, (label, runs[label][1])
-    bags = {label: bag for label, (bag, _) in runs.items()}
+    bags = {label: bag for label, (bag, _, _) in runs.items()}
+    for label, (_, _, ended) in runs.items():
+        assert not ended, f"{label}: wall-clock limits ended lockstep waits: {ended}"
     for label, bag in bags.items():
         assert_no_sample_missed(bag, mission, label)
         assert len(bag.get(topics.TF_STATIC, [])) == 1, (label, "tf_static")

@@ -261,7 +261,7 @@ def test_a_paced_run_flies_the_same_trajectory_with_both_cores_saturated(control
             goto = sil.goal("goto", x=start[0] + 6.0, y=start[1] + 2.0, z=start[2] + 1.0, yaw=0.8,
                             during=(6.0, switch))
             hover = sil.goal("hover", hold_current=True, duration=0.0, cancel_after=5.0)
-            return goto, hover, _up_to(sil.logs(), sil.held), sil.late_results
+            return goto, hover, _up_to(sil.logs(), sil.held), sil.late_results, sil.ended_waits()
 
     quiet = fly(tmp_path / "quiet")
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
@@ -271,16 +271,18 @@ def test_a_paced_run_flies_the_same_trajectory_with_both_cores_saturated(control
         for burner in burners:
             burner.kill()
             burner.wait()
-    for (goto, hover, logs, late), label in ((quiet, "quiet"), (loaded, "loaded")):
+    for (goto, hover, logs, late, ended), label in ((quiet, "quiet"), (loaded, "loaded")):
         assert goto["status"] == "succeeded" and goto["during"].ok, (label, goto)
         assert hover["status"] == "canceled" and late == 0, (label, hover, late)
+        # no node went on without what it waited for (a wall-clock limit would make the run the machine's)
+        assert not ended, f"{label}: wall-clock limits ended lockstep waits: {ended}"
         print(f"{label}: goto ended at {goto['end_time']:.1f} s, hover cancelled at {hover['end_time']:.1f} s, "
               f"{len(logs['truth_t'])} samples to {logs['truth_t'][-1]:.1f} s")
     assert quiet[0]["end_time"] == loaded[0]["end_time"] and quiet[1]["end_time"] == loaded[1]["end_time"]
     for name, keys in (("truth", ("truth_position", "truth_attitude")), ("estimate", ("estimate_position",)),
                        ("command", ("command",)), ("setpoint", ("setpoint",)), ("reference", ("reference",))):
         # from the first hold on (the probe may hear a graph's first sample or not)
-        a, b = (logs[f"{name}_t"] >= 10.0 for _, _, logs, _ in (quiet, loaded))
+        a, b = (logs[f"{name}_t"] >= 10.0 for _, _, logs, _, _ in (quiet, loaded))
         ta, tb = quiet[2][f"{name}_t"][a], loaded[2][f"{name}_t"][b]
         odd = sorted(set(np.round(ta, 3).tolist()) ^ set(np.round(tb, 3).tolist()))
         twice = [np.round(t, 3).tolist() for t in (ta, tb) if len(np.unique(np.round(t, 3))) != len(t)]

@@ -65,8 +65,10 @@ def test_a_setpoint_that_never_comes_is_waited_for_only_setpoint_wait(ros_contex
     from rclpy.parameter import Parameter
     node = PositionControllerNode(context=ros_context)
     node.set_parameters([Parameter("setpoint_wait", value=0.3)])
-    references = []
+    references, said = [], []
     node.publisher.publish = lambda msg: references.append(conv.stamp_to_ns(msg.header.stamp))
+    node.diagnostics.publish = lambda msg: said.extend(
+        {kv.key: kv.value for kv in status.values}.get("late_setpoints") for status in msg.status)
     for k in range(1, 5):
         node._on_setpoint(_setpoint(k))
         node._on_estimate(_estimate(k))
@@ -77,6 +79,8 @@ def test_a_setpoint_that_never_comes_is_waited_for_only_setpoint_wait(ros_contex
         node._check_wait()
         time.sleep(0.01)
     assert len(references) == 5 and 0.25 < time.monotonic() - start < 2.0 and node.counts["late_setpoints"] == 1
+    # the ended wait is on /diagnostics at once (a SIL harness names it: the run is no longer deterministic)
+    assert said and said[-1] == "1", said
     node._on_estimate(_estimate(6))              # not streaming any more: at once
     node._on_estimate(_estimate(7))
     assert len(references) == 7 and node.counts["late_setpoints"] == 1

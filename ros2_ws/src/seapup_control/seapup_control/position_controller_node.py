@@ -29,6 +29,7 @@ else WARN with the reason -- so a graph is known ready before a goal is sent.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 
@@ -174,6 +175,7 @@ class PositionControllerNode(LifecycleNode):
                 if time.monotonic() <= deadline:
                     return
                 self.counts["late_setpoints"] += 1
+                self._last_diag = -math.inf  # said at once, with this estimate's reference (ENDED_WAITS)
                 self.get_logger().warn(f"no setpoint for t = {estimate.t:.3f} s within the setpoint_wait: going "
                                        "on with the one in force", throttle_duration_sec=5.0)
             self._waiting.popleft()

@@ -296,6 +296,8 @@ class TaskControllerNode(Node):
             self.get_logger().warn(f"no altitude reading for t = {estimate.t:.3f} s within altitude_wait: "
                                    "going on with the newest earlier one", throttle_duration_sec=5.0)
         self._handle(estimate)
+        if late:
+            self._diagnose()  # a wall-clock limit ended the wait: said at once (seapup_common.lockstep.ENDED_WAITS)
 
     def _check_parked(self) -> None:
         if self._parked is not None and time.monotonic() > self._parked[1]:

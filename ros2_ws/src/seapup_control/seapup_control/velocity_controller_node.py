@@ -384,7 +384,9 @@ class VelocityControllerNode(LifecycleNode):
         self.publisher.publish(command_bytes(command.blade_pitch, t_ns))  # serialised: a fraction of the cost
         if self.estimates is not None:
             self.estimates.publish(self._estimate(t_ns))
-        if self.pace.due(self.counts["samples"], max(1, int(self._value("diagnostics_every"))), time.monotonic()):
+        # a wall-clock limit that ended a wait (seapup_common.lockstep.ENDED_WAITS) is said at once
+        if decision.late or self.pace.due(self.counts["samples"], max(1, int(self._value("diagnostics_every"))),
+                                          time.monotonic()):
             self._diagnose(t_ns)
 
     def _wake_at(self, wake_at: float) -> None:

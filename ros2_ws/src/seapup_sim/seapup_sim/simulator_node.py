@@ -202,6 +202,7 @@ class SimulatorNode(Node):
                 self.simulator.lockstep_timeout()
                 self._warn(f"no command stamped t = {self.simulator.t:.3f} s within {self.server.timeout} s: "
                            "holding the last one")
+                self._publish_diagnostics()  # said at once (seapup_common.lockstep.ENDED_WAITS)
             elif kind == REPUBLISH:   # the current sample's messages once more, unchanged
                 self._publish_clock()
                 self._send(self._sent)

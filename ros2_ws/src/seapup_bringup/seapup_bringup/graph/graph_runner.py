@@ -33,6 +33,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import yaml
 
+from seapup_bringup.graph import readiness
 from seapup_common.topics import typed
 from seapup_runs.run_graph import graph_document
 from seapup_runs.logs import RECORDED_TOPICS, series_from_logs
@@ -113,6 +114,11 @@ class GraphResult:
         flight did not ask for them (``logs=False``).
     outcome : any
         What the flight returned (an action's result, a mission's legs, a run's numbers).
+    ended_waits : dict
+        Which nodes went on without what a lockstep wait waited for, a wall-clock limit having ended it
+        (:meth:`~seapup_bringup.graph.sil.SilGraph.ended_waits`): empty when the flight is deterministic.
+    ended_wait_events : list of dict
+        The same as run-result events (:func:`~seapup_bringup.graph.readiness.ended_wait_events`).
     """
 
     name: str
@@ -124,6 +130,8 @@ class GraphResult:
     held: float | None
     logs: dict[str, np.ndarray]
     outcome: Any
+    ended_waits: dict = field(default_factory=dict)
+    ended_wait_events: list = field(default_factory=list)
 
 
 def fly_graph(spec: GraphSpec, out: str | Path, flight: Callable[[Any], Any], *, logs: bool = True,
@@ -151,7 +159,7 @@ def fly_graph(spec: GraphSpec, out: str | Path, flight: Callable[[Any], Any], *,
         wall = time.monotonic() - wall
         arrays = sil.logs() if logs else {}
         result = GraphResult(spec.name, out, getattr(sil, "bag", None), domain, sil.t, wall, sil.held, arrays,
-                             outcome)
+                             outcome, sil.ended_waits(), readiness.ended_wait_events(sil.log["diagnostics"]))
     return result
 
 
@@ -240,6 +248,8 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
                                 record=tuple(typed(*RECORDED_TOPICS)) if record else ()), out, flight)
     logs = flown.logs
     result = RunResult(spec, series_from_logs(spec, logs), transport=GRAPH_TRANSPORT)
+    # a wall-clock limit that ended a lockstep wait: the run may differ from the same spec flown elsewhere
+    result.series.events.extend(flown.ended_wait_events)
     result.metrics = compute(result)
     return result
 

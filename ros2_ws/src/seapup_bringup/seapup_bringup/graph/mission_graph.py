@@ -95,7 +95,7 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     plan = [dict(leg, index=i) for i, leg in enumerate(config["mission"])]
     total = sum(leg.get("expected", 60.0) for leg in plan)
     stopped = None  # the signal that ended the mission early (Ctrl-C, SIGTERM, SIGHUP)
-    logs, bag, held = {}, out / "bag", None
+    logs, bag, held, ended = {}, out / "bag", None, {}
 
     def flight(sil) -> None:
         nonlocal stopped
@@ -128,7 +128,11 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
                      banner="seapup demo: ROS domain {domain} (loopback only), output in {out}")
     try:
         flown = fly_graph(spec, out, flight, text=text)
-        logs, bag, held = flown.logs, flown.bag, flown.held
+        logs, bag, held, ended = flown.logs, flown.bag, flown.held, flown.ended_waits
+        if ended:
+            print("seapup demo: wall-clock limits ended lockstep waits (a loaded machine?), so this flight may "
+                  "differ from a quieter one: " + "; ".join(f"{node} {counts}" for node, counts in ended.items()),
+                  file=text)
     except BaseException as exc:  # interrupted while the graph started or stopped: nothing (more) flown
         if stopped is not None or not stopped_by_signal(exc):
             raise
@@ -136,7 +140,9 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
         print(f"\nseapup demo: interrupted; reporting the {len(legs)} legs flown", file=text)
     mission_numbers(legs, logs, seabed, swap)
     # held: the sample [s] the paced graph was held at when it stopped
-    return {"transport": "graph", "legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped}
+    # ended_waits: which nodes went on without what a lockstep wait waited for (empty: deterministic)
+    return {"transport": "graph", "legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped,
+            "ended_waits": ended}
 
 
 def _set_current(sil, detail: dict) -> None:

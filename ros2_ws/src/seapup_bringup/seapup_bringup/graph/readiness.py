@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 __all__ = ["OK", "DEFAULT_READY", "MATCHED_ONLY", "required", "latest_statuses", "publishers_matched",
-           "graph_ready", "not_ready_report", "handled_since"]
+           "graph_ready", "not_ready_report", "handled_since", "ended_waits", "ended_wait_events"]
 
 #: ``diagnostic_msgs/msg/DiagnosticStatus`` OK level (a byte in rclpy).
 OK = (0, b"\x00")
@@ -96,3 +96,68 @@ def handled_since(diagnostics: list, name: str, t: float, window: int = WINDOW) 
     with the newest sample it handled has handled sample ``t``)."""
     return any(status.name == name and array.header.stamp.sec + 1e-9 * array.header.stamp.nanosec >= t - 1e-6
                for array in diagnostics[-window:] for status in array.status)
+
+
+def ended_waits(diagnostics: Iterable) -> dict[str, dict[str, int]]:
+    """Each node's wall-clock limits that ended a lockstep wait, from every status heard: name -> {counter:
+    its largest value} for the counters of :data:`seapup_common.lockstep.ENDED_WAITS` above zero (empty: every
+    node waited for what it waited for, and the run is as a quiet machine would fly it).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as N
+    >>> status = lambda name, **v: N(name=name, values=[N(key=k, value=str(x)) for k, x in v.items()])
+    >>> arrays = [N(status=[status("seapup/gmv", late_references=0, samples=9)]),
+    ...           N(status=[status("seapup/gmv", late_references=2), status("seapup/simulator", steps="x")])]
+    >>> ended_waits(arrays)
+    {'seapup/gmv': {'late_references': 2}}
+    """
+    from seapup_common.lockstep import ENDED_WAITS
+    found: dict[str, dict[str, int]] = {}
+    for array in diagnostics:
+        for status in array.status:
+            for kv in status.values:
+                if kv.key in ENDED_WAITS:
+                    try:
+                        value = int(kv.value)
+                    except ValueError:
+                        continue
+                    if value > 0:
+                        counters = found.setdefault(status.name, {})
+                        counters[kv.key] = max(counters.get(kv.key, 0), value)
+    return found
+
+
+def ended_wait_events(diagnostics: Iterable) -> list[dict]:
+    """Each growth of a counter of :data:`seapup_common.lockstep.ENDED_WAITS` as a run result's event
+    (``{"time": the status's stamp [s], "kind": "ended_wait", "detail": "<node>: <counter> <n>"}``), in the
+    order heard.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as N
+    >>> def array(sec, **v):
+    ...     values = [N(key=k, value=str(x)) for k, x in v.items()]
+    ...     return N(status=[N(name="seapup/simulator", values=values)], header=N(stamp=N(sec=sec, nanosec=0)))
+    >>> [e["time"] for e in ended_wait_events([array(3, lockstep_timeouts=1), array(4, lockstep_timeouts=1),
+    ...                                         array(5, lockstep_timeouts=3)])]
+    [3.0, 5.0]
+    """
+    from seapup_common.lockstep import ENDED_WAITS
+    seen: dict[tuple[str, str], int] = {}
+    events = []
+    for array in diagnostics:
+        stamp = array.header.stamp
+        for status in array.status:
+            for kv in status.values:
+                if kv.key not in ENDED_WAITS:
+                    continue
+                try:
+                    value = int(kv.value)
+                except ValueError:
+                    continue
+                if value > seen.get((status.name, kv.key), 0):
+                    seen[(status.name, kv.key)] = value
+                    events.append({"time": stamp.sec + 1e-9 * stamp.nanosec, "kind": "ended_wait",
+                                   "detail": f"{status.name}: {kv.key} {value}"})
+    return events

@@ -248,6 +248,11 @@ class SilGraph:
         """Paced: the sample [s] the graph is held at (None: not paced)."""
         return self._pacing.held if self._pacing is not None else None
 
+    def ended_waits(self) -> dict[str, dict[str, int]]:
+        """Which nodes went on without what a lockstep wait waited for, a wall-clock limit having ended it
+        (:func:`~seapup_bringup.graph.readiness.ended_waits`): empty when the run is deterministic."""
+        return readiness.ended_waits(self.log["diagnostics"])
+
     @property
     def late_results(self) -> int:
         """Paced: results heard too late to be acted on at their chunk boundary."""
