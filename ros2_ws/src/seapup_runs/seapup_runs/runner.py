@@ -106,13 +106,12 @@ def start_pitch(spec: RunSpec) -> np.ndarray:
     """The blade pitch at t = 0: the spec's, or the hover setting of its vehicle (eq. 5.2 for the baseline)."""
     if spec.start_pitch is not None:
         return np.array(spec.start_pitch, float)
-    from seapup_sim.analysis import hover_blade_pitch
-    from seapup_sim.linearised import vehicle_model
+    from seapup_sim.hover import hover_of
     from seapup_sim.vehicle_config import load_vehicle_config
     config = load_vehicle_config(spec.vehicle)
     key = json.dumps(config, sort_keys=True, default=str)   # the trim is solved once per configuration
     if key not in _HOVER:
-        _HOVER[key] = hover_blade_pitch(vehicle_model(config, "nonlinear"))
+        _HOVER[key] = hover_of(config)
     return _HOVER[key].copy()
 
 

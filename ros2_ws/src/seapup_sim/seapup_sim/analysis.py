@@ -19,7 +19,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from seapup_sim.vehicle import VehicleModel
 
@@ -100,6 +99,8 @@ def system_zeros(a, b, c, d=None, rtol: float = 1e-8) -> list[ZeroInfo]:
     (eq. 3.11); rank is judged by the smallest singular value relative to the
     largest, against ``rtol``.
     """
+    import scipy.linalg  # here: the simulator imports this module for its hover trim only (0.3 s)
+
     a, b, c = (np.atleast_2d(np.asarray(m, float)) for m in (a, b, c))
     n, m_in = b.shape
     p = c.shape[0]

@@ -24,13 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, CommandGate
-from seapup_sim.analysis import hover_blade_pitch
 from seapup_sim.current import CurrentParams
 from seapup_sim.environment_config import load_environment, load_limits
+from seapup_sim.hover import hover_of
 from seapup_sim.linearised import DYNAMICS
 from seapup_sim.sensors import load_sensor_profile
 from seapup_sim.simulation import Event, Simulation, events_from_data
-from seapup_sim.vehicle import VehicleModel
 from seapup_sim.vehicle_config import load_vehicle_config
 
 __all__ = ["SimulatorConfig", "SimulatorCore"]
@@ -126,7 +125,7 @@ class SimulatorCore:
 
     def _hover_of(self, vehicle: str) -> np.ndarray:
         if vehicle not in self._hover_cache:
-            self._hover_cache[vehicle] = hover_blade_pitch(VehicleModel(load_vehicle_config(vehicle)))
+            self._hover_cache[vehicle] = hover_of(load_vehicle_config(vehicle))
         return self._hover_cache[vehicle].copy()
 
     @property
