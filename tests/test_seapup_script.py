@@ -173,3 +173,36 @@ def test_an_interrupted_lock_removes_its_scratch_venv(tmp_path):
     assert lock.wait(timeout=30) == 130
     assert list(scratch.iterdir()) == [], "the scratch venv was left behind"
     assert "Traceback" not in rest and (root / "requirements" / "lock.txt").read_text() == "numpy==2.4.6\n"
+
+
+def _sha_of_files(root, *names):
+    """The entry script's own ``sha_of_files`` (what decides a rebuild), run on files under ``root``."""
+    function = subprocess.run(["sed", "-n", "/^sha_of_files()/,/^}/p", SEAPUP], capture_output=True, text=True,
+                              check=True).stdout
+    assert function.startswith("sha_of_files()")
+    script = function + '\nROOT="$1"; shift; files=(); for f in "$@"; do files+=("$ROOT/$f"); done\n' \
+                        'sha_of_files "${files[@]}"\n'
+    out = subprocess.run(["bash", "-c", script, "sha", str(root), *names], capture_output=True, text=True,
+                         check=True, timeout=30)
+    return out.stdout.strip()
+
+
+def test_a_package_is_rebuilt_when_a_file_changes_is_renamed_or_moves_content(tmp_path):
+    """The stamp is a hash of the files' names (relative to the checkout) and contents: a changed byte, a
+    renamed file or content moved from one file to another changes it; another checkout of the same files
+    does not (a fresh clone elsewhere is not rebuilt for its path)."""
+    def tree(root, files):
+        for name, text in files.items():
+            (root / name).parent.mkdir(parents=True, exist_ok=True)
+            (root / name).write_text(text)
+        return root
+    base = {"p/a.py": "x = 1\n", "p/b.py": "y = 2\n"}
+    one = _sha_of_files(tree(tmp_path / "one", base), *sorted(base))
+    assert len(one) == 64
+    assert _sha_of_files(tree(tmp_path / "elsewhere" / "two", base), *sorted(base)) == one
+    changed = dict(base, **{"p/b.py": "y = 3\n"})
+    assert _sha_of_files(tree(tmp_path / "three", changed), *sorted(changed)) != one
+    renamed = {"p/a.py": "x = 1\n", "p/c.py": "y = 2\n"}
+    assert _sha_of_files(tree(tmp_path / "four", renamed), *sorted(renamed)) != one
+    moved = {"p/a.py": "x = 1\ny = 2\n", "p/b.py": ""}
+    assert _sha_of_files(tree(tmp_path / "five", moved), *sorted(moved)) != one
