@@ -107,6 +107,7 @@ def ls_limit():
     return np.linalg.solve(M @ S @ M.T, M @ S @ F[0])
 
 
+@pytest.mark.sweep   # four estimators over a 20 000-sample record: 12 s, the longest of -m unit
 def test_ljung_armax_ls_converges_to_its_biased_limit_els_and_rpem_to_the_truth():
     y, u = ljung_data(seed=7)
     limit = ls_limit()
