@@ -86,7 +86,7 @@ class NavigatorNode(Node):
         self._processed_ns: int | None = None
         self._manifests: dict[int, set] = {}  # sample stamp -> the readings the simulator published for it
         self._manifested = False                # samples complete by the manifest (_by_manifest)
-        self._held: dict[int, dict] = {}        # sample stamp -> readings (messages) waiting for it
+        self._held: dict[int, dict] = {}        # sample stamp -> topic -> its readings, waiting for it
         self._manifest_topic = self.resolve_topic_name("sensors/sample")
         self.forced_samples = 0                 # processed before a listed reading came (manifest_patience)
         self._topic_names = {self.resolve_topic_name(topic): name for name, (topic, _) in _TOPICS.items()}
@@ -136,16 +136,16 @@ class NavigatorNode(Node):
     def _hold(self, name: str, t_ns: int, msg) -> None:
         """Keep a reading for its sample (the collector takes it when the sample is processed: a later
         sample's reading arriving first must not replace it)."""
-        try:
-            MeasurementCollector.readings(msg)  # checked now, kept by the collector when its sample is processed
+        try:   # converted and checked now, once; the collector keeps the readings when the sample is processed
+            readings = MeasurementCollector.readings(msg)
         except (ContractError, ValueError) as exc:   # counted whether or not its sample is still open
             self.rejected += 1
             self.get_logger().warn(f"{name} reading rejected: {exc}", throttle_duration_sec=2.0)
-            msg = None
+            readings = None
         if self._processed_ns is not None and t_ns <= self._processed_ns:
             return  # late: its sample was processed without it
-        if msg is not None:
-            self._held.setdefault(t_ns, {})[name] = msg
+        if readings is not None:
+            self._held.setdefault(t_ns, {})[name] = readings
         self._arrived.setdefault(t_ns, set()).add(name)   # a rejected reading came too: no waiting for it
         self._complete()
 
@@ -183,10 +183,10 @@ class NavigatorNode(Node):
         for stamp in [k for k in self._arrived if k <= t_ns]:
             del self._arrived[stamp]
         for stamp in sorted(k for k in self._held if k <= t_ns):  # held readings, in sample and topic order
-            readings = self._held.pop(stamp)
+            held = self._held.pop(stamp)
             for name in _TOPICS:
-                if name in readings:
-                    self.collector.add(readings[name])
+                for field, reading in held.get(name, ()):
+                    self.collector.keep(field, reading)
         if "velocity" not in self.collector.latest:
             return
         self._processed_ns = t_ns
