@@ -184,3 +184,58 @@ def test_a_node_that_drains_without_counting_what_it_receives_is_refused_at_star
                          timeout=60)
     assert run.returncode == 1 and "drains at its stop but counts no received message" in run.stderr, run
     assert "Traceback" not in run.stderr
+
+
+_SLOW_DESTROY = """
+import sys, time
+import rclpy
+from rclpy.node import Node
+from seapup_common.ros.node import run_node
+
+class Slow(Node):
+    def __init__(self):
+        super().__init__("slow_to_destroy")
+        self.create_timer(0.05, lambda: print("spinning", flush=True) if not getattr(self, "said", False)
+                          and not setattr(self, "said", True) else None)
+
+    def destroy_node(self):
+        time.sleep(float(sys.argv[1]))   # a teardown that takes its time (DDS under load, seen: 7 s)
+        return super().destroy_node()
+
+sys.exit(run_node(Slow))
+"""
+
+
+@pytest.mark.graph
+@pytest.mark.parametrize("destroy_s, said", [(2.6, True), (0.0, False)])
+def test_a_slow_stop_says_where_its_time_went(ros_env, destroy_s, said):
+    """A node's stop that takes more than SLOW_STOP (2 s) from its signal says, in one line, each phase's wall
+    seconds (a simulator took 7 s after SIGTERM once in a loaded suite, exit 0, and nothing said where); a
+    prompt stop says nothing. Truth: the node's own destroy_node sleeps the given time."""
+    import re
+    import signal
+    import subprocess
+    import sys
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_DESTROY, str(destroy_s)], env=ros_env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        assert proc.stdout.readline().strip() == "spinning"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    lines = [line for line in err.splitlines() if "slow stop" in line]
+    if not said:
+        assert lines == [], err
+        return
+    assert len(lines) == 1, err
+    found = re.fullmatch(r"\[slow_to_destroy\] slow stop: ([\d.]+) s from the signal \(spin ([\d.]+) s, "
+                         r"executor shutdown ([\d.]+) s, node destroyed ([\d.]+) s, context shut down ([\d.]+) s\)",
+                         lines[0])
+    assert found, lines[0]
+    total, spin, executor, destroyed, context = map(float, found.groups())
+    assert destroy_s - 0.1 <= destroyed <= destroy_s + 1.0 and total >= destroyed, lines[0]
+    assert abs(total - (spin + executor + destroyed + context)) <= 0.25, lines[0]

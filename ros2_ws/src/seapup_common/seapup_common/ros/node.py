@@ -672,6 +672,31 @@ class QosWatch:
 
 #: The signals :func:`run_node` has been asked to stop by (empty while it runs on).
 _STOP: list[int] = []
+#: When the first stop signal came (monotonic wall time), for :func:`_slow_stop_line`.
+_STOP_AT: list[float] = []
+#: [s wall] a stop that takes longer from its signal to the context's shutdown says where the time went.
+SLOW_STOP = 2.0
+
+
+def _slow_stop_line(name: str, marks: list[tuple[str, float]]) -> str | None:
+    """The line a slow stop prints: each phase's wall seconds since the previous mark, from the first stop
+    signal (:data:`_STOP_AT`) to the last mark; None without a signal or when the stop took at most
+    :data:`SLOW_STOP` s (what is left after the last mark is the interpreter's own exit).
+
+    >>> _STOP_AT[:] = [10.0]
+    >>> _slow_stop_line("simulator", [("spin", 10.2), ("executor shutdown", 11.2), ("node destroyed", 13.7)])
+    '[simulator] slow stop: 3.7 s from the signal (spin 0.2 s, executor shutdown 1.0 s, node destroyed 2.5 s)'
+    >>> _slow_stop_line("simulator", [("spin", 10.1), ("node destroyed", 10.5)]) is None
+    True
+    """
+    if not _STOP_AT or not marks:
+        return None
+    total = marks[-1][1] - _STOP_AT[0]
+    if total <= SLOW_STOP:
+        return None
+    times = [_STOP_AT[0]] + [t for _, t in marks]
+    phases = ", ".join(f"{label} {max(t - before, 0.0):.1f} s" for (label, t), before in zip(marks, times))
+    return f"[{name}] slow stop: {total:.1f} s from the signal ({phases})"
 #: Seconds a node has to end once asked to stop, its parent alive (drain, acknowledgements, destruction) or
 #: gone (nobody is left to hear it: no drain, no acknowledgements). Past them the process ends at once: a
 #: C-level watchdog (:func:`faulthandler.dump_traceback_later`, no GIL needed) calls ``_exit``, so a node
@@ -741,6 +766,8 @@ def _request_stop(signum: int, parent: int) -> None:
     The request also ends a spin of the events executor in progress (:class:`_Stop`)."""
     first = not _STOP
     _STOP.append(signum)
+    if first:
+        _STOP_AT[:] = [time.monotonic()]
     if _STOPPING:
         _STOPPING[0].request()
     if first or _orphaned(parent):
@@ -883,6 +910,8 @@ def run_node(make_node, args=None) -> int:
     parent = os.getppid()
     stop = _STOP
     stop.clear()
+    _STOP_AT.clear()
+    marks: list[tuple[str, float]] = []   # the stop's phases, for a slow stop's line (_slow_stop_line)
     stopping = _Stop()
     _STOPPING[:] = [stopping]
     # before rclpy.init: a signal while starting is a request like any other, never a KeyboardInterrupt
@@ -913,12 +942,14 @@ def run_node(make_node, args=None) -> int:
                 _spin_step(executor, stopping, 0.1)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
+        marks.append(("spin", time.monotonic()))
         # orphaned: nobody is left to acknowledge, and the budget is short; SIGTERM first: a stop in a hurry (a
         # user's Ctrl-C on the command that owns the graph, or launch's escalation after SIGINT)
         if not _orphaned(parent) and _STOP[:1] != [signal.SIGTERM]:
             if getattr(node, "drain_on_shutdown", False):
                 _drain(executor, node, float(getattr(node, "drain_budget", 1.5)))
             _await_acknowledgements(node)
+            marks.append(("drain and acknowledgements", time.monotonic()))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # construction or callback failure: report and exit non-zero
@@ -931,9 +962,19 @@ def run_node(make_node, args=None) -> int:
             _arm_stop_watchdog(ORPHAN_STOP_BUDGET if _orphaned(parent) else STOP_BUDGET)
         for logger, handler in routed:
             logger.removeHandler(handler)
+        try:
+            name = node.get_name() if node is not None else getattr(make_node, "__name__", "node")
+        except Exception:  # noqa: BLE001 - a node whose context was shut down from outside: its name is moot
+            name = "node"
         if executor is not None:   # the events executor holds the node's entities until it lets go of them
             executor.shutdown(timeout_sec=1.0)
+            marks.append(("executor shutdown", time.monotonic()))
         if node is not None:
             node.destroy_node()
+            marks.append(("node destroyed", time.monotonic()))
         rclpy.try_shutdown()
+        marks.append(("context shut down", time.monotonic()))
+        line = _slow_stop_line(name, marks)
+        if line is not None:
+            print(line, file=sys.stderr, flush=True)
     return 0
