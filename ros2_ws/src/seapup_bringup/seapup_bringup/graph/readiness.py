@@ -98,6 +98,25 @@ def handled_since(diagnostics: list, name: str, t: float, window: int = WINDOW) 
                for array in diagnostics[-window:] for status in array.status)
 
 
+def _ended_wait_growths(diagnostics: Iterable):
+    """``(array, status name, counter, value)`` each time a counter of :data:`seapup_common.lockstep.ENDED_WAITS`
+    grows past what that node reported before (values that are not integers are skipped), in the order heard."""
+    from seapup_common.lockstep import ENDED_WAITS
+    seen: dict[tuple[str, str], int] = {}
+    for array in diagnostics:
+        for status in array.status:
+            for kv in status.values:
+                if kv.key not in ENDED_WAITS:
+                    continue
+                try:
+                    value = int(kv.value)
+                except ValueError:
+                    continue
+                if value > seen.get((status.name, kv.key), 0):
+                    seen[(status.name, kv.key)] = value
+                    yield array, status.name, kv.key, value
+
+
 def ended_waits(diagnostics: Iterable) -> dict[str, dict[str, int]]:
     """Each node's wall-clock limits that ended a lockstep wait, from every status heard: name -> {counter:
     its largest value} for the counters of :data:`seapup_common.lockstep.ENDED_WAITS` above zero (empty: every
@@ -108,23 +127,14 @@ def ended_waits(diagnostics: Iterable) -> dict[str, dict[str, int]]:
     >>> from types import SimpleNamespace as N
     >>> status = lambda name, **v: N(name=name, values=[N(key=k, value=str(x)) for k, x in v.items()])
     >>> arrays = [N(status=[status("seapup/gmv", late_references=0, samples=9)]),
-    ...           N(status=[status("seapup/gmv", late_references=2), status("seapup/simulator", steps="x")])]
+    ...           N(status=[status("seapup/gmv", late_references=2), status("seapup/simulator", steps="x")]),
+    ...           N(status=[status("seapup/gmv", late_references=1)])]
     >>> ended_waits(arrays)
     {'seapup/gmv': {'late_references': 2}}
     """
-    from seapup_common.lockstep import ENDED_WAITS
     found: dict[str, dict[str, int]] = {}
-    for array in diagnostics:
-        for status in array.status:
-            for kv in status.values:
-                if kv.key in ENDED_WAITS:
-                    try:
-                        value = int(kv.value)
-                    except ValueError:
-                        continue
-                    if value > 0:
-                        counters = found.setdefault(status.name, {})
-                        counters[kv.key] = max(counters.get(kv.key, 0), value)
+    for _, name, counter, value in _ended_wait_growths(diagnostics):
+        found.setdefault(name, {})[counter] = value   # each growth is the largest so far
     return found
 
 
@@ -143,21 +153,5 @@ def ended_wait_events(diagnostics: Iterable) -> list[dict]:
     ...                                         array(5, lockstep_timeouts=3)])]
     [3.0, 5.0]
     """
-    from seapup_common.lockstep import ENDED_WAITS
-    seen: dict[tuple[str, str], int] = {}
-    events = []
-    for array in diagnostics:
-        stamp = array.header.stamp
-        for status in array.status:
-            for kv in status.values:
-                if kv.key not in ENDED_WAITS:
-                    continue
-                try:
-                    value = int(kv.value)
-                except ValueError:
-                    continue
-                if value > seen.get((status.name, kv.key), 0):
-                    seen[(status.name, kv.key)] = value
-                    events.append({"time": stamp.sec + 1e-9 * stamp.nanosec, "kind": "ended_wait",
-                                   "detail": f"{status.name}: {kv.key} {value}"})
-    return events
+    return [{"time": array.header.stamp.sec + 1e-9 * array.header.stamp.nanosec, "kind": "ended_wait",
+             "detail": f"{name}: {counter} {value}"} for array, name, counter, value in _ended_wait_growths(diagnostics)]
