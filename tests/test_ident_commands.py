@@ -21,6 +21,23 @@ def ident(env, *args, timeout=300):
                           capture_output=True, text=True, timeout=timeout)
 
 
+def assert_in_process_is_the_graph_s(env, tmp_path, bag, *args):
+    """``ident experiment --in-process`` with the same ARGS gives the graph's record sample for sample (the
+    in-process transport's equality, once per case: open loop, linearised in current, closed loop)."""
+    from seapup_bringup.graph.identification import bag_data, load_source
+    out = tmp_path / "in_process"
+    local = ident(env, "experiment", "--in-process", *args, "--out", out, "--json", tmp_path / "in_process.json")
+    assert local.returncode == 0, (local.stdout + local.stderr)[-2000:]
+    doc = json.loads((tmp_path / "in_process.json").read_text())
+    assert doc["record"] == str(out / "run.json") and doc["transport"] == "in-process" and "bag" not in doc
+    graph, here = bag_data(bag), load_source(doc["record"], None, None, "ch6")
+    assert graph.outputs == here.outputs and graph.inputs == here.inputs
+    np.testing.assert_allclose(here.t, graph.t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(here.y, graph.y, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(here.u, graph.u, rtol=1e-12, atol=1e-15)
+    return doc
+
+
 @pytest.mark.graph
 def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     from seapup_bringup.graph.identification import bag_data
@@ -71,6 +88,7 @@ def test_experiment_records_every_sample_and_its_bag_fits(tmp_path, ros_env):
     np.testing.assert_allclose(np.ravel(again["A"]), last.a, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(np.ravel(again["B"]), last.b, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(again["d"], last.d, rtol=1e-9, atol=1e-12)
+    assert_in_process_is_the_graph_s(ros_env, tmp_path, bag, "--duration", 30)
 
 
 def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_env):
@@ -92,7 +110,7 @@ def test_fit_from_csv_through_the_command_recovers_a_known_system(tmp_path, ros_
         bad = ident(ros_env, "fit", path, *args)
         assert bad.returncode == 1 and reason in bad.stdout + bad.stderr
     bad = ident(ros_env, "fit", tmp_path / "missing.txt")
-    assert bad.returncode == 1 and "neither a bag directory nor a .csv file" in bad.stdout + bad.stderr
+    assert bad.returncode == 1 and "neither a bag directory, a run result (.json) nor a .csv file" in bad.stdout + bad.stderr
     # the comparison's and the residual test's plots and JSON; the right model's residuals are white
     # and a too-low order's are not (its missing B_2 term leaves the input in them)
     run = ident(ros_env, "compare", path, "--order", 1, "--points", 2000, "--rpem-k0", 0.1, "--plots",
@@ -162,16 +180,23 @@ def test_closed_loop_experiment_follows_the_square_wave_and_identifies(tmp_path,
     from seapup_bringup.graph.identification import bag_data
     data = bag_data(doc["bag"])
     assert np.all(np.asarray(json.loads((tmp_path / "fit.json").read_text())["loss"]) < 0.1 * np.var(data.y, axis=0))
+    local = assert_in_process_is_the_graph_s(ros_env, tmp_path, doc["bag"], "--closed-loop", "--duration", 40,
+                                             "--controller", tmp_path / "cl" / "controller.yaml")
+    assert local["references"] == doc["references"] and local["half_period"] == doc["half_period"]
 
 
 @pytest.mark.graph
 def test_experiment_on_the_linearised_model(tmp_path, ros_env):
-    """--dynamics linearised reaches the simulator node: it flies eq. 3.2 about hover (sec. 6.5.1)."""
-    run = ident(ros_env, "experiment", "--dynamics", "linearised", "--duration", 10, "--out", tmp_path / "lin",
-                "--json", tmp_path / "lin.json")
+    """--dynamics linearised and --current reach the simulator node: it flies eq. 3.2 about hover (sec. 6.5.1) in
+    the Gauss-Markov current (sec. 6.5.4), and the in-process experiment flies the same."""
+    run = ident(ros_env, "experiment", "--dynamics", "linearised", "--current", "--duration", 10,
+                "--out", tmp_path / "lin", "--json", tmp_path / "lin.json")
     assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
-    assert json.loads((tmp_path / "lin.json").read_text())["dynamics"] == "linearised"
+    doc = json.loads((tmp_path / "lin.json").read_text())
+    assert doc["dynamics"] == "linearised" and doc["current"] is True
     assert "vehicle baseline (linearised)" in (tmp_path / "lin" / "simulator.log").read_text()
+    assert_in_process_is_the_graph_s(ros_env, tmp_path, doc["bag"], "--dynamics", "linearised", "--current",
+                                      "--duration", 10)
 
 
 def short_record(n, period=0.2):
@@ -278,3 +303,32 @@ def test_a_csv_source_is_read_bounded_and_refused_in_one_line(tmp_path, monkeypa
     monkeypatch.setattr(ident_commands, "MAX_CSV_CELLS", 20)     # 11 lines x 3 columns: 33 cells
     with pytest.raises(ValueError, match="about 33 cells, more than the 20 a CSV record may have"):
         load_source(str(good), None, None, "velocities")
+
+
+@pytest.mark.process
+def test_an_in_process_experiment_is_a_source_for_every_fit_and_says_its_scope(tmp_path):
+    """``--in-process`` writes the run result and the request beside it; ``orders`` reads it as it reads a bag
+    (the experiment's duration is the default scope, a longer request is refused nothing), and a JSON that is no
+    run result, or an option only a CSV has, is refused in one line naming why."""
+    import os
+    env = {**os.environ, "ROS_DOMAIN_ID": "0"}
+    run = ident(env, "experiment", "--in-process", "--duration", 20, "--out", tmp_path / "exp",
+                "--json", tmp_path / "exp.json")
+    assert run.returncode == 0, (run.stdout + run.stderr)[-2000:]
+    doc = json.loads((tmp_path / "exp.json").read_text())
+    assert json.loads((tmp_path / "exp" / "experiment.json").read_text()) == doc
+    assert doc["samples"] == 101 and doc["excitation"] == "prbs" and doc["switches"] >= 2
+    orders = ident(env, "orders", doc["record"], "--max-order", 2, "--duration", 10, "--json", tmp_path / "o.json")
+    assert orders.returncode == 0, orders.stdout + orders.stderr
+    table = json.loads((tmp_path / "o.json").read_text())
+    assert table["outputs"] == ["u", "v", "w", "r", "roll", "pitch"]
+    assert table["scope"]["samples"] == 50 and table["scope"]["asked_s"] == 20 and table["scope"]["trimmed"]
+    assert len(table["rows"]) == 2 and all(np.all(np.isfinite(row["loss"])) for row in table["rows"])
+    (tmp_path / "other.json").write_text(json.dumps({"format": "something else"}))
+    for source, extra, reason in ((tmp_path / "other.json", (), "not a seapup run result"),
+                                  (doc["record"], ("--inputs", "u0"), "--inputs names CSV columns"),
+                                  (tmp_path / "missing.json", (), "missing.json")):
+        refused = ident(env, "fit", source, *extra)
+        said = (refused.stdout + refused.stderr).strip()
+        assert refused.returncode == 1 and reason in said and "Traceback" not in said, said
+        assert len(said.splitlines()) == 1, said

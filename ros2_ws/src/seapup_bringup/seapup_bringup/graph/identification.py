@@ -6,9 +6,12 @@
   ``open_loop`` holding a PRBS of +-amplitude about the hover setting on every thruster, clock 10
   samples at 5 Hz, optionally the current) or closed loop (sec. 6.5.5,
   ``identification_closed_loop.launch.yaml``: the fixed-gain self-tested controller following a
-  square-wave reference from ``reference_schedule``), the ``identifier`` node estimating online;
-- ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics) or a CSV file,
-  as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
+  square-wave reference from ``reference_schedule``), the ``identifier`` node estimating online; with
+  ``--in-process`` the same experiment's run spec (:mod:`seapup_runs.identification_experiment`) flown in this
+  process instead, its record ``OUT/run.json`` equal to the graph's bag sample for sample (tested), in a
+  fraction of a second;
+- ``fit SOURCE``: a model from a bag (velocity, IMU and applied blade-pitch topics), a run result (``.json``)
+  or a CSV file, as JSON {"method", "orders", "A", "B", "C", "d", "loss", "aic", ...};
 - ``orders SOURCE``: loss, AIC and F per output and order (Tables 6.1, 6.2, 6.6);
 - ``compare SOURCE``: AIC of LS, ELS and RPEM (Tables 6.3-6.5, 6.7), with plots of each model
   against the data (figs 6.3, 6.5-6.11, 6.13-6.14);
@@ -40,16 +43,16 @@ from seapup_bringup.output import add_json_argument, progress
 from seapup_common.blade_pitch import THRUSTER_NAMES
 from seapup_common.topics import (APPLIED, CLOCK, COMMAND, DEPTH, IMU, TRUTH_ODOMETRY, VELOCITY, VELOCITY_REFERENCE,
                                   typed)
+from seapup_runs.identification_experiment import EXPERIMENT_PERIOD, OUTPUT_SETS, experiment_samples
 
-__all__ = ["handle", "identify", "ident_parser", "bag_data", "load_source", "experiment_record", "scope", "OUTPUT_SETS", "EXPERIMENT_RECORD"]
+__all__ = ["handle", "identify", "ident_parser", "bag_data", "load_source", "experiment_record", "scope", "OUTPUT_SETS",
+           "EXPERIMENT_RECORD", "experiment_samples"]
 
-#: The experiment's request, written next to its bag (``OUT/bag``) by ``ident experiment``.
+#: The experiment's request, written next to its record (``OUT/bag``, or ``OUT/run.json`` in process) by
+#: ``ident experiment``.
 EXPERIMENT_RECORD = "experiment.json"
-#: The experiment's sample period [s]: the simulator's control period (5 Hz, thesis sec. 5.1).
-EXPERIMENT_PERIOD = 0.2
-
-#: Output sets: ch. 6 (surge, sway, heave, yaw velocities, roll, pitch) and ch. 7 (u, v, w, r).
-OUTPUT_SETS = {"ch6": ("u", "v", "w", "r", "roll", "pitch"), "ch7": ("u", "v", "w", "r")}
+#: An in-process experiment's record: its run result (``seapup/run_result``, docs/run-result.md).
+RUN_RECORD = "run.json"
 
 
 def bag_data(path, outputs=OUTPUT_SETS["ch6"]):
@@ -113,17 +116,29 @@ MAX_CSV_CELLS = 4 * 10**6
 
 
 def load_source(source: str, outputs: str | None, inputs: str | None, output_set: str):
-    """A bag directory (metadata.yaml) or a CSV file (read bounded: :mod:`seapup_common.input_files`' data
-    limit, at most :data:`MAX_CSV_CELLS` cells, no row longer than the header)."""
+    """A bag directory (metadata.yaml), a run result (``.json``: an in-process experiment's ``run.json``, or any
+    run's ``--json``; :func:`seapup_runs.identification_experiment.identification_data`) or a CSV file (read
+    bounded: :mod:`seapup_common.input_files`' data limit, at most :data:`MAX_CSV_CELLS` cells, no row longer
+    than the header)."""
     from seapup_ident.identify import read_csv
     path = Path(source)
+    names = tuple(outputs.split(",")) if outputs else OUTPUT_SETS.get(output_set, ())
     if path.is_dir():
-        names = tuple(outputs.split(",")) if outputs else OUTPUT_SETS[output_set]
         return bag_data(path, names)
+    if path.suffix.lower() == ".json":
+        from seapup_runs.identification_experiment import identification_data
+        from seapup_runs.result import RunResult, RunResultError
+        if inputs:
+            raise ValueError("--inputs names CSV columns; a run result's inputs are its four applied blade pitches")
+        try:
+            result = RunResult.from_json(path)   # bounded: the data limit (docs/limits.md)
+        except RunResultError as exc:
+            raise ValueError(f"{source}: {exc}") from None
+        return identification_data(result, names)
     if path.suffix.lower() == ".csv":
         _check_csv(path)
         return read_csv(path, outputs.split(",") if outputs else None, inputs.split(",") if inputs else None)
-    raise ValueError(f"{source}: neither a bag directory nor a .csv file")
+    raise ValueError(f"{source}: neither a bag directory, a run result (.json) nor a .csv file")
 
 
 def _check_csv(path: Path) -> None:
@@ -150,11 +165,11 @@ def _check_csv(path: Path) -> None:
 
 
 def experiment_record(source) -> dict | None:
-    """The request of the experiment that recorded bag ``source`` (``experiment.json`` in the bag's
-    parent directory naming it as its bag or its identifier's bag), or None."""
+    """The request of the experiment that recorded ``source`` (``experiment.json`` in its parent directory
+    naming it as its bag, its identifier's bag or its in-process record), or None."""
     path = Path(source)
     record = path.parent / EXPERIMENT_RECORD
-    if not (path.is_dir() and record.is_file()):
+    if not (path.exists() and record.is_file()):
         return None
     from seapup_common.input_files import read_text
     try:
@@ -163,7 +178,7 @@ def experiment_record(source) -> dict | None:
         return None
     if not isinstance(doc, dict):
         return None
-    named = [Path(doc[key]).resolve() for key in ("bag", "identifier_bag") if isinstance(doc.get(key), str)]
+    named = [Path(doc[key]).resolve() for key in ("bag", "identifier_bag", "record") if isinstance(doc.get(key), str)]
     return doc if path.resolve() in named and isinstance(doc.get("duration"), (int, float)) else None
 
 
@@ -264,7 +279,8 @@ def _rpem_filter(args) -> tuple[float, float] | None:
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("source", help="a bag directory or a CSV file (header: y... outputs, u... inputs, t)")
+    parser.add_argument("source", help="a bag directory, a run result (.json, e.g. an in-process experiment's "
+                                       "run.json) or a CSV file (header: y... outputs, u... inputs, t)")
     parser.add_argument("--outputs", help="comma-separated output names (bag: u,v,w,r,roll,pitch; CSV: columns)")
     parser.add_argument("--inputs", help="CSV: comma-separated input columns (default u...)")
     parser.add_argument("--set", dest="output_set", choices=sorted(OUTPUT_SETS), default="ch6",
@@ -439,20 +455,24 @@ def _residuals(args, text) -> dict:
 
 
 def _experiment(args, text) -> dict:
-    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
-
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("ident_%Y%m%d_%H%M%S", time.gmtime())
     orders = list(_parse_orders(args.orders))
     samples = experiment_samples(args.duration, EXPERIMENT_PERIOD)
+    excitation = _closed_loop_excitation(args, out, text) if args.closed_loop else _prbs_excitation(args)
+    request = {"method": args.method, "orders": orders, "duration": args.duration,
+               "sample_period": EXPERIMENT_PERIOD, "samples": samples + 1, "dynamics": args.dynamics,
+               "current": args.current, "sensors": args.sensors}
+    if args.in_process:
+        return _experiment_in_process(args, out, excitation, request, text)
+    from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
     arguments = {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
                  "sensors": args.sensors, "method": args.method, "orders": str(orders),
                  "identifier_bag": out / "identifier", "end_time": repr(samples * EXPERIMENT_PERIOD)}
-    if args.closed_loop:
-        graph, excitation = "seapup_bringup identification_closed_loop.launch.yaml", _closed_loop_excitation(args, out, text)
-    else:
-        graph, excitation = "seapup_bringup identification.launch.yaml", _prbs_excitation(args)
+    graph = ("seapup_bringup identification_closed_loop.launch.yaml" if args.closed_loop
+             else "seapup_bringup identification.launch.yaml")
     arguments.update(excitation.pop("arguments"))
+    excitation.pop("spec")
     # the first sample and the first command wait for every reader of them (the lockstep roster the harness
     # fills: the graph's own -- the identifier once started after a loaded run had ended, and estimated
     # nothing -- the recorder and the probe): a run that ends at end_time never says them again to a late reader
@@ -469,9 +489,7 @@ def _experiment(args, text) -> dict:
                              + (f", t = {stamps[0] * 1e-9:g} .. {stamps[-1] * 1e-9:g} s" if stamps else "")
                              + f"; the experiment asked for the {samples + 1} samples t = 0 .. {args.duration:g} s "
                              f"(missing or extra samples: the recorder's log is {out / 'recorder.log'})")
-    doc = {"bag": str(bag), "identifier_bag": str(out / "identifier"), "method": args.method, "orders": orders,
-           "duration": args.duration, "sample_period": EXPERIMENT_PERIOD, "samples": samples + 1,
-           "dynamics": args.dynamics, "current": args.current, "sensors": args.sensors, **excitation}
+    doc = {"bag": str(bag), "identifier_bag": str(out / "identifier"), **request, **excitation}
     (out / EXPERIMENT_RECORD).write_text(json.dumps(doc, indent=1) + "\n")
     print(f"ident experiment: bag {bag}: {samples + 1} samples, t = 0 .. {args.duration:g} s (the identification "
           f"data: the {samples} with an input interval); the identifier's run (readings used, model after each "
@@ -479,14 +497,25 @@ def _experiment(args, text) -> dict:
     return doc
 
 
-def experiment_samples(duration: float, period: float) -> int:
-    """D / T: the sample intervals an experiment of ``duration`` seconds flies (its bag holds one more
-    sample, t = D). Raises ValueError unless D is a positive whole number of periods."""
-    count = round(duration / period) if math.isfinite(duration) else 0
-    if not (count >= 1 and abs(count * period - duration) <= 1e-9 * max(1.0, duration)):
-        raise ValueError(f"--duration must be > 0 s and a whole number of {period:g} s sample periods, "
-                         f"got {duration}")
-    return int(count)
+def _experiment_in_process(args, out: Path, excitation: dict, request: dict, text) -> dict:
+    """The same experiment flown in this process (:func:`seapup_runs.runner.run` of its run spec, sample for
+    sample the record the graph gives): its run result in ``OUT/run.json``, a source for ``fit``, ``orders``,
+    ``compare`` and ``residuals`` as the graph's bag is. No identifier runs online (``fit`` does it offline)."""
+    from seapup_runs.runner import run
+    spec = excitation.pop("spec")
+    excitation.pop("arguments")
+    print(f"ident experiment: {excitation['description']}, {args.dynamics} model, {args.duration:g} s, in this "
+          f"process; output in {out}", file=text)
+    result = run(spec, progress=lambda f: progress("experiment", f))
+    out.mkdir(parents=True, exist_ok=True)
+    record = out / RUN_RECORD
+    result.to_json(record)
+    doc = {"record": str(record), "transport": result.transport, **request, **excitation}
+    (out / EXPERIMENT_RECORD).write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"ident experiment: record {record}: {len(result.series.t)} samples, t = 0 .. {args.duration:g} s "
+          f"(the identification data: the {len(result.series.t) - 1} with an input interval); the request in "
+          f"{out / EXPERIMENT_RECORD}", file=text)
+    return doc
 
 
 def _fly_to_end(sil, duration: float) -> None:
@@ -517,28 +546,28 @@ def _recorded_samples(bag) -> dict[str, list[int]]:
 
 
 def _prbs_excitation(args) -> dict:
-    """Open loop (sec. 6.5.1-6.5.4): a PRBS of +-amplitude about the hover setting on each thruster."""
-    from seapup_ident.prbs import prbs
-    from seapup_sim.analysis import hover_blade_pitch
-    from seapup_sim.vehicle import VehicleModel
-    from seapup_sim.vehicle_config import load_vehicle_config
-
-    period = EXPERIMENT_PERIOD
-    samples = experiment_samples(args.duration, period)
-    hover = hover_blade_pitch(VehicleModel(load_vehicle_config(args.vehicle)))
-    signal = prbs(samples, clock=args.clock, amplitude=math.radians(args.amplitude), n_inputs=4, offset=hover)
-    switches = np.flatnonzero(np.r_[True, np.any(np.diff(signal, axis=0) != 0, axis=1)])
-    times = [round(float(k) * period, 6) for k in switches]
-    pitches = [float(v) for k in switches for v in signal[k]]
-    return {"excitation": "prbs", "clock": args.clock, "amplitude_deg": args.amplitude, "switches": len(times),
+    """Open loop (sec. 6.5.1-6.5.4): a PRBS of +-amplitude about the hover setting on each thruster
+    (:func:`seapup_runs.identification_experiment.prbs_schedule`): the run spec, the nodes' arguments and
+    what the record says of it."""
+    from seapup_runs.identification_experiment import experiment_spec, prbs_schedule
+    schedule = prbs_schedule(args.vehicle, args.duration, args.clock, args.amplitude)
+    return {"excitation": "prbs", "clock": args.clock, "amplitude_deg": args.amplitude,
+            "switches": schedule["switches"],
             "description": f"open loop, PRBS +-{args.amplitude:g} deg about hover, clock {args.clock} samples",
-            "arguments": {"times": str(times), "pitches": str(pitches)}}
+            "arguments": {"times": str(schedule["times"]), "pitches": str(schedule["pitches"])},
+            "spec": experiment_spec(**_plant(args), schedule=schedule)}
+
+
+def _plant(args) -> dict:
+    return {"vehicle": args.vehicle, "dynamics": args.dynamics, "seed": args.seed, "current": args.current,
+            "sensors": args.sensors, "duration": args.duration}
 
 
 def _closed_loop_excitation(args, out: Path, text) -> dict:
     """Closed loop (sec. 6.5.5): the fixed-gain self-tested controller following a square wave."""
     import yaml
 
+    from seapup_runs.identification_experiment import experiment_spec, square_wave
     try:
         rows = [[float(v) for v in row.split(",")] for row in args.references.split(";")]
     except ValueError:
@@ -548,6 +577,8 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
                          f"(m/s and deg/s), got {args.references!r}")
     if not (math.isfinite(args.half_period) and args.half_period > 0):
         raise ValueError(f"--half-period must be > 0 s, got {args.half_period}")
+    levels = [row[:3] + [math.radians(row[3])] for row in rows]
+    wave = square_wave(levels, args.half_period, args.duration)   # bounded before the self-test is flown
     controller = Path(args.controller) if args.controller else None
     if controller is None:
         from seapup_runs.self_test_flight import fly_self_test
@@ -561,13 +592,14 @@ def _closed_loop_excitation(args, out: Path, text) -> dict:
         controller.write_text(yaml.safe_dump(result_document(run.test)))
     elif not controller.is_file():
         raise ValueError(f"--controller {controller}: no such file")
-    references = [v for row in rows for v in (*row[:3], math.radians(row[3]))]
+    references = [v for level in levels for v in level]
     return {"excitation": "closed_loop", "controller_file": str(controller), "half_period": args.half_period,
-            "references": [row[:3] + [math.radians(row[3])] for row in rows],
+            "references": levels,
             "description": f"closed loop under the fixed-gain controller, square wave of half-period "
                            f"{args.half_period:g} s between {rows[0]} and {rows[1]} (u, v, w m/s, r deg/s)",
             "arguments": {"controller_file": controller, "times": str([0.0, args.half_period]),
-                          "references": str(references), "period": 2 * args.half_period}}
+                          "references": str(references), "period": 2 * args.half_period},
+            "spec": experiment_spec(**_plant(args), controller_file=str(controller), reference=wave)}
 
 
 def ident_parser() -> argparse.ArgumentParser:
@@ -624,6 +656,9 @@ def ident_parser() -> argparse.ArgumentParser:
     exp_p.add_argument("--out", help="output directory (default bags/ident_<UTC time>)")
     exp_p.add_argument("--method", choices=("ls", "els", "rpem"), default="ls", help="the online identifier's method")
     exp_p.add_argument("--orders", default="2,2,0", help="the online identifier's na,nb,nc (default 2,2,0)")
+    exp_p.add_argument("--in-process", action="store_true",
+                       help="fly the same experiment in this process (the record equals the graph's sample for "
+                            "sample), written as OUT/run.json; no identifier runs online")
     add_json_argument(exp_p)
     return parser
 

@@ -228,15 +228,17 @@ def _ident_command(argv: list) -> dict:
 
 
 def _identification(description: dict, out: Path) -> tuple[dict, list]:
-    """Sec. 6.5: an identification experiment in SIL (``./seapup ident experiment``: 60 s of PRBS on the linearised
-    or nonlinear model, with or without current, or the closed loop) and on its record the order table
-    (Tables 6.1, 6.2, 6.6: V_N, AIC and F per output for n = 1..3) and LS, ELS and RPEM at order 2 over 300 and
-    2000 points (Tables 6.3-6.5, 6.7), with the statements the thesis draws from them."""
-    experiment = ["experiment", "--out", out / "experiment", "--dynamics", description.get("dynamics", "nonlinear")]
+    """Sec. 6.5: an identification experiment (``./seapup ident experiment --in-process``: 60 s of PRBS on the
+    linearised or nonlinear model, with or without current, or the closed loop; flown in this process, its record
+    the graph's sample for sample, tested once per case in ``tests/test_ident_commands.py``) and on its record the
+    order table (Tables 6.1, 6.2, 6.6: V_N, AIC and F per output for n = 1..3) and LS, ELS and RPEM at order 2 over
+    300 and 2000 points (Tables 6.3-6.5, 6.7), with the statements the thesis draws from them."""
+    experiment = ["experiment", "--in-process", "--out", out / "experiment",
+                  "--dynamics", description.get("dynamics", "nonlinear")]
     experiment += ["--current"] if description.get("current") else []
     experiment += ["--closed-loop"] if description.get("closed_loop") else []
-    bag = _ident_command(experiment)["bag"]
-    orders = _ident_command(["orders", bag])
+    record = _ident_command(experiment)["record"]
+    orders = _ident_command(["orders", record])
     names = orders["outputs"]
     result = {"orders": {name: {str(row["order"]): {"loss": row["loss"][i], "aic": row["aic"][i]} for row in orders["rows"]}
                          for i, name in enumerate(names)},
@@ -250,7 +252,7 @@ def _identification(description: dict, out: Path) -> tuple[dict, list]:
     figures = []
     for points in (300, 2000):
         plots = ["--plots", out] if points == 2000 else []  # the data against the adapting and the final model
-        compared = _ident_command(["compare", bag, "--rpem-k0", "0.1", *(["--points", points] if points > 300 else []),
+        compared = _ident_command(["compare", record, "--rpem-k0", "0.1", *(["--points", points] if points > 300 else []),
                                    *plots])
         for path, method in zip(compared.get("plots", []), compared["methods"]):
             figures.append((Path(path).name, f"{method.upper()}(2, 2{', 2' if method != 'ls' else ''}) on the "
@@ -266,7 +268,7 @@ def _identification(description: dict, out: Path) -> tuple[dict, list]:
             entry["rpem_worse_than_els_on_most"] = sum(aic["rpem"][n] > aic["els"][n] for n in names) > len(names) / 2
         result[f"compare_{points}"] = entry
     if not description.get("closed_loop") and not description.get("current"):  # figs 6.2 and 6.4
-        residuals = _ident_command(["residuals", bag, "--points", 2000, "--plots", out])
+        residuals = _ident_command(["residuals", record, "--points", 2000, "--plots", out])
         result["residuals"] = _whiteness(residuals)
         figures += [(Path(path).name, f"correlation functions of the LS(2, 2) residuals, "
                                       f"{description.get('dynamics', 'nonlinear')} record "
