@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from seapup_common.blade_pitch import THRUSTER_NAMES
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, THRUSTER_NAMES
 from seapup_common.controllers import ControllerSpec
 from seapup_runs.spec import ReferenceSteps, RunSpec, RunSpecError
 
@@ -70,15 +70,18 @@ def prbs_schedule(vehicle: str, duration: float, clock: int = 10, amplitude_deg:
     from seapup_sim.vehicle_config import load_vehicle_config
     if not (isinstance(clock, int) and not isinstance(clock, bool) and clock >= 1):
         raise ValueError(f"--clock must be a whole number of samples >= 1, got {clock!r}")
-    if not (isinstance(amplitude_deg, (int, float)) and math.isfinite(amplitude_deg) and 0 < amplitude_deg <= 35):
-        raise ValueError(f"--amplitude must be in (0, 35] deg (the blade-pitch limit, sec. 3.1), got {amplitude_deg}")
+    limit = math.degrees(BLADE_PITCH_LIMIT)
+    if not (isinstance(amplitude_deg, (int, float)) and math.isfinite(amplitude_deg)
+            and 0 < amplitude_deg <= limit + 1e-9):
+        raise ValueError(f"--amplitude must be in (0, {limit:g}] deg (the blade-pitch limit, sec. 3.1), "
+                         f"got {amplitude_deg}")
     samples = experiment_samples(duration)
     hover = hover_of(load_vehicle_config(vehicle))
     signal = prbs(samples, clock=clock, amplitude=math.radians(amplitude_deg), n_inputs=4, offset=hover)
-    if np.any(np.abs(signal) > math.radians(35.0) + 1e-12):
+    if np.any(np.abs(signal) > BLADE_PITCH_LIMIT + 1e-12):
         raise ValueError(f"a PRBS of +-{amplitude_deg:g} deg about {vehicle}'s hover setting "
-                         f"({', '.join(f'{math.degrees(v):.1f}' for v in hover)} deg) leaves the +-35 deg blade-pitch "
-                         "limit (sec. 3.1): lower --amplitude")
+                         f"({', '.join(f'{math.degrees(v):.1f}' for v in hover)} deg) leaves the +-{limit:g} deg "
+                         "blade-pitch limit (sec. 3.1): lower --amplitude")
     switches = np.flatnonzero(np.r_[True, np.any(np.diff(signal, axis=0) != 0, axis=1)])
     return {"times": [round(float(k) * EXPERIMENT_PERIOD, 6) for k in switches],
             "pitches": [float(v) for k in switches for v in signal[k]], "switches": int(len(switches))}
