@@ -102,11 +102,17 @@ def pytest_collection_modifyitems(config, items):
     cluster, a process pool -- but no ROS graph) or ``graph`` (a ROS graph or a build): ``./seapup test -m
     unit`` runs the first kind only, and a unit test that starts a process fails
     (:func:`pytest_runtest_protocol`)."""
+    both = []
     for item in items:
         if item.get_closest_marker("graph") is None and ROS_FIXTURES & set(item.fixturenames):
             item.add_marker(pytest.mark.graph)
         elif not any(item.get_closest_marker(kind) for kind in ("graph", "process", "sweep")):
             item.add_marker(pytest.mark.unit)
+        elif item.get_closest_marker("unit") is not None:   # e.g. a module's pytestmark = unit, the test sweep
+            both.append(item.nodeid)
+    if both:   # -m unit would run it: a test is of one kind
+        raise pytest.UsageError("marked unit and also sweep, process or graph (a test is of one kind; a module's "
+                                "pytestmark = pytest.mark.unit counts): " + ", ".join(both))
     _longest_files_first(items)
 
 

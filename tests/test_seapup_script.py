@@ -206,3 +206,26 @@ def test_a_package_is_rebuilt_when_a_file_changes_is_renamed_or_moves_content(tm
     assert _sha_of_files(tree(tmp_path / "four", renamed), *sorted(renamed)) != one
     moved = {"p/a.py": "x = 1\ny = 2\n", "p/b.py": ""}
     assert _sha_of_files(tree(tmp_path / "five", moved), *sorted(moved)) != one
+
+
+def test_every_installed_module_has_the_byte_code_of_its_installed_source():
+    """The build byte-compiles what colcon installed (setuptools skips it under PYTHONDONTWRITEBYTECODE, which this
+    machine's environment sets): every module of every installed package has a cache file whose header names its
+    source's size and modification time, so an import loads it instead of compiling the source at every start of a
+    node or command (Python checks exactly these two fields, PEP 552's default timestamp mode)."""
+    import importlib.util
+    import struct
+    install = REPO / "ros2_ws" / "install"
+    sources = [p for p in install.glob("*/lib/python*/site-packages/**/*.py") if "__pycache__" not in p.parts]
+    assert len(sources) > 100, len(sources)
+    stale = []
+    for source in sources:
+        cache = Path(importlib.util.cache_from_source(str(source)))
+        if not cache.is_file():
+            stale.append(f"{source.relative_to(install)}: no byte-code")
+            continue
+        flags, mtime, size = struct.unpack("<III", cache.read_bytes()[4:16])
+        stat = source.stat()
+        if flags != 0 or mtime != int(stat.st_mtime) & 0xFFFFFFFF or size != stat.st_size & 0xFFFFFFFF:
+            stale.append(f"{source.relative_to(install)}: byte-code of another source")
+    assert stale == [], stale[:10]

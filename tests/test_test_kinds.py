@@ -80,3 +80,26 @@ def test_a_unit_test_that_starts_a_process_fails_and_a_marked_one_passes(tmp_pat
     assert "PASSED test_inner.py::test_pure" in unit, unit[-3000:]
     marked = _session(tmp_path / "marked", "@pytest.mark.process")
     assert "7 passed" in marked and "failed" not in marked and "error" not in marked, marked[-3000:]
+
+
+@pytest.mark.process
+def test_a_test_of_two_kinds_is_refused_at_collection(tmp_path):
+    """A module's ``pytestmark = pytest.mark.unit`` with one test marked ``sweep`` made that test both, and ``-m
+    unit`` ran it (a 22 s convergence sweep among the unit tests): the session refuses it, naming the test."""
+    shutil.copy(REPO / "conftest.py", tmp_path / "conftest.py")
+    shutil.copy(REPO / "pytest.ini", tmp_path / "pytest.ini")
+    (tmp_path / "pytest.ini").write_text((tmp_path / "pytest.ini").read_text().replace(
+        "testpaths = ros2_ws/src tests", "testpaths = ."))
+    (tmp_path / "test_inner.py").write_text("import pytest\npytestmark = pytest.mark.unit\n\n"
+                                            "@pytest.mark.sweep\ndef test_long():\n    pass\n\n"
+                                            "def test_short():\n    pass\n")
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--co"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)
+    said = run.stdout + run.stderr
+    assert run.returncode != 0 and "marked unit and also sweep" in said and "test_inner.py::test_long" in said, said
+    assert "test_inner.py::test_short" not in said.split("marked unit and also sweep")[1], said
+    (tmp_path / "test_inner.py").write_text("import pytest\n\n@pytest.mark.sweep\ndef test_long():\n    pass\n\n"
+                                            "def test_short():\n    pass\n")
+    unit = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--co", "-m", "unit"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert unit.returncode == 0 and "test_short" in unit.stdout and "test_long" not in unit.stdout, unit.stdout

@@ -63,6 +63,7 @@ def test_a_constant_input_is_refused_with_the_reason():
         fit(data, ArmaxOrders(2, 2, 2, 1, 0), "ls")
 
 
+@pytest.mark.sweep   # order tables of six 1 500-sample records: ~7 s
 def test_order_table_rejects_first_order_and_mostly_picks_the_second():
     picks = []
     for seed in range(6):

@@ -15,7 +15,7 @@ from seapup_ident.armax import ArmaxModel, ArmaxOrders, is_stable, polynomial_ro
 from seapup_ident.order_selection import regressors
 from seapup_ident.recursive import DataError, Forgetting, Jacket, RecursiveArmax, ud_update
 
-pytestmark = pytest.mark.unit
+# unit by default (conftest.py); the long convergence test below is a sweep
 
 
 def mimo_arx(seed=0, n=400):
@@ -138,6 +138,7 @@ def test_rpem_filter_weakening_contracts_the_gradient_filter_at_first():
         RecursiveArmax(LJUNG.orders, "els", filter_weakening=(0.1, 0.98))
 
 
+@pytest.mark.sweep   # RPEM over a 15 000-sample record: ~8 s
 def test_rpem_keeps_c_inside_the_stability_region():
     """A noise model with roots at |z| = 0.95 and a large P(0): unprojected steps leave the region."""
     model = ArmaxModel(LJUNG.orders, LJUNG.A, LJUNG.B, np.array([[[-1.8]], [[0.9025]]]), np.zeros(1))

@@ -313,6 +313,7 @@ def baseline_results():
     return verify(VehicleModel(load_vehicle_config("baseline")))[0]
 
 
+@pytest.mark.sweep   # every trial and analysis of ch. 3 on the baseline (./seapup verify): ~9 s, a sweep
 def test_every_primary_target_of_the_baseline_is_reproduced(baseline_results):
     rows = tg.verify_rows(baseline_results, "baseline")
     failed = [(r["label"], r["value"], r["thesis"]) for r in rows if r["primary"] and not r["pass"]]

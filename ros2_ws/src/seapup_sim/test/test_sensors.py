@@ -27,6 +27,7 @@ def test_profiles_carry_the_thesis_numbers():
         load_sensor_profile("sonar-x")
 
 
+@pytest.mark.sweep   # 20 000 samples of every instrument per profile: ~4 s each
 @pytest.mark.parametrize("name", ["baseline", "haslar"])
 def test_long_run_noise_statistics(name):
     profile = load_sensor_profile(name)
@@ -47,6 +48,7 @@ def test_long_run_noise_statistics(name):
         assert np.all(np.abs(rho) < 4 / math.sqrt(n))
 
 
+@pytest.mark.sweep   # 20 000 samples (4 000 s at 5 Hz): ~3.5 s
 def test_acoustic_fix_rate_and_dropouts():
     profile = load_sensor_profile("baseline")  # 1 Hz, 10 % dropouts
     suite = SensorSuite(profile, RandomStreams(1))
