@@ -18,29 +18,6 @@ def sil_graph(controller_file, tmp_path, **arguments):
                     out_dir=tmp_path)
 
 
-def test_hover_holds_station_in_the_stochastic_current(controller_file, tmp_path):  # noqa: F811
-    """The thesis's 0.26 m/s Gauss-Markov current (sec. 3.9), acoustic fixes 0.5 m at 1 Hz with dropouts."""
-    with sil_graph(controller_file, tmp_path, current=True, seed=3) as sil:
-        sil.run_for(20.0)  # the current builds up against the velocity loop first
-        result = sil.goal("hover", hold_current=True, duration=120.0)
-        logs = sil.logs()
-    assert result["status"] == "succeeded", result
-    t, truth = logs["truth_t"], logs["truth_position"]
-    held = logs["setpoint"][-1, :3]
-    window = t >= t[-1] - 120.0
-    horizontal = np.hypot(*(truth[window, :2] - held[:2]).T)
-    rms = float(np.sqrt(np.mean(horizontal ** 2)))
-    print(f"hover in current: horizontal rms {rms:.3f} m, max {horizontal.max():.3f} m; "
-          f"estimate's own rms {result['horizontal_rms']:.3f} m")
-    assert rms <= 0.5
-    assert abs(truth[window, 2] - held[2]).max() < 0.5
-    # navigation error against truth at the estimate's stamps
-    est_t, est = logs["estimate_t"], logs["estimate_position"]
-    index = np.searchsorted(t, est_t).clip(0, len(t) - 1)
-    error = np.hypot(*(est[:, :2] - truth[index, :2]).T)[est_t >= t[-1] - 120.0]
-    assert np.sqrt(np.mean(error ** 2)) < 0.3
-
-
 def _step_sizes(logs, t0, t1):
     t, c = logs["command_t"], logs["command"]
     keep = (t >= t0) & (t <= t1)

@@ -21,6 +21,7 @@ import yaml
 
 from seapup_runs.mission import MissionSpec
 from seapup_runs.mission_flight import MissionFlightError, next_boundary, run_mission
+from tests.test_sil_example import controller_file  # noqa: F401 - the session's self-test result
 
 MISSION = """
 graph: {mode: lockstep, initial_controller: "", seed: 3, start_depth: 50.0, sensors: baseline, current: false,
@@ -177,3 +178,28 @@ def test_seapup_fly_refuses_a_mission_it_cannot_fly_in_one_line(tmp_path, capsys
 def test_a_mission_longer_than_its_bound_stops_with_the_reason_before_its_logs_grow(spec, hierarchy):
     with pytest.raises(MissionFlightError, match=r"flown 60 s simulated, the most one may \(60 s\): stopped"):
         run_mission(spec, hierarchy, max_seconds=60.0)   # the self-test alone takes longer
+
+
+@pytest.mark.graph
+def test_a_mission_that_starts_from_a_design_file_flies_alike_in_the_current(controller_file, tmp_path):  # noqa: F811
+    """A mission whose graph gives the controllers a design file and the manager an initial controller (no
+    self-test leg) flies that controller from the first sample on the graph -- and in process, where it once flew
+    no controller at all and drifted 34 m in the current while its hovers "succeeded": the same legs and commands
+    both ways. Its station keeping is tests/test_hierarchy_cores.py's (in process)."""
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.mission_graph import fly_mission
+    document = {"graph": {"current": True, "seed": 3, "initial_controller": "mfol_fixed",
+                          "controller_file": str(controller_file)},
+                "mission": [{"name": "current builds up", "kind": "hover", "expected": 10,
+                             "goal": {"hold_current": True, "duration": 10.0}},
+                            {"name": "hold", "kind": "hover", "expected": 20, "goal": {"hold_current": True,
+                                                                                      "duration": 20.0}}]}
+    spec = MissionSpec.load(document)
+    flown = run_mission(spec, hierarchy_config(spec.graph))
+    assert flown["logs"]["command_t"][0] == 0.0 and len(flown["logs"]["command_t"]) >= 150   # from the start
+    assert flown["legs"][-1]["hold_rms"] < 0.5   # held (without a controller: metres)
+    on_graph = fly_mission(tmp_path / "graph", {"graph": dict(spec.graph), **spec.to_dict()}, io.StringIO())
+    assert on_graph["stopped"] is None
+    _compare_legs(on_graph["legs"], flown["legs"])
+    assert np.array_equal(np.round(on_graph["logs"]["command_t"], 6), np.round(flown["logs"]["command_t"], 6))
+    assert np.abs(on_graph["logs"]["command"] - flown["logs"]["command"]).max() <= COMMAND_TOLERANCE

@@ -53,7 +53,7 @@ import numpy as np
 from seapup_common import frames
 from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate,
                                      StampedReferences)
-from seapup_common.controllers import ControllerSpec, controller_type, create_controller
+from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
 
 __all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig",
@@ -98,6 +98,12 @@ class HierarchyConfig:
         The ``ros__parameters`` of each node.
     velocity_controllers : dict
         Name -> (registered type, the law's parameters, sample period [s] or None: the design's).
+    designs : dict, optional
+        Name -> the design file (a self-test result) a velocity controller node is given (its
+        ``controller_file``); none: configured only by a mission's self-test.
+    initial : str, optional
+        The controller manager's ``initial``: with it, every controller that has a design is configured
+        from it at the start and this one is active from the first sample (as the manager does on the graph).
     """
 
     simulator: dict
@@ -105,6 +111,8 @@ class HierarchyConfig:
     task_controller: dict
     position_controller: dict
     velocity_controllers: dict
+    designs: dict = dataclasses.field(default_factory=dict)
+    initial: str = ""
 
     @staticmethod
     def controller(given: dict) -> tuple:
@@ -207,6 +215,16 @@ class MissionFlight:
         self.configured: dict = {}
         self.active: str | None = None
         self.starting = False          # the active law starts (bumpless) at the next sample it answers
+        if hierarchy.initial:          # the manager's initial controller: every one with a design configured first
+            for name, (kind, parameters, period) in self.laws.items():
+                if hierarchy.designs.get(name):
+                    try:
+                        self.configured[name] = create_controller(
+                            ControllerSpec(kind, parameters, file=str(hierarchy.designs[name])), period)
+                    except ControllerRegistryError as exc:
+                        raise MissionFlightError(f"velocity controller {name}: {exc}") from None
+            if hierarchy.initial in self.configured:
+                self.active, self.starting = hierarchy.initial, True
         self.self_test = None          # a SelfTest while one runs
         self.estimate: NavigationEstimate | None = None
         self.task = None

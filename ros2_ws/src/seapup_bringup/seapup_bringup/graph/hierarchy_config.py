@@ -62,6 +62,11 @@ def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> Hierar
     velocity_defaults = _defaults("seapup_control", "velocity_controller.yaml", "velocity_controller")
     controllers = {n.name: HierarchyConfig.controller({**velocity_defaults, **n.given_parameters()})
                    for n in by_exec.get("velocity_controller", [])}
+    # what the nodes are given to configure from, and the manager's initial controller (activated at the start)
+    designs = {n.name: str(n.given_parameters()["controller_file"]) for n in by_exec.get("velocity_controller", [])
+               if str(n.given_parameters().get("controller_file", "") or "")}
+    managers = by_exec.get("controller_manager", [])
+    initial = str(managers[0].given_parameters().get("initial", "") or "") if managers else ""
     return HierarchyConfig(simulator, node("navigator", "navigator.yaml"),
                            node("task_controller", "task_controller.yaml"),
-                           node("position_controller", "position_controller.yaml"), controllers)
+                           node("position_controller", "position_controller.yaml"), controllers, designs, initial)
