@@ -5,7 +5,7 @@
 - ``loss``: V_N = (1/N) sum e(t)^2 per output (eq. 6.11);
 - ``aic``: AIC = N (log 2 pi + 1 + log R_v) + 2 v per output (eq. 6.21);
 - ``f_test``: F_{n->m} = (V_n - V_m) / V_m (N - m) / (m - n), compared with the F(m - n, N - m)
-  quantile at risk alpha (eq. 6.18, ``scipy.stats.f``);
+  quantile at risk alpha (eq. 6.18, ``scipy.stats.f.ppf`` as scipy.stats computes it: ``scipy.special.fdtri``);
 - ``residual_autocorrelation``: the normalised autocorrelation of the residuals with its 95 %
   band +-1.96 / sqrt(N) ("ninety-five percent ... should fall within 2 sigma limits", fig. 6.2).
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy import stats
+from scipy import special
 
 from seapup_ident.armax import ArmaxOrders, Regressor
 
@@ -84,7 +84,7 @@ def f_test(loss_small, loss_large, n_small: int, n_large: int, n_samples: int, a
         raise ValueError(f"the F-test's risk alpha must be in (0, 1), got {alpha}")
     v_n, v_m = np.asarray(loss_small, float), np.asarray(loss_large, float)
     statistic = (v_n - v_m) / v_m * (n_samples - n_large) / (n_large - n_small)
-    threshold = float(stats.f.ppf(1.0 - alpha, n_large - n_small, n_samples - n_large))
+    threshold = float(special.fdtri(n_large - n_small, n_samples - n_large, 1.0 - alpha))
     return FTest(statistic, threshold, statistic > threshold)
 
 

@@ -75,3 +75,25 @@ def test_prbs_levels_clock_and_decorrelated_inputs():
     assert abs(bits[:, 0].sum()) == 1                           # 64 of one level, 63 of the other
     correlation = bits.T @ bits / len(bits)
     assert np.abs(correlation - np.eye(4)).max() <= 1 / 127 + 1e-12   # m-sequence: -1/N off the peak
+
+
+def test_the_f_quantile_and_the_ljung_box_tail_are_scipy_stats_own():
+    """eq. 6.18's F quantile and the Ljung-Box chi-square tail come from scipy.special (scipy.stats' own
+    functions, without its import): equal to scipy.stats.f.ppf and chi2.sf bit for bit over the tables' sizes."""
+    import scipy.stats
+    from seapup_ident.identify import residual_whiteness
+    from seapup_ident.order_selection import f_test
+    for d1 in (1, 2, 6, 12, 24):
+        for d2 in (50, 288, 1488, 20000):
+            for alpha in (0.01, 0.05, 0.1):
+                n_small, n_samples = 10, 10 + d1 + d2
+                threshold = f_test(np.ones(1), np.full(1, 0.5), n_small, n_small + d1, n_samples, alpha).threshold
+                assert threshold == scipy.stats.f.ppf(1 - alpha, d1, d2), (d1, d2, alpha)
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location("identify_records", Path(__file__).parent / "test_identify.py")
+    records = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(records)          # its known two-output system and records of it
+    for seed, lags in ((0, 5), (1, 20)):
+        table = residual_whiteness(records.TRUE, records.record(n=400, seed=seed), lags)
+        assert table["p_value"] == scipy.stats.chi2.sf(table["ljung_box_q"], lags).tolist()
