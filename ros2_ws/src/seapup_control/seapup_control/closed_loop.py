@@ -22,13 +22,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 
 __all__ = ["ClosedLoop", "discretise", "closed_loop", "closed_loop_discrete"]
 
 
 def discretise(a, b, sample_period: float) -> tuple[np.ndarray, np.ndarray]:
-    """(Φ, Δ) of eq. 5.8: the plant behind a zero-order hold, sampled every T_s."""
+    """(Φ, Δ) of eq. 5.8: the plant behind a zero-order hold, sampled every T_s. (``scipy.signal`` is imported
+    here, not with the module: it costs about 1 s of CPU, paid before by every command that imports this one,
+    ``./seapup selftest --help`` included.)"""
+    import scipy.signal
     a, b = np.asarray(a, float), np.asarray(b, float)
     n, m = b.shape
     phi, delta, *_ = scipy.signal.cont2discrete((a, b, np.eye(n), np.zeros((n, m))), sample_period, method="zoh")
