@@ -318,6 +318,7 @@ def test_an_in_process_experiment_is_a_source_for_every_fit_and_says_its_scope(t
     doc = json.loads((tmp_path / "exp.json").read_text())
     assert json.loads((tmp_path / "exp" / "experiment.json").read_text()) == doc
     assert doc["samples"] == 101 and doc["excitation"] == "prbs" and doc["switches"] >= 2
+    assert "method" not in doc and "identifier_bag" not in doc   # no identifier runs online in process
     orders = ident(env, "orders", doc["record"], "--max-order", 2, "--duration", 10, "--json", tmp_path / "o.json")
     assert orders.returncode == 0, orders.stdout + orders.stderr
     table = json.loads((tmp_path / "o.json").read_text())

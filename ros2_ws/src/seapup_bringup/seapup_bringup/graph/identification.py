@@ -510,7 +510,9 @@ def _experiment_in_process(args, out: Path, excitation: dict, request: dict, tex
     out.mkdir(parents=True, exist_ok=True)
     record = out / RUN_RECORD
     result.to_json(record)
-    doc = {"record": str(record), "transport": result.transport, **request, **excitation}
+    online = ("method", "orders")   # the online identifier's settings: none runs in process
+    doc = {"record": str(record), "transport": result.transport,
+           **{k: v for k, v in request.items() if k not in online}, **excitation}
     (out / EXPERIMENT_RECORD).write_text(json.dumps(doc, indent=1) + "\n")
     print(f"ident experiment: record {record}: {len(result.series.t)} samples, t = 0 .. {args.duration:g} s "
           f"(the identification data: the {len(result.series.t) - 1} with an input interval); the request in "
