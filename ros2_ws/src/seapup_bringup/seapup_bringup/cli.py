@@ -157,8 +157,9 @@ def _open_loop(argv: list[str]) -> int:
     return open_loop(argv)
 
 
-@command("ident", "system identification (ch. 6): experiment in SIL, fit / orders / compare / residuals from a "
-         "bag or CSV", "seapup_bringup.verbs.ident_commands:ident_parser", doc="identification.md")
+@command("ident", "system identification (ch. 6): experiment in SIL or in process, fit / orders / compare / "
+         "residuals from a bag, a run result or CSV", "seapup_bringup.verbs.ident_commands:ident_parser",
+         doc="identification.md")
 def _ident(argv: list[str]) -> int:
     from seapup_bringup.verbs.ident_commands import main as ident
     return ident(argv)
