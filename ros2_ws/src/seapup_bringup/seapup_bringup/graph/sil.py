@@ -231,10 +231,12 @@ class SilGraph:
         """Latest simulated time heard [s] (from the truth)."""
         return self.probe.t
 
-    def estimate(self) -> tuple[float, np.ndarray, np.ndarray]:
-        """The latest navigation estimate: time [s], position (x, y, z odom_ned) [m], attitude (phi, theta, psi)."""
+    def estimate(self, wait: float = 10.0) -> tuple[float, np.ndarray, np.ndarray]:
+        """The estimate of the sample the graph is at (``t``; at t_0 it may still be on its way: waited for up to
+        ``wait`` wall s, else the latest): time [s], position (x, y, z odom_ned) [m], attitude (phi, theta, psi)."""
+        self.spin_until(lambda: (e := self.probe.estimate()) is not None and e[0] >= self.t - 1e-9, wait)
         if (found := self.probe.estimate()) is None:
-            raise SilError("no navigation estimate heard yet")
+            raise SilError(f"no navigation estimate heard within {wait:g} s (is the navigator running?)")
         return found
 
     def logs(self) -> dict[str, np.ndarray]:
