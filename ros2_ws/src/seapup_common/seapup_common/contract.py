@@ -29,7 +29,7 @@ import numpy as np
 from seapup_common.blade_pitch import InvalidBladePitchError
 
 __all__ = ["ContractError", "Reading", "Measurement", "Reference", "StampedReferences", "Command", "VelocityController",
-           "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate", "MAX_AGE", "LatestReadings"]
+           "HoldCommand", "MEASUREMENT_FIELDS", "NavigationEstimate", "MAX_AGE", "LatestReadings", "CheckedVariances"]
 
 #: Measurement fields, their sizes (0 = scalar) and meanings.
 MEASUREMENT_FIELDS = {
@@ -64,6 +64,28 @@ def _finite_array(value, size: int, what: str) -> np.ndarray | float:
         raise ContractError(f"{what} must be finite, got {arr.tolist()}")
     arr.setflags(write=False)
     return arr
+
+
+class CheckedVariances(dict):
+    """Every measurement field's variance checked as :meth:`Measurement.build` checks them (a read-only array
+    of the field's size, or a float; 0 where not given): a sensor suite checks its profile's once, and
+    ``build`` takes them as they are. Make one with :meth:`of`."""
+
+    @classmethod
+    def of(cls, variances: dict) -> "CheckedVariances":
+        """``variances`` (field -> value) checked.
+
+        Raises
+        ------
+        ContractError
+            On an unknown field, a wrong shape or a non-finite value.
+        """
+        unknown = set(variances) - set(MEASUREMENT_FIELDS)
+        if unknown:
+            raise ContractError(f"unknown measurement field(s) {sorted(unknown)}; "
+                                f"known: {', '.join(MEASUREMENT_FIELDS)}")
+        return cls({name: _finite_array(variances.get(name, 0.0 if size == 0 else np.zeros(size)), size,
+                                        f"{name} variance") for name, (size, _) in MEASUREMENT_FIELDS.items()})
 
 
 @dataclass(frozen=True)
@@ -138,9 +160,11 @@ class Measurement:
             if value is None:
                 readings[name] = Reading()
                 continue
-            var = variances.get(name, 0.0 if size == 0 else np.zeros(size))
-            readings[name] = Reading(_finite_array(value, size, name), float(stamps.get(name, t)),
-                                     _finite_array(var, size, f"{name} variance"))
+            if isinstance(variances, CheckedVariances):
+                var = variances[name]
+            else:
+                var = _finite_array(variances.get(name, 0.0 if size == 0 else np.zeros(size)), size, f"{name} variance")
+            readings[name] = Reading(_finite_array(value, size, name), float(stamps.get(name, t)), var)
         return cls(t, **readings)
 
     def body_velocity(self) -> np.ndarray:

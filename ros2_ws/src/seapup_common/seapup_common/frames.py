@@ -49,7 +49,8 @@ def quaternion_to_euler(q) -> np.ndarray:
 
     At pitch +-90 deg (gimbal lock) the roll is taken as 0 and the yaw carries the rotation about the vertical.
     """
-    x, y, z, w = np.asarray(q, float) / np.linalg.norm(q)
+    q = np.asarray(q, float)
+    x, y, z, w = (q / math.sqrt(q.dot(q))).tolist()   # np.linalg.norm's sqrt(q . q), without its overhead
     sin_theta = 2.0 * (w * y - x * z)
     if abs(sin_theta) >= 1.0 - 1e-12:
         theta = math.copysign(0.5 * math.pi, sin_theta)
@@ -73,8 +74,10 @@ def _product(a, b) -> np.ndarray:
 
 def _canonical(q) -> np.ndarray:
     """The unit quaternion with w >= 0 (q and -q are the same rotation)."""
-    q = np.asarray(q, float) / np.linalg.norm(q)
-    return -q if q[3] < 0.0 or (q[3] == 0.0 and q[np.flatnonzero(q)[0]] < 0.0) else q
+    q = np.asarray(q, float)
+    q = q / math.sqrt(q.dot(q))   # np.linalg.norm's sqrt(q . q), without its overhead
+    w = float(q[3])
+    return -q if w < 0.0 or (w == 0.0 and q[np.flatnonzero(q)[0]] < 0.0) else q
 
 
 #: NED_TO_ENU (a half turn about the horizontal axis between north and east) and FRD_TO_FLU (a half turn about
@@ -134,6 +137,9 @@ def wrap_angle(angle):
     >>> float(wrap_angle(3 * math.pi / 2))
     -1.5707963267948966
     """
+    if isinstance(angle, float):   # Python's float % is numpy's mod (fmod, then the divisor's sign): the same bits
+        wrapped = (float(angle) + math.pi) % (2 * math.pi) - math.pi
+        return math.pi if wrapped == -math.pi else wrapped
     wrapped = np.mod(np.asarray(angle, dtype=float) + math.pi, 2 * math.pi) - math.pi
     wrapped = np.where(wrapped == -math.pi, math.pi, wrapped)
     return float(wrapped) if np.ndim(wrapped) == 0 else wrapped

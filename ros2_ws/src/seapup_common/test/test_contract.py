@@ -70,3 +70,19 @@ def test_reference_schedule_applies_each_reference_at_its_time():
     with pytest.raises(ContractError, match="finite"):
         schedule.add(Reference(), at=float("nan"))
     assert schedule.waiting == 0
+
+
+def test_variances_checked_once_give_the_readings_build_would():
+    from seapup_common.contract import CheckedVariances
+    given = {"velocity": [1e-4, 2e-4, 3e-4], "depth": 0.0025, "position": [0.25, 0.25, 0.5]}
+    checked = CheckedVariances.of(given)
+    values = {"velocity": [0.1, 0.0, 0.0], "rates": [0, 0, 0.01], "depth": 3.0, "position": [1.0, 2.0, 3.0]}
+    a, b = Measurement.build(1.0, variances=given, **values), Measurement.build(1.0, variances=checked, **values)
+    for name in ("velocity", "rates", "depth", "position", "altitude"):
+        np.testing.assert_array_equal(getattr(a, name).variance, getattr(b, name).variance)
+    assert b.rates.variance.tolist() == [0.0, 0.0, 0.0] and b.altitude.variance == 0.0
+    with pytest.raises(ValueError):
+        checked["velocity"][0] = 1.0   # shared by every measurement: read-only
+    for bad in ({"depth": math.nan}, {"velocity": [1e-4, 2e-4]}, {"heading": 1.0}, {"position": [0, -math.inf, 0]}):
+        with pytest.raises(ContractError):
+            CheckedVariances.of(bad)

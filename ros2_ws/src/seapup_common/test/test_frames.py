@@ -82,3 +82,19 @@ def test_covariance_transform():
     assert pose[0, 1] == 0.5
     twist = covariance6_to_enu_flu(cov.ravel(), world_first=False)
     assert twist[0, 1] == -0.5 and np.allclose(np.diag(twist), np.diag(cov))
+
+
+def test_wrap_angle_of_a_number_is_the_array_rule_bit_for_bit():
+    """The scalar path (Python's float %) gives numpy's mod exactly, the edges and non-finite values included."""
+    from seapup_common.frames import wrap_angle
+    rng = np.random.default_rng(7)
+    angles = [*rng.uniform(-50.0, 50.0, 5000), *(k * math.pi for k in range(-9, 10)), 0.0, -0.0, 1e-300,
+              math.nextafter(math.pi, 0.0), math.nextafter(-math.pi, 0.0), 1e17, -1e17]
+    by_array = wrap_angle(np.array(angles))
+    for angle, expected in zip(angles, by_array):
+        got = wrap_angle(angle)
+        assert type(got) is float and (got == expected and math.copysign(1, got) == math.copysign(1, expected)), angle
+        assert wrap_angle(np.float64(angle)) == got
+    assert wrap_angle(-math.pi) == math.pi and wrap_angle(math.pi) == math.pi
+    for bad in (math.nan, math.inf, -math.inf):
+        assert math.isnan(wrap_angle(bad))

@@ -182,8 +182,27 @@ class Navigator:
         self.P = 0.5 * (self.P + self.P.T)
         return True
 
+    def _fuse_component(self, index: int, y: float, variance: float, gate: float) -> bool:
+        """:meth:`_fuse` of one position component measured (H the unit row ``index``, S a scalar): the same
+        arithmetic as the matrix form (the innovation test y S^-1 y, K = P H^T S^-1, the Joseph update),
+        without its solves (LAPACK's solve of one equation divides, and multiplies several right-hand sides
+        by 1 / S)."""
+        innovation = y - float(self.x[index])
+        s = float(self.P[index, index]) + variance
+        if innovation * (innovation / s) > gate:
+            return False
+        K = (self.P[index] * (1.0 / s)).reshape(3, 1)
+        I_KH = np.eye(3)
+        I_KH[:, index] -= K[:, 0]
+        self.x = self.x + K[:, 0] * innovation
+        self.P = I_KH @ self.P @ I_KH.T + K @ np.array([[variance]]) @ K.T
+        self.P = 0.5 * (self.P + self.P.T)
+        return True
+
     def _variance(self, reading, default_std) -> np.ndarray:
         var = np.atleast_1d(np.asarray(reading.variance, dtype=float))
+        if (var > 0).all():   # every component stated (the usual case): the reading's own
+            return var.copy()
         default = np.broadcast_to(np.asarray(default_std, dtype=float) ** 2, var.shape)
         return np.where(var > 0, var, default)
 
@@ -207,7 +226,8 @@ class Navigator:
         if measurement.attitude.valid:
             self.attitude = np.array(measurement.attitude.value, dtype=float)
         self._velocity_lost = not measurement.velocity.valid
-        if not self._velocity_lost and not np.linalg.norm(measurement.velocity.value) <= self.params.max_speed:
+        velocity = measurement.velocity.value
+        if not self._velocity_lost and not math.sqrt(velocity.dot(velocity)) <= self.params.max_speed:
             self._velocity_lost = True  # a fault, not a velocity: coast on the last good one
             self.counts["velocities_rejected"] += 1
         if not self._velocity_lost:
@@ -258,8 +278,8 @@ class Navigator:
         self._last_depth_stamp = depth.stamp
         variance = self._variance(depth, self.params.depth_std)
         lo, hi = self.params.depth_range
-        if lo <= float(depth.value) <= hi and self._fuse(np.array([[0.0, 0.0, 1.0]]), np.array([float(depth.value)]),
-                                                         np.diag(variance), self.chi2_gate_depth):
+        if lo <= float(depth.value) <= hi and self._fuse_component(2, float(depth.value), float(variance[0]),
+                                                                   self.chi2_gate_depth):
             self.counts["depths_fused"] += 1
         else:
             self.counts["depths_rejected"] += 1

@@ -99,7 +99,7 @@ class PoseReference:
 
     def __post_init__(self):
         position = np.array(self.position, dtype=float)
-        if position.shape != (3,) or not np.all(np.isfinite(position)):
+        if position.shape != (3,) or not all(map(math.isfinite, position.tolist())):
             raise ContractError(f"pose reference position needs 3 finite values, got {self.position!r}")
         if not math.isfinite(float(self.yaw)) or not math.isfinite(float(self.t)):
             raise ContractError(f"pose reference yaw and time must be finite, got {self.yaw!r}, {self.t!r}")
@@ -155,8 +155,8 @@ class PositionController:
         """
         position = np.asarray(position, dtype=float)
         attitude = np.asarray(attitude, dtype=float)
-        if position.shape != (3,) or attitude.shape != (3,) or not (np.all(np.isfinite(position))
-                                                                    and np.all(np.isfinite(attitude))):
+        if position.shape != (3,) or attitude.shape != (3,) or not all(map(math.isfinite,
+                                                                           [*position.tolist(), *attitude.tolist()])):
             raise ContractError(f"position controller needs a finite position (3) and attitude (3), got "
                                 f"{position.tolist()}, {attitude.tolist()}")
         p = self.params
@@ -168,9 +168,9 @@ class PositionController:
             v = np.asarray(p.gains) * e_body + R.T @ self._feedforward[:3]
             limits = np.asarray(p.speed_limits)
             v[:2] /= max(1.0, float(np.max(np.abs(v[:2]) / limits[:2])))
-            v[2] = np.clip(v[2], -limits[2], limits[2])
+            v[2] = min(max(v[2], -limits[2]), limits[2])   # np.clip of a finite number
             r = p.yaw_gain * wrap_angle(self.reference.yaw - attitude[2]) + self._feedforward[3]
-            wanted = np.array([*v, float(np.clip(r, -p.max_yaw_rate, p.max_yaw_rate))])
+            wanted = np.array([*v, float(min(max(r, -p.max_yaw_rate), p.max_yaw_rate))])
         step = np.asarray(p.acceleration_limits) * self.sample_period
         out = self.last + np.clip(wanted - self.last, -step, step)
         self.limited = np.abs(wanted - out) > 1e-12

@@ -117,3 +117,32 @@ def test_the_gates_chi_square_quantile_is_scipy_stats_own():
         for p in (1e-6, 0.05, 0.5, 0.9, 0.95, 0.99, 0.997, 0.999, 0.9999, 1 - 1e-9):
             assert chi2_quantile(p, dof) == float(stats.chi2.ppf(p, dof)), (p, dof)
     assert abs(chi2_quantile(0.95, 3) - 7.814727903251178) < 1e-12   # the textbook table's 7.815
+
+
+def test_a_depth_is_fused_as_the_matrix_kalman_update_would_fuse_it():
+    """The scalar depth update against the textbook matrix form (H = [0 0 1], K = P H^T S^-1, Joseph form),
+    on a correlated covariance; a depth the gate refuses changes nothing."""
+    nav = Navigator(NavigatorParams(gate_probability=0.999))
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(3, 3))
+    outcomes = set()
+    for k in range(60):
+        nav.x, nav.P = rng.normal(size=3) + [0, 0, 30], A @ A.T + 0.1 * np.eye(3)
+        x0, P0, r = nav.x.copy(), nav.P.copy(), 0.01 * rng.uniform(0.5, 2.0)
+        y = 30.0 + rng.normal() * (1.0 if k % 2 else 30.0)   # every other depth far off: refused
+        H, R = np.array([[0.0, 0.0, 1.0]]), np.array([[r]])
+        S = H @ P0 @ H.T + R
+        innovation = np.array([y]) - H @ x0
+        fused = nav._fuse_component(2, y, r, nav.chi2_gate_depth)
+        outcomes.add(fused)
+        assert fused == (float(innovation @ np.linalg.solve(S, innovation)) <= nav.chi2_gate_depth)
+        if not fused:
+            np.testing.assert_array_equal(nav.x, x0)
+            np.testing.assert_array_equal(nav.P, P0)
+            continue
+        K = P0 @ H.T @ np.linalg.inv(S)
+        I_KH = np.eye(3) - K @ H
+        np.testing.assert_allclose(nav.x, x0 + K @ innovation, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(nav.P, I_KH @ P0 @ I_KH.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
+        np.testing.assert_array_equal(nav.P, nav.P.T)
+    assert outcomes == {True, False}

@@ -51,7 +51,7 @@ from typing import Callable
 import numpy as np
 
 from seapup_common import frames
-from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate,
+from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate, Reading,
                                      StampedReferences)
 from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
 from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
@@ -126,7 +126,7 @@ class HierarchyConfig:
 def _via_quaternion(attitude) -> np.ndarray:
     """Euler angles as a message carries them: to a quaternion and back (an IMU's normalised on receipt)."""
     q = frames.euler_to_quaternion(*attitude)
-    return frames.quaternion_to_euler(q / np.linalg.norm(q))
+    return frames.quaternion_to_euler(q / math.sqrt(q.dot(q)))   # np.linalg.norm's sqrt(q . q)
 
 
 class _Collector(LatestReadings):
@@ -142,7 +142,7 @@ class _Collector(LatestReadings):
             reading = getattr(measurement, name)
             if reading.valid:
                 value = _via_quaternion(reading.value) if name == "attitude" else reading.value
-                self.keep(name, dataclasses.replace(reading, value=value, stamp=t))
+                self.keep(name, Reading(value, t, reading.variance))
 
 
 @dataclasses.dataclass

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.config import parsed_yaml
-from seapup_common.contract import Measurement
+from seapup_common.contract import CheckedVariances, Measurement
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
@@ -152,11 +152,24 @@ class SensorSuite:
         self._sd_velocity = None
         self._sd_bias = np.zeros(3)
         self._last_t = None
+        self._profile_arrays = (None, None, None)
 
-    def _noise(self, instrument: str, std) -> np.ndarray:
-        std = np.asarray(std, float)
-        if not np.any(std > 0):
-            return np.zeros(std.shape)
+    def _checked(self) -> tuple:
+        """(profile, its variances checked for the readings, instrument -> its noise std as an array or None
+        when every component is noise-free): worked out once per profile (it may be replaced)."""
+        p = self.profile
+        if self._profile_arrays[0] is not p:
+            stds = {"velocity": p.velocity_std, "rates": p.rate_std, "attitude": p.attitude_std,
+                    "depth": [p.depth_std], "altitude": [p.altitude_std], "position": [p.position_std] * 3}
+            stds = {name: np.asarray(std, float) for name, std in stds.items()}
+            self._profile_arrays = (p, CheckedVariances.of(p.variances()),
+                                    {name: std if (std > 0).any() else None for name, std in stds.items()})
+        return self._profile_arrays
+
+    def _noise(self, instrument: str, size: int) -> np.ndarray:
+        std = self._checked()[2][instrument]
+        if std is None:   # noise-free: no draw
+            return np.zeros(size)
         return std * self.rng[instrument].standard_normal(std.shape)
 
     def _strapdown_velocity(self, t: float, state: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
@@ -188,7 +201,7 @@ class SensorSuite:
         if vertical <= 0 or tilt <= 0:
             return None  # seabed above the vehicle, or the beam pointing up
         # slant range along body z over a locally flat bottom; beyond max_range: no echo
-        reading = vertical / tilt + self._noise("altitude", [p.altitude_std])[0]
+        reading = vertical / tilt + self._noise("altitude", 1)[0]
         return float(reading) if p.altimeter_min_range <= reading <= p.altimeter_max_range else None
 
     def measure(self, t: float, state: np.ndarray, specific_force=None) -> Measurement:
@@ -205,14 +218,14 @@ class SensorSuite:
             values["velocity"] = self._strapdown_velocity(t, state, np.asarray(specific_force, float))
         else:
             self._sd_velocity = self._last_t = None  # re-aligned if strapdown is switched on later
-            values["velocity"] = state[6:9] + self._noise("velocity", p.velocity_std)
-        values["rates"] = state[9:12] + self._noise("rates", p.rate_std)
-        att = state[3:6] + self._noise("attitude", p.attitude_std)
+            values["velocity"] = state[6:9] + self._noise("velocity", 3)
+        values["rates"] = state[9:12] + self._noise("rates", 3)
+        att = state[3:6] + self._noise("attitude", 3)
         values["attitude"] = np.array([_wrap(att[0]), att[1], _wrap(att[2])])
-        values["depth"] = float(state[2] + self._noise("depth", [p.depth_std])[0])
+        values["depth"] = float(state[2] + self._noise("depth", 1)[0])
         values["altitude"] = self._altitude(state)
         if t + 1e-9 >= self._next_fix:
             self._next_fix = t + 1.0 / p.position_rate_hz
             if self.rng["position_dropout"].random() >= p.position_dropout:
-                values["position"] = state[:3] + self._noise("position", [p.position_std] * 3)
-        return Measurement.build(t, variances=p.variances(), **values)
+                values["position"] = state[:3] + self._noise("position", 3)
+        return Measurement.build(t, variances=self._checked()[1], **values)

@@ -157,6 +157,10 @@ def test_sensor_profile_changes_the_noise():
     np.testing.assert_array_equal(noise_std(), 0.0)
     sim.set_sensor_profile("haslar")
     np.testing.assert_allclose(noise_std(), 0.0172, rtol=0.2)  # sigma_u,v,w at Haslar
+    # the readings' variances follow the new profile too (the suite checks each profile's once)
+    np.testing.assert_array_equal(sim.simulation.sample().measurement.velocity.variance,
+                                  np.square(sim.sensor_profile.velocity_std))
+    assert sim.simulation.sample().measurement.velocity.variance[0] > 0
     assert sim.sensor_profile.name == "haslar"
     with pytest.raises(ValueError):
         sim.set_sensor_profile("nope")
