@@ -37,11 +37,19 @@ def euler_to_quaternion(phi: float, theta: float, psi: float) -> np.ndarray:
     cf, sf = math.cos(0.5 * phi), math.sin(0.5 * phi)
     ct, st = math.cos(0.5 * theta), math.sin(0.5 * theta)
     cp, sp = math.cos(0.5 * psi), math.sin(0.5 * psi)
-    q = np.array([sf * ct * cp - cf * st * sp,
-                  cf * st * cp + sf * ct * sp,
-                  cf * ct * sp - sf * st * cp,
-                  cf * ct * cp + sf * st * sp])
-    return _canonical(q)
+    x, y, z, w = _unit(sf * ct * cp - cf * st * sp, cf * st * cp + sf * ct * sp, cf * ct * sp - sf * st * cp,
+                       cf * ct * cp + sf * st * sp)
+    if w < 0.0 or (w == 0.0 and next(c for c in (x, y, z) if c != 0.0) < 0.0):
+        x, y, z, w = -x, -y, -z, -w
+    return np.array([x, y, z, w])
+
+
+def _unit(x: float, y: float, z: float, w: float) -> tuple:
+    """(x, y, z, w) / |q| in plain floats: the norm summed in order, as numpy's ``q.dot(q)`` of four values."""
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if n == 0.0:   # no rotation at all: NaN, as numpy's 0 / 0
+        return (math.nan,) * 4
+    return x / n, y / n, z / n, w / n
 
 
 def quaternion_to_euler(q) -> np.ndarray:
@@ -50,7 +58,9 @@ def quaternion_to_euler(q) -> np.ndarray:
     At pitch +-90 deg (gimbal lock) the roll is taken as 0 and the yaw carries the rotation about the vertical.
     """
     q = np.asarray(q, float)
-    x, y, z, w = (q / math.sqrt(q.dot(q))).tolist()   # np.linalg.norm's sqrt(q . q), without its overhead
+    if q.shape != (4,):
+        raise ValueError(f"a quaternion has 4 components (x, y, z, w), got shape {q.shape}")
+    x, y, z, w = _unit(*q.tolist())
     sin_theta = 2.0 * (w * y - x * z)
     if abs(sin_theta) >= 1.0 - 1e-12:
         theta = math.copysign(0.5 * math.pi, sin_theta)

@@ -98,3 +98,11 @@ def test_wrap_angle_of_a_number_is_the_array_rule_bit_for_bit():
     assert wrap_angle(-math.pi) == math.pi and wrap_angle(math.pi) == math.pi
     for bad in (math.nan, math.inf, -math.inf):
         assert math.isnan(wrap_angle(bad))
+
+
+def test_a_quaternion_that_is_no_rotation_gives_nan_angles_not_an_error():
+    """A zero or non-finite quaternion (a hostile bag's odometry) reads as NaN angles, as numpy's 0 / 0 does."""
+    for q in ([0.0, 0.0, 0.0, 0.0], [math.nan, 0.0, 0.0, 1.0], [math.inf, 0.0, 0.0, 1.0]):
+        assert np.isnan(quaternion_to_euler(q)).all(), q
+    with pytest.raises(ValueError):
+        quaternion_to_euler([0.0, 0.0, 1.0])

@@ -167,7 +167,8 @@ class Navigator:
     def _predict(self, dt: float, velocity_variance: np.ndarray, coasting: bool) -> None:
         R = rotation_body_to_ned(*self.attitude)
         self.x = self.x + dt * (R @ self.velocity)
-        Q = dt * dt * R @ np.diag(velocity_variance) @ R.T + self.params.q_walk * dt * np.eye(3)
+        # R diag(var) R^T, the diagonal product as a column scaling (the same products, without the zeros)
+        Q = dt * dt * R * velocity_variance @ R.T + self.params.q_walk * dt * np.eye(3)
         self.P = self.P + (self.params.coast_inflation * Q if coasting else Q)
 
     def _fuse(self, H: np.ndarray, y: np.ndarray, Rm: np.ndarray, gate: float) -> bool:
