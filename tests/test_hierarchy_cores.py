@@ -110,3 +110,33 @@ def test_hover_holds_station_in_the_stochastic_current(controller_file):  # noqa
     assert np.sqrt(np.mean(error ** 2)) < 0.3
     print(f"hover in current: horizontal rms {np.sqrt(np.mean(horizontal ** 2)):.3f} m (max {horizontal.max():.3f}); "
           f"navigation rms {np.sqrt(np.mean(error ** 2)):.3f} m")
+
+
+def test_a_design_file_is_read_into_the_config_and_the_mission_flies_without_it(controller_file, tmp_path):  # noqa: F811
+    """A campaign's worker on another machine has no controller file: the config carries the file's document,
+    and a mission flies the same after the file is gone. An unreadable file is refused in one line, by name."""
+    import shutil
+
+    from seapup_common.input_files import load_yaml_file
+    from seapup_common.ros.launch_graph import LaunchError
+    copy = tmp_path / "design.yaml"
+    shutil.copy(controller_file, copy)
+    graph = {"seed": 5, "initial_controller": "mfol_fixed", "controller_file": str(copy)}
+    spec = MissionSpec.load({"graph": graph, "mission": [
+        {"kind": "hover", "name": "hold", "goal": {"hold_current": True, "duration": 6.0}},
+        {"kind": "goto", "name": "ahead", "offset": [2.0, 0.0, 0.0], "goal": {"tolerance": 0.5}}]})
+    hierarchy = hierarchy_config(spec.graph)
+    assert hierarchy.designs and all(d == load_yaml_file(copy, "config") for d in hierarchy.designs.values())
+    assert hierarchy.initial == "mfol_fixed"
+    with_file = run_mission(spec, hierarchy)
+    copy.unlink()
+    without = run_mission(spec, hierarchy)
+    assert [leg["status"] for leg in with_file["legs"]] == ["succeeded", "succeeded"]
+    np.testing.assert_array_equal(with_file["logs"]["command"], without["logs"]["command"])
+    assert len(with_file["logs"]["command"]) > 30   # the design's law answered from the first sample
+    with pytest.raises(LaunchError, match="controller file") as refused:
+        hierarchy_config(spec.graph)
+    assert "\n" not in str(refused.value) and "design.yaml" in str(refused.value)
+    copy.write_text("- not\n- a mapping\n")
+    with pytest.raises(LaunchError, match="not a YAML mapping"):
+        hierarchy_config(spec.graph)

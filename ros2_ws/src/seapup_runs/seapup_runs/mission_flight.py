@@ -99,8 +99,9 @@ class HierarchyConfig:
     velocity_controllers : dict
         Name -> (registered type, the law's parameters, sample period [s] or None: the design's).
     designs : dict, optional
-        Name -> the design file (a self-test result) a velocity controller node is given (its
-        ``controller_file``); none: configured only by a mission's self-test.
+        Name -> the design document (a self-test result) a velocity controller node is given (its
+        ``controller_file``'s content, carried so that no file is needed where the mission flies); none:
+        configured only by a mission's self-test.
     initial : str, optional
         The controller manager's ``initial``: with it, every controller that has a design is configured
         from it at the start and this one is active from the first sample (as the manager does on the graph).
@@ -220,7 +221,7 @@ class MissionFlight:
                 if hierarchy.designs.get(name):
                     try:
                         self.configured[name] = create_controller(
-                            ControllerSpec(kind, parameters, file=str(hierarchy.designs[name])), period)
+                            ControllerSpec(kind, parameters, document=hierarchy.designs[name]), period)
                     except ControllerRegistryError as exc:
                         raise MissionFlightError(f"velocity controller {name}: {exc}") from None
             if hierarchy.initial in self.configured:

@@ -30,13 +30,26 @@ def _bool(value) -> bool:
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "1", "yes")
 
 
+def _design(node: str, path: str) -> dict:
+    """The design document of velocity controller ``node``'s ``controller_file`` (bounded, strict YAML)."""
+    from seapup_common.input_files import InputFileError, load_yaml_file
+    from seapup_common.ros.launch_graph import LaunchError
+    try:
+        document = load_yaml_file(path, "config")
+    except InputFileError as exc:
+        raise LaunchError(f"{node}: controller file {exc}") from None
+    if not isinstance(document, dict):
+        raise LaunchError(f"{node}: controller file {path!r} is not a YAML mapping")
+    return document
+
+
 def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> HierarchyConfig:
     """The nodes of ``launch`` with ``graph``'s arguments, as :class:`HierarchyConfig`.
 
     Raises
     ------
     LaunchError
-        An argument the document refuses (one line, naming it).
+        An argument the document refuses, or a controller file that cannot be read (one line, naming it).
     """
     from seapup_common.ros.launch_graph import find_graph, load_graph
     arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in graph.items()}
@@ -62,8 +75,10 @@ def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> Hierar
     velocity_defaults = _defaults("seapup_control", "velocity_controller.yaml", "velocity_controller")
     controllers = {n.name: HierarchyConfig.controller({**velocity_defaults, **n.given_parameters()})
                    for n in by_exec.get("velocity_controller", [])}
-    # what the nodes are given to configure from, and the manager's initial controller (activated at the start)
-    designs = {n.name: str(n.given_parameters()["controller_file"]) for n in by_exec.get("velocity_controller", [])
+    # what the nodes are given to configure from (the file's document, read now: a campaign's worker on another
+    # machine flies it without the file), and the manager's initial controller (activated at the start)
+    designs = {n.name: _design(n.name, str(n.given_parameters()["controller_file"]))
+               for n in by_exec.get("velocity_controller", [])
                if str(n.given_parameters().get("controller_file", "") or "")}
     managers = by_exec.get("controller_manager", [])
     initial = str(managers[0].given_parameters().get("initial", "") or "") if managers else ""
