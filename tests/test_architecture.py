@@ -202,3 +202,19 @@ def test_only_the_graph_runner_starts_a_graph():
                       and re.search(r"^(?!\s*(#|>>>)).*\bSilGraph\(", path.read_text(), re.M))
     assert starting == ["seapup_bringup.graph.graph_runner"], starting
     assert re.search(r"\bSilGraph\(", MODULES["seapup_bringup.graph.graph_runner"].read_text())
+
+
+#: Issue 43: the node shells only execute the lockstep protocol's actions (seapup_common/lockstep): the classes
+#: that drive a graph stay small, and any growth has to pass this line.
+SHELL_CLASS_LINES = {("seapup_sim/seapup_sim/simulator_node.py", "SimulatorNode"): 300,
+                     ("seapup_bringup/seapup_bringup/graph/sil.py", "SilGraph"): 350}
+
+
+@pytest.mark.parametrize("where", sorted(SHELL_CLASS_LINES), ids=lambda where: where[1])
+def test_the_lockstep_shells_stay_within_their_size(where):
+    path, name = where
+    found = [node for node in ast.parse((SRC / path).read_text()).body
+             if isinstance(node, ast.ClassDef) and node.name == name]
+    assert len(found) == 1, (path, name)
+    lines = found[0].end_lineno - found[0].lineno + 1
+    assert lines <= SHELL_CLASS_LINES[where], f"{name} is {lines} lines (at most {SHELL_CLASS_LINES[where]})"

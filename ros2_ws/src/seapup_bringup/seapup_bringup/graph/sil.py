@@ -59,6 +59,16 @@ __all__ = ["SilGraph", "SilError", "TOPICS", "INSTRUMENTS", "SAMPLED"]
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
 
+def _with_roster(specs: list, probe_topics, record: list) -> list:
+    """The nodes with their lockstep rosters (:func:`seapup_bringup.ros2cli.launch.with_roster`): the SIL probe
+    and the recorder (if ``record``) are extra listeners, waited for as the graph's own nodes."""
+    from seapup_bringup.ros2cli.launch import with_roster
+    from seapup_common.lockstep.roster import Listener
+    listeners = [Listener("sil_probe", probe_topics)]
+    listeners += [Listener.recorder("recorder", record)] if record else []
+    return with_roster(specs, listeners)
+
+
 class SilGraph:
     """A graph started in SIL (see the module docstring); use it as a context manager.
 
@@ -138,7 +148,8 @@ class SilGraph:
             self.arguments["end_time"] = repr(self.start_at)
         elif self.paced and "start_held" in declared:   # held at t_0 itself (end_time 0 means "run on")
             self.arguments["start_held"] = "true"
-        specs = self._with_roster(load_graph(graph_file, self.arguments))
+        specs = _with_roster([*load_graph(graph_file, self.arguments), *self.extra_nodes], self.probe.topics,
+                             self.record)
         self._node, self._executor = self.probe.open(domain).node, self.probe.executor
         if self.record:   # typed topics: each subscribed by the recorder (and this probe) before the graph starts
             self.bag, own = self.out_dir / "bag", set(self.probe.topics)
@@ -187,15 +198,6 @@ class SilGraph:
             raise SilError(f"no navigation estimate ({len(self.log['estimate'])} heard, {len(self.log['truth'])} "
                            f"samples) or no OK {self.ready_status!r} within {self.ready_timeout:g} s [{seen}]; "
                            f"node logs in {self.out_dir}" + self._dead())
-
-    def _with_roster(self, specs: list) -> list:
-        """The graph's nodes and the extra ones with their lockstep rosters (:func:`seapup_bringup.ros2cli.launch.with_roster`):
-        the probe and the recorder are extra listeners, waited for as the graph's own nodes."""
-        from seapup_bringup.ros2cli.launch import with_roster
-        from seapup_common.lockstep.roster import Listener
-        listeners = [Listener("sil_probe", self.probe.topics)]
-        listeners += [Listener.recorder("recorder", self.record)] if self.record else []
-        return with_roster([*specs, *self.extra_nodes], listeners)
 
     def _dead(self) -> str:
         return self.processes.dead() if self.processes else ""
