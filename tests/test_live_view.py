@@ -218,6 +218,9 @@ def test_the_view_serves_the_vehicle_pose_the_simulator_flies_at_the_same_stamps
         cable = np.array([[p.x, p.y, p.z] for p in entity.lines[1].points])
         assert cable.shape == (20, 3) and np.allclose(cable[-1], [0.0, 0.0, 0.0], atol=1e-6)
         # drawn as the simulator solved it: equal to a shape it published at a stamp no later than the drawing
+        # (once this probe, on its own thread, has heard the simulator's cables up to the drawing's stamp: the
+        # view can draw a sample before a loaded machine lets the probe take it)
+        assert await client.pump(lambda: max(list(cables) or [-1]) >= log_ns, 20.0), "no cable heard up to the drawing"
         assert any(ns <= log_ns and np.allclose(cable, published, rtol=0.0, atol=1e-9)
                    for ns, published in list(cables.items())), "the view's cable is none the simulator published"
         near = min(truth, key=lambda ns: abs(ns - log_ns))
