@@ -536,7 +536,9 @@ def test_a_held_graph_resumes_and_says_its_sample_again_to_nodes_that_joined_mea
     assert probe.spin(lambda: stamps(late)[-1:] == [1.4] and stamps(velocity)[-1:] == [1.4], 10.0), stamps(late)
     # said again on the resume, and again if the simulator matched the new reader only after that
     assert sorted(set(stamps(late))) == [1.0, 1.2, 1.4] and stamps(late)[-2:] == [1.2, 1.4]
-    assert serialize_message(late[0]) == serialize_message(velocity[5])  # the same reading, said again
+    # the same reading, said again: every field equal (not the bytes: the serializer leaves CDR's alignment
+    # padding uninitialised -- after the frame id, at byte 33 -- so equal messages need not be equal bytes)
+    assert late[0] == velocity[5]
     assert stamps(velocity)[5] == 1.0 and stamps(velocity)[-2:] == [1.2, 1.4] and set(stamps(velocity)[5:-2]) == {1.0}
     assert len(stamps(velocity)[5:-2]) >= 2
     # a command for the held sample, sent while held, is applied when the graph goes on (no time-out)
