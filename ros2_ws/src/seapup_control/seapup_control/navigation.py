@@ -177,11 +177,14 @@ class Navigator:
         if float(innovation @ np.linalg.solve(S, innovation)) > gate:
             return False
         K = np.linalg.solve(S, H @ self.P).T
-        I_KH = np.eye(3) - K @ H
-        self.x = self.x + K @ innovation
-        self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T  # Joseph form: stays symmetric positive definite
-        self.P = 0.5 * (self.P + self.P.T)
+        self._update(K, np.eye(3) - K @ H, K @ innovation, Rm)
         return True
+
+    def _update(self, K: np.ndarray, I_KH: np.ndarray, correction: np.ndarray, Rm: np.ndarray) -> None:
+        """x += K innovation; P in Joseph form (stays symmetric positive definite)."""
+        self.x = self.x + correction
+        self.P = I_KH @ self.P @ I_KH.T + K @ Rm @ K.T
+        self.P = 0.5 * (self.P + self.P.T)
 
     def _fuse_component(self, index: int, y: float, variance: float, gate: float) -> bool:
         """:meth:`_fuse` of one position component measured (H the unit row ``index``, S a scalar): the same
@@ -195,9 +198,7 @@ class Navigator:
         K = (self.P[index] * (1.0 / s)).reshape(3, 1)
         I_KH = np.eye(3)
         I_KH[:, index] -= K[:, 0]
-        self.x = self.x + K[:, 0] * innovation
-        self.P = I_KH @ self.P @ I_KH.T + K @ np.array([[variance]]) @ K.T
-        self.P = 0.5 * (self.P + self.P.T)
+        self._update(K, I_KH, K[:, 0] * innovation, np.array([[variance]]))
         return True
 
     def _variance(self, reading, default_std) -> np.ndarray:

@@ -217,13 +217,9 @@ class MissionFlight:
         self.active: str | None = None
         self.starting = False          # the active law starts (bumpless) at the next sample it answers
         if hierarchy.initial:          # the manager's initial controller: every one with a design configured first
-            for name, (kind, parameters, period) in self.laws.items():
+            for name in self.laws:
                 if hierarchy.designs.get(name):
-                    try:
-                        self.configured[name] = create_controller(
-                            ControllerSpec(kind, parameters, document=hierarchy.designs[name]), period)
-                    except ControllerRegistryError as exc:
-                        raise MissionFlightError(f"velocity controller {name}: {exc}") from None
+                    self._configure(name, hierarchy.designs[name])
             if hierarchy.initial in self.configured:
                 self.active, self.starting = hierarchy.initial, True
         self.self_test = None          # a SelfTest while one runs
@@ -382,8 +378,16 @@ class MissionFlight:
     # -- acts made while held ----------------------------------------------------------------------------
     def configure(self, document: dict) -> None:
         """Every velocity controller of the launch document configured from a self-test result."""
-        for name, (kind, parameters, period) in self.laws.items():
+        for name in self.laws:
+            self._configure(name, document)
+
+    def _configure(self, name: str, document: dict) -> None:
+        """Velocity controller ``name`` configured from a design ``document``, as its node configures."""
+        kind, parameters, period = self.laws[name]
+        try:
             self.configured[name] = create_controller(ControllerSpec(kind, parameters, document=document), period)
+        except ControllerRegistryError as exc:
+            raise MissionFlightError(f"velocity controller {name}: {exc}") from None
 
     def switch(self, activate=(), deactivate=()) -> None:
         """The controller manager's switch while held: the incoming law answers the next sample."""

@@ -30,17 +30,15 @@ def _bool(value) -> bool:
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "1", "yes")
 
 
-def _design(node: str, path: str) -> dict:
-    """The design document of velocity controller ``node``'s ``controller_file`` (bounded, strict YAML)."""
-    from seapup_common.input_files import InputFileError, load_yaml_file
+def _design(node: str, kind: str, path: str) -> dict:
+    """The design document of velocity controller ``node``'s ``controller_file``, read as the node reads it
+    (:meth:`~seapup_common.controllers.ControllerSpec.load_document`: bounded, strict YAML, a mapping)."""
+    from seapup_common.controllers import ControllerRegistryError, ControllerSpec
     from seapup_common.ros.launch_graph import LaunchError
     try:
-        document = load_yaml_file(path, "config")
-    except InputFileError as exc:
-        raise LaunchError(f"{node}: controller file {exc}") from None
-    if not isinstance(document, dict):
-        raise LaunchError(f"{node}: controller file {path!r} is not a YAML mapping")
-    return document
+        return dict(ControllerSpec(kind, {}, file=path).load_document())
+    except ControllerRegistryError as exc:
+        raise LaunchError(f"{node}: {exc}") from None
 
 
 def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> HierarchyConfig:
@@ -77,7 +75,7 @@ def hierarchy_config(graph: dict, launch: tuple[str, str] = HIERARCHY) -> Hierar
                    for n in by_exec.get("velocity_controller", [])}
     # what the nodes are given to configure from (the file's document, read now: a campaign's worker on another
     # machine flies it without the file), and the manager's initial controller (activated at the start)
-    designs = {n.name: _design(n.name, str(n.given_parameters()["controller_file"]))
+    designs = {n.name: _design(n.name, controllers[n.name][0], str(n.given_parameters()["controller_file"]))
                for n in by_exec.get("velocity_controller", [])
                if str(n.given_parameters().get("controller_file", "") or "")}
     managers = by_exec.get("controller_manager", [])
