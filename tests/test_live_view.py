@@ -24,6 +24,24 @@ from tornado.websocket import websocket_connect
 from seapup_common import frames
 
 
+def _spin_in_thread(executor):
+    """Spin ``executor`` on a thread until the returned function is called, which stops the loop, joins the
+    thread and then shuts the executor down (rclpy's ``shutdown`` under a thread still in ``spin`` pulls the
+    guard condition from under it: "'NoneType' object has no attribute 'handle'" in that thread)."""
+    stop = threading.Event()
+
+    def loop():
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+    thread = threading.Thread(target=loop, daemon=True)
+    thread.start()
+
+    def halt():
+        stop.set()
+        thread.join(5.0)
+        executor.shutdown()
+    return halt
+
 
 def _free_port() -> int:
     with socket.socket() as s:
@@ -146,11 +164,9 @@ def graph(node_process, ros_context):
                                                           np.array([[p.pose.position.x, p.pose.position.y,
                                                                      p.pose.position.z] for p in m.poses])),
                              QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-    spinner = threading.Thread(target=executor.spin, daemon=True)   # truth arrives while the client reads
-    spinner.start()
+    halt = _spin_in_thread(executor)   # truth arrives while the client reads
     yield port, executor, truth, cables
-    executor.shutdown()
-    spinner.join(5.0)
+    halt()
     node.destroy_node()
 
 
@@ -337,8 +353,7 @@ def test_a_stalled_then_killed_client_leaves_a_lockstep_graph_stepping(node_proc
             if s.name == "seapup/simulator":
                 status.update({kv.key: kv.value for kv in s.values})
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    halt = _spin_in_thread(executor)
 
     async def scenario():
         stalled = await Client.connect(port)
@@ -371,8 +386,7 @@ def test_a_stalled_then_killed_client_leaves_a_lockstep_graph_stepping(node_proc
             time.sleep(0.1)
         assert status.get("lockstep_timeouts") == "0", status
     finally:
-        executor.shutdown()
-        spinner.join(5.0)
+        halt()
         node.destroy_node()
 
 
@@ -413,6 +427,7 @@ def test_launch_with_the_view_paces_the_graph_and_serves_a_self_tuner_s_estimate
     import subprocess
     import sys
     import yaml
+    from seapup_common.lockstep.pacing import Pacer
     from seapup_control.self_test import result_document
     from seapup_runs.self_test_flight import fly_self_test
     controller = tmp_path / "controller.yaml"
@@ -436,7 +451,10 @@ def test_launch_with_the_view_paces_the_graph_and_serves_a_self_tuner_s_estimate
         t0, wall0 = client.messages["/tf"][-1][0], time.monotonic()
         await client.pump(lambda: False, 4.0)
         t1, wall1 = client.messages["/tf"][-1][0], time.monotonic()
-        assert 0 < (t1 - t0) * 1e-9 <= 5.0 * (wall1 - wall0) + 0.5   # paced: never faster than 5x real time
+        # paced: never faster than 5x real time, but for the catch-up the pacer allows a graph that fell behind
+        # its schedule by at most Pacer.SLACK wall seconds (the CI run of 7739753: 20.6 s simulated in 4.0 s
+        # wall after a slow start under the suite's load); an unpaced graph flies this one at 100x or more
+        assert 0 < (t1 - t0) * 1e-9 <= 5.0 * (wall1 - wall0 + Pacer.SLACK) + 0.5
         client.connection.close()
 
     try:
