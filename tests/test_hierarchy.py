@@ -231,6 +231,7 @@ def test_a_paced_run_flies_the_same_trajectory_with_both_cores_saturated(control
         print(f"{label}: goto ended at {goto['end_time']:.1f} s, hover cancelled at {hover['end_time']:.1f} s, "
               f"{len(logs['truth_t'])} samples to {logs['truth_t'][-1]:.1f} s")
     assert quiet[0]["end_time"] == loaded[0]["end_time"] and quiet[1]["end_time"] == loaded[1]["end_time"]
+    first_differences = {}
     for name, keys in (("truth", ("truth_position", "truth_attitude")), ("estimate", ("estimate_position",)),
                        ("command", ("command",)), ("setpoint", ("setpoint",)), ("reference", ("reference",))):
         # from the first hold on (the probe may hear a graph's first sample or not)
@@ -242,7 +243,10 @@ def test_a_paced_run_flies_the_same_trajectory_with_both_cores_saturated(control
                                                                      for t in twice])
         for key in keys:
             differ = np.flatnonzero(np.any(quiet[2][key][a] != loaded[2][key][b], axis=1))
-            assert not len(differ), f"{key} differs from t = {quiet[2][f'{name}_t'][a][differ[0]]:.1f} s on"
+            if len(differ):
+                first_differences[key] = round(float(quiet[2][f"{name}_t"][a][differ[0]]), 3)
+    # every series that differs, with the sample it first differs at: the earliest names the cause
+    assert not first_differences, f"loaded run differs (series: first sample that differs [s]): {first_differences}"
 
 
 def _up_to(logs: dict, end: float) -> dict:

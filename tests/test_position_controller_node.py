@@ -103,3 +103,54 @@ def test_an_estimate_said_again_is_tracked_once(ros_context):
     node._on_estimate(_estimate(1))
     node._on_estimate(_estimate(2))
     assert node.counts["repeated_estimates"] == 1 and node.counts["estimates"] == 2
+
+
+@pytest.mark.graph
+def test_a_reference_stream_s_first_message_is_acknowledged_by_its_readers_and_said_at_once(ros_context, spin):
+    """Issue 43: a harness holding the lockstep graph resumes it only once every reader has the position
+    controller's first reference of a stream (``acknowledge_stream_start``): the node says the stream's start
+    on ``/diagnostics`` at once -- at the first reference and again when references resume after a gap, not at
+    every sample -- and a reader that was matched received that reference before the status was sent."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from seapup_control.position_controller_node import PositionControllerNode
+    from seapup_common.ros.node import STREAM_QOS
+    node = PositionControllerNode(context=ros_context)
+    reader = None
+    try:
+        from rclpy.duration import Duration
+        from rclpy.node import Node
+        reader = Node("reference_reader", context=ros_context)
+        heard = []
+        reader.create_subscription(TwistStamped, "/seapup/velocity_controller/reference",
+                                   lambda m: heard.append(conv.stamp_to_ns(m.header.stamp)), STREAM_QOS)
+        executor = SingleThreadedExecutor(context=ros_context)
+        executor.add_node(reader)
+        assert spin(executor, lambda: node.publisher.get_subscription_count() == 1, 10.0)
+        said = []
+        publish = node.diagnostics.publish
+
+        def say(msg: DiagnosticArray):
+            values = {kv.key: kv.value for s in msg.status for kv in s.values}
+            # the reader's DDS history has every reference sent so far: acknowledged (nothing left to wait for)
+            start = values.get("stream_start")
+            said.append((None if start in (None, "None") else float(start),
+                         node.publisher.wait_for_all_acked(Duration(seconds=0.0))))
+            publish(msg)
+        node.diagnostics.publish = say
+        for k in range(1, 5):
+            node._on_setpoint(_setpoint(k))
+            node._on_estimate(_estimate(k))
+        assert len(said) == 1 and said[0][0] == pytest.approx(3 * T) and said[0][1]  # the first: t_1 + 2 T
+        for k in range(10, 12):                # the navigator was silent for five samples: a new stream
+            node._on_setpoint(_setpoint(k))
+            node._on_estimate(_estimate(k))
+        assert [s for s, _ in said] == pytest.approx([3 * T, 12 * T]) and all(acked for _, acked in said)
+        assert node.counts["unacknowledged_stream_starts"] == 0
+        assert spin(executor, lambda: len(heard) == 6, 10.0)
+        assert heard == [round((k + 2) * T * 1e9) for k in (1, 2, 3, 4, 10, 11)]
+    finally:
+        node.destroy_node()
+        if reader is not None:
+            reader.destroy_node()

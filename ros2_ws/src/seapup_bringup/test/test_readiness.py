@@ -63,3 +63,15 @@ def test_handled_since_reads_the_status_stamp():
     diagnostics = [array(10.0, status("seapup/task_controller")), array(10.2, status("seapup/navigator"))]
     assert readiness.handled_since(diagnostics, "seapup/task_controller", 10.0)
     assert not readiness.handled_since(diagnostics, "seapup/task_controller", 10.2)
+
+
+def test_stream_started_reads_the_stream_s_first_stamp_from_its_own_node():
+    def said(name, start):
+        return DiagnosticStatus(name=name, values=[KeyValue(key="setpoints", value="3"),
+                                                   KeyValue(key="stream_start", value=str(start))])
+    diagnostics = [array(10.0, said("seapup/task_controller", None)), array(10.0, said("seapup/navigator", 10.2))]
+    assert not readiness.stream_started(diagnostics, "seapup/task_controller", 10.2)   # no stream yet
+    diagnostics.append(array(10.0, said("seapup/task_controller", 10.2)))
+    assert readiness.stream_started(diagnostics, "seapup/task_controller", 10.2)
+    assert not readiness.stream_started(diagnostics, "seapup/task_controller", 10.4)  # an older stream's start
+    assert not readiness.stream_started(diagnostics, "seapup/position_controller", 10.2)

@@ -21,6 +21,11 @@ An estimate stamped as the one before it (the navigator says its newest
 again to readers that match late) is ignored and counted
 (``repeated_estimates``): tracking it twice would step the law twice.
 
+The first reference of a stream (the first estimate tracked after none was, for one sample or more) is
+waited on until every reader has acknowledged it, and said at once on ``/diagnostics`` (``stream_start``, its
+stamp [s]; :func:`seapup_common.ros.node.acknowledge_stream_start`): a harness holding the graph resumes it
+only once the velocity controllers have it (they wait for every sample's reference only once one was heard).
+
 ``/diagnostics`` (``seapup/position_controller``): while tracking, the setpoint,
 the reference and the limits once a wall second; otherwise once a wall second
 whether it could track -- OK "idle" when active, hearing the navigator and
@@ -42,8 +47,8 @@ from rosgraph_msgs.msg import Clock
 from seapup_common.contract import ContractError, StampedReferences
 from seapup_common.ros.messages import (diagnostic_array, estimate_from_odometry, pose_setpoint_from_msg,
                                         reference_to_msg, stamp_to_ns)
-from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, declare_from_package_file, graph_time_ns,
-                                    refuse_invalid_transitions, run_node)
+from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, acknowledge_stream_start,
+                                    declare_from_package_file, graph_time_ns, refuse_invalid_transitions, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
 
@@ -70,7 +75,7 @@ class PositionControllerNode(LifecycleNode):
         self.controller: PositionController | None = None
         self.active = False
         self.counts = {"estimates": 0, "references": 0, "rejected_setpoints": 0, "rejected_estimates": 0,
-                       "limited_samples": 0, "late_setpoints": 0,
+                       "limited_samples": 0, "late_setpoints": 0, "unacknowledged_stream_starts": 0,
                        "repeated_estimates": 0}
         self._interfaces = []
         refuse_invalid_transitions(self)
@@ -99,6 +104,8 @@ class PositionControllerNode(LifecycleNode):
         self._estimate_ns: int | None = None
         self._idle_timer = self.create_timer(1.0, self._diagnose_idle)
         self._newest_setpoint: float | None = None   # [s] stamp of the newest stamped setpoint
+        self._last_reference_ns: int | None = None   # the newest reference's stamp
+        self._stream_start: float | None = None      # [s] the stamp of the reference stream's first message
         # estimates not yet tracked, in order: the first waits (until its wall deadline) for its setpoint, the
         # rest behind it (the graph need not wait for this node's answer to one estimate before the next: its
         # reference is for reference_delay samples later), so none is tracked with a setpoint that came late
@@ -200,6 +207,12 @@ class PositionControllerNode(LifecycleNode):
         self.counts["references"] += 1
         t_ns = int(round((estimate.t + self.delay) * 1e9))
         self.publisher.publish(reference_to_msg(reference, t_ns))
+        previous, self._last_reference_ns = self._last_reference_ns, t_ns
+        if previous is None or t_ns - previous > 1.5e9 * self.controller.sample_period:  # a stream starts
+            self._stream_start = t_ns * 1e-9
+            if not acknowledge_stream_start(self.publisher):
+                self.counts["unacknowledged_stream_starts"] += 1
+            self._last_diag = -math.inf  # said at once (module docstring)
         if time.monotonic() - self._last_diag > 1.0:
             self._diagnose(t_ns, reference)
 
@@ -208,7 +221,7 @@ class PositionControllerNode(LifecycleNode):
         setpoint = self.controller.reference
         values = {**self.counts, "setpoint": [*setpoint.position.tolist(), setpoint.yaw],
                   "velocity_reference": reference.velocity.tolist(),
-                  "limited": [bool(x) for x in self.controller.limited]}
+                  "limited": [bool(x) for x in self.controller.limited], "stream_start": self._stream_start}
         level = DiagnosticStatus.WARN if self.counts["rejected_setpoints"] else DiagnosticStatus.OK
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
                                                   "tracking", values, t_ns))

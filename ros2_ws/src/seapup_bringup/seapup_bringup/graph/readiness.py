@@ -98,6 +98,24 @@ def handled_since(diagnostics: list, name: str, t: float, window: int = WINDOW) 
                for array in diagnostics[-window:] for status in array.status)
 
 
+def stream_started(diagnostics: list, name: str, t: float, window: int = WINDOW) -> bool:
+    """Whether node ``name`` said that a stream of its, started with the message stamped ``t`` [s] or later,
+    was acknowledged by its readers or waited for in vain (its ``stream_start`` status value, then
+    ``unacknowledged_stream_starts`` counts it: :func:`seapup_common.ros.node.acknowledge_stream_start`)."""
+    for array in diagnostics[-window:]:
+        for status in array.status:
+            if status.name != name:
+                continue
+            for kv in status.values:
+                if kv.key == "stream_start":
+                    try:
+                        if float(kv.value) >= t - 1e-6:
+                            return True
+                    except ValueError:   # "None": no stream yet
+                        pass
+    return False
+
+
 def _ended_wait_growths(diagnostics: Iterable):
     """``(array, status name, counter, value)`` each time a counter of :data:`seapup_common.lockstep.ENDED_WAITS`
     grows past what that node reported before (values that are not integers are skipped), in the order heard."""

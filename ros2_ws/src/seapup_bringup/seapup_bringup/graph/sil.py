@@ -59,6 +59,14 @@ __all__ = ["SilGraph", "SilError", "TOPICS", "INSTRUMENTS", "SAMPLED"]
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
 
+def _stream_acknowledged(sil, key: str, node: str, wait: float = 5.0) -> None:
+    """Wait (``wait`` s wall at most) until ``node`` said that its stream the probe logs as ``key``, from the
+    first message heard, was acknowledged by every reader (:func:`~seapup_bringup.graph.readiness.stream_started`)."""
+    if sil.log[key]:
+        start = stamp_s(sil.log[key][0])
+        sil.spin_until(lambda: readiness.stream_started(sil.log["diagnostics"], node, start), wait)
+
+
 def _with_roster(specs: list, probe_topics, record: list) -> list:
     """The nodes with their lockstep rosters (:func:`seapup_bringup.ros2cli.launch.with_roster`): the SIL probe
     and the recorder (if ``record``) are extra listeners, waited for as the graph's own nodes."""
@@ -298,7 +306,7 @@ class SilGraph:
             goal = action.Goal(**fields)
             if self.paced:
                 self._task_controller_at_hold()
-            rejections, heard = len(self.log["rejections"]), len(self.feedback)
+            rejections, heard, setpoints = len(self.log["rejections"]), len(self.feedback), len(self.log["setpoint"])
             handle = send_goal(self._executor, client, goal, lambda fb: self.feedback.append((kind, fb.feedback)))
             if not handle.accepted:
                 self.spin_until(lambda: len(self.log["rejections"]) > rejections, 5.0)
@@ -306,7 +314,7 @@ class SilGraph:
                 return {"status": "rejected", "accepted": False, "rejection": reason}
             accepted_t, future = self.t, handle.get_result_async()
             if self.paced:
-                during_result = self._paced_goal(future, handle, during, cancel_after, timeout, heard)
+                during_result = self._paced_goal(future, handle, during, cancel_after, timeout, heard, setpoints == 0)
             else:
                 during_result = self._unpaced_goal(future, handle, during, cancel_after, timeout)
             if not self.spin_until(future.done, timeout):
@@ -342,19 +350,20 @@ class SilGraph:
         self.spin_until(lambda: readiness.handled_since(self.log["diagnostics"], "seapup/task_controller", held),
                         wait)
 
-    def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int):
+    def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int, first: bool):
         """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and
-        the graph held again after its end (module docstring); the ``during`` result."""
+        the graph held again after its end (module docstring); the ``during`` result. ``first``: the run's
+        first goal, whose acceptance starts the setpoint stream."""
         held = self.held
-        # the task controller starts its setpoint stream at the acceptance (stamped for the next sample):
-        # heard here, the position controller has it too before the graph goes on
+        # the setpoint sent at the acceptance (for the next sample); the first goal's, acknowledged by every reader
         self.spin_until(lambda: self.log["setpoint"] and stamp_s(self.log["setpoint"][-1]) > held + 1e-6, 5.0)
+        if first:
+            _stream_acknowledged(self, "setpoint", "seapup/task_controller")
         if not self.log["reference"]:
-            # the run's first velocity reference (the position controller's answer to the next estimate): one
-            # sample on, held until it is heard, so a velocity controller has it in time
+            # the first velocity reference (answering the next estimate), acknowledged by every reader
             self._advance(held + 1e-3, timeout=timeout)
             self.spin_until(lambda: self.log["reference"], 5.0)
-            self.spin_until(lambda: False, 0.5)  # heard here: on its way to the velocity controllers too
+            _stream_acknowledged(self, "reference", "seapup/position_controller")
         during_result, end = None, lambda: result_end_time(future)
         settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
                              held, self._pacing.period_ns * 1e-9)   # feedback since the goal was sent

@@ -16,11 +16,12 @@ from seapup_common.lockstep.policy import (ANSWER, SKIP, WAIT, Decision, SampleP
 #: The ``/diagnostics`` counters by which a node reports that a wall-clock limit ended one of its lockstep waits:
 #: it went on without what it waited for (a velocity controller without its sample's reference or applied
 #: pitch, the position controller without its setpoint, the task controller without its altitude reading,
-#: the simulator without the sample's command, the manager failing a controller over). A lockstep run none of
+#: the simulator without the sample's command, the manager failing a controller over, a stream's first message
+#: not acknowledged by every reader within its wait: ``seapup_common.ros.node.acknowledge_stream_start``). A lockstep run none of
 #: whose nodes reports any of them flew deterministically; one that reports some may differ from a quieter
 #: run of the same graph. Each node publishes its status at once when one of its counters grows.
 ENDED_WAITS = ("late_references", "late_applied", "late_setpoints", "late_altitudes", "lockstep_timeouts",
-               "failovers")
+               "failovers", "unacknowledged_stream_starts")
 
 __all__ = ["SamplePolicy", "Decision", "WaitSettings", "ANSWER", "WAIT", "SKIP", "StampGate", "Pacer",
            "ENDED_WAITS"]

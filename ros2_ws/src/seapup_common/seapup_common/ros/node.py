@@ -552,6 +552,28 @@ def graph_time_ns(node, latest_stamp_ns: int | None) -> int:
     return int(latest_stamp_ns) if latest_stamp_ns is not None else 0
 
 
+#: [s wall] How long a node waits for its readers to acknowledge the first message of a stream it starts
+#: (:func:`acknowledge_stream_start`); the wait is only at a stream's start, never per sample.
+STREAM_START_ACK_WAIT = 2.0
+
+
+def acknowledge_stream_start(publisher, seconds: float = STREAM_START_ACK_WAIT) -> bool:
+    """Wait (at most ``seconds`` wall) until every reader of ``publisher`` has acknowledged the first message
+    of a stream just published; whether they all did.
+
+    A lockstep harness acts while the graph is held; a node that starts a stream then (the task controller's
+    first setpoint at a goal's acceptance, the position controller's first reference) is heard by the harness's
+    probe and by the next node of the chain at about the same time, but not necessarily: a datagram repaired
+    by a heartbeat reaches one reader later. The next node only waits for a stream's messages once it knows the
+    stream flows, so if the graph went on first, that node would step one sample without it (under load, once
+    in about five paced runs). Acknowledged, the message is in every reader's history before anything the
+    resumed graph sends it, and rclpy takes a subscription's messages in their order of arrival (the events
+    executor) or, ready at once, in the order the subscriptions were made (the setpoint's before the
+    estimate's). The node then says so on ``/diagnostics`` (``stream_start``, ``stream_start_acknowledged``)
+    and the harness waits for that (:func:`seapup_bringup.graph.readiness.stream_started`)."""
+    return bool(publisher.wait_for_all_acked(Duration(seconds=float(seconds))))
+
+
 #: Parameters a node may be given without declaring them itself (rclpy's own).
 _IMPLICIT_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
