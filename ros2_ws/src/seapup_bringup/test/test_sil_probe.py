@@ -38,3 +38,26 @@ def test_arrays_in_si_units_with_one_row_per_sample():
     assert np.allclose(out["truth_attitude"][1], [0.0, 0.0, math.pi / 2])   # yaw 90 deg, from the quaternion
     assert out["estimate_position"].shape == (0, 3) and out["command"].shape == (0, 4)
     assert out["altitude"][0] == 3.0 and math.isnan(out["altitude"][1])  # out of range: no reading
+
+
+def test_a_harness_wait_its_bound_ended_is_named_among_the_ended_waits(tmp_path):
+    """The SIL harness resumes a held graph once it heard what it waits for; a wait whose wall-clock bound ran out
+    first is counted and named by ``SilGraph.ended_waits`` beside the nodes' own (the run may be the machine's)."""
+    from types import SimpleNamespace
+
+    from seapup_bringup.graph import sil as sil_module
+    calls = []
+
+    def spin_until(predicate, wait):
+        calls.append(wait)
+        return predicate()
+    fake = SimpleNamespace(spin_until=spin_until)
+    sil_module._harness_wait(fake, lambda: True, "heard")
+    assert not hasattr(fake, "harness_waits_ended") and calls == [sil_module.HARNESS_WAIT]
+    sil_module._harness_wait(fake, lambda: False, "setpoint")
+    sil_module._harness_wait(fake, lambda: False, "setpoint")
+    assert fake.harness_waits_ended == {"setpoint": 2}
+    graph = sil_module.SilGraph(out_dir=tmp_path)    # not started: no process, no ROS
+    assert graph.ended_waits() == {}
+    graph.harness_waits_ended = {"setpoint": 2}
+    assert graph.ended_waits() == {"harness": {"setpoint": 2}}

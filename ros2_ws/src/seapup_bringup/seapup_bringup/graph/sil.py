@@ -59,12 +59,25 @@ __all__ = ["SilGraph", "SilError", "TOPICS", "INSTRUMENTS", "SAMPLED"]
 _ACTIONS = {"hover": "Hover", "goto": "Goto", "follow_seabed": "FollowSeabed"}
 
 
-def _stream_acknowledged(sil, key: str, node: str, wait: float = 5.0) -> None:
-    """Wait (``wait`` s wall at most) until ``node`` said that its stream the probe logs as ``key``, from the
-    first message heard, was acknowledged by every reader (:func:`~seapup_bringup.graph.readiness.stream_started`)."""
+#: [s wall] How long the harness waits, the graph held, for what it must hear before it resumes the graph (a
+#: held graph stands still, so a long bound costs nothing unless what it waits for never comes).
+HARNESS_WAIT = 30.0
+
+
+def _harness_wait(sil, predicate, what: str, wait: float = HARNESS_WAIT) -> None:
+    """Spin until ``predicate()`` (``wait`` s wall at most); a wait the bound ended is counted under ``what`` in
+    ``sil.harness_waits_ended`` (:meth:`SilGraph.ended_waits` names it: the run may be the machine's)."""
+    if not sil.spin_until(predicate, wait):
+        ended = sil.__dict__.setdefault("harness_waits_ended", {})
+        ended[what] = ended.get(what, 0) + 1
+
+
+def _stream_acknowledged(sil, key: str, node: str) -> None:
+    """Wait until ``node`` said that its stream the probe logs as ``key``, from the first message heard, was
+    acknowledged by every reader (:func:`~seapup_bringup.graph.readiness.stream_started`)."""
     if sil.log[key]:
         start = stamp_s(sil.log[key][0])
-        sil.spin_until(lambda: readiness.stream_started(sil.log["diagnostics"], node, start), wait)
+        _harness_wait(sil, lambda: readiness.stream_started(sil.log["diagnostics"], node, start), f"{key} acknowledged")
 
 
 def _with_roster(specs: list, probe_topics, record: list) -> list:
@@ -262,8 +275,10 @@ class SilGraph:
 
     def ended_waits(self) -> dict[str, dict[str, int]]:
         """Which nodes went on without what a lockstep wait waited for, a wall-clock limit having ended it
-        (:func:`~seapup_bringup.graph.readiness.ended_waits`): empty when the run is deterministic."""
-        return readiness.ended_waits(self.log["diagnostics"])
+        (:func:`~seapup_bringup.graph.readiness.ended_waits`), and ``"harness"``: this harness's own waits before
+        it resumed a held graph (:data:`HARNESS_WAIT`); empty when the run is deterministic."""
+        harness = getattr(self, "harness_waits_ended", {})
+        return {**readiness.ended_waits(self.log["diagnostics"]), **({"harness": dict(harness)} if harness else {})}
 
     @property
     def late_results(self) -> int:
@@ -342,27 +357,25 @@ class SilGraph:
                 self.spin_until(handle.cancel_goal_async().done, 10.0)
         return during_result
 
-    def _task_controller_at_hold(self, wait: float = 5.0) -> None:
-        """Paced: wait until the task controller has handled the held sample's estimate (its status is stamped
-        with it). Its answer is a setpoint for the *next* sample, so the graph does not wait for it: a goal or
-        cancel that overtook the estimate would act on the sample before."""
+    def _task_controller_at_hold(self) -> None:
+        """Paced: wait until the task controller handled the held sample's estimate (a goal or cancel overtaking
+        it would act a sample early; its answer, for the *next* sample, is not waited for)."""
         held = self.held
-        self.spin_until(lambda: readiness.handled_since(self.log["diagnostics"], "seapup/task_controller", held),
-                        wait)
+        _harness_wait(self, lambda: readiness.handled_since(self.log["diagnostics"], "seapup/task_controller", held),
+                      "task controller at the hold")
 
     def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int, first: bool):
-        """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and
-        the graph held again after its end (module docstring); the ``during`` result. ``first``: the run's
-        first goal, whose acceptance starts the setpoint stream."""
+        """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and the graph
+        held again after its end (module docstring); the ``during`` result. ``first``: it starts the setpoints."""
         held = self.held
         # the setpoint sent at the acceptance (for the next sample); the first goal's, acknowledged by every reader
-        self.spin_until(lambda: self.log["setpoint"] and stamp_s(self.log["setpoint"][-1]) > held + 1e-6, 5.0)
+        _harness_wait(self, lambda: self.log["setpoint"] and stamp_s(self.log["setpoint"][-1]) > held + 1e-6, "goal")
         if first:
             _stream_acknowledged(self, "setpoint", "seapup/task_controller")
         if not self.log["reference"]:
             # the first velocity reference (answering the next estimate), acknowledged by every reader
             self._advance(held + 1e-3, timeout=timeout)
-            self.spin_until(lambda: self.log["reference"], 5.0)
+            _harness_wait(self, lambda: self.log["reference"], "first reference")
             _stream_acknowledged(self, "reference", "seapup/position_controller")
         during_result, end = None, lambda: result_end_time(future)
         settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
