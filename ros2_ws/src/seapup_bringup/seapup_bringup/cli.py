@@ -187,8 +187,9 @@ def pytest_arguments(argv: list[str], cpus: int | None = None) -> list[str]:
     The graph tests wait on discovery, pacing and timers: with a worker per CPU the two CPUs of the reference
     machine were busy 78 % of the suite's time (14 min 7 s), and one worker more took 13 min 3 - 13 min 28 s
     (``-n 3 --dist loadfile`` asks for it). It is not the default: its load showed defects a worker per CPU
-    rarely meets, and not all are mended (a paced hierarchy flown beside two burners left its quiet twin at
-    t = 10.8 s once; issue 43's note).
+    rarely meets (a paced hierarchy flown beside two burners left its quiet twin at t = 10.8 s: a goal's first
+    setpoint could reach the position controller after the next estimate, mended by the stream-start
+    acknowledgements), and its graph tests' wall-clock bounds were measured at a worker per CPU.
 
     Examples
     --------
