@@ -87,3 +87,30 @@ def test_a_velocity_controller_says_at_once_that_a_reference_wait_ran_out(ros_co
     assert 0.25 < waited < 5.0 and node.counts["late_references"] == 1, (waited, node.counts)
     assert ended_waits(said) == {"seapup/" + node.get_name(): {"late_references": 1}}, said
     node.destroy_node()
+
+
+@pytest.mark.graph
+def test_a_velocity_controller_says_at_once_that_it_has_the_first_reference(ros_context):
+    """Issue 43: a harness holding the lockstep graph resumes it once the active velocity controller has the
+    position controller's first reference (``SilGraph`` waits for this status): the configured node says
+    ``reference_stream_start`` on ``/diagnostics`` when it hears its first stamped reference, not again after."""
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.parameter import Parameter
+    from seapup_bringup.graph.readiness import stream_started
+    from seapup_control.velocity_controller_node import VelocityControllerNode
+    node = VelocityControllerNode(context=ros_context, parameter_overrides=[
+        Parameter("controller_type", value="hold"), Parameter("sample_period", value=0.2),
+        Parameter("lockstep", value=True), Parameter("reference_every_sample", value=True),
+        Parameter("diagnostics_every", value=1000)])
+    assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+    said = []
+    node.diagnostics.publish = said.append
+    name = "seapup/" + node.get_name()
+    node._on_clock(_clock(1))
+    assert not stream_started(said, name, 0.0, key="reference_stream_start")
+    node._on_reference(_reference(3))           # stamped t_3, heard while the graph is held at t_1
+    assert len(said) == 1 and stream_started(said, name, 3 * T_NS * 1e-9, key="reference_stream_start")
+    assert not stream_started(said, name, 4 * T_NS * 1e-9, key="reference_stream_start")
+    node._on_reference(_reference(4))
+    assert len(said) == 1                       # once: the stream's start
+    node.destroy_node()

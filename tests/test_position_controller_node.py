@@ -110,7 +110,8 @@ def test_a_reference_stream_s_first_message_is_acknowledged_by_its_readers_and_s
     """Issue 43: a harness holding the lockstep graph resumes it only once every reader has the position
     controller's first reference of a stream (``acknowledge_stream_start``): the node says the stream's start
     on ``/diagnostics`` at once -- at the first reference and again when references resume after a gap, not at
-    every sample -- and a reader that was matched received that reference before the status was sent."""
+    every sample -- and a reader that was matched received that reference before the status was sent. Likewise
+    the start of the setpoint stream it hears (``setpoint_stream_start``)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import TwistStamped
     from rclpy.executors import SingleThreadedExecutor
@@ -131,22 +132,30 @@ def test_a_reference_stream_s_first_message_is_acknowledged_by_its_readers_and_s
         said = []
         publish = node.diagnostics.publish
 
+        setpoint_starts = []
+
         def say(msg: DiagnosticArray):
             values = {kv.key: kv.value for s in msg.status for kv in s.values}
             # the reader's DDS history has every reference sent so far: acknowledged (nothing left to wait for)
             start = values.get("stream_start")
-            said.append((None if start in (None, "None") else float(start),
-                         node.publisher.wait_for_all_acked(Duration(seconds=0.0))))
+            if start not in (None, "None"):
+                said.append((float(start), node.publisher.wait_for_all_acked(Duration(seconds=0.0))))
+            if values.get("setpoint_stream_start") not in (None, "None"):
+                setpoint_starts.append(float(values["setpoint_stream_start"]))
             publish(msg)
         node.diagnostics.publish = say
         for k in range(1, 5):
             node._on_setpoint(_setpoint(k))
             node._on_estimate(_estimate(k))
         assert len(said) == 1 and said[0][0] == pytest.approx(3 * T) and said[0][1]  # the first: t_1 + 2 T
+        # the setpoint stream's start is said once this node has its first setpoint (stamped t_1), before the
+        # estimate t_1 comes: a harness holding the graph resumes it on that status
+        assert setpoint_starts and setpoint_starts == pytest.approx([T] * len(setpoint_starts))
         for k in range(10, 12):                # the navigator was silent for five samples: a new stream
             node._on_setpoint(_setpoint(k))
             node._on_estimate(_estimate(k))
         assert [s for s, _ in said] == pytest.approx([3 * T, 12 * T]) and all(acked for _, acked in said)
+        assert setpoint_starts[-1] == pytest.approx(10 * T)   # the setpoints stopped for five samples: a new stream
         assert node.counts["unacknowledged_stream_starts"] == 0
         assert spin(executor, lambda: len(heard) == 6, 10.0)
         assert heard == [round((k + 2) * T * 1e9) for k in (1, 2, 3, 4, 10, 11)]

@@ -21,6 +21,11 @@ An estimate stamped as the one before it (the navigator says its newest
 again to readers that match late) is ignored and counted
 (``repeated_estimates``): tracking it twice would step the law twice.
 
+The first setpoint of a stream (none heard before, or none for more than a sample) is said at once on
+``/diagnostics`` (``setpoint_stream_start``, its stamp [s]), once this node has it: a harness holding the graph
+resumes it only then, so the next estimate is tracked with it whatever the delivery order or the load (the
+task controller's acknowledged send alone was not enough: beside two burners a mission's first estimate after
+the goal was once tracked without its setpoint).
 The first reference of a stream (the first estimate tracked after none was, for one sample or more) is
 waited on until every reader has acknowledged it, and said at once on ``/diagnostics`` (``stream_start``, its
 stamp [s]; :func:`seapup_common.ros.node.acknowledge_stream_start`): a harness holding the graph resumes it
@@ -106,6 +111,7 @@ class PositionControllerNode(LifecycleNode):
         self._newest_setpoint: float | None = None   # [s] stamp of the newest stamped setpoint
         self._last_reference_ns: int | None = None   # the newest reference's stamp
         self._stream_start: float | None = None      # [s] the stamp of the reference stream's first message
+        self._setpoint_stream_start: float | None = None   # [s] and of the setpoint stream's, as heard here
         # estimates not yet tracked, in order: the first waits (until its wall deadline) for its setpoint, the
         # rest behind it (the graph need not wait for this node's answer to one estimate before the next: its
         # reference is for reference_delay samples later), so none is tracked with a setpoint that came late
@@ -146,7 +152,12 @@ class PositionControllerNode(LifecycleNode):
             self.get_logger().warn(f"setpoint rejected: {exc}", throttle_duration_sec=2.0)
             return
         if stamp_ns:
-            self._newest_setpoint = max(self._newest_setpoint or 0.0, stamp_ns * 1e-9)
+            previous = self._newest_setpoint
+            self._newest_setpoint = max(previous or 0.0, stamp_ns * 1e-9)
+            if previous is None or stamp_ns * 1e-9 > previous + 1.5 * self.controller.sample_period:
+                self._setpoint_stream_start = stamp_ns * 1e-9   # a stream starts: said at once (module docstring)
+                self._last_diag = -math.inf
+                self._diagnose_idle()
         self._drain()
 
     def _on_estimate(self, msg: Odometry) -> None:
@@ -221,7 +232,8 @@ class PositionControllerNode(LifecycleNode):
         setpoint = self.controller.reference
         values = {**self.counts, "setpoint": [*setpoint.position.tolist(), setpoint.yaw],
                   "velocity_reference": reference.velocity.tolist(),
-                  "limited": [bool(x) for x in self.controller.limited], "stream_start": self._stream_start}
+                  "limited": [bool(x) for x in self.controller.limited], "stream_start": self._stream_start,
+                  "setpoint_stream_start": self._setpoint_stream_start}
         level = DiagnosticStatus.WARN if self.counts["rejected_setpoints"] else DiagnosticStatus.OK
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level,
                                                   "tracking", values, t_ns))
@@ -242,7 +254,8 @@ class PositionControllerNode(LifecycleNode):
         level = DiagnosticStatus.OK if ready else DiagnosticStatus.WARN
         message = "idle" if ready else "inactive" if not self.active else \
             "no navigation estimate" if not heard else "no setpoint publisher (task controller) matched"
-        values = {**self.counts, f"subscribers:{self.publisher.topic_name}": self.publisher.get_subscription_count()}
+        values = {**self.counts, f"subscribers:{self.publisher.topic_name}": self.publisher.get_subscription_count(),
+                  "setpoint_stream_start": self._setpoint_stream_start}
         self.diagnostics.publish(diagnostic_array(f"seapup/{self.get_name()}", level, message, values,
                                                   graph_time_ns(self, self._estimate_ns)))
 

@@ -55,7 +55,9 @@ with an estimate (the self-tuners of ch. 7: ``estimate_matrix()`` and
 jacket's reason and counts) after every sample it answers; the status on
 ``/diagnostics`` comes every ``diagnostics_every`` samples, in lockstep no
 more often than real time would give
-(:class:`~seapup_control.ros.diagnostics_pace.DiagnosticsPace`).
+(:class:`~seapup_control.ros.diagnostics_pace.DiagnosticsPace`), and at once when the node (configured)
+hears its first stamped reference (``reference_stream_start``, its stamp [s]): a harness holding the graph
+resumes it only once the active controller has it.
 
 The per-sample inputs (velocity, applied pitch, reference, ``/clock``) are
 subscribed as bytes and read without message objects
@@ -163,6 +165,7 @@ class VelocityControllerNode(LifecycleNode):
         self.counts = {"samples": 0, "rejected_references": 0, "rejected_measurements": 0, "rejected_applied": 0,
                        "skipped_samples": 0, "late_references": 0, "late_applied": 0}
         self.references = StampedReferences()
+        self._reference_stream_start: float | None = None   # [s] the first stamped reference heard
         self.applied: np.ndarray | None = None      # the latest applied blade pitch heard
         self._applied_at: dict[int, Command] = {}  # applied pitch by sample stamp (the last few)
         self._interfaces = []
@@ -309,8 +312,13 @@ class VelocityControllerNode(LifecycleNode):
             self.counts["rejected_references"] += 1
             self.get_logger().warn(f"reference rejected: {exc}", throttle_duration_sec=2.0)
             return
+        first = at is not None and self._reference_stream_start is None
+        if first:
+            self._reference_stream_start = at
         if self.policy.on_reference(at) and self.policy.latest_ns is not None:
             self._answer(self.policy.latest_ns)  # the sample that waited for it
+        if first and self.controller is not None:
+            self._diagnose(self.policy.latest_ns or 0)   # said at once (module docstring)
 
     def _on_applied(self, data: bytes) -> None:
         try:
@@ -425,7 +433,8 @@ class VelocityControllerNode(LifecycleNode):
         law = self.controller.diagnostics()
         values = {"controller_type": self.kind.name, **self.counts, **law,
                   "reference": self.references.current.velocity.tolist(),
-                  "references_waiting": self.references.waiting}
+                  "references_waiting": self.references.waiting,
+                  "reference_stream_start": self._reference_stream_start}
         rejected = (self.counts["rejected_references"] + self.counts["rejected_measurements"]
                     + self.counts["rejected_applied"])
         saturated = any(law.get("saturated", ()))

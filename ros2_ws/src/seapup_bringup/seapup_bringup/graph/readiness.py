@@ -98,16 +98,17 @@ def handled_since(diagnostics: list, name: str, t: float, window: int = WINDOW) 
                for array in diagnostics[-window:] for status in array.status)
 
 
-def stream_started(diagnostics: list, name: str, t: float, window: int = WINDOW) -> bool:
-    """Whether node ``name`` said that a stream of its, started with the message stamped ``t`` [s] or later,
-    was acknowledged by its readers or waited for in vain (its ``stream_start`` status value, then
-    ``unacknowledged_stream_starts`` counts it: :func:`seapup_common.ros.node.acknowledge_stream_start`)."""
+def stream_started(diagnostics: list, name: str, t: float, window: int = WINDOW, key: str = "stream_start") -> bool:
+    """Whether node ``name`` said (its status value ``key``) that a stream started with the message stamped ``t``
+    [s] or later: ``stream_start``, a stream of its that its readers acknowledged or that it waited for in vain
+    (then ``unacknowledged_stream_starts`` counts it: :func:`seapup_common.ros.node.acknowledge_stream_start`);
+    ``setpoint_stream_start``, the position controller has the first setpoint of a stream it hears."""
     for array in diagnostics[-window:]:
         for status in array.status:
             if status.name != name:
                 continue
             for kv in status.values:
-                if kv.key == "stream_start":
+                if kv.key == key:
                     try:
                         if float(kv.value) >= t - 1e-6:
                             return True

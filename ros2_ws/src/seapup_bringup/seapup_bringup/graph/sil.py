@@ -72,12 +72,24 @@ def _harness_wait(sil, predicate, what: str, wait: float = HARNESS_WAIT) -> None
         ended[what] = ended.get(what, 0) + 1
 
 
-def _stream_acknowledged(sil, key: str, node: str) -> None:
-    """Wait until ``node`` said that its stream the probe logs as ``key``, from the first message heard, was
-    acknowledged by every reader (:func:`~seapup_bringup.graph.readiness.stream_started`)."""
+def _stream_acknowledged(sil, key: str, node: str, value: str = "stream_start") -> None:
+    """Wait until ``node`` said (status ``value``: :func:`~seapup_bringup.graph.readiness.stream_started`) that the
+    stream the probe logs as ``key`` started at the first message heard: acknowledged by every reader, or had."""
     if sil.log[key]:
         start = stamp_s(sil.log[key][0])
-        _harness_wait(sil, lambda: readiness.stream_started(sil.log["diagnostics"], node, start), f"{key} acknowledged")
+        _harness_wait(sil, lambda: readiness.stream_started(sil.log["diagnostics"], node, start, 400, value),
+                      f"{key} stream start")   # said once, maybe before this wait: a wide window
+
+
+def _first_reference_heard(sil) -> None:
+    """Wait until every reader acknowledged the position controller's first reference and the active velocity
+    controller (the manager's status) said it has it (``reference_stream_start``)."""
+    _stream_acknowledged(sil, "reference", "seapup/position_controller")
+    active = readiness.latest_statuses(sil.log["diagnostics"], window=len(sil.log["diagnostics"])).get(
+        "seapup/controller_manager")
+    name = next((kv.value for kv in (active.values if active else ()) if kv.key == "active"), "")
+    if name:
+        _stream_acknowledged(sil, "reference", f"seapup/{name}", "reference_stream_start")
 
 
 def _with_roster(specs: list, probe_topics, record: list) -> list:
@@ -371,12 +383,12 @@ class SilGraph:
         # the setpoint sent at the acceptance (for the next sample); the first goal's, acknowledged by every reader
         _harness_wait(self, lambda: self.log["setpoint"] and stamp_s(self.log["setpoint"][-1]) > held + 1e-6, "goal")
         if first:
-            _stream_acknowledged(self, "setpoint", "seapup/task_controller")
+            _stream_acknowledged(self, "setpoint", "seapup/position_controller", "setpoint_stream_start")
         if not self.log["reference"]:
             # the first velocity reference (answering the next estimate), acknowledged by every reader
             self._advance(held + 1e-3, timeout=timeout)
             _harness_wait(self, lambda: self.log["reference"], "first reference")
-            _stream_acknowledged(self, "reference", "seapup/position_controller")
+            _first_reference_heard(self)
         during_result, end = None, lambda: result_end_time(future)
         settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
                              held, self._pacing.period_ns * 1e-9)   # feedback since the goal was sent
