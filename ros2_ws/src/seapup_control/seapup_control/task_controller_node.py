@@ -30,8 +30,8 @@ as the client heard the acceptance could reach this node's next estimates first,
 then began one or more samples late (a loaded demo's seabed following ended 0.4 s later).
 The first task's first setpoint starts the setpoint stream: the node waits until every reader has
 acknowledged it and says so at once on ``/diagnostics`` (``stream_start``, its stamp [s];
-:func:`seapup_common.ros.node.acknowledge_stream_start`), so a harness holding the graph resumes it only
-once the position controller has it.
+:func:`seapup_common.ros.node.acknowledge_stream_start`); a harness holding the graph resumes it once the
+position controller says it has that setpoint (its ``setpoint_stream_start``).
 """
 from __future__ import annotations
 

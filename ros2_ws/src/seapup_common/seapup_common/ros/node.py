@@ -566,11 +566,12 @@ def acknowledge_stream_start(publisher, seconds: float = STREAM_START_ACK_WAIT) 
     probe and by the next node of the chain at about the same time, but not necessarily: a datagram repaired
     by a heartbeat reaches one reader later. The next node only waits for a stream's messages once it knows the
     stream flows, so if the graph went on first, that node would step one sample without it (under load, once
-    in about five paced runs). Acknowledged, the message is in every reader's history before anything the
-    resumed graph sends it, and rclpy takes a subscription's messages in their order of arrival (the events
-    executor) or, ready at once, in the order the subscriptions were made (the setpoint's before the
-    estimate's). The node then says so on ``/diagnostics`` (``stream_start``, ``stream_start_acknowledged``)
-    and the harness waits for that (:func:`seapup_bringup.graph.readiness.stream_started`)."""
+    in about five paced runs). The node then says the stream's start on ``/diagnostics`` (``stream_start``,
+    its stamp), a wait that ran out counted in ``unacknowledged_stream_starts``. An acknowledgement is not
+    proof that the reader's callback has run (beside two burners a first setpoint acknowledged by every reader
+    was still taken after the next estimate once), so the harness waits for the consumers' own word too: the
+    position controller's ``setpoint_stream_start`` and the active velocity controller's
+    ``reference_stream_start`` (:func:`seapup_bringup.graph.readiness.stream_started`)."""
     return bool(publisher.wait_for_all_acked(Duration(seconds=float(seconds))))
 
 
