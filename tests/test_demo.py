@@ -114,7 +114,9 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     taken = int(vehicle["accepted"])  # as of its last status, a little before the end
     assert int(vehicle["lockstep_timeouts"]) == 0, vehicle
     assert taken > 0.95 * samples and counts["/seapup/thrusters/command"] >= taken, (taken, samples)
-    assert set(last) == {"seapup/mfol_fixed", "seapup/mfol_scheduled", "seapup/gmv"}
+    # the controllers that flew (every configured one also says once that it heard its first reference)
+    assert {name for name, (n, _) in last.items() if n > 0} == {"seapup/mfol_fixed", "seapup/mfol_scheduled",
+                                                                 "seapup/gmv"}
     assert sum(late for _, late in last.values()) <= 0.01 * sum(n for n, _ in last.values())
     # one time base: every stamped message of every topic is logged no earlier than its own header stamp,
     # and no node stamps with the wall clock on this sim-time graph (/diagnostics once mixed the two)
