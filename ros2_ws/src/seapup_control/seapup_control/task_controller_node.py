@@ -28,9 +28,7 @@ its first step is the first estimate after the acceptance whatever the load. Sta
 execute callback instead -- a task rclpy schedules later -- a lockstep graph stepped on as soon
 as the client heard the acceptance could reach this node's next estimates first, and the task
 then began one or more samples late (a loaded demo's seabed following ended 0.4 s later).
-The first task's first setpoint starts the setpoint stream: the node waits until every reader has
-acknowledged it and says so at once on ``/diagnostics`` (``stream_start``, its stamp [s];
-:func:`seapup_common.ros.node.acknowledge_stream_start`); a harness holding the graph resumes it once the
+The first task's first setpoint starts the setpoint stream; a harness holding the graph resumes it once the
 position controller says it has that setpoint (its ``setpoint_stream_start``).
 """
 from __future__ import annotations
@@ -58,7 +56,7 @@ from seapup_common.lockstep import StampGate
 from seapup_common.ros.messages import (altitude_from_msg, diagnostic_array, estimate_from_odometry,
                                         pose_setpoint_to_msg, stamp_to_ns)
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
-                                    acknowledge_stream_start, destroy_actions, graph_time_ns, run_node)
+                                    destroy_actions, graph_time_ns, run_node)
 from seapup_common.topics import CLOCK, DIAGNOSTICS, NAMESPACE
 from seapup_control.tasks import FollowSeabed as FollowSeabedTask
 from seapup_control.tasks import Goto as GotoTask
@@ -119,8 +117,7 @@ class TaskControllerNode(Node):
         self.running: _Running | None = None
         self.setpoint = None
         self.counts = {"rejected_goals": 0, "rejected_estimates": 0, "setpoints": 0, "late_altitudes": 0,
-                       "rejected_altitudes": 0, "repeated_estimates": 0, "unacknowledged_stream_starts": 0}
-        self._stream_start: float | None = None  # [s] the stamp of the setpoint stream's first message
+                       "rejected_altitudes": 0, "repeated_estimates": 0}
         self.setpoints = self.create_publisher(PoseStamped, "position_controller/reference", STREAM_QOS)
         self.rejections = self.create_publisher(String, "task/rejections", REJECTIONS_QOS)
         self.diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS, RELIABLE_QOS)
@@ -197,10 +194,6 @@ class TaskControllerNode(Node):
             t_ns = int(round((self.estimate.t + self.period) * 1e9))
             self.setpoints.publish(pose_setpoint_to_msg(self.setpoint.position, self.setpoint.yaw, t_ns))
             self.counts["setpoints"] += 1
-            self._stream_start = t_ns * 1e-9
-            if not acknowledge_stream_start(self.setpoints):
-                self.counts["unacknowledged_stream_starts"] += 1
-            self._diagnose()  # at once: the stream's start, acknowledged (module docstring)
         handle.execute()
 
     async def _execute(self, kind: str, handle):
@@ -349,8 +342,6 @@ class TaskControllerNode(Node):
         values = {**self.counts, "task": running, "navigation": "fresh" if fresh else "none",
                   "position_controller": "listening" if listening else "none",
                   f"subscribers:{self.setpoints.topic_name}": self.setpoints.get_subscription_count()}
-        if self._stream_start is not None:
-            values["stream_start"] = self._stream_start
         message = (running or "idle") if fresh and listening else \
             "no navigation estimate" if not fresh else "no position controller listening"
         self.diagnostics.publish(diagnostic_array(

@@ -380,7 +380,7 @@ class SilGraph:
         """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and the graph
         held again after its end (module docstring); the ``during`` result. ``first``: it starts the setpoints."""
         held = self.held
-        # the setpoint sent at the acceptance (for the next sample); the first goal's, acknowledged by every reader
+        # the setpoint sent at the acceptance (for the next sample); the first goal's, had by the position controller
         _harness_wait(self, lambda: self.log["setpoint"] and stamp_s(self.log["setpoint"][-1]) > held + 1e-6, "goal")
         if first:
             _stream_acknowledged(self, "setpoint", "seapup/position_controller", "setpoint_stream_start")

@@ -561,8 +561,8 @@ def acknowledge_stream_start(publisher, seconds: float = STREAM_START_ACK_WAIT) 
     """Wait (at most ``seconds`` wall) until every reader of ``publisher`` has acknowledged the first message
     of a stream just published; whether they all did.
 
-    A lockstep harness acts while the graph is held; a node that starts a stream then (the task controller's
-    first setpoint at a goal's acceptance, the position controller's first reference) is heard by the harness's
+    A lockstep harness acts while the graph is held; a node that starts a stream then (the position
+    controller's first reference) is heard by the harness's
     probe and by the next node of the chain at about the same time, but not necessarily: a datagram repaired
     by a heartbeat reaches one reader later. The next node only waits for a stream's messages once it knows the
     stream flows, so if the graph went on first, that node would step one sample without it (under load, once
