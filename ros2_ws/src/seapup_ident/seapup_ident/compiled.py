@@ -20,12 +20,15 @@ __all__ = ["rpem_gradient_step", "warm"]
 def rpem_gradient_step(P, psi_hist, phi, weights, lam_i, regularisation, error, step):
     """One RPEM gradient step for every output i, in place: ``psi_i = phi - sum_k weights[i, k]
     psi_hist[i, k]`` (weights: c_ii,k mu^k, none for nc = 0), ``P[i]`` updated (eq. 6.20-6.22, with
-    ``lam_i[i]``), symmetrised and regularised, ``step[:, i] = gain_i error_i`` (eq. 6.19) and psi_i pushed
+    ``lam_i[i]``), symmetrised and regularised (``regularisation`` added to the diagonal of P_i's inverse,
+the Hessian approximation, as Levenberg and Marquardt regularise), ``step[:, i] = gain_i error_i`` (eq. 6.19) and psi_i pushed
     into ``psi_hist[i]``."""
     ny, n = P.shape[0], P.shape[1]
     nc = weights.shape[1]
     psi = np.empty(n)
     pp = np.empty(n)
+    L = np.empty((n, n))
+    Q = np.empty((n, n))
     for i in range(ny):
         for a in range(n):
             s = phi[a]
@@ -52,13 +55,43 @@ def rpem_gradient_step(P, psi_hist, phi, weights, lam_i, regularisation, error, 
                 m = 0.5 * (P[i, a, b] + P[i, b, a])
                 P[i, a, b] = m
                 P[i, b, a] = m
-            P[i, a, a] += regularisation
+        if regularisation > 0.0:   # Levenberg-Marquardt: P^-1 + delta I, i.e. P <- (I + delta P)^-1 P
+            _regularise(P[i], regularisation, L, Q)
         if nc > 0:
             for k in range(nc - 1, 0, -1):
                 for a in range(n):
                     psi_hist[i, k, a] = psi_hist[i, k - 1, a]
             for a in range(n):
                 psi_hist[i, 0, a] = psi[a]
+
+
+@njit(cache=True, nogil=True)
+def _regularise(P, delta, L, Q):
+    """``P <- (I + delta P)^-1 P``, symmetrised, in place: M = I + delta P (symmetric positive definite, as P
+    is) factored by Cholesky, M L = P solved column by column (work arrays ``L``, ``Q`` of P's shape)."""
+    n = P.shape[0]
+    for a in range(n):
+        for b in range(a + 1):
+            s = delta * P[a, b] + (1.0 if a == b else 0.0)
+            for k in range(b):
+                s -= L[a, k] * L[b, k]
+            L[a, b] = np.sqrt(s) if a == b else s / L[b, b]
+    for col in range(n):
+        for a in range(n):            # L z = p_col
+            s = P[a, col]
+            for k in range(a):
+                s -= L[a, k] * Q[k, col]
+            Q[a, col] = s / L[a, a]
+        for a in range(n - 1, -1, -1):  # L^T q = z
+            s = Q[a, col]
+            for k in range(a + 1, n):
+                s -= L[k, a] * Q[k, col]
+            Q[a, col] = s / L[a, a]
+    for a in range(n):
+        for b in range(a, n):
+            m = 0.5 * (Q[a, b] + Q[b, a])
+            P[a, b] = m
+            P[b, a] = m
 
 
 def warm() -> None:

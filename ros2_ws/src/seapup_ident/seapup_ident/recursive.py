@@ -14,9 +14,10 @@ search direction eta (Ljung and Soderstrom 1983, the thesis's ref. [55]):
   (the noise model C is estimated), eta = phi, P in UD form;
 - ``rpem``: the Gauss-Newton direction eta = psi, the gradient of the prediction: phi filtered by
   1 / C_ii(z^-1) for output i (the diagonal of C: each output a SISO model, sec. 6.3.1), P per
-  output in covariance form with Levenberg-Marquardt regularisation (a small number added to its
-  diagonal, sec. 6.3), and the projection of sec. 6.3: an update that would take C(z^-1) out of
-  the stability region is halved until it does not (stability from the roots of det C,
+  output in covariance form with Levenberg-Marquardt regularisation (a small number added to the
+  diagonal of its inverse, the Hessian approximation, sec. 6.3), and the projection of sec. 6.3: an
+  update that would take C(z^-1) out of the stability region is halved until it does not (stability
+  from the roots of det C,
   :func:`seapup_ident.armax.is_stable`).
 
 Estimation can be "jacketed" (sec. 7.3) for adaptive control: no update inside a dead zone of
@@ -148,7 +149,12 @@ class RecursiveArmax:
         Initial estimate (default zero).
     jacket : Jacket, optional
     regularisation : float
-        RPEM's Levenberg-Marquardt term added to the diagonal of P each sample.
+        RPEM's Levenberg-Marquardt term (sec. 6.3, eq. 6.17: "a small number is added to each diagonal
+        element"), added each sample to the diagonal of the Hessian approximation R = P^-1, as Levenberg
+        and Marquardt (the thesis's refs. [62, 63]) regularise the Gauss-Newton step: P <- (I + delta P)^-1 P.
+        It keeps P nonsingular and bounded without keeping it from shrinking as 1/t, so a long record
+        converges (added to P itself, the estimate kept a memory of about 1 / sqrt(delta) samples and
+        wandered: +-8 % in c_1 of a first-order ARMAX after 20 000 samples, where ELS is within 1 %).
     stability_margin : float
         RPEM keeps every root of det C(z) inside |z| < 1 - margin.
     filter_weakening : (float, float), optional
@@ -369,7 +375,9 @@ class RecursiveArmax:
         gain = Pp / (lam_i + np.einsum("in,in->i", psi, Pp))[:, None]
         P = (P - gain[:, :, None] * Pp[:, None, :]) / lam_i[:, None, None]
         P = 0.5 * (P + P.transpose(0, 2, 1))
-        P[:, np.arange(P.shape[1]), np.arange(P.shape[1])] += self.regularisation   # Levenberg-Marquardt
+        if self.regularisation > 0.0:   # Levenberg-Marquardt: delta added to the diagonal of P^-1 (class docstring)
+            P = np.linalg.solve(np.eye(P.shape[1])[None] + self.regularisation * P, P)
+            P = 0.5 * (P + P.transpose(0, 2, 1))
         self._P = P
         if nc:
             self._psi[:, 1:] = self._psi[:, :-1]
