@@ -212,8 +212,10 @@ def bench(argv: list[str]) -> int:
     print("mission: the demo's mission flown in process (the hierarchy's cores, sample for sample)...", file=out_text,
           flush=True)
     m = out["mission_in_process"] = _mission_rate()
-    print(f"mission_in_process: {m['rtf']:.0f}x real time ({m['simulated_s']:.0f} s simulated in {m['wall_s']:.2f} s "
-          f"wall, {m['cpu_s']:.2f} s CPU; target >= 2000x)", file=out_text)
+    print(f"mission_in_process: {m['rtf']:.0f}x real time, the median of flights 2-{m['flights']} "
+          f"({m['simulated_s']:.0f} s simulated in {m['wall_s']:.2f} s wall, {m['cpu_s']:.2f} s CPU; target >= 2000x); "
+          f"the process's first flight {m['first_rtf']:.0f}x ({m['first_wall_s']:.2f} s wall, "
+          f"{m['first_cpu_s']:.2f} s CPU)", file=out_text)
     from seapup_bringup.graph.graph_bench import law_step_costs
     print("control laws: each flown on square-inspection, its own calls timed (sec. 7.7)...", file=out_text, flush=True)
     out["control_laws"] = law_step_costs()
@@ -332,20 +334,27 @@ def _report_times() -> dict:
             out[label] = {"wall_s": time.perf_counter() - wall, "cpu_s": cpu, "exit": code}
     return out
 
-def _mission_rate() -> dict:
-    """The shipped mission (``seapup_bringup/config/mission.yaml``) flown in process
-    (:func:`seapup_runs.mission_flight.run_mission`): simulated seconds per wall second, CPU beside wall."""
+def _mission_rate(flights: int = 4) -> dict:
+    """The shipped mission (``seapup_bringup/config/mission.yaml``) flown in process ``flights`` times
+    (:func:`seapup_runs.mission_flight.run_mission`): simulated seconds per wall second, CPU beside wall, of the
+    first flight (it pays the process's first use of the cores: imports, compiled-kernel dispatch) and the median
+    of the others (what each further mission of a campaign's worker costs)."""
     from seapup_bringup.graph.hierarchy_config import hierarchy_config
     from seapup_bringup.graph.mission_graph import mission_path
     from seapup_runs.mission import load_mission
     from seapup_runs.mission_flight import run_mission
     spec = load_mission(mission_path())
     hierarchy = hierarchy_config(spec.graph)
-    wall, cpu = time.perf_counter(), time.process_time()
-    result = run_mission(spec, hierarchy)
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    times = []
+    for _ in range(max(2, flights)):
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = run_mission(spec, hierarchy)
+        times.append((time.perf_counter() - wall, time.process_time() - cpu))
+    (first_wall, first_cpu), rest = times[0], sorted(times[1:])
+    wall, cpu = rest[len(rest) // 2]
     return {"simulated_s": result["held"], "wall_s": wall, "cpu_s": cpu, "rtf": result["held"] / wall,
-            "samples": len(result["logs"]["command_t"])}
+            "first_wall_s": first_wall, "first_cpu_s": first_cpu, "first_rtf": result["held"] / first_wall,
+            "flights": len(times), "samples": len(result["logs"]["command_t"])}
 
 
 def _estimator_step_us(samples: int = 2000) -> dict:
