@@ -51,6 +51,11 @@ def test_every_target_is_scored_from_its_run(report):
     assert pooled["reproduced"] + pooled["deviations"] + pooled["failed"] + pooled["not_run"] == pooled["asked"]
     assert set(document["chapters"]) == {t.chapter for t in expected}
     assert 0 < len(document["largest_misses"]) <= 10
+    # every missed deviation counted once under the class of its cause (the register's causes)
+    assert sum(pooled["by_class"].values()) == pooled["deviations"]
+    for c in tg.CAUSE_CLASSES:
+        assert pooled["by_class"][c] == sum(r["status"] == "deviation" and r["deviation"]["class"] == c
+                                            for r in rows.values())
 
 
 @pytest.mark.process

@@ -27,7 +27,7 @@ from seapup_common.input_files import InputFileError, load_yaml_file
 
 __all__ = ["Target", "Tolerance", "Score", "TargetsError", "STATUSES", "CHAPTERS", "TARGETS_FILE",
            "load_targets", "load_document", "runs_of", "score", "score_all", "summarise", "lookup",
-           "targets_for_run", "verify_rows", "verify_summary", "thesis_value", "thesis_by_metric"]
+           "targets_for_run", "verify_rows", "CAUSE_CLASSES", "verify_summary", "thesis_value", "thesis_by_metric"]
 
 TARGETS_FILE = Path(__file__).resolve().parent / "data" / "thesis_targets.yaml"
 STATUSES = ("reproduced", "deviation", "failed", "not_run")
@@ -39,6 +39,13 @@ _VERSUS_KEYS = {"run", "metric", "holds", "factor"}
 _HOLDS = ("below", "above", "near")
 _TOLERANCE_KEYS = {"abs", "rel", "abs_row", "range", "range_factor", "at_most", "at_least", "reason"}
 _DEVIATION_KEYS = {"decision", "reason", "doc"}
+_CAUSE_KEYS = {"class", "passage"}
+CAUSE_CLASSES = {
+    "a": "the thesis contradicts itself or omits what is needed",
+    "b": "beyond the thesis's model",
+    "c": "the thesis's implementation",
+    "d": "unverifiable",
+}
 _TYPO_KEYS = {"read", "why"}
 _RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled", "seeds",
              "controller", "params", "sensors"}
@@ -52,7 +59,9 @@ class TargetsError(ValueError):
 class Tolerance:
     """How close counts: ``abs`` and/or ``rel`` (the larger band), ``range`` [lo, hi], ``range_factor`` k
     (within a factor k of the value, same sign), ``at_most`` / ``at_least`` a bound; with none of them
-    (``abs: 0``) ours must equal the thesis's. ``reason`` is the one line shown beside it."""
+    (``abs: 0``) ours must equal the thesis's. ``same_sign``: ours must also have the sign of a non-zero
+    thesis value (a small gain entry judged on its row's scale, :func:`_expand`). ``reason`` is the one line
+    shown beside it."""
 
     reason: str
     abs: float | None = None
@@ -62,6 +71,7 @@ class Tolerance:
     at_most: float | None = None
     at_least: float | None = None
     name: str = ""
+    same_sign: bool = False
 
     def bounds(self, value) -> tuple[float, float]:
         """The accepted interval [low, high] for a thesis value."""
@@ -77,7 +87,12 @@ class Tolerance:
             low, high = sorted((value / self.range_factor, value * self.range_factor))
             return low, high
         band = max(self.abs or 0.0, (self.rel or 0.0) * abs(value))
-        return value - band, value + band
+        low, high = value - band, value + band
+        if self.same_sign and value > 0.0:
+            low = max(low, math.ulp(0.0))      # the smallest positive number: zero has no sign
+        elif self.same_sign and value < 0.0:
+            high = min(high, -math.ulp(0.0))
+        return low, high
 
     def text(self) -> str:
         """The tolerance in a few characters, for a table cell."""
@@ -89,8 +104,8 @@ class Tolerance:
             return f">= {self.at_least:g}"
         if self.range_factor is not None:
             return f"x/÷ {self.range_factor:g}"
-        parts = ([f"±{self.rel * 100:g} %"] if self.rel else []) + ([f"±{self.abs:g}"] if self.abs else [])
-        return " or ".join(parts) if parts else "exact"
+        parts = ([f"±{self.rel * 100:g} %"] if self.rel else []) + ([f"±{self.abs:.3g}"] if self.abs else [])
+        return (" or ".join(parts) if parts else "exact") + (", same sign" if self.same_sign else "")
 
 
 @dataclass(frozen=True)
@@ -197,7 +212,7 @@ def _tolerance(spec, named: dict, where: str) -> Tolerance:
 
 
 def load_document(path: str | Path | None = None) -> dict:
-    """The targets file as parsed YAML (``units``, ``runs``, ``tolerances``, ``targets``)."""
+    """The targets file as parsed YAML (``units``, ``runs``, ``tolerances``, ``causes``, ``targets``)."""
     path = Path(path) if path is not None else TARGETS_FILE
     try:   # bounded and strict: at most 1 MiB, no duplicated key (a target given twice), safe tags only
         doc = load_yaml_file(path, "config")
@@ -205,7 +220,7 @@ def load_document(path: str | Path | None = None) -> dict:
         raise TargetsError(str(exc)) from None
     if not isinstance(doc, dict) or doc.get("schema") != 1:
         raise TargetsError(f"{path}: not a thesis targets file (schema: 1)")
-    unknown = set(doc) - {"schema", "units", "runs", "tolerances", "targets"}
+    unknown = set(doc) - {"schema", "units", "runs", "tolerances", "causes", "targets"}
     if unknown:
         raise TargetsError(f"{path}: unknown top-level key(s) {sorted(unknown)}")
     return doc
@@ -278,14 +293,26 @@ def _expand(entry: dict, tolerance: Tolerance, spec: dict) -> list[Target]:
         if spec.get("abs_row") is not None:
             if array.ndim != 2:
                 _fail(entry["id"], "abs_row is for a matrix value")
-            tol = Tolerance(reason=tolerance.reason, rel=tolerance.rel, name=tolerance.name,
-                            abs=float(spec["abs_row"]) * float(np.abs(array[index[0]]).max()))
+            tol = _entry_band(tolerance, float(spec["abs_row"]), float(array[index]),
+                              float(np.abs(array[index[0]]).max()))
         suffix = ",".join(str(i) for i in index)
         out.append(Target(id=f"{entry['id']}[{suffix}]", quantity=f"{entry['quantity']} [{suffix}]",
                           value=float(array[index]), tolerance=tol,
                           metric=".".join([str(entry["metric"]), *(str(i) for i in index)]),
                           **{**base, "deviation": _deviation_of(entry, suffix)}))
     return out
+
+
+def _entry_band(tolerance: Tolerance, abs_row: float, value: float, row_max: float) -> Tolerance:
+    """The band of one matrix entry under an ``abs_row`` tolerance. An entry of at least ``abs_row`` of its
+    thesis row's largest magnitude is judged by the relative band alone (within +-``rel`` of it, which keeps
+    its sign); a smaller one -- a cross-coupling whose own size makes a relative band a few thousandths wide,
+    narrower than the noise of the step it was read from -- within ``abs_row`` of the row's largest entry,
+    and with the thesis's sign where the thesis's entry is not zero."""
+    scale = abs_row * row_max
+    if abs(value) >= scale and tolerance.rel:
+        return replace(tolerance, abs=None)
+    return replace(tolerance, abs=scale, rel=None, same_sign=value != 0.0)
 
 
 def _check_versus(entry: dict, runs: dict, where: str) -> None:
@@ -328,6 +355,7 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
     named = {}
     for name, spec in raw_tolerances.items():
         named[name] = replace(_tolerance(spec, {}, f"tolerance {name!r}"), name=name)
+    causes = _causes(doc.get("causes"))
     targets, seen = [], set()
     for k, entry in enumerate(doc.get("targets") or []):
         where = f"target {k} ({entry.get('id', '?') if isinstance(entry, dict) else '?'})"
@@ -360,8 +388,39 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
             if target.id in seen:
                 _fail(where, f"duplicate id {target.id!r}")
             seen.add(target.id)
+            if target.deviation:
+                target = replace(target, deviation={**target.deviation, **_cause_of(target.deviation, causes, where)})
             targets.append(target)
-    return tuple(targets), {"units": units, "runs": runs, "tolerances": named}
+    unused = set(causes) - {t.deviation.get("cause") for t in targets if t.deviation}
+    if unused:
+        raise TargetsError(f"{Path(path).name}: cause(s) {sorted(unused)} explain no target's deviation")
+    return tuple(targets), {"units": units, "runs": runs, "tolerances": named, "causes": causes}
+
+
+def _causes(raw) -> dict:
+    """The register's causes: anchor of ``docs/decisions.md`` -> {class, passage} (:data:`CAUSE_CLASSES`)."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise TargetsError("causes: a mapping of docs/decisions.md anchors to {class, passage}")
+    for name, cause in raw.items():
+        if not _text_fields(cause, _CAUSE_KEYS):
+            raise TargetsError(f"cause {name!r}: needs exactly class and passage (each a line of text)")
+        if cause["class"] not in CAUSE_CLASSES:
+            raise TargetsError(f"cause {name!r}: class must be one of {', '.join(CAUSE_CLASSES)}, got {cause['class']!r}")
+    return {str(k): dict(v) for k, v in raw.items()}
+
+
+def _cause_of(deviation: dict, causes: dict, where: str) -> dict:
+    """A deviation's cause (its ``doc`` anchor in ``docs/decisions.md``), class and deciding passage; with no
+    ``causes`` section (a targets file of a test) none is asked for."""
+    if not causes:
+        return {}
+    doc = deviation["doc"]
+    anchor = doc.partition("#")[2] if doc.startswith("docs/decisions.md#") else ""
+    if anchor not in causes:
+        _fail(where, f"deviation's entry {doc!r} is not a cause of the register (causes: docs/decisions.md#<anchor>)")
+    return {"cause": anchor, "class": causes[anchor]["class"], "passage": causes[anchor]["passage"]}
 
 
 def load_targets(path: str | Path | None = None) -> list[Target]:
@@ -444,12 +503,15 @@ def score_all(targets: list[Target], results: dict) -> list[Score]:
 
 def summarise(scores: list[Score]) -> dict:
     """``{"chapters": {ch: counts}, "pooled": counts}``; counts: asked, reproduced, deviations, failed,
-    not_run, misses (the ids not reproduced). Pooled over every chapter scored."""
+    not_run, by_class (the missed deviations per class of their cause, :data:`CAUSE_CLASSES`), misses (the ids
+    not reproduced). Pooled over every chapter scored."""
     def counts(rows):
         return {"asked": len(rows), "reproduced": sum(s.status == "reproduced" for s in rows),
                 "deviations": sum(s.status == "deviation" for s in rows),
                 "failed": sum(s.status == "failed" for s in rows),
                 "not_run": sum(s.status == "not_run" for s in rows),
+                "by_class": {c: sum(s.status == "deviation" and s.target.deviation.get("class") == c for s in rows)
+                             for c in CAUSE_CLASSES},
                 "misses": [s.target.id for s in rows if s.status in ("failed", "deviation")]}
     chapters = {ch: counts([s for s in scores if s.target.chapter == ch]) for ch in CHAPTERS
                 if any(s.target.chapter == ch for s in scores)}

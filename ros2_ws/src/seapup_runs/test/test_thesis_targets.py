@@ -160,9 +160,29 @@ def test_a_matrix_expands_into_one_target_per_entry_with_its_row_scale(tmp_path)
     expanded = {t.id: t for t in tg.load_targets(_write(tmp_path, doc))}
     assert sorted(expanded) == ["x[0,0]", "x[0,1]", "x[1,0]", "x[1,1]"]
     assert expanded["x[1,0]"].metric == "m.1.0" and expanded["x[1,0]"].value == -0.5
-    assert expanded["x[0,0]"].tolerance.bounds(2.0) == (1.0, 3.0)                 # 50 % beats 0.2
-    assert expanded["x[0,1]"].tolerance.bounds(0.01) == pytest.approx((-0.19, 0.21))  # a tenth of row 0's 2.0
-    assert expanded["x[1,1]"].tolerance.bounds(0.0) == pytest.approx((-0.05, 0.05))   # a tenth of row 1's 0.5
+    assert expanded["x[0,0]"].tolerance.bounds(2.0) == (1.0, 3.0)       # a large entry: its own 50 % only
+    assert expanded["x[1,0]"].tolerance.bounds(-0.5) == (-0.75, -0.25)
+    low, high = expanded["x[0,1]"].tolerance.bounds(0.01)               # a tenth of row 0's 2.0, same sign
+    assert 0.0 < low < 1e-300 and high == pytest.approx(0.21)
+    assert expanded["x[1,1]"].tolerance.bounds(0.0) == pytest.approx((-0.05, 0.05))   # zero has no sign
+    assert expanded["x[0,1]"].tolerance.text() == "±0.2, same sign" and expanded["x[0,0]"].tolerance.text() == "±50 %"
+
+
+@pytest.mark.unit
+def test_a_gain_entry_of_the_wrong_sign_is_never_scored_reproduced(tmp_path):
+    """A small cross-coupling judged on its row's scale must still have the thesis's sign; a large entry
+    within its relative band of 50 % has it by construction (Table 5.2's 25 row-band entries, 5 of them of the
+    wrong sign, were once scored reproduced)."""
+    doc = _doc(value=[[0.032, 0.0048, 0.002, -0.003]], metric="m", tolerance="rows")
+    doc["tolerances"]["rows"] = {"rel": 0.5, "abs_row": 0.1, "reason": "half, or a tenth of the row"}
+    expanded = {t.id: t for t in tg.load_targets(_write(tmp_path, doc))}
+    status = lambda ours: [tg.score(expanded[f"x[0,{j}]"], {"m": [ours]}).status[0] for j in range(4)]
+    assert status([0.03, 0.005, 0.001, -0.001]) == list("rrrr")
+    assert status([0.03, 0.005, -0.001, 0.001]) == list("rrff")   # small entries of the wrong sign
+    assert status([0.03, 0.005, 0.0, 0.0]) == list("rrff")        # zero is not the thesis's sign either
+    assert status([-0.03, 0.005, 0.001, -0.001]) == list("frrr")  # a large entry's band keeps its sign
+    # 0.0048 is 15 % of its row's largest: its own band (+-0.0024), not the row's wider +-0.0032
+    assert status([0.03, 0.0020, 0.001, -0.001]) == list("rfrr")
 
 
 @pytest.mark.unit
@@ -233,13 +253,36 @@ def test_a_missing_non_finite_or_unrun_value_is_never_reproduced():
 
 @pytest.mark.unit
 def test_a_deviation_is_shown_as_one_and_never_counts_as_reproduced():
-    t = _target(1.0, rel=0.1, deviation={"decision": "d", "reason": "r", "doc": "docs/decisions.md#x"})
+    t = _target(1.0, rel=0.1, deviation={"decision": "d", "reason": "r", "doc": "docs/decisions.md#x", "class": "b"})
     missed, met = tg.score(t, {"v": 2.0}), tg.score(t, {"v": 1.05})
     assert missed.status == "deviation" and met.status == "reproduced"
     assert tg.score(t, {"v": None}).status == "deviation" and tg.score(t, {"v": None}).ours is None
     totals = tg.summarise([missed, met, tg.score(_target(1.0, rel=0.1), {"v": 3.0}), tg.score(t, None)])
     assert totals["pooled"] == {"asked": 4, "reproduced": 1, "deviations": 1, "failed": 1, "not_run": 1,
-                                "misses": ["t", "t"]}
+                                "by_class": {"a": 0, "b": 1, "c": 0, "d": 0}, "misses": ["t", "t"]}
+
+
+@pytest.mark.unit
+def test_every_deviation_names_a_cause_of_the_register_with_its_class_and_passage(tmp_path):
+    why = {"decision": "d", "reason": "r", "doc": "docs/decisions.md#x"}
+    doc = _doc(deviation=why)
+    doc["causes"] = {"x": {"class": "a", "passage": "sec. 6.3: \"a small number is added\""}}
+    (t,) = tg.load_targets(_write(tmp_path, doc))
+    assert t.deviation == {**why, "cause": "x", "class": "a", "passage": "sec. 6.3: \"a small number is added\""}
+    for causes, message in (({"y": {"class": "a", "passage": "p"}}, "not a cause"),
+                            ({"x": {"class": "e", "passage": "p"}}, "class must be one of"),
+                            ({"x": {"class": "a"}}, "class and passage"),
+                            ({"x": {"class": "a", "passage": "p"}, "y": {"class": "b", "passage": "q"}},
+                             "explain no target")):
+        (tmp_path / message).mkdir()
+        with pytest.raises(tg.TargetsError, match=message):
+            tg.load_targets(_write(tmp_path / message, {**doc, "causes": causes}))
+
+
+@pytest.mark.unit
+def test_the_product_s_register_classes_every_deviation():
+    targets = [t for t in tg.load_targets() if t.deviation]
+    assert targets and all(t.deviation["class"] in tg.CAUSE_CLASSES and t.deviation["passage"] for t in targets)
 
 
 @pytest.mark.unit

@@ -16,6 +16,7 @@ import subprocess
 from pathlib import Path
 
 from seapup_runs.pages import CSS as _CSS, esc as _e, figure as _figure, fmt as _fmt
+from seapup_runs.targets import CAUSE_CLASSES
 
 __all__ = ["build_document", "write_page", "provenance", "readme_block", "update_readme", "commit", "CHAPTER_TITLES"]
 
@@ -61,7 +62,7 @@ def build_document(scores, totals: dict, payloads: dict, descriptions: dict, mad
     """``report.json``: commit, counts per chapter and pooled, the targets' rows, the runs, how it was made."""
     rows = [s.row() for s in scores]
     def counts(c):
-        return {k: c[k] for k in ("asked", "reproduced", "deviations", "failed", "not_run")}
+        return {k: c[k] for k in ("asked", "reproduced", "deviations", "failed", "not_run", "by_class")}
     return {"commit": made["commit"], "date": made["date"],
             "chapters": {ch: {**counts(c), "misses": c["misses"]} for ch, c in totals["chapters"].items()},
             "pooled": {**counts(totals["pooled"]), "misses": totals["pooled"]["misses"]},
@@ -170,10 +171,16 @@ def write_page(document: dict, path: Path) -> Path:
     def link(target_id):
         return f'<a href="#t-{_e(target_id)}">{_e(target_id)}</a>'
     register = "".join(
-        f"<tr><td>{', '.join(link(r['id']) for r in group)}</td>"
-        f"<td>{_e(decision)}</td><td>{_e(reason)}</td><td><code>{_e(doc)}</code></td>"
+        f"<tr><td class=cls title=\"{_e(CAUSE_CLASSES.get(group[0]['deviation'].get('class', ''), ''))}\">"
+        f"{_e(group[0]['deviation'].get('class', ''))}</td><td>{', '.join(link(r['id']) for r in group)}</td>"
+        f"<td>{_e(decision)}</td><td>{_e(reason)}</td>"
+        f"<td>{_e(group[0]['deviation'].get('passage', ''))}</td><td><code>{_e(doc)}</code></td>"
         f"<td>{sum(r['status'] == 'deviation' for r in group)} of {len(group)} missed</td></tr>"
-        for (doc, decision, reason), group in deviations.items())
+        for (doc, decision, reason), group in sorted(deviations.items(),
+                                                     key=lambda item: item[1][0]['deviation'].get('class', '')))
+    by_class = document["pooled"].get("by_class", {})
+    classes = "".join(f"<li><b>({_e(c)})</b> {_e(text)}: {by_class.get(c, 0)} missed targets</li>"
+                      for c, text in CAUSE_CLASSES.items())
     typos = "".join(f"<tr><td>{link(r['id'])}</td><td>{_e(r['where'])}</td>"
                     f"<td>{_e(r['typo']['read'])}</td><td>{_e(r['typo']['why'])}</td></tr>"
                     for r in rows if r["typo"] and (r["id"].endswith("[0,0]") or "[" not in r["id"]))
@@ -202,9 +209,12 @@ a <b>deviation</b> when it is missed for a documented, decided reason (never cou
 <h3>The largest misses</h3><ol>{largest or '<li>none</li>'}</ol></section>
 {''.join(chapters)}
 <section id="deviations"><h2>Deviation register</h2>
-<p>Each documented difference, its decision and reason; the full entry is in the named page of the docs.</p>
-<table><thead><tr><th>targets</th><th>decision</th><th>reason</th><th>entry</th><th>now</th></tr></thead>
-<tbody>{register or '<tr><td colspan=5>none</td></tr>'}</tbody></table>
+<p>Each documented difference, the class of its cause, its decision and reason and the thesis's passage that
+decides it; the full entry is in the named page of the docs. The missed targets by the class of their cause:</p>
+<ul>{classes}</ul>
+<table><thead><tr><th>class</th><th>targets</th><th>decision</th><th>reason</th><th>the thesis's passage</th>
+<th>entry</th><th>now</th></tr></thead>
+<tbody>{register or '<tr><td colspan=7>none</td></tr>'}</tbody></table>
 <h3>Thesis typos we read around</h3>
 <table><thead><tr><th>target</th><th>where</th><th>we read</th><th>why</th></tr></thead>
 <tbody>{typos or '<tr><td colspan=4>none</td></tr>'}</tbody></table></section>
