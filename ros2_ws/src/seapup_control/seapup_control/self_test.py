@@ -45,11 +45,14 @@ from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains,
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
-__all__ = ["Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
+__all__ = ["FITS", "Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
            "result_document", "refit", "tests_from_samples", "DEFAULTS_FILE"]
 
 #: The defaults (every key documented there).
 DEFAULTS_FILE = Path(__file__).with_name("data") / "self_test.yaml"
+
+
+FITS = ("deviation", "raw")   # StepTest.column: eq. 5.5's y - y0, or the raw outputs (the thesis's Table 5.2)
 
 
 class Phase(str, Enum):
@@ -110,6 +113,7 @@ class SelfTestConfig:
     settle: bool
     max_condition: float
     limit: float = BLADE_PITCH_LIMIT
+    fit: str = "deviation"     # "deviation" (eq. 5.5) or "raw" (the thesis's Table 5.2 at 0.7 m/s)
 
     @classmethod
     def load(cls, overrides: Mapping | None = None, limit: float = BLADE_PITCH_LIMIT) -> "SelfTestConfig":
@@ -145,7 +149,7 @@ class SelfTestConfig:
                    view.number("reach_tolerance", lo=1e-4, hi=1.0),
                    view.vector("zero_level", 4, lo=-limit, hi=limit),
                    view.choice("mode", ("realistic", "artificial")), poles, view.flag("settle"),
-                   view.number("max_condition", lo=1.0, hi=1e12), float(limit))
+                   view.number("max_condition", lo=1.0, hi=1e12), float(limit), view.choice("fit", FITS))
 
 
 @dataclass
@@ -161,18 +165,21 @@ class StepTest:
     equilibrium: np.ndarray    # outputs the quiescent input holds: y0 of eq. 5.5
     outputs: list = field(default_factory=list)  # (u, v, w, r) at the step and each sample after
 
-    def column(self, sample_period: float) -> tuple[np.ndarray, np.ndarray]:
+    def column(self, sample_period: float, fit: str = "deviation") -> tuple[np.ndarray, np.ndarray]:
         """Column ``thruster`` of (B0^-1, B1^-1): each output's fitted g and g / (1 - f) per rad (eq. 4.24).
 
-        Deviations are taken from the equilibrium of the quiescent input
-        (eq. 5.5), not from the output at the step: a test that starts before
-        the vehicle is fully at rest then still fits its own free decay.
+        ``fit="deviation"``: deviations are taken from the equilibrium of the quiescent input (eq. 5.5), not
+        from the output at the step: a test that starts before the vehicle is fully at rest then still fits
+        its own free decay. ``fit="raw"``: the raw outputs against the input's step (y0 = 0), the thesis's
+        procedure as its Table 5.2 reads at 0.7 m/s (:data:`FITS`).
         """
+        if fit not in FITS:
+            raise IdentificationError(f"fit must be one of {', '.join(FITS)}, got {fit!r}")
         y = np.asarray(self.outputs, float)
         u = np.full(len(y), self.quiescent_input[self.thruster] + self.step)
         initial, final = np.empty(4), np.empty(4)
         for i in range(4):
-            lag = fit_first_order(y[:, i], u, sample_period, y0=self.equilibrium[i],
+            lag = fit_first_order(y[:, i], u, sample_period, y0=self.equilibrium[i] if fit == "deviation" else 0.0,
                                   u0=self.quiescent_input[self.thruster])
             initial[i], final[i] = lag.initial_response, lag.steady_state_gain
         return initial, final
@@ -189,8 +196,9 @@ class OperatingPoint:
 
 
 def fit_operating_point(tests: list[StepTest], sample_period: float, poles: LoopPoles,
-                        max_condition: float = math.inf) -> OperatingPoint:
-    """The MFOL model and controller from one set of four step tests (eq. 4.20-4.24, 5.5, 4.11).
+                        max_condition: float = math.inf, fit: str = "deviation") -> OperatingPoint:
+    """The MFOL model and controller from one set of four step tests (eq. 4.20-4.24, 5.5, 4.11), each
+    step fitted as ``fit`` says (:meth:`StepTest.column`).
 
     The offset u0 is the mean quiescent setting of the tests (the setting that
     holds the operating point, eq. 5.6); y0 = (surge, 0, 0, 0).
@@ -213,7 +221,7 @@ def fit_operating_point(tests: list[StepTest], sample_period: float, poles: Loop
         raise IdentificationError(f"an operating point needs a test of each thruster, got {sorted(by_thruster)}")
     b0inv, b1inv = np.empty((4, 4)), np.empty((4, 4))
     for j, test in by_thruster.items():
-        b0inv[:, j], b1inv[:, j] = test.column(sample_period)
+        b0inv[:, j], b1inv[:, j] = test.column(sample_period, fit)
     surge = tests[0].surge
     for name, matrix in (("B0^-1", b0inv), ("B1^-1", b1inv)):
         condition, weakest = equilibrated_condition(matrix)
@@ -417,7 +425,7 @@ class SelfTest:
         if done_point:
             point_tests = [s for s in self.tests if (s.cycle, s.surge) == (test.cycle, test.surge)][-4:]
             point = fit_operating_point(point_tests, self.sample_period, self.config.poles,
-                                        self.config.max_condition)
+                                        self.config.max_condition, self.config.fit)
             self.points = [p for p in self.points if p.surge != point.surge] + [point]
             self.points.sort(key=lambda p: p.surge)
             self.controller = MFOLController(self.schedule(), limit=self.config.limit)
@@ -515,14 +523,14 @@ def tests_from_samples(samples, sample_period: float | None = None) -> list[Step
 
 
 def refit(tests: list[StepTest], sample_period: float, poles: LoopPoles,
-          max_condition: float = math.inf) -> list[OperatingPoint]:
+          max_condition: float = math.inf, fit: str = "deviation") -> list[OperatingPoint]:
     """The operating points a run's logged step tests give: for each surge speed its last four tests
-    (cycle 2 replaces cycle 1 at 0 m/s), fitted as live (:func:`fit_operating_point`)."""
+    (cycle 2 replaces cycle 1 at 0 m/s), fitted as live (:func:`fit_operating_point`, ``fit`` as there)."""
     points = {}
     for surge in dict.fromkeys(t.surge for t in tests):
         last = [t for t in tests if t.surge == surge][-4:]
         if len(last) == 4 and len({t.cycle for t in last}) == 1:
-            points[surge] = fit_operating_point(last, sample_period, poles, max_condition)
+            points[surge] = fit_operating_point(last, sample_period, poles, max_condition, fit)
     return [points[s] for s in sorted(points)]
 
 

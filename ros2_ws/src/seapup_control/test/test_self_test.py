@@ -63,6 +63,32 @@ def test_artificial_quiescence_finds_the_exact_mfol_at_every_operating_point():
     assert [t.cycle for t in test.tests] == [1] * 4 + [2] * 8 and test.progress == 1.0
 
 
+def test_the_raw_fit_reads_the_operating_point_into_the_surge_row_as_the_thesis_s_table_5_2_does():
+    """fit="raw" (eq. 4.30 on the raw outputs, y0 not subtracted): at 0 m/s, and in every row but surge at
+    0.3 m/s, the same exact MFOL as eq. 5.5's fit; the surge row at 0.3 m/s reads the whole speed as the step's
+    response: its final value (0.3 + du) / step for every thruster, the vectored ones included -- the pattern
+    of Table 5.2's surge rows ((0.7 + du) / 8 deg: .105, .105, .096, .092 per deg)."""
+    phi, delta, b1inv = exact_plant()
+    runs = {}
+    for fit in ("deviation", "raw"):
+        test = SelfTest(SelfTestConfig.load({"mode": "artificial", "operating_points": [0.0, 0.3], "fit": fit}))
+        test.reset(Command(np.zeros(4)))
+        fly(test, phi, delta)
+        assert test.phase == Phase.DONE, test.reason
+        runs[fit] = {p.surge: p.model for p in test.points}
+    step = SelfTestConfig.load().step
+    raw, exact = runs["raw"], runs["deviation"]
+    for m in ("B0inv", "B1inv"):
+        np.testing.assert_allclose(getattr(raw[0.0], m), getattr(exact[0.0], m), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(getattr(raw[0.3], m)[1:], getattr(exact[0.3], m)[1:], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(exact[0.3].B1inv, b1inv, rtol=1e-6, atol=1e-12)
+    final = b1inv[0] * step                 # the surge each step adds, from 0.3 m/s
+    np.testing.assert_allclose(raw[0.3].B1inv[0] * step, 0.3 + final, rtol=0.02)
+    assert np.all(raw[0.3].B1inv[0, 1:] > 9.0 * np.abs(b1inv[0, 1:]))   # a surge response from every thruster
+    with pytest.raises(ConfigError, match="fit"):
+        SelfTestConfig.load({"fit": "prony"})
+
+
 def test_realistic_quiescence_gets_the_dominant_channels_and_the_holding_setting():
     """Each test starts where quiescence was declared, not at rest: the initial transient biases the
     fits (sec. 5.3.3); the dominant channels stay within 10 % and the controller holds the plant."""

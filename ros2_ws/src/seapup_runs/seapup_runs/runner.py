@@ -69,7 +69,8 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
         from seapup_runs.self_test_flight import fly_self_test
         d = spec.design
         flown = fly_self_test(d.vehicle, {"sample_period": spec.control_period,
-                                          "operating_points": list(d.operating_points), "mode": d.mode},
+                                          "operating_points": list(d.operating_points), "mode": d.mode,
+                                          "fit": d.fit},
                               start_depth=d.start_depth, progress=progress)
         if flown.test.phase.value != "done":
             raise DesignFailed(f"the self-test designing {spec.name!r} {flown.test.phase.value}: {flown.test.reason}")

@@ -44,13 +44,14 @@ def scenarios() -> dict:
 
 def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
                   seed: int = 0, controller: str = "mfol", parameters: dict | None = None,
-                  sensors: str | None = None, design: str = "self-test") -> RunSpec:
+                  sensors: str | None = None, design: str = "self-test", fit: str = "deviation") -> RunSpec:
     """The run of case ``name`` at ``rate`` [Hz] on ``vehicle`` (see the module docstring).
 
     ``controller`` names a registered velocity controller and ``parameters`` its settings (checked when
     the run is made); ``schedule`` is the ``mfol`` controller's. ``sensors`` overrides the case's profile.
     ``design``: ``self-test`` (our self-test on the baseline vehicle designs the controller), or one of
     :data:`seapup_runs.thesis_designs.DESIGNS` -- the thesis's own matrices (eq. 5.3, Table 5.1) at 5 Hz.
+    ``fit``: how the self-test fits its steps (``deviation``, eq. 5.5; ``raw``, the thesis's Table 5.2 procedure).
 
     Raises
     ------
@@ -99,6 +100,6 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         controller = mfol
     return RunSpec(name=name, vehicle=vehicle, environment=environment, control_period=period,
                    duration=float(case["duration"]), start_depth=50.0, controller=controller,
-                   design=SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7)))),
+                   design=SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7))), fit=fit),
                    reference=ReferenceSteps.from_list(case["reference"]), events=tuple(events), seed=seed,
                    metrics=tuple(case.get("metrics", ("step_response",))))

@@ -258,13 +258,16 @@ class SelfTestDesign:
     """A self-test (sec. 4.5.2, 5.3) flown before the run to design the controller(s) that lack gains.
 
     Flown in this process on ``vehicle`` with noise-free sensors and no current (sec. 5.3.2),
-    starting at rest ``start_depth`` deep, at the run's control period.
+    starting at rest ``start_depth`` deep, at the run's control period; each step fitted as ``fit`` says
+    (``deviation``: eq. 5.5, the default; ``raw``: the thesis's Table 5.2 procedure,
+    :meth:`seapup_control.self_test.StepTest.column`).
     """
 
     vehicle: str = "baseline"
     operating_points: tuple = (0.0, 0.7)
     mode: str = "realistic"
     start_depth: float = 50.0
+    fit: str = "deviation"
 
     def __post_init__(self):
         _name(self.vehicle, "self-test vehicle")
@@ -276,14 +279,17 @@ class SelfTestDesign:
         if not isinstance(self.mode, str) or self.mode not in ("realistic", "artificial"):
             raise RunSpecError(f"self-test mode must be realistic or artificial, got {_short(self.mode)}")
         object.__setattr__(self, "start_depth", _finite(self.start_depth, "self-test start depth"))
+        if not isinstance(self.fit, str) or self.fit not in ("deviation", "raw"):
+            raise RunSpecError(f"self-test fit must be deviation or raw, got {_short(self.fit)}")
 
     def to_dict(self) -> dict:
-        return {"vehicle": self.vehicle, "operating_points": list(self.operating_points), "mode": self.mode,
-                "start_depth": self.start_depth}
+        out = {"vehicle": self.vehicle, "operating_points": list(self.operating_points), "mode": self.mode,
+               "start_depth": self.start_depth}
+        return {**out, "fit": self.fit} if self.fit != "deviation" else out   # the default: keys as before
 
     @classmethod
     def from_dict(cls, data: Mapping) -> "SelfTestDesign":
-        _refuse_unknown(data, ("vehicle", "operating_points", "mode", "start_depth"), "design")
+        _refuse_unknown(data, ("vehicle", "operating_points", "mode", "start_depth", "fit"), "design")
         return cls(**dict(data))
 
 

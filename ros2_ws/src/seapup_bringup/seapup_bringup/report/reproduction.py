@@ -110,7 +110,11 @@ def _self_test(description: dict, out: Path) -> tuple[dict, list]:
                        "cycle": point.cycle, "duration_s": end - previous_end,
                        "space_m": within.max(axis=0) - within.min(axis=0), **_surge_gains(point.gains)})
         previous_end = end
-    result = {"points": points, "duration_s": test.duration, "space_m": run.space,
+    # the same steps fitted as the thesis's Table 5.2 reads (eq. 4.30 on the raw outputs, y0 not subtracted)
+    from seapup_control.self_test import refit
+    thesis_fit = [{"surge": p.surge, **dict(zip(("B0inv", "B1inv"), p.model.in_thesis_units()))}
+                  for p in refit(test.tests, period, test.config.poles, math.inf, "raw")]
+    result = {"points": points, "thesis_fit": thesis_fit, "duration_s": test.duration, "space_m": run.space,
               "depth_range_m": list(run.depth_range), "steps": len(test.tests)}
     return result, [(_plot_self_test(run, description, out), "the self-test's speeds and blade pitches (sec. 5.3)")]
 
@@ -157,7 +161,7 @@ def _scenario(description: dict, out: Path) -> tuple[dict, list]:
         return scenario_spec(description["name"], description.get("config", "baseline"),
                              float(description.get("rate_hz", 5.0)), description.get("scheduled"), seed,
                              description.get("controller", "mfol"), description.get("params"),
-                             description.get("sensors"))
+                             description.get("sensors"), fit=description.get("fit", "deviation"))
     result = run(spec(0))
     figure = plot_scenario(result, out)
     metrics = dict(result.metrics)

@@ -20,6 +20,7 @@ import numpy as np
 from seapup_bringup.graph.self_test_graph import SelfTestFailed, fly_self_test_graph, self_test_from_bag
 from seapup_bringup.output import add_json_argument, emit_json, progress, text_stream
 from seapup_runs.closed_loop_analysis import MODES, analyse, plot_loci
+from seapup_control.self_test import FITS
 from seapup_runs.self_test_flight import fly_self_test
 from seapup_runs.targets import thesis_value
 from seapup_sim.vehicle import VehicleModel
@@ -54,6 +55,9 @@ def _self_test_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speeds", default="0,0.7", help="operating points [m/s], comma separated, from 0")
     parser.add_argument("--mode", choices=("realistic", "artificial"), default="realistic",
                         help="quiescence waited for, or the plant reset before each step (sec. 5.3.2)")
+    parser.add_argument("--fit", choices=FITS, default="deviation",
+                        help="each step's lag fitted to the deviations from the operating point (eq. 5.5, the "
+                             "default) or to the raw outputs, as the thesis's Table 5.2 reads at 0.7 m/s")
 
 
 def _fly(args, text):
@@ -62,7 +66,7 @@ def _fly(args, text):
     print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, {args.mode} quiescence, "
           "in process", file=text, flush=True)
     run = fly_self_test(args.config, {"sample_period": 1.0 / args.rate, "operating_points": speeds,
-                                      "mode": args.mode},
+                                      "mode": args.mode, "fit": args.fit},
                         progress=lambda f: progress("self-test", f))
     if run.test.phase.value != "done":
         raise SelfTestFailed(f"the self-test {run.test.phase.value}: {run.test.reason}")
@@ -96,7 +100,7 @@ def _selftest(argv: list[str]) -> int:
     text = text_stream(args)
     bag = None
     if args.from_bag:
-        refitted = self_test_from_bag(args.from_bag)
+        refitted = self_test_from_bag(args.from_bag, args.fit)
         points, duration, space, bag = refitted["points"], refitted["duration"], refitted["space"], args.from_bag
         print(f"refitted from {args.from_bag}", file=text)
     elif args.in_process or args.mode == "artificial":
@@ -119,13 +123,18 @@ def _selftest(argv: list[str]) -> int:
             raise SelfTestFailed(f"the bag's refit ({len(refitted_b1)} operating points) differs from the live "
                                  f"result ({len(live)}): a sample was lost; see {bag}")
         print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
+        if args.fit != "deviation":   # the node flew and designed with eq. 5.5's fit; the table is the bag's refit
+            points = self_test_from_bag(bag, args.fit)["points"]
+            print(f"the table below: the bag refitted with --fit {args.fit} (the controller file keeps the "
+                  "node's own fit)", file=text)
     rows = _print_points(points, text, args)
     space_0, space_07 = thesis_value("ch5.self_test.space_0"), thesis_value("ch5.self_test.space_0_7")
     print(f"\ntime {duration:.1f} s, space {space[0]:.1f} x {space[1]:.1f} x {space[2]:.1f} m (X x Y x Z); "
           f"thesis: {thesis_value('ch5.self_test.time_0'):g} s and {' x '.join(f'{v:g}' for v in space_0)} m at 0 m/s, "
           f"+{thesis_value('ch5.self_test.time_0_7'):g} s and {' x '.join(f'{v:g}' for v in space_07)} m with 0.7 m/s "
           "(sec. 5.3.3)", file=text)
-    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "operating_points": rows,
+    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "fit": args.fit,
+                     "operating_points": rows,
                      "duration_s": duration, "space_m": space, "bag": str(bag) if bag else None})
     return 0
 

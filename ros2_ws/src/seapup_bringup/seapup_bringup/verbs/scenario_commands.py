@@ -112,6 +112,9 @@ def scenario_parser() -> argparse.ArgumentParser:
     parser.add_argument("--design", default="self-test", choices=("self-test", *DESIGNS),
                         help="what designs the controller: our self-test (default), or the thesis's own matrices "
                              "(eq. 5.3's velocity log, Table 5.1's realistic self-test; 5 Hz)")
+    parser.add_argument("--fit", choices=("deviation", "raw"), default="deviation",
+                        help="how the designing self-test fits its steps: deviations from the operating point "
+                             "(eq. 5.5, the default) or the raw outputs, as the thesis's Table 5.2 reads at 0.7 m/s")
     parser.add_argument("--plots", type=Path, help="write a figure like figs 5.10-5.24 into this directory")
     parser.add_argument("--graph", action="store_true",
                         help="fly it through the ROS graph in lockstep (simulator and controller nodes)")
@@ -130,7 +133,7 @@ def scenario_command(argv: list[str]) -> int:
         return 0 if args.list else 2
     try:
         spec = scenario_spec(args.name, args.config, args.rate, args.schedule, args.seed, args.controller,
-                             _parameters(args.param), args.sensors, args.design)
+                             _parameters(args.param), args.sensors, args.design, args.fit)
         if args.graph:
             from seapup_bringup.graph.graph_runner import run_on_graph
             result = run_on_graph(spec, progress=lambda f: progress(args.name, f))
