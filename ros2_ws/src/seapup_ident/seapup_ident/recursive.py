@@ -150,8 +150,9 @@ class RecursiveArmax:
     jacket : Jacket, optional
     regularisation : float
         RPEM's Levenberg-Marquardt term (sec. 6.3, eq. 6.17: "a small number is added to each diagonal
-        element"), added each sample to the diagonal of the Hessian approximation R = P^-1, as Levenberg
-        and Marquardt (the thesis's refs. [62, 63]) regularise the Gauss-Newton step: P <- (I + delta P)^-1 P.
+        element", in the paragraph on keeping P(t) positive definite and nonsingular). Our reading: added
+        each sample to the diagonal of the Hessian approximation R = P^-1, as Levenberg and Marquardt (the
+        thesis's refs. [62, 63]) regularise the Gauss-Newton step: P <- (I + delta P)^-1 P.
         It keeps P nonsingular and bounded without keeping it from shrinking as 1/t, so a long record
         converges (added to P itself, the estimate kept a memory of about 1 / sqrt(delta) samples and
         wandered: +-8 % in c_1 of a first-order ARMAX after 20 000 samples, where ELS is within 1 %).

@@ -42,6 +42,10 @@ def scenarios() -> dict:
     return cases
 
 
+def _fit_text(fit) -> str:
+    return repr(fit)[:60]
+
+
 def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
                   seed: int = 0, controller: str = "mfol", parameters: dict | None = None,
                   sensors: str | None = None, design: str = "self-test", fit: str = "deviation") -> RunSpec:
@@ -86,6 +90,9 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         if schedule:
             raise RunSpecError(f"gain scheduling is the mfol controller's; {controller!r} has no schedule")
         mfol = ControllerSpec(controller, dict(parameters or {}))
+    if design != "self-test" and fit != "deviation":
+        raise RunSpecError(f"fit {_fit_text(fit)} is how our self-test fits its steps; the thesis's {design!r} "
+                           "matrices are not fitted here (no self-test designs this run)")
     if design != "self-test":
         from seapup_runs.thesis_designs import SAMPLE_PERIOD, thesis_design
         if abs(period - SAMPLE_PERIOD) > 1e-9:

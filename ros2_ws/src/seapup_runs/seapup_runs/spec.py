@@ -279,8 +279,9 @@ class SelfTestDesign:
         if not isinstance(self.mode, str) or self.mode not in ("realistic", "artificial"):
             raise RunSpecError(f"self-test mode must be realistic or artificial, got {_short(self.mode)}")
         object.__setattr__(self, "start_depth", _finite(self.start_depth, "self-test start depth"))
-        if not isinstance(self.fit, str) or self.fit not in ("deviation", "raw"):
-            raise RunSpecError(f"self-test fit must be deviation or raw, got {_short(self.fit)}")
+        from seapup_control.self_test import FITS
+        if not isinstance(self.fit, str) or self.fit not in FITS:
+            raise RunSpecError(f"self-test fit must be one of {', '.join(FITS)}, got {_short(self.fit)}")
 
     def to_dict(self) -> dict:
         out = {"vehicle": self.vehicle, "operating_points": list(self.operating_points), "mode": self.mode,

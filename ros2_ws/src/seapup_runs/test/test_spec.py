@@ -23,6 +23,15 @@ def full_spec() -> RunSpec:
                    seed=7, metrics=("step_response",))
 
 
+def test_a_self_test_design_keeps_its_fit_and_refuses_an_unknown_one():
+    raw = SelfTestDesign("baseline", (0.0, 0.7), fit="raw")
+    assert raw.to_dict()["fit"] == "raw" and SelfTestDesign.from_dict(raw.to_dict()) == raw
+    assert "fit" not in SelfTestDesign().to_dict()     # the default: the keys (and run caches) as before
+    for bad in ("prony", ["raw"], 7, None):
+        with pytest.raises(RunSpecError, match="self-test fit must be one of deviation, raw"):
+            SelfTestDesign(fit=bad)
+
+
 def test_the_physics_step_rule_is_derived_once():
     assert RunSpec(control_period=0.2).physics_step == PHYSICS_STEP == 0.1   # sec. 3.2
     assert RunSpec(control_period=0.05, duration=1.0).physics_step == 0.05    # 20 Hz: one step a sample

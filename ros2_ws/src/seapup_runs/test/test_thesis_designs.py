@@ -81,3 +81,5 @@ def test_the_thesis_s_raw_fit_makes_the_scheduled_surge_stall_as_sec_5_4_2_repor
     assert stalled["steady_error_seen"] and stalled["final"] < 0.80, stalled
     with pytest.raises(RunSpecError, match="fit"):
         scenario_spec("surge", fit="prony")
+    with pytest.raises(RunSpecError, match="no self-test designs this run"):
+        scenario_spec("surge", design="eq-5.3", fit="raw")   # the thesis's matrices: nothing is fitted

@@ -60,9 +60,10 @@ def fly_self_test_graph(config: str, rate: float, speeds: list, out: Path, bag: 
     return {"result": result, "bag": bag}
 
 
-def self_test_from_bag(bag_dir: Path, fit: str = "deviation") -> dict:
-    """Refit a recorded run from its /seapup/self_test/samples (each step fitted as ``fit`` says:
-    :meth:`seapup_control.self_test.StepTest.column`) and measure its space from the truth."""
+def self_test_from_bag(bag_dir: Path, fit: str | None = None) -> dict:
+    """Refit a recorded run from its /seapup/self_test/samples (each step fitted as ``fit`` says,
+    :meth:`seapup_control.self_test.StepTest.column`; None: as the self-test settings say, as the node did)
+    and measure its space from the truth."""
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message
     from seapup_msgs.msg import SelfTestSample
@@ -94,7 +95,7 @@ def self_test_from_bag(bag_dir: Path, fit: str = "deviation") -> dict:
     try:
         config = SelfTestConfig.load({"sample_period": records[0]["sample_period"]})
         points = refit(tests_from_samples(records, config.sample_period), config.sample_period, config.poles,
-                       config.max_condition, fit)
+                       config.max_condition, fit or config.fit)
     except (ConfigError, IdentificationError, DesignError) as exc:
         raise SelfTestFailed(f"{bag_dir}: {exc}") from None
     # the box of water of the run itself: truth from its first to its last sample

@@ -55,9 +55,10 @@ def _self_test_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speeds", default="0,0.7", help="operating points [m/s], comma separated, from 0")
     parser.add_argument("--mode", choices=("realistic", "artificial"), default="realistic",
                         help="quiescence waited for, or the plant reset before each step (sec. 5.3.2)")
-    parser.add_argument("--fit", choices=FITS, default="deviation",
-                        help="each step's lag fitted to the deviations from the operating point (eq. 5.5, the "
-                             "default) or to the raw outputs, as the thesis's Table 5.2 reads at 0.7 m/s")
+    parser.add_argument("--fit", choices=FITS,
+                        help="each step's lag fitted to the deviations from the operating point (eq. 5.5) or to "
+                             "the raw outputs, as the thesis's Table 5.2 reads at 0.7 m/s (default: the self-test "
+                             "settings' fit, deviation)")
 
 
 def _fly(args, text):
@@ -66,7 +67,7 @@ def _fly(args, text):
     print(f"self-test: {args.config}, {args.rate:g} Hz, operating points {speeds} m/s, {args.mode} quiescence, "
           "in process", file=text, flush=True)
     run = fly_self_test(args.config, {"sample_period": 1.0 / args.rate, "operating_points": speeds,
-                                      "mode": args.mode, "fit": args.fit},
+                                      "mode": args.mode, **({"fit": args.fit} if args.fit else {})},
                         progress=lambda f: progress("self-test", f))
     if run.test.phase.value != "done":
         raise SelfTestFailed(f"the self-test {run.test.phase.value}: {run.test.reason}")
@@ -123,7 +124,7 @@ def _selftest(argv: list[str]) -> int:
             raise SelfTestFailed(f"the bag's refit ({len(refitted_b1)} operating points) differs from the live "
                                  f"result ({len(live)}): a sample was lost; see {bag}")
         print(f"bag {bag}; controller file {flown['result'].controller_file}", file=text)
-        if args.fit != "deviation":   # the node flew and designed with eq. 5.5's fit; the table is the bag's refit
+        if args.fit:   # the node flew and designed with the settings' fit; the table is the bag's refit
             points = self_test_from_bag(bag, args.fit)["points"]
             print(f"the table below: the bag refitted with --fit {args.fit} (the controller file keeps the "
                   "node's own fit)", file=text)
@@ -133,7 +134,7 @@ def _selftest(argv: list[str]) -> int:
           f"thesis: {thesis_value('ch5.self_test.time_0'):g} s and {' x '.join(f'{v:g}' for v in space_0)} m at 0 m/s, "
           f"+{thesis_value('ch5.self_test.time_0_7'):g} s and {' x '.join(f'{v:g}' for v in space_07)} m with 0.7 m/s "
           "(sec. 5.3.3)", file=text)
-    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "fit": args.fit,
+    emit_json(args, {"config": args.config, "rate_hz": args.rate, "mode": args.mode, "fit": args.fit or "settings",
                      "operating_points": rows,
                      "duration_s": duration, "space_m": space, "bag": str(bag) if bag else None})
     return 0
@@ -198,7 +199,7 @@ def _closed_loop_command(argv: list[str]) -> int:
               file=text)
     print("(per mode: its least damped pole, s = ln(z) / T [1/s]; stable: all but the four position "
           "integrations, s = 0, decay)", file=text)
-    result = {"config": args.config, "rate_hz": args.rate, "scheduled": args.schedule,
+    result = {"config": args.config, "rate_hz": args.rate, "scheduled": args.schedule, "fit": run.test.config.fit,
               "designed_s": [[float(s.real), float(s.imag)] for s in designed.continuous()[0]], "speeds": rows}
     if args.plots:
         for path in plot_loci(result, args.plots):

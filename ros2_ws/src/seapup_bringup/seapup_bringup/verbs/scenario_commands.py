@@ -29,6 +29,7 @@ from seapup_runs.scenarios import scenario_spec, scenarios
 from seapup_runs.targets import thesis_by_metric
 from seapup_runs.spec import RunSpecError
 from seapup_runs.thesis_designs import DESIGNS
+from seapup_control.self_test import FITS
 from seapup_sim.vehicle_config import ConfigError, available_configs
 
 __all__ = ["scenario_command", "print_scenario"]
@@ -112,7 +113,7 @@ def scenario_parser() -> argparse.ArgumentParser:
     parser.add_argument("--design", default="self-test", choices=("self-test", *DESIGNS),
                         help="what designs the controller: our self-test (default), or the thesis's own matrices "
                              "(eq. 5.3's velocity log, Table 5.1's realistic self-test; 5 Hz)")
-    parser.add_argument("--fit", choices=("deviation", "raw"), default="deviation",
+    parser.add_argument("--fit", choices=FITS, default="deviation",
                         help="how the designing self-test fits its steps: deviations from the operating point "
                              "(eq. 5.5, the default) or the raw outputs, as the thesis's Table 5.2 reads at 0.7 m/s")
     parser.add_argument("--plots", type=Path, help="write a figure like figs 5.10-5.24 into this directory")
