@@ -8,6 +8,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,6 +32,8 @@ def assert_in_process_is_the_graph_s(env, tmp_path, bag, *args):
     doc = json.loads((tmp_path / "in_process.json").read_text())
     assert doc["record"] == str(out / "run.json") and doc["transport"] == "in-process" and "bag" not in doc
     graph, here = bag_data(bag), load_source(doc["record"], None, None, "ch6")
+    graph_doc = json.loads((Path(bag).parent / "experiment.json").read_text())
+    assert not graph_doc["ended_waits"], f"the graph's flight was not deterministic: {graph_doc['ended_waits']}"
     assert graph.outputs == here.outputs and graph.inputs == here.inputs
     np.testing.assert_allclose(here.t, graph.t, rtol=0, atol=1e-9)
     np.testing.assert_allclose(here.y, graph.y, rtol=1e-9, atol=1e-12)
