@@ -351,11 +351,14 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
         if not isinstance(run, dict) or "kind" not in run or set(run) - _RUN_KEYS:
             raise TargetsError(f"{TARGETS_FILE.name}: run {name!r}: a mapping with kind and only "
                                f"{', '.join(sorted(_RUN_KEYS))}")
+        if "fit" in run and (run["kind"] != "scenario" or run["fit"] not in ("deviation", "raw")):
+            raise TargetsError(f"{Path(path).name}: run {name!r}: fit is a scenario run's (how its designing "
+                               f"self-test fits its steps): deviation or raw, got {str(run['fit'])[:40]!r}")
     raw_tolerances = doc.get("tolerances") or {}
     named = {}
     for name, spec in raw_tolerances.items():
         named[name] = replace(_tolerance(spec, {}, f"tolerance {name!r}"), name=name)
-    causes = _causes(doc.get("causes"))
+    causes = _causes(doc.get("causes"), Path(path).name)
     targets, seen = [], set()
     for k, entry in enumerate(doc.get("targets") or []):
         where = f"target {k} ({entry.get('id', '?') if isinstance(entry, dict) else '?'})"
@@ -397,17 +400,18 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
     return tuple(targets), {"units": units, "runs": runs, "tolerances": named, "causes": causes}
 
 
-def _causes(raw) -> dict:
+def _causes(raw, file: str) -> dict:
     """The register's causes: anchor of ``docs/decisions.md`` -> {class, passage} (:data:`CAUSE_CLASSES`)."""
     if raw is None:
         return {}
     if not isinstance(raw, dict):
-        raise TargetsError("causes: a mapping of docs/decisions.md anchors to {class, passage}")
+        raise TargetsError(f"{file}: causes: a mapping of docs/decisions.md anchors to {{class, passage}}")
     for name, cause in raw.items():
         if not _text_fields(cause, _CAUSE_KEYS):
-            raise TargetsError(f"cause {name!r}: needs exactly class and passage (each a line of text)")
+            raise TargetsError(f"{file}: cause {name!r}: needs exactly class and passage (each a line of text)")
         if cause["class"] not in CAUSE_CLASSES:
-            raise TargetsError(f"cause {name!r}: class must be one of {', '.join(CAUSE_CLASSES)}, got {cause['class']!r}")
+            raise TargetsError(f"{file}: cause {name!r}: class must be one of {', '.join(CAUSE_CLASSES)}, "
+                               f"got {str(cause['class'])[:40]!r}")
     return {str(k): dict(v) for k, v in raw.items()}
 
 

@@ -280,6 +280,21 @@ def test_every_deviation_names_a_cause_of_the_register_with_its_class_and_passag
 
 
 @pytest.mark.unit
+@pytest.mark.parametrize("run, message", [
+    ({"kind": "scenario", "fit": "prony"}, "deviation or raw, got 'prony'"),
+    ({"kind": "selftest", "fit": "raw"}, "fit is a scenario run's"),
+    ({"kind": "scenario", "fit": ["raw"]}, "deviation or raw"),
+])
+def test_a_run_s_fit_is_a_scenario_s_and_one_of_the_fits(tmp_path, run, message):
+    doc = _doc()
+    doc["runs"]["r"] = run
+    with pytest.raises(tg.TargetsError, match=re.escape(message)):
+        tg.load_targets(_write(tmp_path, doc))
+    doc["runs"]["r"] = {"kind": "scenario", "fit": "raw"}
+    assert tg.load_targets(_write(tmp_path, doc))[0].run == "r"
+
+
+@pytest.mark.unit
 def test_the_product_s_register_classes_every_deviation():
     targets = [t for t in tg.load_targets() if t.deviation]
     assert targets and all(t.deviation["class"] in tg.CAUSE_CLASSES and t.deviation["passage"] for t in targets)
