@@ -42,10 +42,6 @@ def scenarios() -> dict:
     return cases
 
 
-def _fit_text(fit) -> str:
-    return repr(fit)[:60]
-
-
 def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, schedule: bool | None = None,
                   seed: int = 0, controller: str = "mfol", parameters: dict | None = None,
                   sensors: str | None = None, design: str = "self-test", fit: str = "deviation") -> RunSpec:
@@ -90,8 +86,9 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         if schedule:
             raise RunSpecError(f"gain scheduling is the mfol controller's; {controller!r} has no schedule")
         mfol = ControllerSpec(controller, dict(parameters or {}))
+    self_test = SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7))), fit=fit)   # checks the fit
     if design != "self-test" and fit != "deviation":
-        raise RunSpecError(f"fit {_fit_text(fit)} is how our self-test fits its steps; the thesis's {design!r} "
+        raise RunSpecError(f"fit {fit!r} is how our self-test fits its steps; the thesis's {design!r} "
                            "matrices are not fitted here (no self-test designs this run)")
     if design != "self-test":
         from seapup_runs.thesis_designs import SAMPLE_PERIOD, thesis_design
@@ -107,6 +104,6 @@ def scenario_spec(name: str, vehicle: str = "baseline", rate: float = 5.0, sched
         controller = mfol
     return RunSpec(name=name, vehicle=vehicle, environment=environment, control_period=period,
                    duration=float(case["duration"]), start_depth=50.0, controller=controller,
-                   design=SelfTestDesign("baseline", tuple(case.get("speeds", (0.0, 0.7))), fit=fit),
+                   design=self_test,
                    reference=ReferenceSteps.from_list(case["reference"]), events=tuple(events), seed=seed,
                    metrics=tuple(case.get("metrics", ("step_response",))))

@@ -351,9 +351,9 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
         if not isinstance(run, dict) or "kind" not in run or set(run) - _RUN_KEYS:
             raise TargetsError(f"{TARGETS_FILE.name}: run {name!r}: a mapping with kind and only "
                                f"{', '.join(sorted(_RUN_KEYS))}")
-        if "fit" in run and (run["kind"] != "scenario" or run["fit"] not in ("deviation", "raw")):
+        if "fit" in run and (run["kind"] != "scenario" or run["fit"] not in _fits()):
             raise TargetsError(f"{Path(path).name}: run {name!r}: fit is a scenario run's (how its designing "
-                               f"self-test fits its steps): deviation or raw, got {str(run['fit'])[:40]!r}")
+                               f"self-test fits its steps): {' or '.join(_fits())}, got {str(run['fit'])[:40]!r}")
     raw_tolerances = doc.get("tolerances") or {}
     named = {}
     for name, spec in raw_tolerances.items():
@@ -398,6 +398,11 @@ def _load(path: str) -> tuple[tuple[Target, ...], dict]:
     if unused:
         raise TargetsError(f"{Path(path).name}: cause(s) {sorted(unused)} explain no target's deviation")
     return tuple(targets), {"units": units, "runs": runs, "tolerances": named, "causes": causes}
+
+
+def _fits() -> tuple:
+    from seapup_control.self_test import FITS   # the self-test's own list (a scenario run's design.fit)
+    return FITS
 
 
 def _causes(raw, file: str) -> dict:
