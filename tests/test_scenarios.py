@@ -260,4 +260,50 @@ def test_a_probe_that_missed_samples_fails_the_graph_run_naming_the_topic(tmp_pa
     text = str(caught.value)
     assert f"/seapup/velocity_controller/reference: 1 of {n} samples heard" in text
     assert "3 reported lost by DDS" in text and "[1, 0]" in text and str(tmp_path) in text
+    assert f"t = {spec.control_period:g}-{(n - 1) * spec.control_period:g} s missing" in text
     assert "/seapup/truth" not in text and "\n" not in text
+
+
+def test_the_graph_run_waits_for_the_samples_dds_repairs_and_gives_up_when_nothing_comes(monkeypatch):
+    """A hole in a per-sample topic that DDS repairs later (a reliable writer resends at its next heartbeat)
+    is waited for: the run's logs are complete once it has come; a hole nothing fills ends the wait once the
+    probe has heard nothing new for REPAIR_STALL s, and the check then names the samples missing."""
+    from types import SimpleNamespace
+
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+
+    from seapup_bringup.graph import graph_runner
+    from seapup_bringup.graph.sil_probe import SilProbe
+
+    spec = scenario_spec("fast")
+    n = spec.samples
+
+    def stamped(kind, k):
+        msg = kind()
+        t = k * spec.control_period
+        msg.header.stamp = Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)))
+        return msg
+    probe = SilProbe(instruments=True)
+    for name in ("truth", "applied", "velocity", "imu", "depth"):
+        probe.log[name] = [stamped(Odometry, k) for k in range(n + 1)]
+    probe.log["command"] = [stamped(TwistStamped, k) for k in range(n)]
+    probe.log["reference"] = [stamped(TwistStamped, k) for k in range(10, n)]   # t_0 ... t_9 not yet heard
+    repairs = [stamped(TwistStamped, k) for k in range(10)]
+    spins = []
+
+    def spin_until(predicate, timeout):   # each spin hears one repaired sample, in the order resent
+        spins.append(timeout)
+        if repairs:
+            probe.log["reference"].append(repairs.pop(0))
+        return predicate()
+    sil = SimpleNamespace(log=probe.log, probe=probe, spin_until=spin_until)
+    graph_runner._until_heard(sil, spec)
+    assert len(spins) == 10 and graph_runner._heard(sil, "reference", spec.control_period) == n
+
+    probe.log["reference"] = probe.log["reference"][:-3]   # three that never come
+    monkeypatch.setattr(graph_runner, "REPAIR_STALL", 0.05)
+    spins.clear()
+    graph_runner._until_heard(sil, spec)                   # returns: nothing new for REPAIR_STALL s
+    assert spins and graph_runner._heard(sil, "reference", spec.control_period) == n - 3

@@ -34,6 +34,7 @@ import numpy as np
 import yaml
 
 from seapup_bringup.graph import readiness
+from seapup_bringup.graph.sil_probe import stamp_s
 from seapup_common.topics import typed
 from seapup_runs.run_graph import graph_document
 from seapup_runs.logs import RECORDED_TOPICS, series_from_logs
@@ -239,8 +240,7 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
             raise SilError(f"the graph flew {sil.t:.1f} of {spec.duration:g} s in {limit:g} s; node logs in {out}"
                            + sil._dead())
         # the simulator stops at the spec's end (end_time): once nothing more arrives, the probe has it all
-        sil.spin_until(lambda: min(len(sil.log[name]) for name in ("applied", "velocity", "imu", "depth")) > spec.samples
-                       and min(len(sil.log["command"]), len(sil.log["reference"])) >= spec.samples, 5.0)
+        _until_heard(sil, spec)
         _quiet(sil)
         sil.catch_up()
         _check_heard(sil, spec, out)
@@ -260,21 +260,65 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
 _EVERY_SAMPLE = {"truth": 1, "applied": 1, "velocity": 1, "imu": 1, "depth": 1, "reference": 0}
 
 
+#: Wall seconds the probe may go without hearing anything new before a run's samples are taken as all heard:
+#: a reliable writer repairs what a reader missed (a full shared-memory queue under load) when its next
+#: heartbeat comes -- every 3 s by Fast DDS's default -- so more than two of those periods.
+REPAIR_STALL = 8.0
+
+
+def _heard(sil, name: str, period: float) -> int:
+    """How many distinct samples (stamps) of a topic the probe has heard."""
+    return len({round(stamp_s(m) / period) for m in sil.log[name]})
+
+
+def _until_heard(sil, spec: RunSpec) -> None:
+    """Spin until the probe has heard every sample of every per-sample topic (:data:`_EVERY_SAMPLE`) and as
+    many commands as samples, or nothing new has come for :data:`REPAIR_STALL` s (a hole DDS is not repairing:
+    :func:`_check_heard` names it)."""
+    expected = {name: spec.samples + extra for name, extra in _EVERY_SAMPLE.items()}
+
+    def done() -> bool:
+        return (len(sil.log["command"]) >= spec.samples
+                and all(len(sil.log[name]) >= n and _heard(sil, name, spec.control_period) >= n
+                        for name, n in expected.items()))
+    size, moved = -1, time.monotonic()
+    while not done():
+        now = sum(len(v) for v in sil.log.values())
+        if now != size:
+            size, moved = now, time.monotonic()
+        elif time.monotonic() - moved > REPAIR_STALL:
+            return
+        sil.spin_until(lambda: False, 0.05)
+
+
 def _check_heard(sil, spec: RunSpec, out: Path) -> None:
     """Raise :class:`SilError` if the probe missed a sample of a topic the graph published at every sample: a
     result with a hole would differ from the flight without saying why (the message names the topic, what
     was heard and what the transport said of it)."""
     from seapup_bringup.graph.sil import SilError
-    from seapup_bringup.graph.sil_probe import TOPICS, stamp_s
+    from seapup_bringup.graph.sil_probe import TOPICS
     short = []
     for name, extra in _EVERY_SAMPLE.items():
-        heard = len({round(stamp_s(m), 6) for m in sil.log[name]})
-        if heard < spec.samples + extra:
-            short.append(f"{TOPICS[name][0]}: {heard} of {spec.samples + extra} samples heard "
+        stamps = {round(stamp_s(m) / spec.control_period) for m in sil.log[name]}
+        if len(stamps) < spec.samples + extra:
+            short.append(f"{TOPICS[name][0]}: {len(stamps)} of {spec.samples + extra} samples heard, "
+                         f"{_missing(stamps, spec.samples + extra, spec.control_period)} missing "
                          f"({sil.probe.account(name)})")
     if short:
         raise SilError("the harness's probe missed samples the graph published -- " + "; ".join(short)
                        + f"; node logs in {out}")
+
+
+def _missing(heard: set[int], count: int, period: float) -> str:
+    """The samples of 0 ... ``count`` - 1 not in ``heard`` as spans of simulated time ("t = 0-27.2 s, 40 s")."""
+    spans, start = [], None
+    for k in range(count + 1):
+        if k < count and k not in heard:
+            start = k if start is None else start
+        elif start is not None:
+            spans.append(f"{start * period:g}" + (f"-{(k - 1) * period:g}" if k - 1 > start else ""))
+            start = None
+    return "t = " + ", ".join(spans[:5]) + (f" and {len(spans) - 5} more spans" if len(spans) > 5 else "") + " s"
 
 
 def _report(progress, fraction: float) -> bool:
