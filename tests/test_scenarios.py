@@ -224,21 +224,13 @@ def test_a_steady_state_error_is_seen_where_a_thruster_saturates_and_not_under_i
     assert "steady_error_seen" not in inspection["outputs"]["r"]  # asked to stay at zero: an interaction
 
 
-def test_a_probe_that_missed_samples_fails_the_graph_run_naming_the_topic(tmp_path):
-    """A graph run whose probe did not hear every sample of a per-sample topic (a transport loss) is an error
-    naming the topic, the count heard and what DDS said of it -- not a result with NaN where the samples were."""
-    from types import SimpleNamespace
-
+def _probe_heard_everything(spec):
+    """A message maker ``stamped(kind, k)`` (stamped t_k) and a probe that heard every sample of the
+    simulator's per-sample topics (t_0 ... t_N)."""
     from builtin_interfaces.msg import Time
-    from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
 
-    from seapup_bringup.graph.graph_runner import _check_heard
-    from seapup_bringup.graph.sil import SilError
     from seapup_bringup.graph.sil_probe import SilProbe
-
-    spec = scenario_spec("fast")
-    n = spec.samples
 
     def stamped(kind, k):
         msg = kind()
@@ -247,7 +239,23 @@ def test_a_probe_that_missed_samples_fails_the_graph_run_naming_the_topic(tmp_pa
         return msg
     probe = SilProbe(instruments=True)
     for name in ("truth", "applied", "velocity", "imu", "depth"):
-        probe.log[name] = [stamped(Odometry, k) for k in range(n + 1)]
+        probe.log[name] = [stamped(Odometry, k) for k in range(spec.samples + 1)]
+    return stamped, probe
+
+
+def test_a_probe_that_missed_samples_fails_the_graph_run_naming_the_topic(tmp_path):
+    """A graph run whose probe did not hear every sample of a per-sample topic (a transport loss) is an error
+    naming the topic, the count heard and what DDS said of it -- not a result with NaN where the samples were."""
+    from types import SimpleNamespace
+
+    from geometry_msgs.msg import TwistStamped
+
+    from seapup_bringup.graph.graph_runner import _check_heard
+    from seapup_bringup.graph.sil import SilError
+
+    spec = scenario_spec("fast")
+    n = spec.samples
+    stamped, probe = _probe_heard_everything(spec)
     probe.log["reference"] = [stamped(TwistStamped, k) for k in range(n)] + [stamped(TwistStamped, n - 1)]
     sil = SimpleNamespace(log=probe.log, probe=probe)
     _check_heard(sil, spec, tmp_path)                      # every sample heard (a repeat counts once)
@@ -270,24 +278,13 @@ def test_the_graph_run_waits_for_the_samples_dds_repairs_and_gives_up_when_nothi
     probe has heard nothing new for REPAIR_STALL s, and the check then names the samples missing."""
     from types import SimpleNamespace
 
-    from builtin_interfaces.msg import Time
     from geometry_msgs.msg import TwistStamped
-    from nav_msgs.msg import Odometry
 
     from seapup_bringup.graph import graph_runner
-    from seapup_bringup.graph.sil_probe import SilProbe
 
     spec = scenario_spec("fast")
     n = spec.samples
-
-    def stamped(kind, k):
-        msg = kind()
-        t = k * spec.control_period
-        msg.header.stamp = Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)))
-        return msg
-    probe = SilProbe(instruments=True)
-    for name in ("truth", "applied", "velocity", "imu", "depth"):
-        probe.log[name] = [stamped(Odometry, k) for k in range(n + 1)]
+    stamped, probe = _probe_heard_everything(spec)
     probe.log["command"] = [stamped(TwistStamped, k) for k in range(n)]
     probe.log["reference"] = [stamped(TwistStamped, k) for k in range(10, n)]   # t_0 ... t_9 not yet heard
     repairs = [stamped(TwistStamped, k) for k in range(10)]
