@@ -20,6 +20,11 @@ of sec. 3.7 (the pitch transmission-zero pair on the imaginary axis at
 ``added_mass[2][4] = [4][2]`` (-Z_qdot = -M_wdot, kg m) as a free parameter:
     python tools/calibrate_vehicle.py --only "hydrodynamics.N_r,hydrodynamics.N_r|r|,added_mass.2.4" --write
 takes about 2 minutes on 2 cores.
+
+Round 3 (issue 41) added sec. 3.8's umbilical trials (the surge test with the cable at 50, 100 and 200 m:
+top speed and F_x, as ``./seapup verify`` scores them; ``--no-umbilical`` leaves them out, about 17 times
+cheaper) and ``--base`` (a candidate vehicle file to start from, e.g. sec. 3.1's geometry) and ``--bound``
+(free a parameter that FREE lacks, or change a bound: ``--bound "hydrodynamics.N_v=-20,20"``).
 """
 from __future__ import annotations
 
@@ -40,7 +45,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT  # noqa: E402
 from seapup_sim.analysis import TrimError, linearise, system_zeros, trim  # noqa: E402
 from seapup_sim.vehicle import VehicleModel  # noqa: E402
 from seapup_sim.vehicle_config import load_vehicle_config  # noqa: E402
-from seapup_sim.verification import oscillatory_mode, output_matrix, run_open_loop  # noqa: E402
+from seapup_sim.verification import oscillatory_mode, output_matrix, run_open_loop, verify_umbilical  # noqa: E402
 
 D = math.radians
 YAML = ROOT / "ros2_ws/src/seapup_sim/seapup_sim/vehicles/baseline.yaml"
@@ -132,8 +137,9 @@ def pitch_zero_real(model, speed):
     return max(z.real for z in zs)
 
 
-def measure(cfg):
-    """The calibrated quantities, cheaply (dt 0.1 s, shorter runs)."""
+def measure(cfg, umbilical: bool = True):
+    """The calibrated quantities, cheaply (dt 0.1 s, shorter runs); with ``umbilical``, sec. 3.8's trials as
+    verify flies them."""
     model = VehicleModel(cfg)
     lim = BLADE_PITCH_LIMIT
     out = {}
@@ -177,6 +183,9 @@ def measure(cfg):
         _, x, _ = run_open_loop(model, cmd, 10.0, pitch0=hover.blade_pitch)
         out[f"b1_{key}"] = x[-1, [6, 7, 8, 11]] / 8.0 * np.array([1, 1, 1, 180 / math.pi])
         out[f"b0_{key}"] = x[2, [6, 7, 8, 11]] / 8.0 * np.array([1, 1, 1, 180 / math.pi])
+    if umbilical:
+        for depth, trial in verify_umbilical(model)[0].items():
+            out[f"umbilical_{depth}_u"], out[f"umbilical_{depth}_Fx"] = trial["max_u"], trial["Fx"]
     return out
 
 
@@ -193,17 +202,22 @@ OBJECTIVE = [
     # round 2 (issue 11): App. A.3's zero-radius turn; sec. 3.7's crossover at 0.7 m/s
     ("yaw_stbd", 53.3, 8.0, 1.0), ("yaw_port", 50.0, 7.5, 1.0), ("zero_re_0_7", 0.0, 0.05, 1.0),
 ]
+#: Round 3 (issue 41): sec. 3.8's surge trials with the umbilical (primaries of verify: the speeds within
+#: 10 %, F_x within 15 %, thesis_targets.yaml's cable_speed and cable_force bands)
+UMBILICAL = [(f"umbilical_{d}_u", u, 0.10 * u, 1.0) for d, u in (("50", 0.474), ("100", 0.354), ("200", 0.259))] + [
+    (f"umbilical_{d}_Fx", f, 0.15 * abs(f), 1.0) for d, f in (("50", -148.0), ("100", -163.0), ("200", -172.0))]
 
 
-def residuals(z, base, verbose=False, free=None):
+def residuals(z, base, verbose=False, free=None, umbilical=True):
     cfg = apply(base, z, free)
+    objective = OBJECTIVE + (UMBILICAL if umbilical else [])
     try:
-        m = measure(cfg)
+        m = measure(cfg, umbilical)
     except Exception as exc:  # a diverged trial: large, finite misfit
         if verbose:
             print("diverged:", exc)
-        return np.full(len(OBJECTIVE) + 9, 50.0)
-    res = [w * (m[k] - v) / tol for k, v, tol, w in OBJECTIVE]
+        return np.full(len(objective) + 11, 50.0)
+    res = [w * (m[k] - v) / tol for k, v, tol, w in objective]
     # trim must exist up to 1 m/s within the blade limits (primary)
     res.append(max(0.0, m["trim1_main"] - 33.0) / 2.0)
     b1m, b1v = m["b1_main"], m["b1_vect"]
@@ -211,9 +225,12 @@ def residuals(z, base, verbose=False, free=None):
             0.3 * (b1v[2] - 0.004875) / 0.0025, 0.3 * (b1v[1] + 0.00766) / 0.0038,
             0.3 * (b1m[2] + 0.0006) / 0.0006,
             0.3 * (m["b0_main"][0] - 0.0026) / 0.0013, 0.3 * (m["b0_main"][3] - 0.2629) / 0.13,
-            0.3 * (m["b0_vect"][2] - 0.000525) / 0.00026]
+            0.3 * (m["b0_vect"][2] - 0.000525) / 0.00026,
+            # round 3: eq. 5.3b's small vectored entries, whose sign verify checks (surge; the yaw that a
+            # vectored thruster abreast of the CG barely makes)
+            0.3 * (b1v[0] - 0.00064) / 0.0013, 0.3 * (b1v[3] + 0.0499) / 0.1]
     if verbose:
-        for k, v, tol, w in OBJECTIVE:
+        for k, v, tol, w in objective:
             print(f"  {k:<16} {m[k]:10.4f}  thesis {v}")
         print(f"  trim 1.0 main   {m['trim1_main']:.2f}")
         print(f"  B1 main {np.round(b1m, 5)}  vect {np.round(b1v, 5)}")
@@ -221,16 +238,17 @@ def residuals(z, base, verbose=False, free=None):
     return np.array(res)
 
 
-def write_yaml(cfg):
-    """Store the fitted values in baseline.yaml, keeping its comments (ruamel.yaml)."""
+def write_yaml(cfg, free=FREE, target=YAML):
+    """Store the fitted values (``free``'s and those tied to them) in ``target`` (baseline.yaml, or the file
+    ``--base`` named), keeping its comments (ruamel.yaml)."""
     from ruamel.yaml import YAML as RoundTrip
     rt = RoundTrip()
     rt.width = 120
-    doc = rt.load(YAML.read_text())
-    for path in list(FREE) + [p for ps in TIED.values() for p in ps] + [
+    doc = rt.load(Path(target).read_text())
+    for path in list(free) + [p for key in free for p in TIED.get(key, [])] + [
             "thrusters.installation.2.2", "thrusters.installation.2.3"]:
         put(doc, path, float(f"{get(cfg, path):.6g}"))
-    with open(YAML, "w") as f:
+    with open(target, "w") as f:
         rt.dump(doc, f)
 
 
@@ -240,9 +258,19 @@ def main():
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--start", help="start from a .npy vector of FREE values")
     ap.add_argument("--only", help="comma-separated parameters of FREE to fit (default: all)")
+    ap.add_argument("--base", default="baseline", help="the vehicle (shipped name or file) to start from")
+    ap.add_argument("--bound", action="append", default=[], metavar="PATH=LO,HI",
+                    help="free PATH within [LO, HI] (a parameter FREE lacks, or another bound); repeatable")
+    ap.add_argument("--no-umbilical", action="store_true", help="leave sec. 3.8's umbilical trials out")
     args = ap.parse_args()
-    base = load_vehicle_config("baseline")
-    free = {p: FREE[p] for p in args.only.split(",")} if args.only else FREE
+    base = load_vehicle_config(args.base)
+    bounds = dict(FREE)
+    for text in args.bound:
+        path, _, pair = text.partition("=")
+        lo, hi = (float(v) for v in pair.split(","))
+        bounds[path] = (lo, hi)
+    free = {p: bounds[p] for p in args.only.split(",")} if args.only else bounds
+    umbilical = not args.no_umbilical
     z0 = np.array([get(base, p) for p in free])
     lo = np.array([b[0] for b in free.values()])
     hi = np.array([b[1] for b in free.values()])
@@ -250,19 +278,19 @@ def main():
         z0 = np.load(args.start)
     z0 = np.clip(z0, lo + 1e-9, hi - 1e-9)
     t0 = time.perf_counter()
-    print("start cost", 0.5 * np.sum(residuals(z0, base, free=free) ** 2))
-    sol = scipy.optimize.least_squares(residuals, z0, args=(base, False, free), bounds=(lo, hi),
+    print("start cost", 0.5 * np.sum(residuals(z0, base, free=free, umbilical=umbilical) ** 2))
+    sol = scipy.optimize.least_squares(residuals, z0, args=(base, False, free, umbilical), bounds=(lo, hi),
                                        x_scale=np.abs(hi - lo) / 10, diff_step=1e-3,
                                        max_nfev=args.iterations, verbose=1)
     print(f"final cost {sol.cost:.4g} after {time.perf_counter() - t0:.0f} s")
-    residuals(sol.x, base, verbose=True, free=free)
+    residuals(sol.x, base, verbose=True, free=free, umbilical=umbilical)
     np.save(ROOT / "tools" / ".calibration_last.npy", sol.x)
     cfg = apply(base, sol.x, free)
     for path in free:
         print(f"{path:<36} {get(cfg, path):.6g}")
     print("vectored Z installation", get(cfg, "thrusters.installation.2.2"))
     if args.write:
-        write_yaml(cfg)
+        write_yaml(cfg, free, YAML if args.base == "baseline" else args.base)
 
 
 if __name__ == "__main__":
