@@ -553,7 +553,7 @@ def verify_summary(rows: list[dict]) -> dict:
     deviations = [r for r in rows if r["deviation"]]
     return {"primary_passed": sum(r["pass"] for r in primary), "primary": len(primary),
             "secondary_passed": sum(r["pass"] for r in secondary), "secondary": len(secondary),
-            "deviations": sum(not r["pass"] for r in deviations),
+            "deviations": sum(not r["pass"] for r in deviations), "scored": len(rows),
             "ok": all(r["pass"] for r in primary)}
 
 

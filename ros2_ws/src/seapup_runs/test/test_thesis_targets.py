@@ -408,6 +408,20 @@ def test_only_a_failing_primary_decides_the_outcome(baseline_results):
     assert [r["status"] for r in bad if r["key"] == "surge.max_u"] == ["FAIL"]
 
 
+def test_verify_of_a_vehicle_the_thesis_has_no_numbers_for_says_nothing_was_scored(baseline_results):
+    """A user's own vehicle file (no verify targets): the summary says nothing was scored, not "all
+    primaries pass" over 0 of 0."""
+    from seapup_sim.verification_report import format_rows
+    rows = tg.verify_rows(baseline_results, "my_rov")
+    summary = tg.verify_summary(rows)
+    assert rows == [] and summary["scored"] == 0 and summary["primary"] == 0
+    text = format_rows(rows, "seapup verify: configuration 'my_rov'", summary)
+    assert "nothing scored" in text.splitlines()[-1] and "all primaries pass" not in text
+    baseline = tg.verify_rows(baseline_results, "baseline")
+    assert tg.verify_summary(baseline)["scored"] == len(baseline) > 0
+    assert "all primaries pass" in format_rows(baseline, "t", tg.verify_summary(baseline)).splitlines()[-1]
+
+
 def test_a_broken_metric_turns_its_rows_red(baseline_results):
     """Acceptance of issue 23: a deliberately broken metric (here the umbilical's F_x taken with the wrong
     sign, as a metric that reads the cable's pull instead of its drag would) fails its rows."""

@@ -38,6 +38,10 @@ def format_rows(rows: list[dict], title: str, totals: dict) -> str:
         if r.get("deviation") and not r["pass"]:
             lines.append(f"{'':4}deviation: {r['deviation']}")
     s = totals
+    if not rows:   # a vehicle of the user's own: measured, but the thesis has no numbers for it
+        lines.append("summary: nothing scored -- the thesis has no targets for this configuration (the values above "
+                     "are measured; ./seapup check-model checks any vehicle's model)")
+        return "\n".join(lines)
     lines.append(f"summary: primary {s['primary_passed']}/{s['primary']} PASS, secondary "
                  f"{s['secondary_passed']}/{s['secondary']} PASS, {s['deviations']} documented deviation(s) "
                  f"(P = primary, s = secondary, D = documented deviation) -> "

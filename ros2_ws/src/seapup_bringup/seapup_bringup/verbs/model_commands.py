@@ -41,7 +41,8 @@ def _model(name: str) -> VehicleModel:
 def _parser(name: str, description: str, config: bool = True) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=f"./seapup {name}", description=description)
     if config:
-        parser.add_argument("--config", default="baseline", help=f"configuration ({', '.join(available_configs())})")
+        parser.add_argument("--config", default="baseline",
+                            help=f"a shipped configuration ({', '.join(available_configs())}) or a vehicle file (.yaml)")
     add_json_argument(parser)
     return parser
 
@@ -315,7 +316,6 @@ def _report_times() -> dict:
     runs it): wall and CPU seconds (it and its run workers), with as many jobs as CPUs."""
     import os
     import subprocess
-    import sys
     import tempfile
     from pathlib import Path
 
