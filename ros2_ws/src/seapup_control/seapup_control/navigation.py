@@ -136,10 +136,20 @@ class Navigator:
     Parameters
     ----------
     params : NavigatorParams
+    compiled : bool, optional
+        The prediction and the updates by the compiled kernels of :mod:`seapup_control.compiled` (default:
+        when numba is installed) or by the NumPy reference (False); the two agree to rounding.
     """
 
-    def __init__(self, params: NavigatorParams | None = None):
+    def __init__(self, params: NavigatorParams | None = None, compiled: bool | None = None):
         self.params = params or NavigatorParams()
+        self.kernels = None
+        if compiled is None:
+            import importlib.util
+            compiled = importlib.util.find_spec("numba") is not None
+        if compiled:   # loaded now (from numba's cache), not at the first sample
+            from seapup_control import compiled as kernels
+            self.kernels = kernels
         self.chi2_gate = (math.inf if self.params.gate_probability >= 1
                           else chi2_quantile(self.params.gate_probability, 3))
         self.chi2_gate_depth = (math.inf if self.params.gate_probability >= 1
@@ -165,6 +175,10 @@ class Navigator:
 
     # -- the filter ------------------------------------------------------------------------
     def _predict(self, dt: float, velocity_variance: np.ndarray, coasting: bool) -> None:
+        if self.kernels is not None:
+            self.kernels.predict(self.x, self.P, self.attitude, self.velocity, velocity_variance, float(dt),
+                                 float(self.params.q_walk), float(self.params.coast_inflation) if coasting else 1.0)
+            return
         R = rotation_body_to_ned(*self.attitude)
         self.x = self.x + dt * (R @ self.velocity)
         # R diag(var) R^T, the diagonal product as a column scaling (the same products, without the zeros)
@@ -191,6 +205,8 @@ class Navigator:
         arithmetic as the matrix form (the innovation test y S^-1 y, K = P H^T S^-1, the Joseph update),
         without its solves (LAPACK's solve of one equation divides, and multiplies several right-hand sides
         by 1 / S)."""
+        if self.kernels is not None:
+            return bool(self.kernels.fuse_component(self.x, self.P, index, float(y), float(variance), float(gate)))
         innovation = y - float(self.x[index])
         s = float(self.P[index, index]) + variance
         if innovation * (innovation / s) > gate:
@@ -257,7 +273,8 @@ class Navigator:
             self.counts["fixes_fused"] += 1
             return
         y = np.asarray(fix.value, float)
-        if self._fuse(np.eye(3), y, np.diag(variance), self.chi2_gate):
+        if (self.kernels.fuse_fix(self.x, self.P, y, variance, float(self.chi2_gate)) if self.kernels is not None
+                else self._fuse(np.eye(3), y, np.diag(variance), self.chi2_gate)):
             self.counts["fixes_fused"] += 1
             self._rejected_innovations = []
             return

@@ -22,10 +22,12 @@ def test_noise_free_dead_reckoning_follows_a_turning_vehicle_exactly():
     np.testing.assert_allclose(estimate.position, position, atol=1e-9)
 
 
-def test_covariance_converges_to_the_discrete_riccati_solution():
-    """Fixes every sample, constant Q and R: P tends to the DARE's a-posteriori covariance."""
+@pytest.mark.parametrize("compiled", [True, False])
+def test_covariance_converges_to_the_discrete_riccati_solution(compiled):
+    """Fixes every sample, constant Q and R: P tends to the DARE's a-posteriori covariance (the compiled
+    kernels and the NumPy reference)."""
     p = NavigatorParams(q_walk=1e-3, velocity_std=(0.01, 0.01, 0.01), fix_std=0.5, gate_probability=1.0)
-    nav = Navigator(p)
+    nav = Navigator(p, compiled=compiled)
     for k in range(400):
         nav.update(Measurement.build(k * T, velocity=(0, 0, 0), attitude=(0, 0, 0), position=(0, 0, 30)))
     Q = (T * T * 0.01 ** 2 + p.q_walk * T) * np.eye(3)
@@ -119,10 +121,11 @@ def test_the_gates_chi_square_quantile_is_scipy_stats_own():
     assert abs(chi2_quantile(0.95, 3) - 7.814727903251178) < 1e-12   # the textbook table's 7.815
 
 
-def test_a_depth_is_fused_as_the_matrix_kalman_update_would_fuse_it():
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_depth_is_fused_as_the_matrix_kalman_update_would_fuse_it(compiled):
     """The scalar depth update against the textbook matrix form (H = [0 0 1], K = P H^T S^-1, Joseph form),
-    on a correlated covariance; a depth the gate refuses changes nothing."""
-    nav = Navigator(NavigatorParams(gate_probability=0.999))
+    on a correlated covariance; a depth the gate refuses changes nothing (compiled kernel and reference)."""
+    nav = Navigator(NavigatorParams(gate_probability=0.999), compiled=compiled)
     rng = np.random.default_rng(3)
     A = rng.normal(size=(3, 3))
     outcomes = set()
@@ -146,3 +149,43 @@ def test_a_depth_is_fused_as_the_matrix_kalman_update_would_fuse_it():
         np.testing.assert_allclose(nav.P, I_KH @ P0 @ I_KH.T + K @ R @ K.T, rtol=1e-10, atol=1e-12)
         np.testing.assert_array_equal(nav.P, nav.P.T)
     assert outcomes == {True, False}
+
+
+def test_the_compiled_filter_flies_a_whole_run_as_the_numpy_reference_does():
+    """seapup_control.compiled against Navigator's NumPy code along 1500 samples of a turning, pitching
+    vehicle with noisy log, depth and 1 Hz fixes -- dropouts, multipath outliers (rejected), a lost log
+    (coasting) and a diverged estimate re-acquired: the same decisions, the estimates equal to rounding."""
+    rng = np.random.default_rng(7)
+    navs = [Navigator(compiled=True), Navigator(compiled=False)]
+    assert navs[0].kernels is not None and navs[1].kernels is None
+    position, attitude = np.array([0.0, 0.0, 40.0]), np.zeros(3)
+    for k in range(1500):
+        attitude = attitude + [0.002 * rng.normal(), 0.003 * math.sin(0.01 * k), 0.01]
+        velocity = np.array([0.5, 0.1 * math.sin(0.02 * k), 0.05 * math.cos(0.03 * k)])
+        position = position + T * (_rotation(attitude) @ velocity)
+        fields = {"attitude": attitude + 0.001 * rng.normal(size=3), "depth": position[2] + 0.05 * rng.normal()}
+        if not 600 <= k < 620:   # the log lost for 4 s: the prediction coasts
+            fields["velocity"] = velocity + 0.003 * rng.normal(size=3)
+        if k % 5 == 0 and rng.random() > 0.2:
+            fix = position + 0.5 * rng.normal(size=3)
+            if k % 45 == 0:
+                fix = fix + [30.0, 0.0, 0.0]        # multipath: rejected
+            if 900 <= k < 930:
+                fix = fix + [25.0, -10.0, 0.0]      # consistently elsewhere: re-acquired
+            fields["position"] = fix
+        measurement = Measurement.build(k * T, variances={"position": np.full(3, 0.25), "depth": 0.0025,
+                                                          "velocity": np.full(3, 0.003 ** 2)}, **fields)
+        estimates = [nav.update(measurement) for nav in navs]
+        if estimates[0] is None:
+            assert estimates[1] is None
+            continue
+        np.testing.assert_allclose(estimates[0].position, estimates[1].position, rtol=1e-11, atol=1e-9)
+        np.testing.assert_allclose(estimates[0].position_cov, estimates[1].position_cov, rtol=1e-9, atol=1e-13)
+    assert navs[0].counts == navs[1].counts
+    counts = navs[0].counts
+    assert counts["fixes_rejected"] > 0 and counts["reacquisitions"] >= 1 and counts["coasting_samples"] == 20
+
+
+def _rotation(attitude):
+    from seapup_common.frames import rotation_body_to_ned
+    return rotation_body_to_ned(*attitude)
