@@ -80,6 +80,12 @@ def check_blade_pitch(pitch, limit: float = BLADE_PITCH_LIMIT) -> tuple[np.ndarr
     """
     if not (np.isfinite(limit) and limit > 0.0):
         raise ValueError(f"blade-pitch limit must be finite and > 0 rad, got {limit!r}")
+    if type(pitch) is np.ndarray and pitch.dtype == np.float64 and pitch.shape == (4,):
+        # the usual case, a controller's own array within the limits: the same answer as below, a third of its
+        # cost (a NaN fails every comparison and takes the checks below)
+        a, b, c, d = pitch.tolist()
+        if -limit <= a <= limit and -limit <= b <= limit and -limit <= c <= limit and -limit <= d <= limit:
+            return pitch.copy(), 0
     try:
         values = np.asarray(pitch, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -1,5 +1,6 @@
 """Tests of seapup_common.blade_pitch: the gate in front of the vehicle model."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -30,6 +31,26 @@ def test_saturates_to_the_blade_limit_and_counts():
 def test_rejects_non_finite_and_wrong_length(bad):
     with pytest.raises(InvalidBladePitchError):
         check_blade_pitch(bad, LIMIT)
+
+
+@pytest.mark.parametrize("values", [[0.1, -0.2, 0.3, -0.4], [LIMIT, -LIMIT, -0.0, 0.0], [1.0, -0.2, 0.3, -0.4],
+                                    [math.nan, 0.0, 0.0, 0.0], [0.0, math.inf, 0.0, 0.0]])
+def test_a_float_array_gives_what_a_list_of_the_same_values_gives(values):
+    """The float64 (4,) array of a controller (checked on a fast path) against the same values as a list:
+    equal results bit for bit (a new array, the sign of zero kept, clipped and counted alike), equal refusals."""
+    array = np.array(values)
+    try:
+        expected = check_blade_pitch(list(values), LIMIT)
+    except InvalidBladePitchError as exc:
+        with pytest.raises(InvalidBladePitchError, match=re.escape(str(exc))):
+            check_blade_pitch(array, LIMIT)
+        return
+    out, n = check_blade_pitch(array, LIMIT)
+    assert out is not array and n == expected[1]
+    np.testing.assert_array_equal(out, expected[0])
+    assert np.signbit(out).tolist() == np.signbit(expected[0]).tolist()
+    out[0] = 9.0
+    assert array[0] == values[0]   # the caller's array untouched
 
 
 def test_error_names_the_thruster():
