@@ -153,6 +153,13 @@ def test_a_scenario_through_the_ros_graph_equals_the_in_process_run(name, tmp_pa
 
     spec = scenario_spec(name)
     assert_same_run(run_on_graph(spec, out_dir=tmp_path), run(spec))
+    # the schedule says what it sent as it stops: one reference per sample, t_0 ... t_N-1, and t_N's too if the
+    # simulator's clock of the end (where it holds) reached it before the graph was stopped
+    log = (tmp_path / "reference_schedule.log").read_text()
+    sent = re.search(r"sent (\d+) sample\(s\) on /seapup/velocity_controller/reference, the last stamped ([\d.]+) s",
+                     log)
+    assert sent and int(sent[1]) in (spec.samples, spec.samples + 1), log[-500:]
+    assert float(sent[2]) == pytest.approx((int(sent[1]) - 1) * spec.control_period, abs=5e-4)
 
 
 @pytest.mark.graph

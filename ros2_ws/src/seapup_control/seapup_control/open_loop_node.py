@@ -17,7 +17,7 @@ from seapup_msgs.msg import BladePitch
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Measurement, Reference
 from seapup_common.ros.messages import command_to_msg
-from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher, sample_publisher_events
 from seapup_control.profiles import OpenLoop, PitchProfile
@@ -58,6 +58,11 @@ class OpenLoopNode(Node):
 
     def _command(self, t_ns: int, elapsed: float):
         return command_to_msg(self.controller.update(elapsed, Measurement(elapsed), Reference()), t_ns)
+
+    def destroy_node(self) -> None:
+        if getattr(self, "sampler", None) is not None:
+            self.get_logger().info(self.sampler.summary())
+        super().destroy_node()
 
 
 def main(args=None) -> int:

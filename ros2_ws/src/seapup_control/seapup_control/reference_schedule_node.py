@@ -16,7 +16,7 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 
 from seapup_common.ros.messages import reference_to_msg
-from seapup_common.ros.node import RELIABLE_QOS, STREAM_QOS, declare_from_package_file, run_node
+from seapup_common.ros.node import STREAM_QOS, declare_from_package_file, run_node
 from seapup_common.topics import NAMESPACE
 from seapup_control.ros.sample_publisher import SamplePublisher, sample_publisher_events
 from seapup_control.profiles import ReferenceProfile
@@ -47,6 +47,11 @@ class ReferenceScheduleNode(Node):
 
     def _reference(self, t_ns: int, elapsed: float) -> TwistStamped:
         return reference_to_msg(self.schedule.at(elapsed), t_ns)
+
+    def destroy_node(self) -> None:
+        if getattr(self, "sampler", None) is not None:
+            self.get_logger().info(self.sampler.summary())
+        super().destroy_node()
 
 
 def main(args=None) -> int:

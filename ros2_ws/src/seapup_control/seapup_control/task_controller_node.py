@@ -184,7 +184,7 @@ class TaskControllerNode(Node):
             return
         if self.running is not None:
             self.running.done.set_result(("aborted", f"preempted by a {kind} goal", {}))
-        running = self.running = self._started[bytes(handle.goal_id.uuid)] = _Running(task, handle)
+        self.running = self._started[bytes(handle.goal_id.uuid)] = _Running(task, handle)
         self.get_logger().info(f"{kind} started")
         if self.setpoint is None and self.estimate is not None:
             # the first task: the setpoint stream starts now, holding where the vehicle is until the task's

@@ -6,7 +6,8 @@ otherwise it publishes on a timer every ``sample_period`` for the time since it 
 clock, so ``use_sim_time`` works). Nothing is sent before ``wait_for_subscribers`` subscriptions
 are matched (the plant, a recorder), so no sample is lost at start. Every change of the publisher's matched
 subscriptions after the first message is logged (:func:`sample_publisher_events`): a listener that drops out
-mid-run shows in the node's log.
+mid-run shows in the node's log, and so does what was sent (:meth:`SamplePublisher.summary`, logged as the
+node is destroyed).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ class SamplePublisher:
         self.gate = SubscriberGate([(publisher, wait_for_subscribers)])
         self.start = node.get_clock().now()
         self.sent = 0
+        self.last_sent_ns: int | None = None   # the stamp of the newest sample sent
         self._last_clock = None
         if lockstep:
             node.create_subscription(Clock, CLOCK, self._on_clock, RELIABLE_QOS)
@@ -57,6 +59,13 @@ class SamplePublisher:
             return
         self.publisher.publish(self.message_at(t_ns, elapsed))
         self.sent += 1
+        self.last_sent_ns = t_ns
+
+    def summary(self) -> str:
+        """What was sent, for the node's last log line (a listener that missed samples can be told from a
+        publisher that skipped them)."""
+        last = "none" if self.last_sent_ns is None else f"the last stamped {self.last_sent_ns * 1e-9:.3f} s"
+        return f"sent {self.sent} sample(s) on {self.publisher.topic_name}, {last}"
 
     def _on_clock(self, msg: Clock) -> None:
         t_ns = stamp_to_ns(msg.clock)
