@@ -46,6 +46,30 @@ def test_a_signal_runs_the_commands_clean_up_then_says_interrupted(fake_command,
     assert capsys.readouterr().err == "seapup: interrupted\n"
 
 
+@pytest.mark.parametrize("then_progress", [True, False])
+def test_a_stop_signal_a_library_swallowed_still_stops_the_command(fake_command, capsys, then_progress):
+    """The handler's KeyboardInterrupt can land where a library swallows it (inside a ``__del__``: a campaign
+    once flew on to its end and exited 0 after a Ctrl-C). Long work stops at its next progress step, and a
+    command that returns anyway still says it was interrupted -- never exit 0 after a Ctrl-C."""
+    steps = []
+
+    def body(argv):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            pass   # swallowed, as by a library
+        if then_progress:
+            for k in range(10):
+                output.progress("work", k / 10)
+                steps.append(k)
+        return 0
+    fake_command(body)
+    assert cli.main(["probe"]) == 130
+    assert steps == []   # the first progress step stopped it
+    assert capsys.readouterr().err.splitlines()[-1] == "seapup: interrupted"
+
+
 def test_an_error_raised_while_a_signal_is_handled_still_counts_as_interrupted(fake_command, capsys):
     """rclpy/pybind11 may turn an interrupted wait into another exception ("Unable to convert call
     argument"): it is the interruption, not a failure, that the user is told about."""

@@ -469,7 +469,10 @@ def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, on_signal)
     try:
-        return int(entry.run(argv) or 0)
+        code = int(entry.run(argv) or 0)
+        if not SIGNALS:
+            return code
+        signum = SIGNALS[0]   # a stop signal whose exception a library swallowed: the command was still asked to stop
     except KeyboardInterrupt as exc:
         signum = getattr(exc, "signum", signal.SIGINT)
     except BrokenPipeError:

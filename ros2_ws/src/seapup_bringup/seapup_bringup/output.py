@@ -101,7 +101,19 @@ def progress(label: str, fraction: float, width: int = 30, stream=None) -> None:
         Bar width in characters.
     stream : file-like, optional
         Where to write (standard error by default).
+
+    Raises
+    ------
+    KeyboardInterrupt
+        If ``./seapup`` has received a stop signal (:data:`SIGNALS`) that did not end the command: the handler's
+        exception can land where a library swallows it (inside a ``__del__``, seen once in 50 Ctrl-Cs of a
+        campaign, which then flew on to the end and exited 0). Long work stops at its next progress step instead
+        (``signum``: the signal).
     """
+    if SIGNALS:
+        interrupt = KeyboardInterrupt()
+        interrupt.signum = SIGNALS[0]
+        raise interrupt
     stream = stream or sys.stderr
     fraction = min(max(fraction, 0.0), 1.0)
     done = int(width * fraction)
