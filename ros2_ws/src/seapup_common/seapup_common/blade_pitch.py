@@ -28,6 +28,7 @@ __all__ = [
     "THRUSTER_NAMES",
     "InvalidBladePitchError",
     "check_blade_pitch",
+    "within_limits",
     "CommandGate",
 ]
 
@@ -52,6 +53,16 @@ if len(THRUSTER_NAMES) != 4 or not 0.0 < BLADE_PITCH_LIMIT < math.pi / 2:
 
 class InvalidBladePitchError(ValueError):
     """A blade-pitch command that must not reach the vehicle model."""
+
+
+def within_limits(pitch, limit: float) -> bool:
+    """True for the usual command, a float64 array of four finite pitches within ``[-limit, limit]``, checked
+    in a fraction of :func:`check_blade_pitch`'s time (a NaN fails every comparison): such a command passes it
+    unchanged. False says nothing; :func:`check_blade_pitch` then decides."""
+    if type(pitch) is not np.ndarray or pitch.dtype != np.float64 or pitch.shape != (4,):
+        return False
+    a, b, c, d = pitch.tolist()
+    return -limit <= a <= limit and -limit <= b <= limit and -limit <= c <= limit and -limit <= d <= limit
 
 
 def check_blade_pitch(pitch, limit: float = BLADE_PITCH_LIMIT) -> tuple[np.ndarray, int]:
@@ -80,12 +91,8 @@ def check_blade_pitch(pitch, limit: float = BLADE_PITCH_LIMIT) -> tuple[np.ndarr
     """
     if not (np.isfinite(limit) and limit > 0.0):
         raise ValueError(f"blade-pitch limit must be finite and > 0 rad, got {limit!r}")
-    if type(pitch) is np.ndarray and pitch.dtype == np.float64 and pitch.shape == (4,):
-        # the usual case, a controller's own array within the limits: the same answer as below, a third of its
-        # cost (a NaN fails every comparison and takes the checks below)
-        a, b, c, d = pitch.tolist()
-        if -limit <= a <= limit and -limit <= b <= limit and -limit <= c <= limit and -limit <= d <= limit:
-            return pitch.copy(), 0
+    if within_limits(pitch, limit):   # the usual case: the same answer as below, a third of its cost
+        return pitch.copy(), 0
     try:
         values = np.asarray(pitch, dtype=float)
     except (TypeError, ValueError) as exc:

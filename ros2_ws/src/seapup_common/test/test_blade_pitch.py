@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from seapup_common.blade_pitch import (CommandGate, InvalidBladePitchError, MAIN_PORT,
-                                    VECTORED_PORT, check_blade_pitch)
+                                    VECTORED_PORT, check_blade_pitch, within_limits)
 
 LIMIT = math.radians(35.0)
 
@@ -51,6 +51,13 @@ def test_a_float_array_gives_what_a_list_of_the_same_values_gives(values):
     assert np.signbit(out).tolist() == np.signbit(expected[0]).tolist()
     out[0] = 9.0
     assert array[0] == values[0]   # the caller's array untouched
+
+
+def test_within_limits_says_yes_only_to_what_the_check_passes_unchanged():
+    assert within_limits(np.array([0.1, -0.2, LIMIT, -LIMIT]), LIMIT)
+    for no in ([0.1, 0.1, 0.1, 0.1], np.array([0.1, 0.1, 0.1, 1.0]), np.array([math.nan, 0, 0, 0.0]),
+               np.array([0, 0, 0, 0]), np.zeros(5), np.zeros((2, 2)), np.zeros(4, dtype=np.float32)):
+        assert not within_limits(no, LIMIT), no
 
 
 def test_error_names_the_thruster():

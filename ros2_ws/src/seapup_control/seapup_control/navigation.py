@@ -44,6 +44,7 @@ from scipy import special
 
 from seapup_common.contract import ContractError, Measurement, NavigationEstimate
 from seapup_common.frames import rotation_body_to_ned
+from seapup_common.kernels import numba_installed
 
 __all__ = ["NavigatorParams", "Navigator", "SHELL_PARAMETERS", "chi2_quantile"]
 
@@ -144,10 +145,7 @@ class Navigator:
     def __init__(self, params: NavigatorParams | None = None, compiled: bool | None = None):
         self.params = params or NavigatorParams()
         self.kernels = None
-        if compiled is None:
-            import importlib.util
-            compiled = importlib.util.find_spec("numba") is not None
-        if compiled:   # loaded now (from numba's cache), not at the first sample
+        if numba_installed() if compiled is None else compiled:   # loaded now (from numba's cache), not at the first sample
             from seapup_control import compiled as kernels
             self.kernels = kernels
         self.chi2_gate = (math.inf if self.params.gate_probability >= 1

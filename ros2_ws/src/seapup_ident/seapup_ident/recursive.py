@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from seapup_common.kernels import numba_installed
 from seapup_ident.armax import ArmaxModel, ArmaxOrders, Regressor, is_stable
 
 __all__ = ["DataError", "Forgetting", "Jacket", "ud_update", "RecursiveArmax", "RecursiveRegression", "METHODS"]
@@ -204,7 +205,7 @@ class RecursiveArmax:
             raise ValueError(f"filter_weakening is an RPEM option, not {method}'s")
         self.filter_weakening = None if filter_weakening is None else Forgetting.schedule(*filter_weakening)
         self.keep_history = keep_history
-        self.compiled = _numba_available() if compiled is None else bool(compiled)
+        self.compiled = numba_installed() if compiled is None else bool(compiled)
         if self.compiled and method == "rpem":   # loaded now (from numba's cache), not at the first sample
             from seapup_ident.compiled import rpem_gradient_step
             self._gradient_step = rpem_gradient_step
@@ -384,14 +385,6 @@ class RecursiveArmax:
             self._psi[:, 1:] = self._psi[:, :-1]
             self._psi[:, 0] = psi
         return (gain * error[:, None]).T
-
-
-def _numba_available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 class RecursiveRegression:

@@ -23,13 +23,12 @@ are tested against, and the path of any model that overrides ``derivatives``
 """
 from __future__ import annotations
 
-import functools
-import importlib.util
 import os
 
 import numpy as np
 
-from seapup_common.blade_pitch import check_blade_pitch
+from seapup_common.blade_pitch import check_blade_pitch, within_limits
+from seapup_common.kernels import numba_installed
 from seapup_sim.vehicle import STATE_NAMES, VehicleModel
 
 __all__ = ["DivergenceError", "rk4_step", "VehicleIntegrator", "ENVELOPE", "BACKENDS", "default_backend", "divergence"]
@@ -48,13 +47,7 @@ def default_backend() -> str:
     choice = os.environ.get("SEAPUP_PLANT", "").strip().lower() or "compiled"
     if choice not in BACKENDS:
         raise ValueError(f"SEAPUP_PLANT must be one of {', '.join(BACKENDS)}, got {choice!r}")
-    return "compiled" if choice == "compiled" and _numba_installed() else "numpy"
-
-
-@functools.cache
-def _numba_installed() -> bool:
-    """Whether numba can be imported (looked up once: every integrator built asks)."""
-    return importlib.util.find_spec("numba") is not None
+    return "compiled" if choice == "compiled" and numba_installed() else "numpy"
 
 
 _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
@@ -62,11 +55,10 @@ _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
 
 def _command(command, limit: float) -> np.ndarray:
     """A blade-pitch command for the kernels: :func:`~seapup_common.blade_pitch.check_blade_pitch`'s result, with
-    a fast path for the usual case (four finite float64 values within the limit, returned as they are)."""
-    if type(command) is np.ndarray and command.dtype == np.float64 and command.shape == (4,):
-        a, b, c, d = command.tolist()
-        if -limit <= a <= limit and -limit <= b <= limit and -limit <= c <= limit and -limit <= d <= limit:
-            return command if command.flags.c_contiguous else np.ascontiguousarray(command)
+    a fast path for the usual case (:func:`~seapup_common.blade_pitch.within_limits`: returned as it is, not
+    copied)."""
+    if within_limits(command, limit):
+        return command if command.flags.c_contiguous else np.ascontiguousarray(command)
     return check_blade_pitch(command, limit)[0]
 
 

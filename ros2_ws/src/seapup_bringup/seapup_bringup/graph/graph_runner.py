@@ -266,9 +266,14 @@ _EVERY_SAMPLE = {"truth": 1, "applied": 1, "velocity": 1, "imu": 1, "depth": 1, 
 REPAIR_STALL = 8.0
 
 
+def _samples(sil, name: str, period: float) -> set[int]:
+    """The samples k (stamped k ``period``) of a topic the probe has heard, each once."""
+    return {round(stamp_s(m) / period) for m in sil.log[name]}
+
+
 def _heard(sil, name: str, period: float) -> int:
-    """How many distinct samples (stamps) of a topic the probe has heard."""
-    return len({round(stamp_s(m) / period) for m in sil.log[name]})
+    """How many distinct samples of a topic the probe has heard."""
+    return len(_samples(sil, name, period))
 
 
 def _until_heard(sil, spec: RunSpec) -> None:
@@ -299,7 +304,7 @@ def _check_heard(sil, spec: RunSpec, out: Path) -> None:
     from seapup_bringup.graph.sil_probe import TOPICS
     short = []
     for name, extra in _EVERY_SAMPLE.items():
-        stamps = {round(stamp_s(m) / spec.control_period) for m in sil.log[name]}
+        stamps = _samples(sil, name, spec.control_period)
         if len(stamps) < spec.samples + extra:
             short.append(f"{TOPICS[name][0]}: {len(stamps)} of {spec.samples + extra} samples heard, "
                          f"{_missing(stamps, spec.samples + extra, spec.control_period)} missing "
