@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from seapup_common.frames import (covariance6_to_enu_flu, euler_to_quaternion, frd_to_flu, ned_to_enu,
-                               orientation_ned_frd_to_enu_flu, quaternion_to_euler)
+from seapup_common.frames import (covariance6_to_enu_flu, euler_through_quaternion, euler_to_quaternion, frd_to_flu,
+                               ned_to_enu, orientation_ned_frd_to_enu_flu, quaternion_to_euler)
 from seapup_sim.vehicle import rotation_body_to_ned
 
 
@@ -106,3 +106,23 @@ def test_a_quaternion_that_is_no_rotation_gives_nan_angles_not_an_error():
         assert np.isnan(quaternion_to_euler(q)).all(), q
     with pytest.raises(ValueError):
         quaternion_to_euler([0.0, 0.0, 1.0])
+
+
+def test_the_float_round_trip_is_the_message_round_trip_bit_for_bit():
+    """euler_through_quaternion (the in-process hierarchy's message round trip) gives the bits a receiver gets
+    from the array functions: with ``q / np.linalg.norm(q)`` first, as an IMU's reader does, or without, as the
+    odometry's and the setpoint's do -- over the sphere, at gimbal lock, at tiny angles and at +-pi."""
+    rng = np.random.default_rng(7)
+    angles = rng.uniform([-math.pi, -math.pi / 2, -math.pi], [math.pi, math.pi / 2, math.pi], (3000, 3))
+    angles[::5, 1] = rng.choice([math.pi / 2, -math.pi / 2, 0.0], len(angles[::5]))
+    angles[1::7] *= 1e-9
+    angles[2::11] = [math.pi, 0.0, -math.pi]
+    differ = 0
+    for euler in angles:
+        q = euler_to_quaternion(*euler)
+        normalised = quaternion_to_euler(q / np.linalg.norm(q))
+        plain = quaternion_to_euler(q)
+        differ += not np.array_equal(np.array(euler_through_quaternion(*euler)), normalised)
+        differ += not np.array_equal(np.array(euler_through_quaternion(*euler, normalise=False)), plain)
+    assert differ == 0
+    assert euler_through_quaternion(0.1, 0.2, 0.3) == pytest.approx((0.1, 0.2, 0.3), abs=1e-15)

@@ -87,6 +87,8 @@ class GainSchedule:
         self._k_int = np.array([g.K_int for g in self.gains])
         self._k_err = np.array([g.K_err for g in self.gains])
         self._u0 = np.array([g.u0 for g in self.gains])
+        for table in (self._k_int, self._k_err, self._u0):   # gains_at hands out views of them
+            table.setflags(write=False)
 
     @classmethod
     def from_document(cls, document) -> "GainSchedule":
@@ -126,11 +128,15 @@ class GainSchedule:
     def gains_at(self, surge: float) -> tuple[np.ndarray, np.ndarray]:
         """(K_int, K_err) at a measured surge speed [m/s]."""
         i, j, w = self._weights(surge)
+        if w == 0.0 and i == j:   # at an operating point or beyond the ends: (1 - 0) K + 0 K is K, bit for bit
+            return self._k_int[i], self._k_err[i]
         return (1 - w) * self._k_int[i] + w * self._k_int[j], (1 - w) * self._k_err[i] + w * self._k_err[j]
 
     def offset_at(self, surge_reference: float) -> np.ndarray:
         """u0(r): the inputs that hold a reference surge speed [rad] (eq. 5.6)."""
         i, j, w = self._weights(surge_reference)
+        if w == 0.0 and i == j:
+            return self._u0[i].copy()
         return (1 - w) * self._u0[i] + w * self._u0[j]
 
 
@@ -238,7 +244,7 @@ class MFOLController:
             self.q = np.linalg.solve(k_int, self._start_from - u0)
             self._start_from = None
         raw = k_int @ self.q + k_err @ error + u0
-        command = np.clip(raw, -self.limit, self.limit)
+        command = np.minimum(np.maximum(raw, -self.limit), self.limit)   # np.clip of finite values, at half its cost
         saturated = np.abs(raw) > self.limit
         if self.anti_windup:   # the state that reproduces the held command, then integrate
             self.q = np.linalg.solve(k_int, command - k_err @ error - u0) + error
@@ -330,7 +336,7 @@ class BatchMFOL:
             self._start_from = None
         proportional = (k_err @ error[..., None])[..., 0]
         raw = (k_int @ self.q[..., None])[..., 0] + proportional + u0
-        command = np.clip(raw, -self.limit, self.limit)
+        command = np.minimum(np.maximum(raw, -self.limit), self.limit)   # np.clip of finite values, at half its cost
         held = np.linalg.solve(k_int, (command - proportional - u0)[..., None])[..., 0] + error
         self.q = np.where(self.anti_windup, held, self.q + error)
         return command

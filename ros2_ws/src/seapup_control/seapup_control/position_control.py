@@ -142,16 +142,20 @@ class PositionController:
         dt = reference.t - previous.t
         if dt <= 1e-9:
             return
-        rate = np.array([*(reference.position - previous.position) / dt, wrap_angle(reference.yaw - previous.yaw) / dt])
-        limits = np.array([*self.params.speed_limits, self.params.max_yaw_rate])
+        (x, y, z), (x0, y0, z0) = reference.position.tolist(), previous.position.tolist()
+        rate = ((x - x0) / dt, (y - y0) / dt, (z - z0) / dt, wrap_angle(reference.yaw - previous.yaw) / dt)
+        p = self.params
         horizontal = math.hypot(rate[0], rate[1])
-        if horizontal <= max(limits[:2]) and abs(rate[2]) <= limits[2] and abs(rate[3]) <= limits[3]:
-            self._feedforward = rate  # a trajectory, not a step
+        if horizontal <= max(p.speed_limits[:2]) and abs(rate[2]) <= p.speed_limits[2] \
+                and abs(rate[3]) <= p.max_yaw_rate:
+            self._feedforward = np.array(rate)  # a trajectory, not a step
 
     def update(self, position, attitude) -> Reference:
         """Body-velocity reference (u, v, w, r) for the estimated ``position`` (odom_ned) and ``attitude``.
 
-        Without a setpoint the reference is zero (hold velocity zero).
+        Without a setpoint the reference is zero (hold velocity zero). Plain floats for the 3-vectors (a
+        sample's dozen small numpy operations cost more than the arithmetic); the products R^T e are summed
+        in index order.
         """
         position = np.asarray(position, dtype=float)
         attitude = np.asarray(attitude, dtype=float)
@@ -161,18 +165,31 @@ class PositionController:
                                 f"{position.tolist()}, {attitude.tolist()}")
         p = self.params
         if self.reference is None:
-            wanted = np.zeros(4)
+            wanted = (0.0, 0.0, 0.0, 0.0)
         else:
-            R = rotation_body_to_ned(*attitude)
-            e_body = R.T @ (self.reference.position - position)
-            v = np.asarray(p.gains) * e_body + R.T @ self._feedforward[:3]
-            limits = np.asarray(p.speed_limits)
-            v[:2] /= max(1.0, float(np.max(np.abs(v[:2]) / limits[:2])))
-            v[2] = min(max(v[2], -limits[2]), limits[2])   # np.clip of a finite number
-            r = p.yaw_gain * wrap_angle(self.reference.yaw - attitude[2]) + self._feedforward[3]
-            wanted = np.array([*v, float(min(max(r, -p.max_yaw_rate), p.max_yaw_rate))])
-        step = np.asarray(p.acceleration_limits) * self.sample_period
-        out = self.last + np.clip(wanted - self.last, -step, step)
-        self.limited = np.abs(wanted - out) > 1e-12
-        self.last = out
-        return Reference(out)
+            phi, theta, psi = attitude.tolist()
+            x, y, z = position.tolist()
+            rx, ry, rz = self.reference.position.tolist()
+            fx, fy, fz, fr = self._feedforward.tolist()
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation_body_to_ned(phi, theta, psi).tolist()
+            c0, c1, c2 = (r00, r10, r20), (r01, r11, r21), (r02, r12, r22)   # R's columns: the body axes in odom_ned
+            dx, dy, dz = rx - x, ry - y, rz - z
+            v = [g * (c[0] * dx + c[1] * dy + c[2] * dz) + (c[0] * fx + c[1] * fy + c[2] * fz)
+                 for g, c in zip(p.gains, (c0, c1, c2))]
+            limits = p.speed_limits
+            scale = max(1.0, abs(v[0]) / limits[0], abs(v[1]) / limits[1])
+            v[0] /= scale
+            v[1] /= scale
+            v[2] = min(max(v[2], -limits[2]), limits[2])
+            r = p.yaw_gain * wrap_angle(self.reference.yaw - psi) + fr
+            wanted = (*v, min(max(r, -p.max_yaw_rate), p.max_yaw_rate))
+        T = self.sample_period
+        out, limited = [], []
+        for want, last, accel in zip(wanted, self.last.tolist(), p.acceleration_limits):
+            step = accel * T
+            value = last + min(max(want - last, -step), step)
+            out.append(value)
+            limited.append(abs(want - value) > 1e-12)
+        self.limited = np.array(limited)
+        self.last = np.array(out)
+        return Reference(self.last)

@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 
+from seapup_common.frames import rotation_body_to_ned, wrap_angle
 from seapup_control.position_control import PoseReference, PositionController, PositionControllerParams
 
 T = 0.2
@@ -60,3 +61,32 @@ def test_a_moving_setpoint_is_followed_without_lag_and_a_step_gives_no_feedforwa
     assert math.isclose(u, 0.2, rel_tol=1e-9)  # on the setpoint, moving with it
     c.set_reference(PoseReference([50.0, 0.0, 30.0], 0.0, 3 * T))  # a jump: no feed-forward
     np.testing.assert_array_equal(c._feedforward, 0.0)
+
+
+def test_the_law_is_the_module_docstrings_matrix_formula():
+    """The controller's plain-float arithmetic against the docstring's formula written with numpy matrices
+    (e_body = R^T e_ned, v_ff = R^T dp/dt, the horizontal pair scaled, heave and yaw rate clipped, each reference
+    slewed by at most its limit), at random poses, setpoints and setpoint rates."""
+    rng = np.random.default_rng(3)
+    params = PositionControllerParams(gains=(0.3, 0.25, 0.4), yaw_gain=0.7, speed_limits=(0.4, 0.2, 0.15),
+                                      max_yaw_rate=0.3, acceleration_limits=(0.2, 0.1, 0.15, 0.2))
+    for _ in range(200):
+        c = PositionController(params, T)
+        last = rng.uniform(-0.2, 0.2, 4)
+        c.reset(last)
+        a, b = rng.uniform(-5, 5, 3), rng.uniform(-0.04, 0.04, 3)
+        yaw0, dyaw = rng.uniform(-math.pi, math.pi), rng.uniform(-0.05, 0.05)
+        c.set_reference(PoseReference(a, yaw0, 1.0))
+        c.set_reference(PoseReference(a + b, wrap_angle(yaw0 + dyaw), 1.0 + T))
+        position, attitude = rng.uniform(-5, 5, 3), rng.uniform([-0.5, -0.5, -math.pi], [0.5, 0.5, math.pi])
+        R = rotation_body_to_ned(*attitude)
+        rate = np.array([*(b / T), wrap_angle(dyaw) / T])
+        trajectory = np.hypot(*rate[:2]) <= 0.4 and abs(rate[2]) <= 0.15 and abs(rate[3]) <= 0.3
+        feedforward = rate if trajectory else np.zeros(4)   # a jump faster than the limits is a step
+        v = np.array(params.gains) * (R.T @ (a + b - position)) + R.T @ feedforward[:3]
+        v[:2] /= max(1.0, np.max(np.abs(v[:2]) / params.speed_limits[:2]))
+        v[2] = np.clip(v[2], -0.15, 0.15)
+        r = np.clip(0.7 * wrap_angle(wrap_angle(yaw0 + dyaw) - attitude[2]) + feedforward[3], -0.3, 0.3)
+        step = np.array(params.acceleration_limits) * T
+        expected = last + np.clip(np.array([*v, r]) - last, -step, step)
+        np.testing.assert_allclose(c.update(position, attitude).velocity, expected, rtol=0, atol=1e-13)

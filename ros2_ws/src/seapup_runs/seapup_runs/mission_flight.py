@@ -126,8 +126,7 @@ class HierarchyConfig:
 
 def _via_quaternion(attitude) -> np.ndarray:
     """Euler angles as a message carries them: to a quaternion and back (an IMU's normalised on receipt)."""
-    q = frames.euler_to_quaternion(*attitude)
-    return frames.quaternion_to_euler(q / math.sqrt(q.dot(q)))   # np.linalg.norm's sqrt(q . q)
+    return np.array(frames.euler_through_quaternion(*attitude.tolist()))
 
 
 class _Collector(LatestReadings):
@@ -139,11 +138,12 @@ class _Collector(LatestReadings):
         self.fields = tuple(fields)
 
     def add(self, measurement: Measurement, t: float) -> None:
+        latest = self.latest
         for name in self.fields:
             reading = getattr(measurement, name)
-            if reading.valid:
+            if reading.value is not None:   # valid: kept (LatestReadings.keep)
                 value = _via_quaternion(reading.value) if name == "attitude" else reading.value
-                self.keep(name, Reading(value, t, reading.variance))
+                latest[name] = Reading(value, t, reading.variance)
 
 
 @dataclasses.dataclass
@@ -265,8 +265,7 @@ class MissionFlight:
         self.law_readings.add(measurement, t)
         altitude = measurement.altitude
         if altitude.valid:   # sensor_msgs/Range carries it in single precision
-            self.altitudes.append(dataclasses.replace(altitude, value=float(np.float32(altitude.value)), stamp=t,
-                                                      variance=float(np.float32(altitude.variance))))
+            self.altitudes.append(Reading(float(np.float32(altitude.value)), t, float(np.float32(altitude.variance))))
         self.navigation_readings.add(measurement, t)
         if "velocity" not in self.navigation_readings.latest:
             return
@@ -274,8 +273,8 @@ class MissionFlight:
         if estimate is None:
             return
         # as the navigator's odometry carries it: the attitude through a quaternion
-        estimate = NavigationEstimate(t, estimate.position.copy(), estimate.position_cov.copy(),
-                                      frames.quaternion_to_euler(frames.euler_to_quaternion(*estimate.attitude)),
+        attitude = np.array(frames.euler_through_quaternion(*estimate.attitude.tolist(), normalise=False))
+        estimate = NavigationEstimate(t, estimate.position.copy(), estimate.position_cov.copy(), attitude,
                                       estimate.velocity.copy(), estimate.rates.copy())
         logs["estimate_t"].append(stamp)
         logs["estimate_position"].append(estimate.position)
@@ -298,7 +297,7 @@ class MissionFlight:
 
     def _send_setpoint(self, setpoint, stamp: float) -> None:
         t_ns = self._t_ns(stamp)
-        yaw = float(frames.quaternion_to_euler(frames.euler_to_quaternion(0.0, 0.0, setpoint.yaw))[2])
+        yaw = frames.euler_through_quaternion(0.0, 0.0, setpoint.yaw, normalise=False)[2]
         from seapup_control.position_control import PoseReference
         self.setpoints.add(PoseReference(np.array(setpoint.position, float), yaw, t_ns * 1e-9), t_ns * 1e-9)
         self.logs["setpoint_t"].append(_stamp(t_ns))

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.config import parsed_yaml
-from seapup_common.contract import CheckedVariances, Measurement
+from seapup_common.contract import CheckedVariances, ContractError, Measurement, Reading
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
@@ -118,6 +118,27 @@ def load_sensor_profile(name: str) -> SensorProfile:
                          float(pos.get("rate_hz", 1.0)), float(pos.get("dropout", 0.0)),
                          float(alt.get("min_range", 0.0)), float(alt.get("max_range", math.inf)),
                          float(alt.get("field_of_view", 0.0)), copy.deepcopy(dict(p.get("strapdown", {}))))
+
+
+def _measurement(t: float, values: dict, variances: CheckedVariances) -> Measurement:
+    """What ``Measurement.build(t, variances=variances, **values)`` gives for readings :meth:`SensorSuite.measure`
+    made itself -- fresh float arrays of their fields' sizes (made read-only here, not copied) and floats --
+    checked at once: every number finite (a NaN or inf is refused with build's error), stamped ``t``."""
+    numbers = []
+    for value in values.values():
+        if value is None:
+            continue
+        if isinstance(value, float):
+            numbers.append(value)
+        else:
+            numbers.extend(value.tolist())
+            value.setflags(write=False)
+    if not all(map(math.isfinite, numbers)):
+        bad = next(name for name, value in values.items() if value is not None
+                   and not all(map(math.isfinite, np.atleast_1d(value).tolist())))
+        raise ContractError(f"{bad} must be finite, got {np.atleast_1d(values[bad]).tolist()}")
+    return Measurement(t, **{name: Reading(value, t, variances[name]) for name, value in values.items()
+                             if value is not None})
 
 
 def _wrap(angle: float) -> float:
@@ -228,4 +249,4 @@ class SensorSuite:
             self._next_fix = t + 1.0 / p.position_rate_hz
             if self.rng["position_dropout"].random() >= p.position_dropout:
                 values["position"] = state[:3] + self._noise("position", 3)
-        return Measurement.build(t, variances=self._checked()[1], **values)
+        return _measurement(float(t), values, self._checked()[1])
