@@ -177,7 +177,7 @@ class Measurement:
         """
         if not (self.velocity.valid and self.rates.valid):
             raise ContractError(f"no valid velocity/rate reading at t = {self.t:.3f} s")
-        return np.array([*self.velocity.value, self.rates.value[2]])
+        return np.concatenate((self.velocity.value, self.rates.value[2:]))
 
 
 @dataclass(frozen=True)

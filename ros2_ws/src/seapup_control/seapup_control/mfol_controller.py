@@ -243,11 +243,12 @@ class MFOLController:
         if self._start_from is not None:  # first sample after reset(): bumpless at this operating point
             self.q = np.linalg.solve(k_int, self._start_from - u0)
             self._start_from = None
-        raw = k_int @ self.q + k_err @ error + u0
+        proportional = k_err @ error
+        raw = k_int @ self.q + proportional + u0
         command = np.minimum(np.maximum(raw, -self.limit), self.limit)   # np.clip of finite values, at half its cost
         saturated = np.abs(raw) > self.limit
         if self.anti_windup:   # the state that reproduces the held command, then integrate
-            self.q = np.linalg.solve(k_int, command - k_err @ error - u0) + error
+            self.q = np.linalg.solve(k_int, command - proportional - u0) + error
         else:                  # the thesis's law as written: q_{k+1} = q_k + e_k whatever the thrusters hold
             self.q = self.q + error
         self.saturated_samples += saturated

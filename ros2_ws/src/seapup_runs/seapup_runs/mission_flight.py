@@ -254,13 +254,13 @@ class MissionFlight:
         """Sample t_k published and heard by every node but the velocity level (which answers it)."""
         out = self.core.outputs()
         sample, t, stamp = out["sample"], self.now, self.t
-        self.applied = out["applied_blade_pitch"].copy()
+        self.applied = out["applied_blade_pitch"]   # outputs() hands out copies: the sample's state is its own
         self.answered = False
         logs = self.logs
         logs["truth_t"].append(stamp)
-        logs["truth_position"].append(sample.state[:3].copy())
+        logs["truth_position"].append(sample.state[:3])
         logs["truth_attitude"].append(_via_quaternion(sample.state[3:6]))
-        logs["truth_velocity"].append(sample.state[6:12].copy())
+        logs["truth_velocity"].append(sample.state[6:12])
         measurement = sample.measurement
         self.law_readings.add(measurement, t)
         altitude = measurement.altitude
@@ -272,10 +272,11 @@ class MissionFlight:
         estimate = self.navigator.update(self.navigation_readings.measurement(t))
         if estimate is None:
             return
-        # as the navigator's odometry carries it: the attitude through a quaternion
+        # as the navigator's odometry carries it: the attitude through a quaternion (the estimate's arrays are
+        # the navigator's copies, Navigator.estimate)
         attitude = np.array(frames.euler_through_quaternion(*estimate.attitude.tolist(), normalise=False))
-        estimate = NavigationEstimate(t, estimate.position.copy(), estimate.position_cov.copy(), attitude,
-                                      estimate.velocity.copy(), estimate.rates.copy())
+        estimate = NavigationEstimate(t, estimate.position, estimate.position_cov, attitude, estimate.velocity,
+                                      estimate.rates)
         logs["estimate_t"].append(stamp)
         logs["estimate_position"].append(estimate.position)
         logs["estimate_horizontal_std"].append(math.sqrt(max(estimate.position_cov[0, 0],
@@ -335,9 +336,9 @@ class MissionFlight:
                 return False
         elif self.active is not None:
             law = self.configured[self.active]
-            applied = Command(self.applied.copy(), t)
+            applied = Command(self.applied, t)
             if self.starting:
-                law.reset(Command(self.applied.copy(), stamp=t))
+                law.reset(Command(self.applied, stamp=t))
                 self.starting = False
             law.applied(t, applied)
             try:

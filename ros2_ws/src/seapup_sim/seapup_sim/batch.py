@@ -242,11 +242,17 @@ class _Draws:
     at a time (a generator's ``standard_normal(n)`` / ``random(n)`` is its next n single draws), ``k`` per
     reading, so every vehicle sees the sequence its instrument alone would draw."""
 
-    def __init__(self, generators, k: int, uniform: bool = False, readings: int = 85):
+    def __init__(self, generators, k: int, uniform: bool = False, readings: int = 85, unused=None):
         self.generators, self.k, self.uniform = list(generators), k, uniform
         self.n, self.block = len(self.generators), k * readings
         self.buffer = np.empty((self.n, self.block))
         self.used = np.full(self.n, self.block)
+        for i, left in enumerate(unused or ()):   # draws a single suite read and did not use come first
+            if len(left):
+                if len(left) % k or len(left) > self.block:
+                    raise ValueError(f"vehicle {i}: {len(left)} unused draws are not whole readings of {k}")
+                self.used[i] = self.block - len(left)
+                self.buffer[i, self.used[i]:] = left
 
     def take(self, mask: np.ndarray) -> np.ndarray:
         """(N, k) draws: the next k of each vehicle in ``mask``, zeros for the others (who draw nothing)."""
@@ -284,7 +290,7 @@ class BatchSensors:
             if suite.profile.strapdown_enabled:
                 raise ValueError(f"vehicle {i}: strapdown velocity (profile {suite.profile.name!r}) is read by "
                                  "the single SensorSuite only")
-        self.n = n = len(self.suites)
+        self.n = len(self.suites)
         profiles = [s.profile for s in self.suites]
 
         def column(name):
@@ -293,7 +299,8 @@ class BatchSensors:
                      "attitude": column("attitude_std"), "depth": column("depth_std")[:, None],
                      "altitude": column("altitude_std")[:, None], "position": np.repeat(column("position_std")[:, None], 3, 1)}
         self._noisy = {name: (std > 0).any(axis=1) for name, std in self._std.items()}
-        self._draws = {name: _Draws([s.rng[name] for s in self.suites], std.shape[1])
+        self._draws = {name: _Draws([s.rng[name] for s in self.suites], std.shape[1],
+                                    unused=[s.unused_normals(name) for s in self.suites])
                        for name, std in self._std.items()}
         self._dropout_draws = _Draws([s.rng["position_dropout"] for s in self.suites], 1, uniform=True)
         self._fix_period = 1.0 / column("position_rate_hz")

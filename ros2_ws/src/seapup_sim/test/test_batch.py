@@ -202,6 +202,36 @@ def test_batch_sensors_read_what_each_suite_alone_reads_bit_for_bit():
     assert 0 < seen["altitude"] < samples * n and 0 < seen["position"] < samples * n
 
 
+def test_a_suite_read_alone_then_taken_over_by_a_batch_goes_on_with_its_own_draws():
+    """A suite that already read (and so holds draws from its streams it has not used) and is then read by a
+    batch: the batch uses those draws first, so the vehicle's readings are those of the suite read alone
+    throughout -- over more than a block of draws either side of the takeover."""
+    from seapup_common.random_streams import RandomStreams
+    from seapup_sim.batch import BatchSensors
+    from seapup_sim.seabed import Seabed
+    from seapup_sim.sensors import NORMALS_BLOCK, SensorSuite, load_sensor_profile
+
+    def suite(i):
+        return SensorSuite(load_sensor_profile("baseline"), RandomStreams(40 + i), Seabed("flat", 60.0))
+    lone, taken = [suite(i) for i in range(3)], [suite(i) for i in range(3)]
+    state = np.zeros(12)
+    state[2] = 30.0
+    before = [5, NORMALS_BLOCK // 3, 0]   # read mid-block, a whole block used, never read
+    for i, n in enumerate(before):
+        for k in range(n):
+            assert np.array_equal(taken[i].measure(0.2 * k, state).velocity.value,
+                                  lone[i].measure(0.2 * k, state).velocity.value)
+    batch = BatchSensors(taken)
+    start = max(before)
+    for k in range(start, start + 2 * NORMALS_BLOCK):
+        read = batch.measure(0.2 * k, np.tile(state, (3, 1)))
+        for i in range(3):
+            m = lone[i].measure(0.2 * k, state)
+            for field in ("velocity", "rates", "attitude", "depth", "altitude"):
+                assert np.array_equal(np.atleast_1d(getattr(m, field).value), np.atleast_1d(read[field][i])), \
+                    (k, i, field)
+
+
 @pytest.mark.unit
 def test_a_batch_on_two_threads_is_the_batch_on_one():
     rng = np.random.default_rng(3)
