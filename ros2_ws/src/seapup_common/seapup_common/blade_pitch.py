@@ -21,6 +21,8 @@ import yaml
 
 __all__ = [
     "BLADE_PITCH_LIMIT",
+    "VIRTUAL_INPUT_LIMIT",
+    "INPUT_LIMIT_RANGE",
     "MAIN_PORT",
     "MAIN_STARBOARD",
     "VECTORED_STARBOARD",
@@ -46,6 +48,12 @@ THRUSTER_NAMES = tuple(_INTERFACE["thrusters"])
 #: Symmetric blade-pitch limit [rad]: +/-35 deg (thesis sec. 3.1); the one place
 #: of this value is ``seapup_common/data/interface.yaml``.
 BLADE_PITCH_LIMIT = math.radians(float(_INTERFACE["blade_pitch_limit_deg"]))
+#: Full scale of a virtual input (surge, sway, heave or yaw demand of a vehicle with more thrusters than
+#: outputs, :mod:`seapup_sim.inputs`): the four inputs of such a vehicle lie in [-1, 1].
+VIRTUAL_INPUT_LIMIT = 1.0
+#: Why a law's input limit (``blade_pitch_limit``) lies in [0.01, 1]: its parameter description.
+INPUT_LIMIT_RANGE = ("the vehicle's input limit: +/-35 deg blade pitch (sec. 3.1) for the Seapup, 1 (full scale) "
+                     "for a virtual-input vehicle, set from the vehicle where runs are flown; 0.01 as the simulator's")
 if len(THRUSTER_NAMES) != 4 or not 0.0 < BLADE_PITCH_LIMIT < math.pi / 2:
     raise ValueError("seapup_common/data/interface.yaml: need 4 thrusters and a blade-pitch "
                      f"limit in (0, 90) deg, got {THRUSTER_NAMES} and {_INTERFACE['blade_pitch_limit_deg']}")

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, INPUT_LIMIT_RANGE, VIRTUAL_INPUT_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
 from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
@@ -376,8 +376,7 @@ def create_mfol(parameters: dict, document, sample_period: float | None) -> MFOL
 MFOL_TYPE = ControllerType(
     "mfol", create_mfol, types.MappingProxyType({
         "schedule": True, "anti_windup": True,
-        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
-                                    "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's")}),
+        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, VIRTUAL_INPUT_LIMIT, INPUT_LIMIT_RANGE)}),
     "Owens-Chotai two-term PI (eq. 4.11, 5.6) from a self-test's controller file; schedule: gain-scheduled on "
     "surge speed (sec. 4.6); anti_windup: false for the thesis's law as written (its integrators run on "
     "while a thruster saturates)", needs_document=True)

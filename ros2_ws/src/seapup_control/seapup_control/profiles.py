@@ -15,7 +15,7 @@ import types
 
 import numpy as np
 
-from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, check_blade_pitch
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, INPUT_LIMIT_RANGE, VIRTUAL_INPUT_LIMIT, check_blade_pitch
 from seapup_common.contract import Command, Measurement, Reference
 from seapup_common.controllers import ControllerType, Ranged
 
@@ -192,6 +192,5 @@ OPEN_LOOP_TYPE = ControllerType(
         "times": Ranged([], 0.0, 1e6, "[s] from the controller's start: not before it; 1e6 s (11 days) bounds "
                                       "a schedule"),
         "pitches": Ranged([], -BLADE_PITCH_LIMIT, BLADE_PITCH_LIMIT, "the blade-pitch limit, +/-35 deg (sec. 3.1)"),
-        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
-                                    "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's")}),
+        "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, VIRTUAL_INPUT_LIMIT, INPUT_LIMIT_RANGE)}),
     "blade pitches held between switching times from its start (open loop, sec. 3.3)")

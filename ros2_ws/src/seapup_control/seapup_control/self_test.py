@@ -45,7 +45,7 @@ from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains,
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
-__all__ = ["FITS", "Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
+__all__ = ["vehicle_self_test", "FITS", "Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
            "result_document", "refit", "tests_from_samples", "DEFAULTS_FILE"]
 
 #: The defaults (every key documented there).
@@ -150,6 +150,17 @@ class SelfTestConfig:
                    view.vector("zero_level", 4, lo=-limit, hi=limit),
                    view.choice("mode", ("realistic", "artificial")), poles, view.flag("settle"),
                    view.number("max_condition", lo=1.0, hi=1e12), float(limit), view.choice("fit", FITS))
+
+
+def vehicle_self_test(vehicle_config: Mapping, overrides: Mapping | None = None) -> dict:
+    """The self-test settings of a vehicle: its description's ``self_test`` section (the operator's choices for
+    that vehicle: step size, poles, ...) with ``overrides`` (a goal's, a command line's) over them; the defaults
+    of ``data/self_test.yaml`` under both (:meth:`SelfTestConfig.load`)."""
+    section = vehicle_config.get("self_test") or {}
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"vehicle configuration {vehicle_config.get('name', '')!r}: self_test must be a mapping "
+                          "of self-test settings")
+    return {**section, **dict(overrides or {})}
 
 
 @dataclass

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, INPUT_LIMIT_RANGE, VIRTUAL_INPUT_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
 from seapup_common.controllers import Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
@@ -81,8 +81,7 @@ TUNER_PARAMETERS = {
     "max_trace_growth": Ranged(10.0, 1.0, 1e12, "trace P over trace P(0): below 1 the law would fall back at "
                                                 "once; 1e12: never in practice (inf is refused)"),
     "min_rcond": Ranged(1e-4, 0.0, 1.0, "a reciprocal condition number lies in [0, 1] by definition"),
-    "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, BLADE_PITCH_LIMIT,
-                                "+/-35 deg (sec. 3.1) may only be lowered; 0.01 rad as the simulator's"),
+    "blade_pitch_limit": Ranged(BLADE_PITCH_LIMIT, 0.01, VIRTUAL_INPUT_LIMIT, INPUT_LIMIT_RANGE),
 }
 
 

@@ -25,8 +25,15 @@ def plot_scenario(result: RunResult, out_dir: Path) -> Path:
     axes[1].plot(series.t, np.degrees(series.truth["r"]), label="r [deg/s]")
     axes[2].plot(series.t, np.degrees(series.truth["roll"]), label="roll [deg]")
     axes[2].plot(series.t, np.degrees(series.truth["pitch"]), label="pitch [deg]")
-    for j, key in enumerate(("main port", "main stbd", "vect stbd", "vect port")):
-        axes[3].plot(series.t, np.degrees(series.applied[:, j]), label=key)
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    inputs = VehicleModel(load_vehicle_config(spec.vehicle)).inputs
+    if inputs.kind == "virtual":   # the four virtual inputs, in % of full scale
+        for j, key in enumerate(inputs.names):
+            axes[3].plot(series.t, 100.0 * series.applied[:, j], label=f"{key} [%]")
+    else:
+        for j, key in enumerate(("main port", "main stbd", "vect stbd", "vect port")):
+            axes[3].plot(series.t, np.degrees(series.applied[:, j]), label=f"{key} [deg]")
     if estimate:  # the self-tuner's parameter traces (figs 7.10, 7.17, 7.19, 7.25)
         for j, name in enumerate(estimate["names"]):
             if name == "trace_P":

@@ -22,13 +22,15 @@ same designed spec and gives the same :class:`~seapup_runs.result.RunResult`.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from typing import Callable
 
 import numpy as np
 
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, MEASUREMENT_FIELDS
-from seapup_common.controllers import create_controller
+from seapup_common.controllers import ControllerSpec, controller_type, create_controller
 from seapup_runs.metrics import check_names, compute
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec, RunSpecError
@@ -63,7 +65,10 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
     if spec.design is None:
         raise RunSpecError(f"controller {spec.controller_timeline()[missing[0]][1].type!r} needs a design document: "
                            "give its file/document or the run's 'design' (a self-test)")
-    key = json.dumps([spec.design.to_dict(), spec.control_period], sort_keys=True)
+    from seapup_sim.vehicle_config import load_vehicle_config
+    # the vehicle's own self-test settings (its description's self_test) are part of what is designed
+    key = json.dumps([spec.design.to_dict(), spec.control_period,
+                      load_vehicle_config(spec.design.vehicle).get("self_test")], sort_keys=True, default=str)
     if key not in _DESIGNS:
         from seapup_control.self_test import result_document
         from seapup_runs.self_test_flight import fly_self_test
@@ -119,6 +124,17 @@ def start_pitch(spec: RunSpec) -> np.ndarray:
 _HOVER: dict[str, np.ndarray] = {}
 
 
+def at_vehicle_limit(controller: ControllerSpec, limit: float) -> ControllerSpec:
+    """``controller`` with its input limit (``blade_pitch_limit``) at the vehicle's when the spec leaves it at
+    the default and the vehicle's differs (a virtual-input vehicle's full scale, :mod:`seapup_sim.inputs`):
+    the law then saturates, and winds back, where the vehicle does."""
+    kind = controller_type(controller.type)
+    if ("blade_pitch_limit" not in kind.parameters or "blade_pitch_limit" in controller.parameters
+            or limit == BLADE_PITCH_LIMIT):
+        return controller
+    return dataclasses.replace(controller, parameters={**controller.parameters, "blade_pitch_limit": limit})
+
+
 def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Callable | None = None) -> RunResult:
     """Fly ``spec`` in this process (see the module docstring).
 
@@ -155,21 +171,22 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
     used = []
     for k in range(n + 1):
         sample = simulation.sample()
-        t[k], states[k], applied[k] = sample.t, sample.state, simulation.plant.pitch
+        t[k], states[k], applied[k] = sample.t, sample.state, simulation.plant.applied
         _record_measurement(measured, k, sample.measurement)
         if k == n:
             break
         while next_switch < len(timeline) and timeline[next_switch][0] <= sample.t + 1e-9:
-            controller = create_controller(timeline[next_switch][1], spec.control_period)
+            controller = create_controller(at_vehicle_limit(timeline[next_switch][1], simulation.model.pitch_limit),
+                                           spec.control_period)
             used.append(controller)
             if wrap is not None:
                 controller = wrap(controller)
-            controller.reset(Command(simulation.plant.pitch.copy(), sample.t))  # bumpless from the applied pitch
+            controller.reset(Command(simulation.plant.applied, sample.t))  # bumpless from the applied pitch
             if next_switch > 0:
                 events.append({"time": sample.t, "kind": "controller",
                                "detail": {"type": timeline[next_switch][1].type}})
             next_switch += 1
-        controller.applied(sample.t, Command(simulation.plant.pitch.copy(), sample.t))
+        controller.applied(sample.t, Command(simulation.plant.applied, sample.t))
         ref = spec.reference.at(sample.t)
         out = controller.update(sample.t, sample.measurement, ref)
         reference[k], command[k] = ref.velocity, out.blade_pitch

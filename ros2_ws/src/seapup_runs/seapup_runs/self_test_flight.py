@@ -15,9 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from seapup_common.contract import Command
-from seapup_control.self_test import SelfTest, SelfTestConfig
+from seapup_control.self_test import SelfTest, SelfTestConfig, vehicle_self_test
 from seapup_sim.analysis import TrimError, trim
 from seapup_sim.simulation import Simulation
+from seapup_sim.vehicle import VehicleModel
+from seapup_sim.vehicle_config import load_vehicle_config
 from seapup_runs.spec import PHYSICS_STEP
 
 __all__ = ["SelfTestRun", "fly_self_test"]
@@ -56,16 +58,18 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
         Called with the fraction done.
     """
     environment = {"sensors": "ideal"} if environment is None else environment
-    config = SelfTestConfig.load(overrides)
     start = np.zeros(12)
     start[2] = start_depth
 
-    def new_simulation(state, pitch):
-        return Simulation.from_config(vehicle, environment, seed=seed, control_period=config.sample_period,
-                                      dt=min(PHYSICS_STEP, config.sample_period), state=state, pitch=pitch)
+    def new_simulation(state, pitch, period):
+        return Simulation.from_config(vehicle, environment, seed=seed, control_period=period,
+                                      dt=min(PHYSICS_STEP, period), state=state, pitch=pitch)
 
+    # the inputs' limit is the vehicle's: the Seapup's blade pitches, a virtual-input vehicle's full scale
+    model = VehicleModel(vehicle if isinstance(vehicle, dict) else load_vehicle_config(vehicle))
+    config = SelfTestConfig.load(vehicle_self_test(model.config, overrides), limit=model.pitch_limit)
     pitch = config.zero_level if start_pitch is None else np.asarray(start_pitch, float)
-    simulation = new_simulation(start, pitch)
+    simulation = new_simulation(start, pitch, config.sample_period)
     test = SelfTest(config)
     test.reset(Command(pitch))
     truth, offset = [], 0.0
@@ -87,7 +91,7 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
             state[:3] = sample.state[:3]
             state[3:12] = held.state[3:12]
             offset = t
-            simulation = new_simulation(state, held.blade_pitch)
+            simulation = new_simulation(state, held.blade_pitch, config.sample_period)
             test.plant_reset(Command(held.blade_pitch))
             continue
         simulation.advance(command.blade_pitch)

@@ -43,7 +43,8 @@ def linearise(model: VehicleModel, state, pitch, h_state=None, h_input=None,
     Implements eq. 3.3, the fourth-order central difference
     ``A_ij = [-f(x+2h) + 8 f(x+h) - 8 f(x-h) + f(x-2h)] / (12 h)``
     (and likewise for B). Default spacings: 1e-4 (m, rad, m/s, rad/s) for the
-    states and 1e-4 rad for the blade pitches.
+    states and 1e-4 rad for the blade pitches. ``u`` are the vehicle's four inputs
+    (:meth:`~seapup_sim.vehicle.VehicleModel.input_derivatives`: a virtual-input vehicle's through its mixer).
     """
     x0 = np.asarray(state, float)
     u0 = np.asarray(pitch, float)
@@ -51,7 +52,7 @@ def linearise(model: VehicleModel, state, pitch, h_state=None, h_input=None,
     hu = np.full(4, 1e-4) if h_input is None else np.asarray(h_input, float)
 
     def f(x, u):
-        return model.derivatives(x, u, thrusters_on=thrusters_on)
+        return model.input_derivatives(x, u, thrusters_on=thrusters_on)
 
     def column(perturb, h):
         return (-f(*perturb(2 * h)) + 8 * f(*perturb(h)) - 8 * f(*perturb(-h))
@@ -177,19 +178,20 @@ def trim(model: VehicleModel, surge_speed: float, guess=None, enforce_limits: bo
         return x
 
     def pitches(z):
-        return np.array([z[1], z[1], z[2], z[2]])
+        return model.inputs.trim_inputs(z[1], z[2])
 
     def residual(z):
-        acc = model.derivatives(state_of(z), pitches(z))
+        acc = model.input_derivatives(state_of(z), pitches(z))
         return acc[[6, 8, 10]]
 
     import scipy.optimize  # here: a node that never trims does not pay its import (0.2 s)
 
-    z0 = np.array([0.0, 0.0, np.radians(-13.0)] if guess is None else guess, float)
+    z0 = np.array(model.inputs.trim_guess if guess is None else guess, float)
+    reach = 1.5 if model.inputs.kind == "direct" else 1.0   # a virtual input's mixer gives no more than its full scale
     sol = scipy.optimize.least_squares(residual, z0, xtol=1e-14, ftol=1e-14, gtol=1e-14,
-                                       bounds=([-1.2, -1.5, -1.5], [1.2, 1.5, 1.5]))
+                                       bounds=([-1.2, -reach, -reach], [1.2, reach, reach]))
     z = sol.x
-    full = np.abs(model.derivatives(state_of(z), pitches(z))[6:]).max()
+    full = np.abs(model.input_derivatives(state_of(z), pitches(z))[6:]).max()
     if full > 1e-7:
         raise TrimError(f"no trim at u = {surge_speed:.3f} m/s (residual {full:.2e})")
     within = bool(np.all(np.abs(pitches(z)) <= model.pitch_limit + 1e-9))

@@ -77,6 +77,10 @@ class BatchPlant:
             if not isinstance(model, VehicleModel) or type(model).derivatives is not VehicleModel.derivatives:
                 raise ValueError(f"vehicle {i}: a batch steps VehicleModel's equations only, "
                                  f"not {type(model).__name__}'s")
+            if model.thrusters.kind != "controllable_pitch":
+                raise ValueError(f"vehicle {i} ({model.config_name}): a batch steps the compiled kernels of "
+                                 "controllable-pitch thrusters; its thrusters are "
+                                 f"{model.thrusters.kind.replace('_', '-')}: fly it run by run")
         if not (np.isfinite(dt) and 0.0 < dt <= 1.0):
             raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:

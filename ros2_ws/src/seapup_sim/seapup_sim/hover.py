@@ -74,7 +74,7 @@ def cached_hover(config: dict, path: str | Path | None = None) -> np.ndarray | N
     state = np.zeros(12)
     state[4] = theta
     if not (np.all(np.abs(pitch) <= model.pitch_limit + 1e-9)
-            and np.abs(model.derivatives(state, pitch)[6:]).max() <= TOLERANCE):
+            and np.abs(model.input_derivatives(state, pitch)[6:]).max() <= TOLERANCE):
         return None
     return pitch
 

@@ -115,7 +115,10 @@ class VehicleIntegrator:
         self.dt = float(dt)
         self.steps = 0  # time is steps * dt: no drift from repeated addition
         self.state = np.zeros(12) if state is None else np.array(state, float)
-        self.pitch = np.zeros(4) if pitch is None else np.array(pitch, float)
+        #: the four inputs held (the gate's last command; zero at the start)
+        self.held = np.zeros(4) if pitch is None else np.array(pitch, float)
+        #: the actuators' state: the Seapup's blade pitches [rad], a fixed-pitch thruster's lagged command
+        self.pitch = np.array(model.inputs.to_actuators(self.held), float)
         self.thrusters_on = True
         self._check(self.state, 0.0)
 
@@ -138,7 +141,8 @@ class VehicleIntegrator:
     @property
     def compiled(self) -> bool:
         """Whether the next step runs the compiled kernels."""
-        return self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
+        return (self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
+                and self.model.thrusters.kind == "controllable_pitch")
 
     def _compiled_arrays(self):
         """The model packed for the kernels, re-packed when it was reconfigured (its ``revision``: configure()
@@ -150,11 +154,22 @@ class VehicleIntegrator:
             self._packed = (key, compiled.pack(model))
         return self._packed[1]
 
+    @property
+    def applied(self) -> np.ndarray:
+        """The four inputs presently applied (a copy): the blade pitches the Seapup's actuators have reached,
+        or a virtual-input vehicle's command held (its thrusters' lag is behind the mixer)."""
+        return (self.pitch if self.model.inputs.kind == "direct" else self.held).copy()
+
     def step(self, command, current_ned=None, external=None) -> np.ndarray:
-        """Advance one step with ``command`` [rad] held; return the new state (copy)."""
+        """Advance one step with the four inputs ``command`` held (blade pitches [rad], or virtual inputs
+        mixed onto the thrusters: :mod:`seapup_sim.inputs`); return the new state (copy)."""
         if self.compiled:
-            return self._step_compiled(_command(command, self.model.pitch_limit), current_ned, external)
+            command = _command(command, self.model.pitch_limit)
+            self.held = command
+            return self._step_compiled(command, current_ned, external)
         command, _ = check_blade_pitch(command, self.model.pitch_limit)
+        self.held = command
+        command = self.model.inputs.to_actuators(command)
         t0 = self.t
         model, on = self.model, self.thrusters_on
         # the lagged pitch at rk4_step's three distinct stage times (computed the

@@ -44,6 +44,11 @@ class LinearisedVehicleModel(VehicleModel):
 
     def configure(self, config: dict) -> None:
         super().configure(config)
+        if self.inputs.kind != "direct":
+            from seapup_common.config import ConfigError
+            raise ConfigError(f"vehicle configuration {self.config_name!r}: the linearised dynamics are those of "
+                              "a vehicle whose inputs are its actuators (a virtual-input vehicle flies dynamics: "
+                              "nonlinear)")
         self._linearise()
 
     def _linearise(self) -> None:

@@ -38,8 +38,22 @@ __all__ = ["Finding", "ModelReport", "check_model", "MIRROR", "ASYMMETRIC"]
 MIRROR = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 #: Velocity indices that flip under the mirror.
 ASYMMETRIC = (1, 3, 5)
-#: Thruster index each thruster maps to under the mirror.
-THRUSTER_MIRROR = (1, 0, 3, 2)
+
+
+def thruster_mirror(thrusters, tol: float = 1e-6) -> list[int] | None:
+    """Each thruster's mirror image in the body x-z plane, found from the geometry: the thruster at
+    (x, -y, z) pushing along (dx, -dy, dz) (the Seapup: the mains swap, the vectored pair swap), or None
+    when some thruster has none (an asymmetric layout)."""
+    flip = np.array([1.0, -1.0, 1.0])
+    mirror = []
+    for position, direction in zip(thrusters.positions, thrusters.directions):
+        match = [k for k, (p, d) in enumerate(zip(thrusters.positions, thrusters.directions))
+                 if np.abs(p - flip * position).max() <= tol * max(1.0, np.abs(position).max())
+                 and np.abs(d - flip * direction).max() <= tol]
+        if len(match) != 1:
+            return None
+        mirror.append(match[0])
+    return mirror
 
 
 @dataclass(frozen=True)
@@ -51,13 +65,33 @@ class Finding:
     message: str
 
 
+#: Open-loop modes a vehicle description may declare unstable (``open_loop_unstable``), and the velocities
+#: (indices of u v w p q r) whose motion makes each: sway-yaw, the Munk moment's directional instability of a
+#: vehicle with more sway than surge added mass and little linear sway and yaw damping; heave-pitch, the same
+#: moment in the vertical plane (more heave than surge added mass) against a weak pitch restoring moment (a
+#: BlueROV2 in von Benzon et al. 2022 has both).
+MODES = {"sway_yaw": (1, 5), "heave_pitch": (2, 4)}
+
+
+def mode_of(vector: np.ndarray) -> str | None:
+    """The declared mode (:data:`MODES`) an eigenvector (12,) of A is, by its velocities: at least 90 % of
+    their squared size in the mode's (None: another motion)."""
+    velocities = np.abs(np.asarray(vector)[6:]) ** 2
+    total = float(velocities.sum())
+    for name, indices in MODES.items():
+        if total > 0.0 and float(velocities[list(indices)].sum()) >= 0.9 * total:
+            return name
+    return None
+
+
 @dataclass
 class ModelReport:
-    """All findings for one configuration, plus the speed sweep."""
+    """All findings for one configuration, plus the speed sweep and what was noted without failing."""
 
     config: str
     findings: list[Finding] = field(default_factory=list)
     sweep: list[tuple[float, float]] = field(default_factory=list)  # (speed, max Re(pole))
+    notes: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -127,7 +161,12 @@ def check_mass(model: VehicleModel, findings: list[Finding], tol: float = 1e-9) 
 
 def check_thrusters(model: VehicleModel, findings: list[Finding], tol: float = 1e-9) -> None:
     b = model.thrusters.matrix * model.thrusters.efficiency
-    mirrored = MIRROR[:, None] * b[:, list(THRUSTER_MIRROR)]
+    mirror = thruster_mirror(model.thrusters)
+    if mirror is None:
+        findings.append(Finding("symmetry", "thrusters", "some thruster has no mirror image in the body x-z plane "
+                                "(a thruster at (x, -y, z) pushing along (dx, -dy, dz))"))
+        return
+    mirrored = MIRROR[:, None] * b[:, mirror]
     if np.abs(mirrored - b).max() > tol * max(np.abs(b).max(), 1.0):
         i, j = np.unravel_index(np.argmax(np.abs(mirrored - b)), b.shape)
         findings.append(Finding("symmetry", "thrusters",
@@ -144,7 +183,7 @@ def check_linear_symmetry(model: VehicleModel, findings: list[Finding], tol: flo
     a, b = linearise(model, hover.state, hover.blade_pitch)
     s = np.concatenate([np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0]), MIRROR])
     a_m = s[:, None] * a * s[None, :]
-    b_m = s[:, None] * b[:, list(THRUSTER_MIRROR)]
+    b_m = s[:, None] * (b @ model.inputs.mirror)   # the inputs' mirror: the pairs swap, or sway and yaw flip
     scale = max(np.abs(a).max(), np.abs(b).max(), 1.0)
     err = max(np.abs(a_m - a).max(), np.abs(b_m - b).max()) / scale
     if err > tol:
@@ -153,24 +192,44 @@ def check_linear_symmetry(model: VehicleModel, findings: list[Finding], tol: flo
                                 "port and starboard inputs do not act alike"))
 
 
-def check_speed_range(model: VehicleModel, findings: list[Finding], speeds) -> list[tuple[float, float]]:
+def check_speed_range(model: VehicleModel, findings: list[Finding], speeds,
+                      notes: list[str] | None = None) -> list[tuple[float, float]]:
     """Max Re(pole) of the trimmed, linearised vehicle at each speed (sec. 3.7).
 
-    Equilibria beyond the blade limits still say whether the equations are stable.
+    Equilibria beyond the blade limits still say whether the equations are stable. A virtual-input vehicle
+    (:mod:`seapup_sim.inputs`) has no equilibrium beyond what its thrusters give: its sweep ends at its top
+    speed, noted. A right-half-plane pole of a mode the description declares (``open_loop_unstable``,
+    :data:`MODES`) is noted, not a finding; any other is a finding.
     """
-    sweep = []
+    notes = [] if notes is None else notes
+    declared = set(model.config.get("open_loop_unstable") or ())
+    sweep, noted = [], {}
     try:
         for tr in trim_sweep(model, speeds):
             a, _ = linearise(model, tr.state, tr.blade_pitch)
-            ev = np.linalg.eigvals(a)
+            ev, vectors = np.linalg.eig(a)
             worst = float(ev.real.max())
             sweep.append((tr.surge_speed, worst))
-            if worst > 1e-6:
-                e = ev[np.argmax(ev.real)]
+            for k in np.flatnonzero(ev.real > 1e-6):
+                e, mode = ev[k], mode_of(vectors[:, k])
+                if mode in declared:
+                    noted[mode] = max(noted.get(mode, -np.inf), float(e.real))
+                    continue
                 findings.append(Finding("instability", f"u = {tr.surge_speed:.2f} m/s",
-                                        f"pole {e.real:+.4f}{e.imag:+.4f}j 1/s in the right half plane"))
+                                        f"pole {e.real:+.4f}{e.imag:+.4f}j 1/s in the right half plane"
+                                        + (f" (the {mode.replace('_', '-')} mode, not declared open_loop_unstable)"
+                                           if mode else "")))
+                break
     except TrimError as exc:
-        findings.append(Finding("instability", "speed sweep", f"no trimmed flight: {exc}"))
+        if model.inputs.kind == "virtual" and sweep and sweep[-1][0] > 0.0:
+            notes.append(f"top speed about {sweep[-1][0]:.2f} m/s: {exc} (the thrusters' full scale)")
+        else:
+            findings.append(Finding("instability", "speed sweep", f"no trimmed flight: {exc}"))
+    for mode in sorted(noted):
+        notes.append(f"open-loop unstable {mode.replace('_', '-')} mode, as the description declares "
+                     f"(its largest pole real part {noted[mode]:+.4f} 1/s over the sweep)")
+    for mode in sorted(declared - set(noted) - set(MODES)):
+        findings.append(Finding("symmetry", "open_loop_unstable", f"unknown mode {mode!r} (known: {', '.join(MODES)})"))
     return sweep
 
 
@@ -182,5 +241,5 @@ def check_model(model: VehicleModel, speeds=None) -> ModelReport:
     check_thrusters(model, report.findings)
     check_linear_symmetry(model, report.findings)
     speeds = np.round(np.arange(0.0, 1.0001, 0.1), 3) if speeds is None else speeds
-    report.sweep = check_speed_range(model, report.findings, speeds)
+    report.sweep = check_speed_range(model, report.findings, speeds, report.notes)
     return report

@@ -107,8 +107,9 @@ def events_from_data(items, default_break_time: float | None = None) -> list[Eve
                 raise ValueError(f"event {i}: a current needs {exc.args[0]}") from None
         elif item["kind"] == "thruster_efficiency":
             detail = [float(v) for v in detail] if isinstance(detail, (list, tuple)) else detail
-            if not isinstance(detail, list) or len(detail) != 4:
-                raise ValueError(f"event {i}: thruster_efficiency needs four factors, got {item.get('detail')!r}")
+            if not isinstance(detail, list) or not 1 <= len(detail) <= 32:
+                raise ValueError(f"event {i}: thruster_efficiency needs a factor per thruster, got "
+                                 f"{str(item.get('detail'))[:80]}")
         elif item["kind"] == "configuration" and not isinstance(detail, str):
             raise ValueError(f"event {i}: a configuration event names a configuration, got {detail!r}")
         try:
@@ -262,12 +263,18 @@ class Simulation:
         so do thruster efficiencies unless the new configuration sets its own."""
         cfg = load_vehicle_config(configuration) if isinstance(configuration, str) else configuration
         efficiency = self.model.thrusters.efficiency.copy()
+        before = (self.model.inputs.kind, self.model.thrusters.kind, self.model.thrusters.count)
+        after = VehicleModel(cfg)
+        if (after.inputs.kind, after.thrusters.kind, after.thrusters.count) != before:
+            raise ValueError(f"configuration {after.config_name!r} has other thrusters or inputs "
+                             f"({after.thrusters.count} {after.thrusters.kind}, {after.inputs.kind} inputs) than the "
+                             f"vehicle flying ({before[2]} {before[1]}, {before[0]} inputs): not switched in flight")
         self.model.configure(cfg)
         if "thruster_efficiency" not in cfg:
             self.model.thrusters.set_efficiency(efficiency)
 
     def set_thruster_efficiency(self, efficiency) -> None:
-        """Fouling factors on the four thrusters (sec. 7.4.4)."""
+        """Fouling factors on the thrusters, one each (sec. 7.4.4)."""
         self.model.thrusters.set_efficiency(efficiency)
 
     def set_current(self, params: CurrentParams | None) -> None:
@@ -353,10 +360,10 @@ class Simulation:
                              f"every {self.control_period} s")
         n = int(round(duration / self.control_period))
         log = SimulationLog.allocate(n + 1)
-        controller.reset(Command(self.plant.pitch.copy(), self.t))
+        controller.reset(Command(self.plant.applied, self.t))
         for k in range(n + 1):
             sample = self.sample()
-            log.record(k, sample, self.plant.pitch)
+            log.record(k, sample, self.plant.applied)
             if k == n:
                 break
             ref = _reference_at(reference, sample.t)

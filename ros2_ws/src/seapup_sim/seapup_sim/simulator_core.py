@@ -115,7 +115,9 @@ class SimulatorCore:
                                             events=events_from_data(c.events))
         c.seed = int(seed)
         self.simulation = simulation
-        self.gate = CommandGate(limit=c.blade_pitch_limit)
+        model = simulation.model
+        # the Seapup's blade pitches within the node's limit; a virtual-input vehicle's inputs within full scale
+        self.gate = CommandGate(limit=c.blade_pitch_limit if model.inputs.kind == "direct" else model.pitch_limit)
         self._counters = dict.fromkeys(("rejected_stale", "rejected_future", "rejected_malformed",
                                         "watchdog_trips", "lockstep_timeouts", "steps"), 0)
         self.last_error = ""
@@ -248,7 +250,7 @@ class SimulatorCore:
     def outputs(self) -> dict:
         """Everything published at t_k (SI; NED world, FRD body): the
         :class:`~seapup_sim.simulation.Sample` and the applied blade pitch."""
-        return {"sample": self.simulation.sample(), "applied_blade_pitch": self.simulation.plant.pitch.copy(),
+        return {"sample": self.simulation.sample(), "applied_blade_pitch": self.simulation.plant.applied,
                 "watchdog_active": self.watchdog_active}
 
     @staticmethod

@@ -49,17 +49,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ThrusterSet", "check_efficiency"]
+__all__ = ["ThrusterSet", "ThrustCurve", "FixedPitchThrusters", "check_efficiency", "THRUSTER_KINDS"]
+
+#: The kinds of thruster a vehicle description may have (``thrusters.kind``).
+THRUSTER_KINDS = ("controllable_pitch", "fixed_pitch")
 
 
 
-def check_efficiency(efficiency) -> np.ndarray:
-    """Four thruster efficiencies as a new array: finite factors in [0, 1.5] (ValueError otherwise)."""
+def check_efficiency(efficiency, count: int = 4) -> np.ndarray:
+    """``count`` thruster efficiencies as a new array: finite factors in [0, 1.5] (ValueError otherwise)."""
     eff = np.array(efficiency, dtype=float)
-    if eff.shape != (4,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
+    if eff.shape != (count,) or not np.all(np.isfinite(eff)) or np.any(eff < 0) or np.any(eff > 1.5):
         shown = ", ".join(f"{float(x):g}" for x in eff.ravel()[:8]) if eff.size else str(efficiency)[:80]
-        raise ValueError(f"thruster efficiency needs 4 finite factors in [0, 1.5], got [{shown}]")
+        raise ValueError(f"thruster efficiency needs {count} finite factors in [0, 1.5], got [{shown}]")
     return eff
+
 
 @dataclass
 class ThrusterSet:
@@ -106,6 +110,8 @@ class ThrusterSet:
     directions: np.ndarray
     installation: np.ndarray
     rotation: np.ndarray = (1.0, -1.0, 1.0, -1.0)
+    kind = "controllable_pitch"
+    count = 4
     torque_ratio: float = 0.0
     momentum_drag_factor: float = 1.0
     momentum_drag_epsilon: float = 0.005
@@ -175,3 +181,138 @@ class ThrusterSet:
     def bollard_thrust(self, pitch) -> np.ndarray:
         """Thrust at J = 0 [N] for blade pitches ``pitch`` [rad]."""
         return self._thrust_scale * self.thrust_coefficient(0.0, np.asarray(pitch, float))
+
+
+class ThrustCurve:
+    """Static thrust [N] of a fixed-pitch propeller thruster against its normalised command c in [-1, 1].
+
+    Given as a polynomial in c (``coefficients`` of c^0, c^1, ...: a published fit, e.g. eq. 18 of von Benzon
+    et al. 2022 for the T200) or as a table of (command, thrust) points, piecewise linear between them (a
+    maker's bollard data: any asymmetry of forward and reverse thrust). A ``deadband`` d (a fraction of the
+    command range) gives no thrust for |c| <= d and maps the rest of the range onto the curve,
+    ``T(c) = curve(sign(c) (|c| - d) / (1 - d))`` -- an ESC that ignores small commands, with no jump in
+    thrust at the band's edge. The curve must be zero at c = 0 and increasing over [-1, 1] (checked on a
+    fine grid), so each thrust in [T(-1), T(1)] has one command: :meth:`command_for`.
+    """
+
+    GRID = 2001   # points of the checks and of the inverse's table
+
+    def __init__(self, polynomial=None, table=None, deadband: float = 0.0):
+        if (polynomial is None) == (table is None):
+            raise ValueError("a thrust curve is a polynomial or a table, exactly one of them")
+        if not (np.isfinite(deadband) and 0.0 <= deadband < 0.5):
+            raise ValueError(f"the deadband must be in [0, 0.5) of the command range, got {deadband!r}")
+        self.deadband = float(deadband)
+        if polynomial is not None:
+            coefficients = np.array(polynomial, dtype=float)
+            if coefficients.ndim != 1 or not 1 <= coefficients.size <= 16 or not np.all(np.isfinite(coefficients)):
+                raise ValueError("a thrust polynomial needs 1 to 16 finite coefficients (c^0 first)")
+            self.coefficients, self.table = coefficients, None
+        else:
+            points = np.array(table, dtype=float)
+            if points.ndim != 2 or points.shape[1] != 2 or not 3 <= len(points) <= 1000 \
+                    or not np.all(np.isfinite(points)):
+                raise ValueError("a thrust table needs 3 to 1000 finite (command, thrust [N]) pairs")
+            if not (np.all(np.diff(points[:, 0]) > 0) and points[0, 0] == -1.0 and points[-1, 0] == 1.0):
+                raise ValueError("a thrust table's commands must increase from -1 to 1")
+            self.coefficients, self.table = None, points
+        grid = np.linspace(-1.0, 1.0, self.GRID)
+        thrust = self._curve(grid)
+        if abs(float(self._curve(np.zeros(1))[0])) > 1e-9:
+            raise ValueError("a thrust curve must give no thrust at zero command")
+        # a fit may droop just short of full command (eq. 18 does, by 0.7 %): the curve is taken as the most
+        # thrust either way that a command of at most that size gives (a running extreme outward from zero)
+        middle = self.GRID // 2
+        monotone = thrust.copy()
+        monotone[middle:] = np.maximum.accumulate(thrust[middle:])
+        monotone[:middle + 1] = np.minimum.accumulate(thrust[:middle + 1][::-1])[::-1]
+        drop = float(np.max(np.abs(monotone - thrust)))
+        if drop > 0.01 * float(np.abs(thrust).max()) or np.any(np.diff(monotone) < 0.0):
+            raise ValueError(f"a thrust curve must increase with the command (it turns back by {drop:.3g} N)")
+        self._grid = grid
+        self._monotone = monotone
+        self._droops = bool(drop > 0.0)   # then thrust() reads the monotone curve
+        self.max_forward, self.max_reverse = float(self._monotone[-1]), float(self._monotone[0])
+        if not (self.max_forward > 0.0 > self.max_reverse):
+            raise ValueError("a thrust curve must push both ways: positive thrust at c = 1, negative at c = -1")
+
+    def _curve(self, c: np.ndarray) -> np.ndarray:
+        if self.table is not None:
+            return np.interp(c, self.table[:, 0], self.table[:, 1])
+        return np.polynomial.polynomial.polyval(c, self.coefficients)
+
+    def thrust(self, command) -> np.ndarray:
+        """T(c) [N] of each command (array), the deadband applied; commands beyond +-1 are taken at +-1."""
+        c = np.clip(np.asarray(command, dtype=float), -1.0, 1.0)
+        d = self.deadband
+        if d > 0.0:
+            c = np.sign(c) * np.maximum(np.abs(c) - d, 0.0) / (1.0 - d)
+        return np.interp(c, self._grid, self._monotone) if self._droops else self._curve(c)
+
+    def command_for(self, thrust) -> np.ndarray:
+        """The command of each thrust [N] (array), clipped to what the curve can give; the inverse of
+        :meth:`thrust` (the deadband's edge for the smallest thrusts either way)."""
+        t = np.clip(np.asarray(thrust, dtype=float), self.max_reverse, self.max_forward)
+        c = np.interp(t, self._monotone, self._grid)
+        d = self.deadband
+        if d > 0.0:
+            c = np.where(t == 0.0, 0.0, np.sign(c) * (d + np.abs(c) * (1.0 - d)))
+        return c
+
+
+@dataclass
+class FixedPitchThrusters:
+    """N fixed-pitch propeller thrusters (a BlueROV2's T200s): thrust from a static curve of each one's
+    normalised command, along its axis at its position.
+
+    The command c in [-1, 1] (an ESC's normalised pulse width) reaches the propeller through the vehicle's
+    first-order actuator lag (:class:`seapup_sim.integrator.VehicleIntegrator`, ``actuator_time_constant``:
+    the motor and propeller spinning up); the thrust of the lagged command is :class:`ThrustCurve`'s, scaled
+    by the thruster's efficiency (fouling), and acts through ``tau = B (eff * T)``, ``B[:, i] = [d_i ;
+    r_i x d_i]``. The thrust does not depend on the advance speed and the propeller's torque reaction is
+    not modelled (von Benzon et al. 2022's model, eq. 16-18); nor is momentum drag.
+
+    Parameters
+    ----------
+    positions : array (N, 3)
+        Thruster centres in body axes [m] (FRD, from the body origin).
+    directions : array (N, 3)
+        Thrust axes in body axes (normalised here): a positive command pushes the vehicle along +d.
+    curve : ThrustCurve
+        Thrust against command, the same for every thruster.
+    """
+
+    positions: np.ndarray
+    directions: np.ndarray
+    curve: ThrustCurve
+    kind = "fixed_pitch"
+
+    def __post_init__(self):
+        positions = np.array(self.positions, dtype=float)
+        directions = np.array(self.directions, dtype=float)
+        if positions.ndim != 2 or positions.shape[1] != 3 or not 1 <= len(positions) <= 32 \
+                or directions.shape != positions.shape:
+            raise ValueError("fixed-pitch thrusters need 1 to 32 positions and as many directions, each (x, y, z)")
+        if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(directions))):
+            raise ValueError("thruster positions and directions must be finite")
+        norms = np.linalg.norm(directions, axis=1)
+        if np.any(norms < 1e-9):
+            raise ValueError("every thruster direction must be a non-zero vector")
+        self.positions, self.directions = positions, directions / norms[:, None]
+        self.count = len(positions)
+        self.matrix = np.vstack([self.directions.T, np.cross(self.positions, self.directions).T])   # (6, N)
+        self.open_water = self.matrix
+        self.efficiency = np.ones(self.count)
+
+    def set_efficiency(self, efficiency) -> None:
+        """Per-thruster factors in [0, 1.5] on the thrust (fouling, a weak thruster)."""
+        self.efficiency = check_efficiency(efficiency, self.count)
+
+    def thrust(self, command) -> np.ndarray:
+        """Each thruster's thrust [N] at its (lagged) command, before the efficiency."""
+        return self.curve.thrust(command)
+
+    def wrench(self, nu_r: np.ndarray, command: np.ndarray) -> np.ndarray:
+        """Forces and moments (6,) of all the thrusters on the vehicle (``nu_r`` unused: no advance-speed or
+        momentum-drag effect in this model)."""
+        return self.matrix @ (self.efficiency * self.curve.thrust(command))

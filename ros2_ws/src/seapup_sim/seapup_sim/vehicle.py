@@ -37,10 +37,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from seapup_common.frames import rotation_body_to_ned
-from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
-from seapup_common.config import ConfigView
+from seapup_common.config import ConfigError, ConfigView
 from seapup_sim.hydrodynamics import HydroTable
-from seapup_sim.thrusters import ThrusterSet
+from seapup_sim.inputs import inputs_of
+from seapup_sim.thrusters import THRUSTER_KINDS, FixedPitchThrusters, ThrustCurve, ThrusterSet
 
 __all__ = ["cross", "kirchhoff_coriolis", "skew", "rotation_body_to_ned", "euler_rate_matrix", "specific_force",
            "VehicleModel", "STATE_NAMES"]
@@ -195,15 +195,34 @@ class VehicleModel:
         self._hydrostatic_arm = tuple(self.weight * mp.cg - self.buoyancy * mp.cb)
         self.hydro = HydroTable(config["hydrodynamics"].raw())
         th = config["thrusters"]
-        self.thrusters = ThrusterSet(
-            rho=self.rho, shaft_speed=th["shaft_speed"], diameter=th["diameter"],
-            k_beta=th["k_beta"], k_j=th["k_j"], zero_thrust_pitch=np.radians(th.number("zero_thrust_pitch_deg")),
-            positions=th["positions"], directions=th["directions"], installation=th["installation"],
-            rotation=th["rotation"], torque_ratio=th["torque_ratio"],
-            momentum_drag_factor=th.number("momentum_drag_factor", 1.0, lo=0.0),
-            momentum_drag_epsilon=th.number("momentum_drag_epsilon", 0.005, lo=0.0, lo_open=True))
-        self.thrusters.set_efficiency(config.get("thruster_efficiency", [1.0, 1.0, 1.0, 1.0]))
-        self.pitch_limit = BLADE_PITCH_LIMIT  # the Seapup's blades (seapup_common/data/interface.yaml)
+        kind = th.get("kind", "controllable_pitch")
+        if kind not in THRUSTER_KINDS:
+            raise ConfigError(f"{config.source}: thrusters.kind must be one of {', '.join(THRUSTER_KINDS)}, "
+                              f"got {str(kind)[:40]!r}")
+        try:
+            if kind == "fixed_pitch":
+                curve = th["thrust_curve"].raw()
+                self.thrusters = FixedPitchThrusters(
+                    positions=th["positions"], directions=th["directions"],
+                    curve=ThrustCurve(curve.get("polynomial"), curve.get("table"),
+                                      th.number("deadband", 0.0, lo=0.0)))
+            else:
+                self.thrusters = ThrusterSet(
+                    rho=self.rho, shaft_speed=th["shaft_speed"], diameter=th["diameter"],
+                    k_beta=th["k_beta"], k_j=th["k_j"],
+                    zero_thrust_pitch=np.radians(th.number("zero_thrust_pitch_deg")),
+                    positions=th["positions"], directions=th["directions"], installation=th["installation"],
+                    rotation=th["rotation"], torque_ratio=th["torque_ratio"],
+                    momentum_drag_factor=th.number("momentum_drag_factor", 1.0, lo=0.0),
+                    momentum_drag_epsilon=th.number("momentum_drag_epsilon", 0.005, lo=0.0, lo_open=True))
+            self.thrusters.set_efficiency(config.get("thruster_efficiency", [1.0] * self.thrusters.count))
+            #: the four inputs a velocity autopilot commands and how they reach the thrusters
+            self.inputs = inputs_of(self.thrusters, raw.get("inputs"))
+        except ValueError as exc:
+            raise ConfigError(f"{config.source}: {exc}") from None
+        #: the inputs' limit: the Seapup's blade pitches [rad] (seapup_common/data/interface.yaml), or a virtual
+        #: input's full scale, 1
+        self.pitch_limit = self.inputs.limit
         self.actuator_time_constant = th.number("actuator_time_constant", lo=0.0)
         self.config = raw
         #: counts configure() calls: a packed copy of the model (the compiled kernels') is stale when it changed
@@ -246,15 +265,24 @@ class VehicleModel:
             nu_r[:3] -= r.T @ np.asarray(current_ned, float)
         return nu_r
 
+    def input_derivatives(self, state, inputs, current_ned=None, external=None,
+                          thrusters_on: bool = True) -> np.ndarray:
+        """State derivative (12,) with the four ``inputs`` held long enough for the actuators to have
+        reached them (:attr:`inputs`: the Seapup's blade pitches themselves; a virtual-input vehicle's
+        thrusters at the mixer's commands): the function trims and linearisations are taken of."""
+        return self.derivatives(state, self.inputs.to_actuators(np.asarray(inputs, float)), current_ned, external,
+                                thrusters_on)
+
     def derivatives(self, state, pitch, current_ned=None, external=None,
                     thrusters_on: bool = True) -> np.ndarray:
-        """State derivative (12,) for blade pitches ``pitch`` [rad] (eq. 2.1-2.3).
+        """State derivative (12,) for the actuators' present settings ``pitch`` (eq. 2.1-2.3).
 
         Parameters
         ----------
         state : array (12,)
-        pitch : array (4,)
-            Blade pitches actually applied [rad].
+        pitch : array (N,)
+            What the thrusters actually apply: the Seapup's four blade pitches [rad], or each fixed-pitch
+            thruster's (lagged) command in [-1, 1].
         current_ned : array (3,), optional
             Water velocity in the NED frame [m/s] (horizontal in practice).
         external : array (6,), optional

@@ -30,7 +30,13 @@ from seapup_common.config import ConfigError, load_yaml, nearest
 __all__ = ["ConfigError", "available_configs", "load_vehicle_config", "OPTIONAL_KEYS", "PAYLOAD_KEYS"]
 
 #: Top-level keys a configuration may have beyond those of ``baseline.yaml``.
-OPTIONAL_KEYS = ("payloads", "thruster_efficiency")
+OPTIONAL_KEYS = ("payloads", "thruster_efficiency", "inputs", "open_loop_unstable", "self_test")
+#: The ``thrusters`` section of fixed-pitch propeller thrusters (``kind: fixed_pitch``,
+#: :class:`seapup_sim.thrusters.FixedPitchThrusters`): its schema in place of baseline's controllable-pitch one.
+FIXED_PITCH_KEYS = {"kind": None, "thrust_curve": {"polynomial": None, "table": None}, "deadband": None,
+                    "actuator_time_constant": None, "positions": None, "directions": None}
+#: The keys of ``inputs`` (:func:`seapup_sim.inputs.inputs_of`).
+INPUT_KEYS = {"kind": None, "weights": None}
 #: Mappings whose keys are not fixed (derivative names, checked by :func:`seapup_sim.hydrodynamics.parse_term`).
 OPEN_KEYS = ("hydrodynamics",)
 #: The keys of one payload (:func:`seapup_sim.vehicle.compose_mass_properties`).
@@ -67,7 +73,18 @@ def load_vehicle_config(name_or_path: str | Path) -> dict:
     data = load_yaml(path)
     schema = data if os.path.abspath(path) == os.path.abspath(_vehicles_dir() / "baseline.yaml") \
         else load_yaml(_vehicles_dir() / "baseline.yaml")
+    schema = {**schema, "thrusters": {**schema.get("thrusters", {}), "kind": None}}
+    thrusters = data.get("thrusters")
+    if isinstance(thrusters, dict) and "kind" in thrusters:
+        from seapup_sim.thrusters import THRUSTER_KINDS
+        if thrusters["kind"] not in THRUSTER_KINDS:
+            raise ConfigError(f"{path.name}: thrusters.kind must be one of {', '.join(THRUSTER_KINDS)}, "
+                              f"got {str(thrusters['kind'])[:40]!r}")
+        if thrusters["kind"] == "fixed_pitch":
+            schema["thrusters"] = FIXED_PITCH_KEYS
     _check_keys(data, schema, path.name)
+    if isinstance(data.get("inputs"), dict):
+        _check_keys(data["inputs"], INPUT_KEYS, path.name, "inputs.")
     data["name"] = path.stem
     return data
 

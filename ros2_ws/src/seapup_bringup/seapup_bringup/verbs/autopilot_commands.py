@@ -141,13 +141,21 @@ def _selftest(argv: list[str]) -> int:
 
 
 def _print_points(points, text, args) -> list[dict]:
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    inputs = VehicleModel(load_vehicle_config(args.config)).inputs
+    virtual = inputs.kind == "virtual"   # per unit of a virtual input (its full scale), not per degree of pitch
     rows = []
     for point in points:
-        b0, b1 = point.model.in_thesis_units()
-        rows.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0_deg": np.degrees(point.model.u0),
-                     "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle})
-        thesis = _thesis_point(point.surge, args.mode, args.rate, args.config)
-        print(f"\noperating point {point.surge:g} m/s (outputs u, v, w [m/s], r [deg/s] per degree of pitch;"
+        b0, b1 = (point.model.B0inv, point.model.B1inv) if virtual else point.model.in_thesis_units()
+        rows.append({"surge": point.surge, "B0inv": b0, "B1inv": b1, "u0": point.model.u0,
+                     **({} if virtual else {"u0_deg": np.degrees(point.model.u0)}),
+                     "Kp": point.gains.K_err, "Ki": point.gains.K_int, "cycle": point.cycle,
+                     "inputs": list(inputs.names)})
+        thesis = None if virtual else _thesis_point(point.surge, args.mode, args.rate, args.config)
+        units = (f"r [rad/s] per unit of the virtual inputs {', '.join(inputs.names)}" if virtual
+                 else "r [deg/s] per degree of pitch")
+        print(f"\noperating point {point.surge:g} m/s (outputs u, v, w [m/s], {units};"
               + (f" thesis {thesis['where']} in brackets)" if thesis else ")"), file=text)
         for name, key, ours in (("B0^-1", "B0inv", b0), ("B1^-1", "B1inv", b1)):
             print(f"  {name}", file=text)
@@ -155,8 +163,8 @@ def _print_points(points, text, args) -> list[dict]:
                 theirs = thesis[key][i] if thesis else [None] * 4
                 print("   " + " ".join(f"{v:10.5f}" + (f" ({t:9.5f})" if t is not None else "")
                                        for v, t in zip(row, theirs)), file=text)
-        u0 = np.degrees(point.model.u0)
-        print("  u0 [deg] " + " ".join(f"{v:7.3f}" for v in u0)
+        u0 = point.model.u0 if virtual else np.degrees(point.model.u0)
+        print(("  u0       " if virtual else "  u0 [deg] ") + " ".join(f"{v:7.3f}" for v in u0)
               + (f"   (thesis {' '.join(f'{v:7.3f}' for v in thesis['u0_deg'])})" if thesis else ""), file=text)
     return rows
 

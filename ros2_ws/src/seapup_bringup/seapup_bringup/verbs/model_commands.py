@@ -114,16 +114,19 @@ def check_model(argv: list[str]) -> int:
     emit_json(args, {"config": report.config, "ok": report.ok,
                      "sweep": [{"surge_speed": u, "max_real_pole": w} for u, w in report.sweep],
                      "findings": [{"kind": f.kind, "where": f.where, "message": f.message}
-                                  for f in report.findings]})
+                                  for f in report.findings], "notes": list(report.notes)})
     print(f"seapup check-model: configuration '{report.config}'", file=out)
     print(f"  mass {model.mass_properties.mass:.2f} kg, buoyancy {model.mass_properties.buoyancy_mass:.2f} kg, "
           f"CG {np.round(model.mass_properties.cg, 4).tolist()} m, CB {np.round(model.mass_properties.cb, 4).tolist()} m, "
           f"{len(model.hydro.terms)} hydrodynamic terms", file=out)
     for speed, worst in report.sweep:
         print(f"  u = {speed:4.2f} m/s: max Re(pole) = {worst:+.5f} 1/s", file=out)
+    for note in report.notes:
+        print(f"  note: {note}", file=out)
     if report.ok:
         print("  no findings: mass matrices symmetric and positive definite, every term "
-              "port/starboard-consistent and damping, stable over the speed range", file=out)
+              "port/starboard-consistent and damping, stable over the speed range"
+              + (" but for the modes noted" if any(n.startswith("open-loop") for n in report.notes) else ""), file=out)
         return 0
     for f in report.findings:
         print(f"  [{f.kind}] {f.where}: {f.message}", file=out)

@@ -1,10 +1,10 @@
-"""Thrust allocation (seapup_control.allocation) against analytic cases and numpy's own pseudo-inverse."""
+"""Thrust allocation (seapup_sim.allocation) against analytic cases and numpy's own pseudo-inverse."""
 import math
 
 import numpy as np
 import pytest
 
-from seapup_control.allocation import AllocationError, ThrustAllocator
+from seapup_sim.allocation import AllocationError, ThrustAllocator
 
 
 def parallel(n, low=-1.0, high=1.0, weights=None):
