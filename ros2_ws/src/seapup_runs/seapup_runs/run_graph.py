@@ -83,6 +83,9 @@ def graph_document(spec: RunSpec, files: list[str], lockstep_timeout: float = 60
         raise RunSpecError("the simulator node starts at rest at start_depth: a start_state is in-process only")
     if spec.start_pitch is not None:
         raise RunSpecError("the simulator node starts at the hover setting: a start_pitch is in-process only")
+    if spec.coefficients:
+        raise RunSpecError("the simulator node flies a vehicle as its file describes it: scaled coefficients are "
+                           "in-process only")
     simulator = {"mode": "lockstep", "lockstep_timeout": float(lockstep_timeout), "vehicle": spec.vehicle,
                  "dynamics": spec.dynamics, "seed": spec.seed, "start_depth": spec.start_depth,
                  "control_period": spec.control_period, "physics_step": spec.physics_step,

@@ -65,15 +65,18 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
     if spec.design is None:
         raise RunSpecError(f"controller {spec.controller_timeline()[missing[0]][1].type!r} needs a design document: "
                            "give its file/document or the run's 'design' (a self-test)")
-    from seapup_sim.vehicle_config import load_vehicle_config
+    from seapup_sim.vehicle_config import load_vehicle_config, scaled
+    d = spec.design
+    # on the run's own vehicle, its coefficients as flown (the self-test needs no model), unless nominal
+    vehicle = load_vehicle_config(d.vehicle)
+    if spec.coefficients and d.vehicle == spec.vehicle and not d.nominal:
+        vehicle = scaled(vehicle, **spec.coefficients)
     # the vehicle's own self-test settings (its description's self_test) are part of what is designed
-    key = json.dumps([spec.design.to_dict(), spec.control_period,
-                      load_vehicle_config(spec.design.vehicle).get("self_test")], sort_keys=True, default=str)
+    key = json.dumps([d.to_dict(), spec.control_period, vehicle], sort_keys=True, default=str)
     if key not in _DESIGNS:
         from seapup_control.self_test import result_document
         from seapup_runs.self_test_flight import fly_self_test
-        d = spec.design
-        flown = fly_self_test(d.vehicle, {"sample_period": spec.control_period,
+        flown = fly_self_test(vehicle, {"sample_period": spec.control_period,
                                           "operating_points": list(d.operating_points), "mode": d.mode,
                                           "fit": d.fit},
                               start_depth=d.start_depth, progress=progress)
@@ -113,8 +116,7 @@ def start_pitch(spec: RunSpec) -> np.ndarray:
     if spec.start_pitch is not None:
         return np.array(spec.start_pitch, float)
     from seapup_sim.hover import hover_of
-    from seapup_sim.vehicle_config import load_vehicle_config
-    config = load_vehicle_config(spec.vehicle)
+    config = spec.vehicle_config()
     key = json.dumps(config, sort_keys=True, default=str)   # the trim is solved once per configuration
     if key not in _HOVER:
         _HOVER[key] = hover_of(config)
@@ -156,7 +158,7 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
 
     check_names(spec.metrics)   # before the self-test and the flight, not after them
     spec = design(spec)
-    simulation = Simulation.from_config(spec.vehicle, spec.environment, seed=spec.seed, dt=spec.physics_step,
+    simulation = Simulation.from_config(spec.vehicle_config(), spec.environment, seed=spec.seed, dt=spec.physics_step,
                                  control_period=spec.control_period, events=simulation_events(spec),
                                  state=spec.initial_state(), pitch=start_pitch(spec), dynamics=spec.dynamics)
     timeline = spec.controller_timeline()

@@ -26,6 +26,7 @@ Units SI and radians; positions in ``odom_ned``, velocities in ``base_link_frd``
 from __future__ import annotations
 
 import bisect
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -58,6 +59,8 @@ MAX_RUN_SAMPLES = 10**6
 MAX_PHYSICS_STEPS = 10**7
 #: The most operating points a self-test design flies (one self-test each; the thesis uses two).
 MAX_OPERATING_POINTS = 16
+#: The most thrusters a thruster_efficiency event may name (a vehicle description's limit).
+MAX_THRUSTERS = 32
 #: The longest name or vehicle configuration name (a name is used in file names and on plots).
 MAX_NAME_LENGTH = 200
 ENV_MAX_RUN_SAMPLES = "SEAPUP_MAX_RUN_SAMPLES"
@@ -123,6 +126,17 @@ def _numbers(values, what: str, size: int | None = None) -> tuple:
     if size is not None and len(values) != size:
         raise RunSpecError(f"{what} needs {size} values, got {len(values)}")
     return tuple(_finite(v, what) for v in values)
+
+
+@functools.lru_cache(maxsize=64)
+def _thruster_count(vehicle: str) -> int | None:
+    """How many thrusters ``vehicle`` has (None when it cannot be read: refused where it is flown)."""
+    from seapup_sim.vehicle_config import ConfigError, load_vehicle_config
+    try:
+        thrusters = load_vehicle_config(vehicle)["thrusters"]
+        return len(thrusters["positions"])
+    except (ConfigError, KeyError, TypeError, OSError):
+        return None
 
 
 def _name(value, what: str) -> str:
@@ -207,7 +221,7 @@ class RunEvent:
 
     ``kind`` is one of :data:`EVENT_KINDS`; ``detail``: for ``current`` a mapping of
     :data:`CURRENT_FIELDS` (``break_time`` optional) or None (no current); for ``configuration``
-    a vehicle configuration name; for ``thruster_efficiency`` four factors; for ``controller`` the
+    a vehicle configuration name; for ``thruster_efficiency`` a factor per thruster; for ``controller`` the
     :class:`~seapup_common.controllers.ControllerSpec` that takes over at that sample (bumpless,
     from the applied blade pitch).
     """
@@ -230,9 +244,10 @@ class RunEvent:
             if not isinstance(detail, str) or not detail or len(detail) > MAX_NAME_LENGTH:
                 raise RunSpecError(f"a configuration event names a vehicle configuration, got {_short(detail)}")
         elif self.kind == "thruster_efficiency":
-            if isinstance(detail, (list, tuple)) and len(detail) != 4:
-                raise RunSpecError(f"a thruster_efficiency event needs 4 factors, got {len(detail)}")
-            detail = _numbers(detail, "thruster efficiency", 4)
+            if isinstance(detail, (list, tuple)) and not 1 <= len(detail) <= MAX_THRUSTERS:
+                raise RunSpecError(f"a thruster_efficiency event needs a factor per thruster (1 to {MAX_THRUSTERS}), "
+                                   f"got {len(detail)}")
+            detail = _numbers(detail, "thruster efficiency")   # as many as the vehicle has: checked as it flies
         else:
             detail = detail if isinstance(detail, ControllerSpec) else ControllerSpec.from_dict(detail)
         object.__setattr__(self, "detail", detail)
@@ -260,7 +275,9 @@ class SelfTestDesign:
     Flown in this process on ``vehicle`` with noise-free sensors and no current (sec. 5.3.2),
     starting at rest ``start_depth`` deep, at the run's control period; each step fitted as ``fit`` says
     (``deviation``: eq. 5.5, the default; ``raw``: the thesis's Table 5.2 procedure,
-    :meth:`seapup_control.self_test.StepTest.column`).
+    :meth:`seapup_control.self_test.StepTest.column`). On the run's own vehicle, ``coefficients`` and all (the
+    self-test needs no model: it steps the vehicle as it is), unless ``nominal``: then on the description as
+    written, a design from the model for comparison.
     """
 
     vehicle: str = "baseline"
@@ -268,9 +285,12 @@ class SelfTestDesign:
     mode: str = "realistic"
     start_depth: float = 50.0
     fit: str = "deviation"
+    nominal: bool = False
 
     def __post_init__(self):
         _name(self.vehicle, "self-test vehicle")
+        if not isinstance(self.nominal, bool):
+            raise RunSpecError(f"design nominal must be true or false, got {_short(self.nominal)}")
         if isinstance(self.operating_points, (list, tuple)) and not 1 <= len(self.operating_points) <= MAX_OPERATING_POINTS:
             raise RunSpecError(f"a self-test needs 1 to {MAX_OPERATING_POINTS} operating points (one self-test each), "
                                f"got {len(self.operating_points)}")
@@ -286,11 +306,12 @@ class SelfTestDesign:
     def to_dict(self) -> dict:
         out = {"vehicle": self.vehicle, "operating_points": list(self.operating_points), "mode": self.mode,
                "start_depth": self.start_depth}
-        return {**out, "fit": self.fit} if self.fit != "deviation" else out   # the default: keys as before
+        out = {**out, "fit": self.fit} if self.fit != "deviation" else out   # the default: keys as before
+        return {**out, "nominal": True} if self.nominal else out
 
     @classmethod
     def from_dict(cls, data: Mapping) -> "SelfTestDesign":
-        _refuse_unknown(data, ("vehicle", "operating_points", "mode", "start_depth", "fit"), "design")
+        _refuse_unknown(data, ("vehicle", "operating_points", "mode", "start_depth", "fit", "nominal"), "design")
         return cls(**dict(data))
 
 
@@ -338,6 +359,9 @@ class RunSpec:
         Seed of the run's random streams (current, sensors).
     metrics : tuple of str
         Named metric extractors (:data:`seapup_runs.metrics.METRICS`) computed on the result.
+    coefficients : mapping, optional
+        The flown vehicle's uncertain coefficients scaled (``damping``, ``added_mass``: factors in [0.1, 10],
+        :func:`seapup_sim.vehicle_config.scaled`); in process only.
     """
 
     name: str = "run"
@@ -355,10 +379,20 @@ class RunSpec:
     events: tuple = ()
     seed: int = 0
     metrics: tuple = ()
+    coefficients: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         _name(self.name, "name")
         _name(self.vehicle, "vehicle")
+        coefficients = _frozen_mapping(self.coefficients, "coefficients")
+        from seapup_sim.vehicle_config import COEFFICIENT_SCALES
+        _refuse_unknown(coefficients, COEFFICIENT_SCALES, "coefficients")
+        for key, value in coefficients.items():
+            factor = _finite(value, f"coefficients {key}")
+            if not 0.1 <= factor <= 10.0:
+                raise RunSpecError(f"coefficients {key} must be a factor in [0.1, 10], got {factor}")
+            coefficients[key] = factor
+        object.__setattr__(self, "coefficients", coefficients)
         period = _finite(self.control_period, "control_period")
         if period <= 0:
             raise RunSpecError(f"control_period must be > 0 s, got {period}")
@@ -397,6 +431,11 @@ class RunSpec:
         if not isinstance(self.events, (list, tuple)):
             raise RunSpecError(f"events must be a list of events, got {_short(self.events)}")
         events = tuple(e if isinstance(e, RunEvent) else RunEvent.from_dict(e) for e in self.events)
+        count = _thruster_count(self.vehicle)
+        for event in events:
+            if event.kind == "thruster_efficiency" and count is not None and len(event.detail) != count:
+                raise RunSpecError(f"a thruster_efficiency event needs {count} factors ({self.vehicle} has {count} "
+                                   f"thrusters), got {len(event.detail)}")
         object.__setattr__(self, "events", tuple(sorted(events, key=lambda e: e.time)))
         object.__setattr__(self, "metrics", _metric_names(self.metrics))
 
@@ -453,7 +492,14 @@ class RunSpec:
                 "controller": self.controller.to_dict(),
                 "design": None if self.design is None else self.design.to_dict(),
                 "reference": self.reference.to_list(), "events": [e.to_dict() for e in self.events],
-                "seed": self.seed, "metrics": list(self.metrics)}
+                "seed": self.seed, "metrics": list(self.metrics),
+                **({"coefficients": dict(self.coefficients)} if self.coefficients else {})}   # keys as before
+
+    def vehicle_config(self) -> dict:
+        """The flown vehicle's configuration: ``vehicle``'s, its coefficients scaled as ``coefficients`` say."""
+        from seapup_sim.vehicle_config import load_vehicle_config, scaled
+        config = load_vehicle_config(self.vehicle)
+        return scaled(config, **self.coefficients) if self.coefficients else config
 
     @classmethod
     def from_dict(cls, data: Mapping) -> "RunSpec":

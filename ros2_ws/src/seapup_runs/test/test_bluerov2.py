@@ -63,3 +63,52 @@ def test_the_self_tested_autopilot_flies_surge_sway_heave_and_yaw_steps():
     assert np.nanmax(np.abs(result.series.command)) <= 1.0
     sway_hold = (t > 20.0) & (t < 30.0)
     assert np.degrees(np.ptp(truth["r"][sway_hold])) < 2.0   # no yaw limit cycle while sway is held
+
+
+def test_scaled_coefficients_fly_in_process_and_the_self_test_sees_them_unless_nominal():
+    """``coefficients`` scale the flown vehicle's damping and added mass; the self-test flies on that vehicle
+    (its surge step's first sample moves a heavier vehicle less: B0^-1 scales as the inverse of the inertia,
+    Newton), or on the description as written with ``design.nominal``."""
+    from seapup_runs import runner
+    from seapup_sim.vehicle_config import scaled
+    config = load_vehicle_config("bluerov2_heavy")
+    heavy = scaled(config, damping=0.8, added_mass=1.3)
+    assert heavy["added_mass"][0][0] == pytest.approx(1.3 * 6.36)
+    assert heavy["hydrodynamics"]["X_u|u|"] == pytest.approx(0.8 * -141.0) and heavy["name"] == "bluerov2_heavy*0.8*1.3"
+    base = {"name": "heavier", "vehicle": "bluerov2_heavy", "environment": {"sensors": "ideal"}, "duration": 4.0,
+            "controller": {"type": "mfol", "parameters": {"schedule": False}},
+            "design": {"vehicle": "bluerov2_heavy", "operating_points": [0.0]},
+            "reference": [[0.0, 0.1, 0.0, 0.0, 0.0]], "coefficients": {"added_mass": 1.3}}
+    spec = RunSpec.from_dict(base)
+    assert spec.to_dict()["coefficients"] == {"added_mass": 1.3}
+    surge = {}
+    for nominal in (False, True):
+        designed = runner.design(RunSpec.from_dict({**base, "design": {**base["design"], "nominal": nominal}}))
+        document = designed.controller.document
+        surge[nominal] = document["operating_points"][0]["B0inv"][0][0]
+    model, heavier = VehicleModel(config), VehicleModel(scaled(config, added_mass=1.3))
+    expected = model.m_total[0, 0] / heavier.m_total[0, 0]
+    assert surge[False] / surge[True] == pytest.approx(expected, rel=0.03)
+    with pytest.raises(Exception, match=r"coefficients damping must be a factor in \[0.1, 10\]"):
+        RunSpec.from_dict({**base, "coefficients": {"damping": 20.0}})
+    with pytest.raises(Exception, match="unknown coefficients key"):
+        RunSpec.from_dict({**base, "coefficients": {"damper": 1.0}})
+
+
+def test_the_shipped_bluerov2_campaign_flies_its_runs_run_by_run():
+    from seapup_runs import campaign as cp
+    rows = cp.expand(cp.load_campaign("bluerov2-robustness"))
+    assert len(rows) == 3 * 2 * 12
+    efficiencies = {json_events(r) for r in rows}
+    assert len(efficiencies) == 3   # none, a weak horizontal and a weak vertical thruster
+    from seapup_runs.batch_runner import batch_reason
+    assert batch_reason(RunSpec.from_dict(rows[0]["spec"])) is not None
+    out = cp.fly_rows([rows[0], rows[-1]])
+    assert [r["status"] for r in out] == ["ok", "ok"]
+    assert out[0]["metric.adaptive.tracking_rms_total"] < 0.5   # the self-tested fixed gains (the GMV designed
+    # on the description as written flies worse: docs/vehicles.md)
+
+
+def json_events(row) -> str:
+    import json
+    return json.dumps([e["detail"] for e in row["spec"]["events"] if e["kind"] == "thruster_efficiency"])

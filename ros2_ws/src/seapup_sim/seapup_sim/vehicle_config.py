@@ -27,7 +27,8 @@ from pathlib import Path
 
 from seapup_common.config import ConfigError, load_yaml, nearest
 
-__all__ = ["ConfigError", "available_configs", "load_vehicle_config", "OPTIONAL_KEYS", "PAYLOAD_KEYS"]
+__all__ = ["ConfigError", "available_configs", "load_vehicle_config", "OPTIONAL_KEYS", "PAYLOAD_KEYS",
+           "COEFFICIENT_SCALES", "scaled"]
 
 #: Top-level keys a configuration may have beyond those of ``baseline.yaml``.
 OPTIONAL_KEYS = ("payloads", "thruster_efficiency", "inputs", "open_loop_unstable", "self_test")
@@ -116,3 +117,34 @@ def _check_payloads(payloads, source: str) -> None:
                 near = nearest(key, PAYLOAD_KEYS)
                 raise ConfigError(f"{source}: unknown key payloads[{i}].{key}"
                                   + (f" (did you mean {near}?)" if near else f" (valid: {', '.join(PAYLOAD_KEYS)})"))
+
+
+#: The uncertain coefficients a run may scale (:func:`scaled`): every hydrodynamic derivative (the damping, lift
+#: and Munk-like terms of sec. 2.3.1, Fossen's D_L and D_NL), and the added-mass matrix.
+COEFFICIENT_SCALES = ("damping", "added_mass")
+
+
+def scaled(config: dict, damping: float = 1.0, added_mass: float = 1.0) -> dict:
+    """A copy of ``config`` with every ``hydrodynamics`` derivative times ``damping`` and the ``added_mass``
+    matrix times ``added_mass``: the same vehicle as its description is uncertain (a campaign's "how robust is
+    the autopilot to the coefficients?"). Named ``<name>*damping*added_mass`` unless both are 1.
+
+    Raises
+    ------
+    ConfigError
+        On a factor that is not a finite number in [0.1, 10].
+    """
+    import copy
+    import math
+    for what, factor in (("damping", damping), ("added_mass", added_mass)):
+        if isinstance(factor, bool) or not isinstance(factor, (int, float)) or not math.isfinite(factor) \
+                or not 0.1 <= factor <= 10.0:
+            raise ConfigError(f"the {what} scale must be a number in [0.1, 10], got {str(factor)[:40]}")
+    out = copy.deepcopy(config)
+    if damping != 1.0:
+        out["hydrodynamics"] = {name: float(value) * damping for name, value in out["hydrodynamics"].items()}
+    if added_mass != 1.0:
+        out["added_mass"] = [[float(v) * added_mass for v in row] for row in out["added_mass"]]
+    if (damping, added_mass) != (1.0, 1.0):
+        out["name"] = f"{config.get('name', 'vehicle')}*{damping:g}*{added_mass:g}"
+    return out
