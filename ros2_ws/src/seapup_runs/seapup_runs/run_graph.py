@@ -51,9 +51,13 @@ def controller_nodes(spec: RunSpec, files: list[str]) -> list[dict]:
     timeline = spec.controller_timeline()
     if len(files) != len(timeline):
         raise RunSpecError(f"{len(timeline)} controllers need {len(timeline)} files (or ''), got {len(files)}")
+    from seapup_runs.runner import at_vehicle_limit
+    from seapup_sim.vehicle import VehicleModel
+    limit = VehicleModel(spec.vehicle_config()).pitch_limit   # the laws saturate where the vehicle does
     nodes = []
     for i, (start, controller) in enumerate(timeline):
         stop = timeline[i + 1][0] if i + 1 < len(timeline) else 0.0
+        controller = at_vehicle_limit(controller, limit)
         kind = controller_type(controller.type)
         parameters = {"controller_type": controller.type, "controller_file": files[i],
                       "sample_period": spec.control_period, "lockstep": True, "autostart": True,
