@@ -29,3 +29,58 @@ def test_the_bluerov2_through_the_ros_graph_equals_the_in_process_run(tmp_path):
     from seapup_runs.run_graph import controller_nodes
     # the node's law saturates at the vehicle's full scale, as the in-process law does (not at +-35 deg)
     assert controller_nodes(spec, [""])[0]["parameters"][0]["blade_pitch_limit"] == 1.0
+
+
+@pytest.fixture(scope="module")
+def bluerov2_mission():
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.mission_graph import mission_config, mission_path
+    from seapup_runs.mission import MissionSpec
+    from seapup_runs.mission_flight import run_mission
+    config = mission_config(mission_path("bluerov2_heavy"))
+    spec = MissionSpec.load({"graph": config["graph"], "mission": config["mission"]})
+    return config, run_mission(spec, hierarchy_config(spec.graph))
+
+
+def test_the_demo_mission_shipped_for_the_bluerov2_flies_every_leg_in_process(bluerov2_mission):
+    """``./seapup demo --vehicle bluerov2_heavy``'s mission: the self-test through the vehicle's own settings
+    (the Seapup's poles would leave it oscillating about rest: docs/vehicles.md), then every leg of the demo;
+    saturation measured against a virtual input's full scale."""
+    config, flown = bluerov2_mission
+    legs = flown["legs"]
+    assert [leg["status"] for leg in legs] == ["succeeded"] * len(config["mission"]), \
+        [leg.get("message") for leg in legs]
+    assert abs(flown["logs"]["command"]).max() <= 1.0
+    fouled = legs[-1]
+    from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+    from seapup_runs.actuators import actuator_activity
+    logs = flown["logs"]
+    window = (logs["command_t"] >= fouled["t0"]) & (logs["command_t"] <= fouled["t1"])
+    t, command = logs["command_t"][window], logs["command"][window]
+    assert fouled["saturation_pct"] == actuator_activity(t, command, 1.0)["saturation_pct"] > 0.0
+    assert actuator_activity(t, command, BLADE_PITCH_LIMIT)["saturation_pct"] > fouled["saturation_pct"]
+
+
+def test_a_mission_names_one_efficiency_per_thruster_of_its_vehicle():
+    from seapup_runs.mission import MissionError, MissionSpec
+    from seapup_bringup.graph.mission_graph import mission_config, mission_path
+    config = mission_config(mission_path("bluerov2_heavy"))
+    leg = dict(config["mission"][-1], foul={"after": 10.0, "efficiency": [1.0] * 33})
+    with pytest.raises(MissionError, match="one value per thruster"):
+        MissionSpec.load({"graph": config["graph"], "mission": [*config["mission"][:-1], leg]})
+
+
+@pytest.mark.graph
+def test_the_bluerov2_demo_on_the_graph_is_the_mission_flown_in_process(bluerov2_mission, tmp_path):
+    """The self-test node with the launch's vehicle (its settings and input limit), the velocity controllers at
+    the launch's input limit, the simulator's eight-factor fouling service: the graph flies the BlueROV2's
+    mission command for command as the process does."""
+    import io
+    import numpy as np
+    from seapup_bringup.graph.mission_graph import fly_mission
+    config, flown = bluerov2_mission
+    on_graph = fly_mission(tmp_path, {"graph": dict(config["graph"]), "mission": config["mission"]}, io.StringIO())
+    assert on_graph["stopped"] is None
+    assert [leg["status"] for leg in on_graph["legs"]] == [leg["status"] for leg in flown["legs"]]
+    assert np.array_equal(np.round(on_graph["logs"]["command_t"], 6), np.round(flown["logs"]["command_t"], 6))
+    assert np.abs(on_graph["logs"]["command"] - flown["logs"]["command"]).max() <= 1e-9

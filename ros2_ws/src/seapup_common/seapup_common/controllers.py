@@ -26,7 +26,6 @@ import types
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import metadata
-from pathlib import Path
 from typing import Any, Callable
 
 
@@ -34,7 +33,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import ContractError, HoldCommand, VelocityController
 from seapup_common.values import finite_real, is_real
 
-__all__ = ["ENTRY_POINT_GROUP", "ControllerRegistryError", "Ranged", "ControllerType", "ControllerSpec", "register_controller",
+__all__ = ["at_input_limit", "ENTRY_POINT_GROUP", "ControllerRegistryError", "Ranged", "ControllerType", "ControllerSpec", "register_controller",
            "controller_type", "available_controllers", "create_controller", "HOLD_TYPE"]
 
 #: The entry-point group packages register their control laws in.
@@ -310,6 +309,16 @@ def _entry_points() -> dict[str, metadata.EntryPoint]:
 def available_controllers() -> list[str]:
     """Every controller type name: registered in this process or by an installed package."""
     return sorted(set(_REGISTERED) | set(_entry_points()))
+
+
+def at_input_limit(kind: "ControllerType", parameters: Mapping, input_limit: float) -> dict:
+    """A law's ``parameters`` with its ``blade_pitch_limit`` at the vehicle's ``input_limit`` (a node's
+    ``input_limit`` parameter, a run's vehicle): the law saturates, and winds back, where the vehicle does; 0
+    leaves the law's own (the Seapup's blade-pitch limit by default)."""
+    out = dict(parameters)
+    if input_limit > 0.0 and "blade_pitch_limit" in kind.parameters:
+        out["blade_pitch_limit"] = float(input_limit)
+    return out
 
 
 def controller_type(name: str) -> ControllerType:

@@ -40,8 +40,10 @@ def test_blade_limit_has_one_place():
         if path.suffix not in (".py", ".yaml") or "test" in path.parts or path.name == "interface.yaml":
             continue
         text = path.read_text()
-        # (respawn_limit of a launch graph is another limit)
-        if re.search(r"0\.61086|radians\(35|(?<!respawn_)limit(_deg)?:\s*[0-9.]+\s*(#|$)", text, re.MULTILINE):
+        # (respawn_limit of a launch graph is another limit; so is input_limit, a virtual-input vehicle's full
+        # scale, 0 standing for the blade pitch's)
+        if re.search(r"0\.61086|radians\(35|(?<!respawn_)(?<!input_)limit(_deg)?:\s*[0-9.]+\s*(#|$)", text,
+                     re.MULTILINE):
             offenders.append(str(path.relative_to(src)))
     assert offenders == []
     for package, node in (("seapup_sim", "simulator"), ("seapup_control", "open_loop")):

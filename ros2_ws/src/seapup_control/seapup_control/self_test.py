@@ -37,6 +37,7 @@ from enum import Enum
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, THRUSTER_NAMES
 from seapup_common.config import ConfigError, ConfigView, load_yaml, merge
@@ -45,7 +46,7 @@ from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains,
 from seapup_control.mfol_controller import GainSchedule, MFOLController
 from seapup_control.step_identification import IdentificationError, fit_first_order
 
-__all__ = ["vehicle_self_test", "FITS", "Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
+__all__ = ["vehicle_self_test", "write_result_file", "FITS", "Phase", "SelfTestConfig", "goal_overrides", "StepTest", "OperatingPoint", "SelfTest", "fit_operating_point",
            "result_document", "refit", "tests_from_samples", "DEFAULTS_FILE"]
 
 #: The defaults (every key documented there).
@@ -90,6 +91,10 @@ def goal_overrides(goal) -> dict:
     points = get("operating_points", ())
     if len(points):
         overrides["operating_points"] = [float(v) for v in points]
+    for name in ("poles_k", "poles_c"):   # the operator's closed-loop poles (sec. 5.2), at 5 Hz
+        poles = get(name, ())
+        if len(poles):
+            overrides[name] = [float(v) for v in poles]
     return overrides
 
 @dataclass(frozen=True)
@@ -150,6 +155,28 @@ class SelfTestConfig:
                    view.vector("zero_level", 4, lo=-limit, hi=limit),
                    view.choice("mode", ("realistic", "artificial")), poles, view.flag("settle"),
                    view.number("max_condition", lo=1.0, hi=1e12), float(limit), view.choice("fit", FITS))
+
+
+def write_result_file(directory: Path, document: Mapping, now: float | None = None) -> Path:
+    """Write a self-test result ``document`` as a new YAML file in ``directory`` and return its path:
+    ``self_test_<UTC time>_<process id>.yaml``, created exclusively (``_2``, ``_3`` ... appended while the name is
+    taken). Two self-tests finishing in the same second -- two graphs of a test run side by side -- once wrote
+    one file, and a graph's controllers were configured from the other's result."""
+    import os
+    import time as _time
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    stem = _time.strftime("self_test_%Y%m%d_%H%M%S", _time.gmtime(now)) + f"_{os.getpid()}"
+    text = yaml.safe_dump(dict(document), sort_keys=False)
+    for n in range(1, 1000):
+        path = directory / (f"{stem}.yaml" if n == 1 else f"{stem}_{n}.yaml")
+        try:
+            with open(path, "x", encoding="utf-8") as f:
+                f.write(text)
+            return path
+        except FileExistsError:
+            continue
+    raise OSError(f"no free result file name {stem}_N.yaml in {directory}")
 
 
 def vehicle_self_test(vehicle_config: Mapping, overrides: Mapping | None = None) -> dict:

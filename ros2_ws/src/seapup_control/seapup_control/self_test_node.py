@@ -37,7 +37,6 @@ import os
 import time
 from pathlib import Path
 
-import yaml
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock as SteadyClock, ClockType
@@ -53,14 +52,17 @@ from seapup_common.lockstep import SamplePolicy
 from seapup_common.ros.messages import MeasurementCollector, SampleFeed, ns_to_stamp
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.ros.graph import SubscriberGate
+from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, VIRTUAL_INPUT_LIMIT
 from seapup_common.ros.node import (COMMAND_QOS, RELIABLE_QOS, STREAM_QOS, SERVICE_QOS, declare_from_package_file,
                                     destroy_actions, path_or_empty, run_node)
 from seapup_common.topics import CLOCK, NAMESPACE
 from seapup_control.mfol import DesignError
 from seapup_control.ros.sample_inputs import RawSampleFeed
-from seapup_control.self_test import Phase, SelfTest, SelfTestConfig, goal_overrides, result_document
+from seapup_control.self_test import (Phase, SelfTest, SelfTestConfig, goal_overrides, result_document,
+                                      write_result_file)
 
 __all__ = ["SelfTestNode", "main"]
+
 
 
 class SelfTestNode(Node):
@@ -73,6 +75,7 @@ class SelfTestNode(Node):
         super().__init__("self_test", namespace=NAMESPACE, **kwargs)
         p = declare_from_package_file(self, "seapup_control", "self_test.yaml", section="self_test", ranges={
             "no_data_timeout": (0.1, 3600.0), "wait_for_command_subscribers": (0, 100),
+            "input_limit": (0.0, VIRTUAL_INPUT_LIMIT),
             "wait_for_sample_subscribers": (0, 100)},
             allowed={"result_dir": path_or_empty("the directory the result files are written into")})
         self.lockstep = bool(p["lockstep"])
@@ -80,6 +83,7 @@ class SelfTestNode(Node):
         root = Path(os.environ.get("SEAPUP_ROOT", "."))
         self.result_dir = Path(p["result_dir"]) if p["result_dir"] else root / "runs" / "self_test"
         self.no_data_timeout = float(p["no_data_timeout"])
+        self.input_limit = float(p["input_limit"]) or BLADE_PITCH_LIMIT   # 0: the Seapup's blade pitch
         self._last_sample_wall = 0.0
         self.collector = MeasurementCollector()
         self.policy = SamplePolicy(self.lockstep)  # which sample is pending (the self-test never waits)
@@ -115,12 +119,16 @@ class SelfTestNode(Node):
         return super().destroy_node()
 
     # -- the action ------------------------------------------------------------------
+    def _config(self, goal) -> SelfTestConfig:
+        """The goal's settings over the defaults, within the vehicle's input limit (``input_limit``)."""
+        return SelfTestConfig.load(goal_overrides(goal), limit=self.input_limit)
+
     def _accept(self, goal) -> GoalResponse:
         if self._goal is not None:
             self.get_logger().warn("self-test goal refused: one is running")
             return GoalResponse.REJECT
         try:
-            SelfTestConfig.load(goal_overrides(goal))
+            self._config(goal)
         except (ConfigError, DesignError, ValueError) as exc:
             self.get_logger().warn(f"self-test goal refused: {exc}")
             return GoalResponse.REJECT
@@ -129,7 +137,7 @@ class SelfTestNode(Node):
     def _start(self, goal_handle) -> None:
         """The goal was accepted (its response just sent: module docstring): the test starts now, answering the
         held sample if nobody has, then the execute callback awaits its end."""
-        config = SelfTestConfig.load(goal_overrides(goal_handle.request))
+        config = self._config(goal_handle.request)
         self.test = SelfTest(config)
         self._goal = goal_handle
         self._done = Future()
@@ -173,10 +181,7 @@ class SelfTestNode(Node):
             result.k_int.extend(point.gains.K_int.ravel().tolist())
             result.k_err.extend(point.gains.K_err.ravel().tolist())
         if test.points:
-            self.result_dir.mkdir(parents=True, exist_ok=True)
-            path = self.result_dir / time.strftime("self_test_%Y%m%d_%H%M%S.yaml", time.gmtime())
-            path.write_text(yaml.safe_dump(result_document(test), sort_keys=False))
-            result.controller_file = str(path.resolve())
+            result.controller_file = str(write_result_file(self.result_dir, result_document(test)).resolve())
         return result
 
     def _watch_data(self) -> None:

@@ -81,9 +81,10 @@ from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
 from seapup_msgs.msg import BladePitch, ControllerEstimate
 
+from seapup_common.blade_pitch import VIRTUAL_INPUT_LIMIT
 from seapup_common.contract import Command, ContractError, StampedReferences
 from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, available_controllers,
-                                       controller_type, create_controller)
+                                       at_input_limit, controller_type, create_controller)
 from seapup_common.lockstep import ANSWER, SKIP, WAIT, SamplePolicy, WaitSettings
 from seapup_common.ros.messages import MeasurementCollector, SampleFeed, diagnostic_array, ns_to_stamp, stamp_to_ns
 from seapup_common.ros.graph import SubscriberGate
@@ -102,7 +103,7 @@ __all__ = ["VelocityControllerNode", "main", "main_mfol", "RANGES"]
 RANGES = {"sample_period": (0.0, 10.0), "applied_wait": (0.0, 600.0), "reference_wait": (0.0, 600.0),
           "reference_stream": (0.0, 3600.0), "first_reference_wait": (0.0, 600.0), "start_at": (0.0, 1e9),
           "stop_at": (0.0, 1e9), "reference_horizon": (0.0, 1e9), "wait_for_command_subscribers": (0, 100),
-          "diagnostics_every": (1, 10**6)}
+          "diagnostics_every": (1, 10**6), "input_limit": (0.0, VIRTUAL_INPUT_LIMIT)}
 
 
 def allowed_values() -> dict:
@@ -207,6 +208,7 @@ class VelocityControllerNode(LifecycleNode):
         for name, default in self.kind.parameters.items():
             value = self._value(name)
             parameters[name] = list(value) if isinstance(default, (list, tuple)) else value
+        parameters = at_input_limit(self.kind, parameters, float(self._value("input_limit")))
         period = float(self._value("sample_period")) or None
         spec = ControllerSpec(self.kind.name, parameters, self._value("controller_file") or None)
         try:

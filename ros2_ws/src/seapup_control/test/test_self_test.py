@@ -260,3 +260,17 @@ def test_the_drift_settles_through_log_noise_but_not_through_a_real_drift():
     # a drift that still changes 10 sigma per window, or oscillates by that much, does not settle
     assert drift_phase(noisy + np.arange(1000) * 10 * sigma / 10, sigma ** 2)[0] is None
     assert drift_phase(noisy + 5 * sigma * np.sin(np.arange(1000) * 2 * np.pi / 8), sigma ** 2)[0] is None
+
+
+def test_two_results_of_the_same_second_are_two_files(tmp_path):
+    """Two self-tests finishing in the same second (two graphs of a test run side by side) once wrote one
+    file, and one graph's controllers were configured from the other's result: each result is its own file,
+    created exclusively, holding its own document."""
+    import yaml
+    from seapup_control.self_test import write_result_file
+    first = write_result_file(tmp_path / "results", {"operating_points": [{"surge": 0.0}]}, now=1.8e9)
+    second = write_result_file(tmp_path / "results", {"operating_points": [{"surge": 0.7}]}, now=1.8e9)
+    assert first != second and first.parent == second.parent
+    assert yaml.safe_load(first.read_text())["operating_points"][0]["surge"] == 0.0
+    assert yaml.safe_load(second.read_text())["operating_points"][0]["surge"] == 0.7
+    assert first.name.startswith("self_test_20270115_080000_") and second.stem.endswith("_2")

@@ -40,7 +40,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from seapup_runs.spec import (CURRENT_FIELDS, RunSpecError, _finite, _name, _numbers,
+from seapup_runs.spec import (CURRENT_FIELDS, MAX_THRUSTERS, RunSpecError, _finite, _name, _numbers,
                               _refuse_unknown, _short)
 
 __all__ = ["MissionSpec", "MissionError", "LEG_KINDS", "MAX_LEGS", "MAX_SECONDS", "load_mission", "leg_goal",
@@ -150,7 +150,7 @@ _GOALS = {
                   "quiescence_speed": lambda v, w: _number(v, w, 0.0, MAX_SPEED),
                   "closed_loop_divisor": lambda v, w: _number(v, w, 0.0, 1e6, above=True),
                   "operating_points": lambda v, w: list(_numbers(v, w)),
-                  "max_wait": _seconds},
+                  "max_wait": _seconds, "poles_k": lambda v, w: _poles(v, w), "poles_c": lambda v, w: _poles(v, w)},
     "hover": {"hold_current": _bool, **_DURATION},
     "goto": {"tolerance": lambda v, w: _number(v, w, 0.0, MAX_OFFSET, above=True),
              "speed": lambda v, w: _number(v, w, 0.0, MAX_SPEED)},
@@ -186,11 +186,24 @@ LEG_KINDS: dict[str, tuple[dict, tuple]] = {
 }
 
 
+def _poles(value, what: str) -> list[float]:
+    """Four desired closed-loop poles (loops u, v, w, r at 5 Hz) inside the unit circle's positive half."""
+    poles = list(_numbers(value, what, 4))
+    if not all(0.0 <= p < 1.0 for p in poles):
+        raise MissionError(f"{what} must be four poles in [0, 1) (loops u, v, w, r at 5 Hz), got {_short(value)}")
+    return poles
+
+
 def _efficiency(value, what: str) -> list[float]:
-    efficiency = list(_numbers(value, what, 4))
+    """One factor in [0, 1] per thruster, in the vehicle description's order (the Seapup's: main port, main
+    starboard, vectored starboard, vectored port); that the count is the vehicle's is checked as it flies."""
+    if isinstance(value, (list, tuple)) and not 1 <= len(value) <= MAX_THRUSTERS:
+        raise MissionError(f"{what} needs one value per thruster (1 to {MAX_THRUSTERS}), got {len(value)}")
+    efficiency = list(_numbers(value, what))
     if min(efficiency) < 0.0 or max(efficiency) > 1.0:
-        raise MissionError(f"{what} must be four values in [0, 1] (main port, main starboard, vectored port, "
-                           f"vectored starboard), got {_short(value)}")
+        raise MissionError(f"{what} must be values in [0, 1], one per thruster in the vehicle description's order "
+                           f"(the Seapup's: main port, main starboard, vectored starboard, vectored port), got "
+                           f"{_short(value)}")
     return efficiency
 
 

@@ -53,7 +53,8 @@ import numpy as np
 from seapup_common import frames
 from seapup_common.contract import (Command, ContractError, LatestReadings, Measurement, NavigationEstimate, Reading,
                                      StampedReferences)
-from seapup_common.controllers import ControllerRegistryError, ControllerSpec, controller_type, create_controller
+from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, at_input_limit, controller_type,
+                                       create_controller)
 from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
 
 __all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig",
@@ -121,6 +122,8 @@ class HierarchyConfig:
         its law: each parameter its type declares, from ``given`` or the type's default."""
         kind = controller_type(str(given["controller_type"]))
         parameters = {name: given.get(name, default) for name, default in kind.parameters.items()}
+        # as the node: its input_limit (the vehicle's; 0: the law's own) is the law's blade_pitch_limit
+        parameters = at_input_limit(kind, parameters, float(given.get("input_limit", 0.0) or 0.0))
         return kind.name, parameters, float(given.get("sample_period", 0.0) or 0.0) or None
 
 
@@ -458,7 +461,9 @@ class MissionFlight:
     def fly_self_test(self, goal: dict) -> dict:
         """The self-test action from the present hold to its end; held at the sample after its last."""
         from seapup_control.self_test import SelfTest, SelfTestConfig, goal_overrides, result_document
-        test = SelfTest(SelfTestConfig.load(goal_overrides(goal)))
+        # as the self-test node: the goal's settings over the defaults, within the vehicle's input limit (the
+        # launch's input_limit)
+        test = SelfTest(SelfTestConfig.load(goal_overrides(goal), limit=self.core.simulation.model.pitch_limit))
         self.self_test = test
         t0 = self.t
         while not test.finished:
@@ -511,7 +516,9 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
     if progress is not None:
         progress("mission", 1.0)
     logs = flight.finish()
-    return {"transport": "process", "legs": mission_numbers(legs, logs, hierarchy.simulator["environment"]["seabed"], swap), "logs": logs,
+    legs = mission_numbers(legs, logs, hierarchy.simulator["environment"]["seabed"], swap,
+                           flight.core.simulation.model.pitch_limit)
+    return {"transport": "process", "legs": legs, "logs": logs,
             "held": flight.t,
             "skipped_samples": flight.skipped,
             "ended_waits": {}}   # one process waits for nothing on a wall clock (the graph's: mission_graph)

@@ -29,14 +29,15 @@ __all__ = ["mission_numbers", "leg_numbers", "actuator_verdict", "velocity_track
            "NAVIGATION_SIGMAS"]
 
 
-def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict) -> list:
+def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict, limit: float = BLADE_PITCH_LIMIT) -> list:
     """Every leg's numbers (:func:`leg_numbers`), the swap's bump on the leg that swapped (``swap``: its index
     ``leg`` and sample ``t``) and on a fouling leg's switch; ``seabed``: the simulator's seabed
-    (:meth:`seapup_sim.seabed.Seabed.from_config`). The legs, updated."""
+    (:meth:`seapup_sim.seabed.Seabed.from_config`); ``limit``: the vehicle's input limit (the Seapup's blade
+    pitch, a virtual-input vehicle's full scale). The legs, updated."""
     from seapup_sim.seabed import Seabed
     floor = Seabed.from_config(seabed)
     for leg in legs:
-        leg.update(leg_numbers(logs, leg, floor))
+        leg.update(leg_numbers(logs, leg, floor, limit))
     if swap and swap["leg"] < len(legs):
         legs[swap["leg"]].update(swap_bump(logs, swap["t"]))
     for leg in legs:
@@ -45,13 +46,13 @@ def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict) -> list:
     return legs
 
 
-def leg_numbers(logs: dict, leg: dict, seabed) -> dict:
-    """Truth-based numbers of one leg over its goal's window: its actuator activity
-    (:func:`seapup_runs.actuators.actuator_activity`), hold or altitude error."""
+def leg_numbers(logs: dict, leg: dict, seabed, limit: float = BLADE_PITCH_LIMIT) -> dict:
+    """Truth-based numbers of one leg over its goal's window: its actuator activity against the inputs'
+    ``limit`` (:func:`seapup_runs.actuators.actuator_activity`), hold or altitude error."""
     t0, t1 = leg["t0"], leg["t1"]
     ct = logs["command_t"]
     flown = (ct >= t0) & (ct <= t1)
-    out = {**actuator_activity(ct[flown], logs["command"][flown], BLADE_PITCH_LIMIT), "duration": t1 - t0}
+    out = {**actuator_activity(ct[flown], logs["command"][flown], limit), "duration": t1 - t0}
     out["actuator_verdict"] = actuator_verdict(out)
     t, truth = logs["truth_t"], logs["truth_position"]
     window = (t >= t0) & (t <= t1)

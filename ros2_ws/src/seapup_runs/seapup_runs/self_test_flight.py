@@ -18,11 +18,26 @@ from seapup_common.contract import Command
 from seapup_control.self_test import SelfTest, SelfTestConfig, vehicle_self_test
 from seapup_sim.analysis import TrimError, trim
 from seapup_sim.simulation import Simulation
-from seapup_sim.vehicle import VehicleModel
-from seapup_sim.vehicle_config import load_vehicle_config
 from seapup_runs.spec import PHYSICS_STEP
 
-__all__ = ["SelfTestRun", "fly_self_test"]
+__all__ = ["SelfTestRun", "fly_self_test", "self_test_config_for"]
+
+
+def self_test_config_for(vehicle, overrides=None) -> SelfTestConfig:
+    """The self-test settings for ``vehicle`` (a configuration name, a file path or a configuration mapping):
+    its description's ``self_test`` with ``overrides`` over them (:func:`seapup_control.self_test.vehicle_self_test`),
+    within its inputs' limit (the Seapup's blade pitches, a virtual-input vehicle's full scale).
+
+    Raises
+    ------
+    ConfigError
+        An unknown vehicle, a malformed description or setting.
+    """
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    config = vehicle if isinstance(vehicle, dict) else load_vehicle_config(vehicle)
+    model = VehicleModel(config)
+    return SelfTestConfig.load(vehicle_self_test(model.config, overrides), limit=model.pitch_limit)
 
 
 @dataclass
@@ -66,8 +81,7 @@ def fly_self_test(vehicle: str = "baseline", overrides=None, environment=None, s
                                       dt=min(PHYSICS_STEP, period), state=state, pitch=pitch)
 
     # the inputs' limit is the vehicle's: the Seapup's blade pitches, a virtual-input vehicle's full scale
-    model = VehicleModel(vehicle if isinstance(vehicle, dict) else load_vehicle_config(vehicle))
-    config = SelfTestConfig.load(vehicle_self_test(model.config, overrides), limit=model.pitch_limit)
+    config = self_test_config_for(vehicle, overrides)
     pitch = config.zero_level if start_pitch is None else np.asarray(start_pitch, float)
     simulation = new_simulation(start, pitch, config.sample_period)
     test = SelfTest(config)

@@ -299,7 +299,7 @@ def test_a_mission_campaign_expands_into_mission_documents_a_leg_by_its_index():
     ({"mission.9.foul.efficiency": [[0.5, 1, 1, 1]]}, "9 is not an index of a list of 3"),
     ({"mission.2.foul.efficiency": [[2.0, 1, 1, 1]]}, "run 0 (mission.2.foul.efficiency=[2.0, 1, 1, 1], "
                                                       "graph.seed=1): mission leg 3 ('foul', fouling) foul "
-                                                      "efficiency must be four values in [0, 1]"),
+                                                      "efficiency must be values in [0, 1], one per thruster"),
     ({"mission.1.goal.duration": ["5"]}, "goal duration must be a number, got '5'"),
 ])
 def test_a_mission_campaign_refuses_a_path_or_a_value_its_missions_cannot_take(grid, message):

@@ -63,7 +63,7 @@ def refused(change, match: str):
     (lambda d: d["mission"][3].update(body_velocity=[50.0, 0.0, 0.0]), r"body_velocity must be within \+-5 m/s"),
     (lambda d: d["mission"][1]["switch"].update(after=20.0), "switch after 20 s is not within the hover's 20 s"),
     (lambda d: d["mission"][6]["foul"].update(after=20.0), r"foul after 20 s is not within fouled_seconds \(20 s\)"),
-    (lambda d: d["mission"][6]["foul"].update(efficiency=[1.5, 1, 1, 1]), r"efficiency must be four values in \[0, 1\]"),
+    (lambda d: d["mission"][6]["foul"].update(efficiency=[1.5, 1, 1, 1]), r"efficiency must be values in \[0, 1\], one per thruster"),
     (lambda d: d["mission"][1]["switch"].update(request={}), "activates or deactivates nothing"),
     (lambda d: d["mission"][0].pop("activate"), r"mission leg 1 \('tune', self_test\) needs activate"),
     (lambda d: d["mission"][0].update(configure=[]), "configure must be a non-empty list"),

@@ -36,10 +36,33 @@ RECORDED = [topics.TF_STATIC] + topics.typed(
     topics.POSITION_REFERENCE, topics.SELF_TEST_SAMPLES, topics.DIAGNOSTICS)
 
 
-def mission_path() -> Path:
-    """The shipped mission: ``seapup_bringup/config/mission.yaml`` as installed."""
+def mission_path(vehicle: str = "baseline") -> Path:
+    """The shipped mission of ``vehicle``: ``seapup_bringup/config/mission.yaml`` as installed for the Seapup,
+    ``mission_<vehicle>.yaml`` for another vehicle that has one (:func:`shipped_missions`).
+
+    Raises
+    ------
+    MissionError
+        For a vehicle no shipped mission is written for.
+    """
     from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory("seapup_bringup")) / "config" / MISSION
+    config = Path(get_package_share_directory("seapup_bringup")) / "config"
+    if vehicle == "baseline":
+        return config / MISSION
+    missions = shipped_missions()
+    if vehicle not in missions:
+        from seapup_runs.mission import MissionError
+        raise MissionError(f"no shipped mission for the vehicle {vehicle[:60]!r} (shipped for: "
+                           f"{', '.join(missions)}); fly your own with --mission FILE")
+    return missions[vehicle]
+
+
+def shipped_missions() -> dict[str, Path]:
+    """Vehicle -> its shipped mission file (``baseline``: ``mission.yaml``, others ``mission_<vehicle>.yaml``)."""
+    from ament_index_python.packages import get_package_share_directory
+    config = Path(get_package_share_directory("seapup_bringup")) / "config"
+    return {"baseline": config / MISSION, **{p.stem.removeprefix("mission_"): p
+                                              for p in sorted(config.glob("mission_*.yaml"))}}
 
 
 def mission_config(path: Path | None = None, document=None) -> dict:
@@ -90,7 +113,11 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     from seapup_bringup.graph.hierarchy_config import hierarchy_config
 
     graph = config["graph"]
-    seabed = hierarchy_config(graph).simulator["environment"]["seabed"]
+    simulator = hierarchy_config(graph).simulator
+    seabed = simulator["environment"]["seabed"]
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    limit = VehicleModel(load_vehicle_config(simulator["vehicle"])).pitch_limit   # the inputs' (numbers' saturation)
     legs, swap = [], {}
     plan = [dict(leg, index=i) for i, leg in enumerate(config["mission"])]
     total = sum(leg.get("expected", 60.0) for leg in plan)
@@ -138,7 +165,7 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
             raise
         stopped = exc
         print(f"\nseapup demo: interrupted; reporting the {len(legs)} legs flown", file=text)
-    mission_numbers(legs, logs, seabed, swap)
+    mission_numbers(legs, logs, seabed, swap, limit)
     # held: the sample [s] the paced graph was held at when it stopped
     # ended_waits: which nodes went on without what a lockstep wait waited for (empty: deterministic)
     return {"transport": "graph", "legs": legs, "bag": str(bag), "held": held, "logs": logs, "stopped": stopped,

@@ -33,7 +33,7 @@ import os
 import time
 from pathlib import Path
 
-from seapup_bringup.graph.mission_graph import fly_mission, mission_config
+from seapup_bringup.graph.mission_graph import fly_mission, mission_config, mission_path
 from seapup_runs.mission_pages import report_mission
 from seapup_bringup.output import add_json_argument, emit_json, stopped_by_signal, text_stream
 
@@ -49,6 +49,9 @@ def demo_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--mission", type=Path, help="a mission file to fly instead of the shipped one "
                                                      "(seapup_bringup/config/mission.yaml; keys: docs/missions.md)")
+    parser.add_argument("--vehicle", default="baseline",
+                        help="fly the mission shipped for this vehicle (baseline: the Seapup's; bluerov2_heavy: "
+                             "seapup_bringup/config/mission_bluerov2_heavy.yaml; docs/vehicles.md)")
     add_view_arguments(parser, "fly at this many times real time (the lockstep graph paced; default: as fast as "
                                "it answers, or 1 with --view); the summary is the same at any rate")
     add_json_argument(parser)
@@ -71,11 +74,14 @@ def main(argv=None) -> int:
     root = Path(os.environ.get("SEAPUP_ROOT", "."))
     out = Path(args.out) if args.out else root / "bags" / time.strftime("demo_%Y%m%d_%H%M%S", time.gmtime())
     from seapup_runs.mission import MissionError
+    if args.mission and args.vehicle != "baseline":
+        parser.error("--mission and --vehicle: a mission file names its own vehicle (graph.vehicle)")
     try:
-        config = mission_config(args.mission)
+        path = args.mission or mission_path(args.vehicle)
+        config = mission_config(path)
     except MissionError as exc:
         parser.error(str(exc))
-    config["source"] = str(args.mission) if args.mission else "seapup_bringup/config/mission.yaml"
+    config["source"] = str(args.mission) if args.mission else f"seapup_bringup/config/{path.name}"
     if rate:
         config["graph"]["lockstep_pace"] = rate
     extra = [view_node(args.view_port)] if args.view else []
