@@ -63,7 +63,8 @@ def test_the_page_renders_in_chromium_with_every_section_row_and_figure(report, 
     base, document, _ = report
     seen = browser(base / "out" / "report.html", tmp_path)
     assert seen["errors"] == []
-    assert {f"chapter-{ch}" for ch in document["chapters"]} | {"summary", "deviations", "made"} <= set(seen["sections"])
+    assert {f"chapter-{ch}" for ch in document["chapters"]} | {"summary", "vehicles", "deviations", "made"} \
+        <= set(seen["sections"])
     rows = {r[0]: r for r in seen["rows"]}
     assert sorted(rows) == sorted(r["id"] for r in document["targets"])
     colours = {}
@@ -194,3 +195,21 @@ def test_the_page_says_which_runs_were_flown_and_which_came_from_the_cache(repor
                                                   "version; --no-cache flies them again)")
     assert provenance([{"cached": False}, {"cached": True}, {"cached": True}]).startswith(
         "1 runs flown for this report, 2 taken from the run cache")
+
+
+@pytest.mark.process
+def test_the_page_puts_the_two_vehicles_side_by_side(report):
+    """Issue 45's section: the thesis's claim tried on a second ROV. The self-test finished on both; the
+    BlueROV2's virtual inputs are decoupled (its mixer) where the Seapup's blade pitches are not (eq. 5.3: the
+    mains drive surge and yaw together); every law held every step on both vehicles."""
+    _, document, _ = report
+    rows = {r["vehicle"]: r for r in document["vehicles"]}
+    assert set(rows) == {"baseline", "bluerov2_heavy"}
+    assert rows["bluerov2_heavy"]["inputs"] == "virtual" and rows["baseline"]["inputs"] == "direct"
+    assert rows["bluerov2_heavy"]["off_diagonal_share"] < 0.05 < rows["baseline"]["off_diagonal_share"]
+    assert all(0 < r["self_test_s"] < 300 for r in rows.values())
+    for r in rows.values():
+        assert set(r["laws"]) == {"mfol", "explicit", "gmv"}
+        for law, entry in r["laws"].items():
+            assert all(h["share"] < 0.15 for h in entry["held"].values()), (r["vehicle"], law, entry["held"])
+            assert 0 < entry["input_peak_share"] <= 1.0

@@ -48,7 +48,7 @@ CAUSE_CLASSES = {
 }
 _TYPO_KEYS = {"read", "why"}
 _RUN_KEYS = {"kind", "doc", "config", "rate_hz", "speeds", "name", "mode", "realisations", "seed", "dynamics", "current", "closed_loop", "scheduled", "seeds",
-             "controller", "params", "sensors", "fit"}
+             "controller", "params", "sensors", "fit", "vehicles", "commissioning"}
 
 
 class TargetsError(ValueError):

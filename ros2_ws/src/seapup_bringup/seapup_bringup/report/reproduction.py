@@ -344,7 +344,87 @@ def _closed_loop(description: dict, out: Path) -> tuple[dict, list]:
     return result, figures
 
 
-_KINDS = {"verify": _verify, "selftest": _self_test, "scenario": _scenario, "batch_identification": _batch_identification,
+#: The steps each vehicle flies under each law in the "two vehicles" run: (time [s], u, v, w, r), 10 s each.
+VEHICLE_STEPS = [[0.0, 0.3, 0.0, 0.0, 0.0], [10.0, 0.0, 0.15, 0.0, 0.0], [20.0, 0.0, 0.0, 0.1, 0.0],
+                 [30.0, 0.0, 0.0, 0.0, 0.2], [40.0, 0.0, 0.0, 0.0, 0.0]]
+
+
+def _vehicles(description: dict, out: Path) -> tuple[dict, list]:
+    """The thesis's claim (abstract, ch. 8: an ROV autopilot designed on the vehicle itself, no model needed)
+    tried on each of ``vehicles``: what the self-test at rest found (its time, its box of water, how diagonal
+    B0^-1 is), then each law (the self-tested fixed gains, the explicit and the GMV self-tuners, commissioned as
+    ``commissioning`` says for a vehicle or by the law's default) flying the same steps in surge, sway, heave and yaw with the baseline instruments: each output's
+    error over the last 5 s of its step, the others' largest excursion there, and the inputs' peak as a share
+    of the vehicle's limit."""
+    from seapup_runs.runner import run
+    from seapup_runs.self_test_flight import fly_self_test
+    from seapup_runs.spec import RunSpec
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+    rows, traces = [], {}
+    for vehicle in description["vehicles"]:
+        limit = VehicleModel(load_vehicle_config(vehicle)).pitch_limit
+        flown = fly_self_test(vehicle, {"operating_points": [0.0]})
+        test = flown.test
+        if test.phase.value != "done":
+            raise ReproductionError(f"the self-test on {vehicle} did not finish: {test.reason}")
+        b0 = test.points[0].model.B0inv
+        diagonal = np.abs(np.diag(b0))
+        row = {"vehicle": vehicle, "inputs": VehicleModel(load_vehicle_config(vehicle)).inputs.kind,
+               "self_test_s": test.duration, "space_m": flown.space,
+               "b0inv_diagonal": np.diag(b0), "off_diagonal_share": float(np.max(np.abs(b0 - np.diag(np.diag(b0)))
+                                                                                 / diagonal[:, None])),
+               "laws": {}}
+        for law in ("mfol", "explicit", "gmv"):
+            commissioning = description.get("commissioning", {}).get(vehicle)
+            parameters = ({"schedule": False} if law == "mfol"
+                          else {"commissioning_samples": int(commissioning)} if commissioning else {})
+            spec = RunSpec.from_dict({
+                "name": f"{vehicle}-{law}", "vehicle": vehicle, "environment": {"sensors": "baseline"},
+                "control_period": 0.2, "duration": 50.0, "start_depth": 30.0,
+                "controller": {"type": law, "parameters": parameters},
+                "design": {"vehicle": vehicle, "operating_points": [0.0]}, "reference": VEHICLE_STEPS})
+            result = run(spec)
+            t, truth = result.series.t, result.series.truth
+            held = {}
+            for (start, *value), key in zip(VEHICLE_STEPS[:4], ("u", "v", "w", "r")):
+                window = (t > start + 5.0) & (t <= start + 10.0)
+                target = value[("u", "v", "w", "r").index(key)]
+                others = [k for k in ("u", "v", "w") if k != key]
+                held[key] = {"error_rms": float(np.sqrt(np.mean((truth[key][window] - target) ** 2))),
+                             "share": float(np.sqrt(np.mean((truth[key][window] - target) ** 2)) / abs(target)),
+                             "interaction": float(max(np.abs(truth[k][window]).max() for k in others))}
+            row["laws"][law] = {"held": held,
+                                "input_peak_share": float(np.nanmax(np.abs(result.series.command)) / limit)}
+            traces[(vehicle, law)] = (t, truth)
+        rows.append(row)
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(4, 1, figsize=(7, 9), sharex=True)
+    for (vehicle, law), (t, truth) in traces.items():
+        if law != "mfol":
+            continue
+        for ax, key in zip(axes, ("u", "v", "w", "r")):
+            ax.plot(t, truth[key], label=vehicle)
+    times = [row[0] for row in VEHICLE_STEPS] + [50.0]
+    for ax, key, unit in zip(axes, ("u", "v", "w", "r"), ("m/s", "m/s", "m/s", "rad/s")):
+        level = [row[1 + ("u", "v", "w", "r").index(key)] for row in VEHICLE_STEPS]
+        ax.step(times, level + [level[-1]], where="post", color="k", lw=0.8, ls="--", label="reference")
+        ax.set_ylabel(f"{key} [{unit}]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    axes[0].set_title("the self-tested fixed-gain law on each vehicle (no model of either)")
+    axes[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    path = out / "vehicles_steps.png"
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return {"vehicles": rows}, [(path.name, "the same steps flown by each vehicle under its self-tested fixed "
+                                            "gains (docs/vehicles.md)")]
+
+
+_KINDS = {"vehicles": _vehicles, "verify": _verify, "selftest": _self_test, "scenario": _scenario, "batch_identification": _batch_identification,
           "identification": _identification, "closed_loop": _closed_loop}
 
 

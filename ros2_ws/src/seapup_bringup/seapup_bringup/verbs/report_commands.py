@@ -70,6 +70,8 @@ def report_command(argv: list[str]) -> int:
     if args.readme is not None and (chapters is not None or args.targets is not None):
         parser.error("--readme takes the whole report of the product's targets (no --chapters, no --targets)")
     needed = {name: descriptions[name] for name in dict.fromkeys(run for t in targets for run in t.runs)}
+    if chapters is None and "vehicles" in descriptions:   # the whole report: the two vehicles side by side too
+        needed["vehicles"] = descriptions["vehicles"]
     wall, cpu = time.perf_counter(), time.process_time()
     print(f"report: {len(targets)} targets, {len(needed)} runs, {args.jobs} parallel", file=text, flush=True)
     payloads = run_all(needed, args.cache or default_cache(), jobs=args.jobs, use_cache=not args.no_cache,
