@@ -6,8 +6,9 @@ simulator's truth, logs to the server, stamped with the sample's (sim) time, whi
 broadcasts as its clock (at a display's rate: every sample while the graph runs at up to 10x real time):
 
 - ``/tf`` (foxglove.FrameTransforms): ``odom`` -> ``base_link`` and the fixed ``odom_ned``, ``base_link_frd``;
-- ``/scene/vehicle`` (foxglove.SceneUpdate, in ``base_link_frd``): the frame, the four thrusters with their
-  blade-pitch arrows (full length at the +-35 deg limit), the payloads (the bow camera when fitted);
+- ``/scene/vehicle`` (foxglove.SceneUpdate, in ``base_link_frd``): the frame, the thrusters with their thrust
+  arrows (full length at the +-35 deg blade-pitch limit, or at a fixed-pitch thruster's full thrust: a
+  BlueROV2's eight through its mixer), the payloads (the bow camera when fitted);
 - ``/scene/world`` (in ``odom_ned``): the track flown, the umbilical (the simulator's cable solution), the
   current's arrow, the position set point, the
   navigator's estimate (a sphere of its 2-sigma horizontal uncertainty) and the acoustic fixes as they come;

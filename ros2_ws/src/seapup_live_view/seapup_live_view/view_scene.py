@@ -9,12 +9,14 @@ body coordinates (sec. 2.2: x forward, y starboard, z down), world things (trail
 in (ENU: up is up), the same tree as the simulator's ``/tf`` (:func:`seapup_common.ros.messages.transforms_enu`).
 
 The Seapup's hull dimensions are not in the thesis: the frame is drawn as the box spanning the four thrusters
-(Table 3.2's positions) padded by one propeller diameter, the bow camera (sec. 3.6) as its payload sphere.
+(Table 3.2's positions) padded by one propeller diameter, the bow camera (sec. 3.6) as its payload sphere. Any
+other vehicle the same way from its description (a fixed-pitch thruster drawn 0.1 m across).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -46,7 +48,9 @@ class Thruster:
 
 @dataclass(frozen=True)
 class VehicleShape:
-    """The drawn vehicle in ``base_link_frd``: the frame box, the thrusters and payload spheres."""
+    """The drawn vehicle in ``base_link_frd``: the frame box, the thrusters and payload spheres, and how the
+    four inputs the vehicle reports applied become each thruster's share of its full thrust (``thrust_share``:
+    the Seapup's blade pitches, or a virtual-input vehicle's inputs through its mixer and thrust curve)."""
 
     frame_center: np.ndarray
     frame_size: np.ndarray
@@ -54,6 +58,11 @@ class VehicleShape:
     payloads: tuple          # (name, position (3,), radius)
     zero_thrust_pitch: float
     pitch_limit: float
+    thrust_share: Callable = None   # applied inputs (4,) -> (N,) signed shares of full thrust
+
+
+#: [m] the drawn diameter of a fixed-pitch thruster, whose description has none (a T200's nozzle is about 0.1 m)
+FIXED_PITCH_DIAMETER = 0.1
 
 
 def vehicle_shape(model) -> VehicleShape:
@@ -61,28 +70,42 @@ def vehicle_shape(model) -> VehicleShape:
     changes it: the camera appears)."""
     th = model.thrusters
     positions = np.asarray(th.positions, float)
-    pad = float(th.diameter)
-    low, high = positions.min(axis=0) - pad, positions.max(axis=0) + pad
-    thrusters = tuple(Thruster(positions[j].copy(), np.asarray(th.directions[j], float).copy(), float(th.diameter))
+    diameter = float(getattr(th, "diameter", FIXED_PITCH_DIAMETER))
+    low, high = positions.min(axis=0) - diameter, positions.max(axis=0) + diameter
+    thrusters = tuple(Thruster(positions[j].copy(), np.asarray(th.directions[j], float).copy(), diameter)
                       for j in range(len(positions)))
     payloads = tuple((str(p.get("name", f"payload {i}")), np.asarray(p["position"], float), float(p.get("radius", 0.1)))
                      for i, p in enumerate(model.config.get("payloads") or []))
-    return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, float(th.zero_thrust_pitch),
-                        float(model.pitch_limit))
+    if th.kind == "controllable_pitch":
+        beta0, limit = float(th.zero_thrust_pitch), float(model.pitch_limit)
+
+        def share(applied):   # eq. 2.18's bollard term: (beta - beta_0) over the limit
+            pitch = np.asarray(applied, float).reshape(len(thrusters))
+            return (pitch - beta0) / limit
+        return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, beta0, limit, share)
+    inputs, curve = model.inputs, th.curve
+
+    def share(applied):       # the mixer's commands through the thrust curve, over the curve's full thrust
+        applied = np.asarray(applied, float)
+        if applied.shape != (4,):
+            raise ValueError(f"a virtual-input vehicle reports 4 applied inputs, got shape {applied.shape}")
+        thrust = curve.thrust(inputs.to_actuators(applied))
+        return np.where(thrust >= 0.0, thrust / curve.max_forward, thrust / -curve.max_reverse)
+    return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, 0.0, float(model.pitch_limit), share)
 
 
-def thrust_arrows(shape: VehicleShape, blade_pitch) -> list[tuple[np.ndarray, np.ndarray, float]]:
+def thrust_arrows(shape: VehicleShape, applied) -> list[tuple[np.ndarray, np.ndarray, float]]:
     """One arrow per thruster (origin, unit direction, length) in ``base_link_frd``: along the thrust axis, pointing
-    the way the thrust acts (the sign of beta - beta_0, eq. 2.18's bollard term), its length
-    :data:`ARROW_FULL_LENGTH` times |beta - beta_0| / limit, so an arrow at full length is a blade at the
-    +-35 deg limit."""
-    pitch = np.asarray(blade_pitch, float).reshape(len(shape.thrusters))
+    the way the thrust acts, its length :data:`ARROW_FULL_LENGTH` times the thruster's share of its full thrust
+    (:attr:`VehicleShape.thrust_share`: the Seapup's |beta - beta_0| / limit, eq. 2.18's bollard term, so an
+    arrow at full length is a blade at the +-35 deg limit; a fixed-pitch thruster's thrust over its curve's
+    largest)."""
+    shares = shape.thrust_share(applied)
     arrows = []
-    for thruster, beta in zip(shape.thrusters, pitch):
-        effective = beta - shape.zero_thrust_pitch
-        sign = 1.0 if effective >= 0.0 else -1.0
+    for thruster, share in zip(shape.thrusters, np.asarray(shares, float).tolist()):
+        sign = 1.0 if share >= 0.0 else -1.0
         arrows.append((thruster.position.copy(), sign * thruster.direction,
-                       ARROW_FULL_LENGTH * min(abs(effective) / shape.pitch_limit, 2.0)))
+                       ARROW_FULL_LENGTH * min(abs(share), 2.0)))
     return arrows
 
 

@@ -97,3 +97,27 @@ def test_the_current_arrow_points_downstream_with_its_speed_and_is_absent_in_sti
     direction, length = view_scene.current_arrow([0.0, 0.514444, 0.0])   # one knot flowing east
     np.testing.assert_allclose(direction, [0, 1, 0])
     assert length == pytest.approx(2.0)
+
+
+def test_a_virtual_input_vehicle_shows_each_of_its_thrusters_with_the_thrust_its_mixer_gives():
+    """The BlueROV2 Heavy: eight arrows from the four applied inputs through the vehicle's own mixer and thrust
+    curve (independent truth: the thrusters' wrench is the one the inputs ask for, so a surge input drives the
+    four horizontal thrusters alike, the front pair forward and the aft pair astern along their axes)."""
+    model = VehicleModel(load_vehicle_config("bluerov2_heavy"))
+    shape = view_scene.vehicle_shape(model)
+    assert len(shape.thrusters) == 8 and all(t.diameter == view_scene.FIXED_PITCH_DIAMETER for t in shape.thrusters)
+    assert np.all(shape.frame_size > 0.25)   # a BlueROV2 Heavy is about 0.46 x 0.58 x 0.25 m
+    arrows = view_scene.thrust_arrows(shape, [0.5, 0.0, 0.0, 0.0])
+    thrust = model.thrusters.curve.thrust(model.inputs.to_actuators(np.array([0.5, 0.0, 0.0, 0.0])))
+    lengths = np.array([length for _, _, length in arrows])
+    np.testing.assert_allclose(lengths, view_scene.ARROW_FULL_LENGTH * np.abs(thrust) / model.thrusters.curve.max_forward)
+    assert np.allclose(lengths[:4], lengths[0]) and lengths[0] > 0.3 * view_scene.ARROW_FULL_LENGTH
+    for (origin, direction, _), thruster, t in zip(arrows, shape.thrusters, thrust):
+        np.testing.assert_array_equal(origin, thruster.position)
+        np.testing.assert_allclose(direction, np.sign(t) * thruster.direction if t else thruster.direction)
+    # the summed arrows point forward: the front pair push forward-inward, the aft pair (reversed) likewise
+    push = sum(length * direction for _, direction, length in arrows[:4])
+    assert push[0] > 0 and abs(push[1]) < 1e-9 * abs(push[0])
+    assert all(length == 0.0 for _, _, length in view_scene.thrust_arrows(shape, [0.0] * 4))
+    with pytest.raises(ValueError, match="4 applied inputs"):
+        view_scene.thrust_arrows(shape, [0.0] * 8)
