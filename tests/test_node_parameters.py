@@ -8,7 +8,6 @@ that may be set at run time refuses NaN and a value beyond its range, unchanged.
 """
 import math
 from importlib import metadata
-from pathlib import Path
 
 import pytest
 from rcl_interfaces.msg import ParameterType
@@ -38,6 +37,7 @@ def _kinds(tmp_path):
              ("recorder", "seapup_common.recorder_node", "RecorderNode", {"bag_path": str(tmp_path / "bag")}),
              ("open_loop", "seapup_control.open_loop_node", "OpenLoopNode", {}),
              ("reference_schedule", "seapup_control.reference_schedule_node", "ReferenceScheduleNode", {}),
+             ("teleop", "seapup_control.teleop_node", "TeleopNode", {}),
              ("live_view", "seapup_live_view.live_view_node", "LiveViewNode", {"port": 0})]
     kinds += [(f"velocity_controller[{law}]", "seapup_control.velocity_controller_node", "VelocityControllerNode",
                {"controller_type": law}) for law in available_controllers()]

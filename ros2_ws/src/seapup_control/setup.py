@@ -31,6 +31,7 @@ setup(
             "position_controller = seapup_control.position_controller_node:main",
             "task_controller = seapup_control.task_controller_node:main",
             "controller_manager = seapup_control.controller_manager_node:main",
+            "teleop = seapup_control.teleop_node:main",
         ],
         # control laws by name (seapup_common.controllers)
         "seapup.velocity_controllers": [
@@ -38,6 +39,7 @@ setup(
             "explicit = seapup_control.explicit:EXPLICIT_TYPE",
             "gmv = seapup_control.gmv:GMV_TYPE",
             "open_loop = seapup_control.profiles:OPEN_LOOP_TYPE",
+            "manual = seapup_control.manual:MANUAL_TYPE",
         ],
     },
 )

@@ -229,6 +229,12 @@ def _view(argv: list[str]) -> int:
     return view_command(argv)
 
 
+@command("teleop", "fly the vehicle by hand from the keyboard: the pilot's Twist for a manual velocity controller", "seapup_bringup.verbs.view_commands:teleop_parser", doc="vehicles.md#manual-flight")
+def _teleop(argv: list[str]) -> int:
+    from seapup_bringup.verbs.view_commands import teleop_command
+    return teleop_command(argv)
+
+
 @command("verify", "open-loop verification of the vehicle model against the thesis",
          "seapup_bringup.verbs.model_commands:verify_parser", doc="model.md#verification-against-the-thesis")
 def _verify(argv: list[str]) -> int:

@@ -10,7 +10,7 @@ fast lockstep run is lost); :func:`typed` builds those entries from :data:`TOPIC
 """
 from __future__ import annotations
 
-__all__ = ["NAMESPACE", "CLOCK", "TF", "TF_STATIC", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "TRUTH_ODOMETRY",
+__all__ = ["NAMESPACE", "CLOCK", "TF", "TF_STATIC", "DIAGNOSTICS", "COMMAND", "FORWARDED_COMMAND", "APPLIED", "PILOT", "TRUTH_ODOMETRY",
            "VELOCITY", "IMU", "DEPTH", "CURRENT", "UMBILICAL_SHAPE",
            "POSITION", "ALTITUDE", "SAMPLE_MANIFEST", "NAVIGATION_ODOMETRY", "VELOCITY_REFERENCE", "POSITION_REFERENCE",
            "SELF_TEST_SAMPLES", "IDENTIFIED_MODEL", "controller_estimate", "CONTROLLER_ESTIMATE_TYPE", "TASK_REJECTIONS", "SENSORS", "TOPIC_TYPES",
@@ -36,6 +36,8 @@ COMMAND = "/seapup/thrusters/command"
 FORWARDED_COMMAND = "/seapup/controller_manager/forwarded"
 #: Blade pitches the thrusters really applied (limited, held) [rad].
 APPLIED = "/seapup/thrusters/applied"
+#: A pilot's stick (geometry_msgs/Twist, REP-103 base_link): flown by a manual velocity controller.
+PILOT = "/seapup/pilot/cmd_vel"
 #: The simulator's true state (NED/FRD).
 TRUTH_ODOMETRY = "/seapup/truth/odometry"
 #: Body velocity and rates from the velocity sensor.
@@ -72,6 +74,7 @@ SENSORS = (VELOCITY, IMU, DEPTH, POSITION, ALTITUDE)
 
 #: Topic -> message type (rosbag2 spelling ``pkg/msg/Type``).
 TOPIC_TYPES = {
+    PILOT: "geometry_msgs/msg/Twist",
     CLOCK: "rosgraph_msgs/msg/Clock",
     TF: "tf2_msgs/msg/TFMessage",
     TF_STATIC: "tf2_msgs/msg/TFMessage",

@@ -74,7 +74,7 @@ from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import TwistStamped, TwistWithCovarianceStamped
+from geometry_msgs.msg import Twist, TwistStamped, TwistWithCovarianceStamped
 from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
@@ -246,6 +246,8 @@ class VelocityControllerNode(LifecycleNode):
             # sample the outgoing controller answered, this one starts at the next (SamplePolicy)
             subscribe(BladePitch, FORWARDED_COMMAND,
                       lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)), RELIABLE_QOS)]
+        if callable(getattr(self.controller, "pilot", None)):   # manual flight: the pilot's stick (REP-103 Twist)
+            self._interfaces.append(subscribe(Twist, "pilot/cmd_vel", self._on_pilot, COMMAND_QOS))
         self._qos_watch = QosWatch(self)
         if lockstep:
             self._interfaces.append(subscribe(Clock, CLOCK, self._on_clock, RELIABLE_QOS, raw=True))
@@ -339,6 +341,16 @@ class VelocityControllerNode(LifecycleNode):
     def _rejected(self, reason: str) -> None:  # a non-finite or malformed sensor message: counted, never used
         self.counts["rejected_measurements"] += 1
         self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=2.0)
+
+    def _on_pilot(self, msg) -> None:
+        """The pilot's demand, timed by the node's clock (the simulator's in lockstep); a malformed one counted."""
+        t = self.get_clock().now().nanoseconds * 1e-9
+        try:
+            self.controller.pilot(t, (msg.linear.x, msg.linear.y, msg.linear.z),
+                                  (msg.angular.x, msg.angular.y, msg.angular.z))
+        except ContractError as exc:   # a non-finite stick: counted in diagnostics, never flown
+            self.counts["rejected_pilot"] = self.counts.get("rejected_pilot", 0) + 1
+            self.get_logger().warn(f"pilot message rejected: {exc}", throttle_duration_sec=2.0)
 
     def _on_velocity(self, data: bytes) -> None:
         t_ns = self.raw_feed.velocity(data)

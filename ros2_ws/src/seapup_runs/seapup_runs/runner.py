@@ -189,6 +189,9 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
                                "detail": {"type": timeline[next_switch][1].type}})
             next_switch += 1
         controller.applied(sample.t, Command(simulation.plant.applied, sample.t))
+        demand = spec.pilot_at(sample.t) if spec.pilot else None
+        if demand is not None and callable(getattr(controller, "pilot", None)):   # a scripted pilot's stick
+            controller.pilot(sample.t, demand[:3], (0.0, 0.0, demand[3]))
         ref = spec.reference.at(sample.t)
         out = controller.update(sample.t, sample.measurement, ref)
         reference[k], command[k] = ref.velocity, out.blade_pitch

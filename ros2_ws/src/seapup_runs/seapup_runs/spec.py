@@ -128,6 +128,19 @@ def _numbers(values, what: str, size: int | None = None) -> tuple:
     return tuple(_finite(v, what) for v in values)
 
 
+def _pilot_steps(value) -> tuple:
+    """A scripted pilot's rows (t, x, y, z, yaw), checked: finite, times from 0 rising, at most 1000."""
+    if value is None:
+        return ()
+    if not isinstance(value, (list, tuple)) or len(value) > 1000:
+        raise RunSpecError(f"pilot must be a list of at most 1000 [t, x, y, z, yaw] rows, got {_short(value)}")
+    rows = tuple(_numbers(row, "pilot row", 5) for row in value)
+    times = [row[0] for row in rows]
+    if any(t < 0 for t in times) or any(b <= a for a, b in zip(times, times[1:])):
+        raise RunSpecError(f"pilot rows need times >= 0 s, rising, got {times[:10]}")
+    return rows
+
+
 @functools.lru_cache(maxsize=64)
 def _thruster_count(vehicle: str) -> int | None:
     """How many thrusters ``vehicle`` has (None when it cannot be read: refused where it is flown)."""
@@ -359,6 +372,10 @@ class RunSpec:
         Seed of the run's random streams (current, sensors).
     metrics : tuple of str
         Named metric extractors (:data:`seapup_runs.metrics.METRICS`) computed on the result.
+    pilot : tuple of (t, x, y, z, yaw), optional
+        A scripted pilot (a manual controller's stick, seapup_control.manual): from each time [s] the
+        ``Twist`` demand in ``base_link`` (REP-103: x forward, y left, z up [m/s]; yaw counter-clockwise
+        [rad/s]), held until the next; sent to a controller that flies a pilot (``manual``), ignored by others.
     coefficients : mapping, optional
         The flown vehicle's uncertain coefficients scaled (``damping``, ``added_mass``: factors in [0.1, 10],
         :func:`seapup_sim.vehicle_config.scaled`); in process only.
@@ -380,6 +397,7 @@ class RunSpec:
     seed: int = 0
     metrics: tuple = ()
     coefficients: Mapping = field(default_factory=dict)
+    pilot: tuple = ()
 
     def __post_init__(self):
         _name(self.name, "name")
@@ -393,6 +411,7 @@ class RunSpec:
                 raise RunSpecError(f"coefficients {key} must be a factor in [0.1, 10], got {factor}")
             coefficients[key] = factor
         object.__setattr__(self, "coefficients", coefficients)
+        object.__setattr__(self, "pilot", _pilot_steps(self.pilot))
         period = _finite(self.control_period, "control_period")
         if period <= 0:
             raise RunSpecError(f"control_period must be > 0 s, got {period}")
@@ -493,7 +512,17 @@ class RunSpec:
                 "design": None if self.design is None else self.design.to_dict(),
                 "reference": self.reference.to_list(), "events": [e.to_dict() for e in self.events],
                 "seed": self.seed, "metrics": list(self.metrics),
-                **({"coefficients": dict(self.coefficients)} if self.coefficients else {})}   # keys as before
+                **({"coefficients": dict(self.coefficients)} if self.coefficients else {}),   # keys as before
+                **({"pilot": [list(row) for row in self.pilot]} if self.pilot else {})}
+
+    def pilot_at(self, t: float) -> tuple | None:
+        """The scripted pilot's demand in force at ``t`` [s]: (x, y, z [m/s], yaw [rad/s]) of a ``Twist`` in
+        ``base_link`` (REP-103), or None before its first step."""
+        demand = None
+        for row in self.pilot:
+            if row[0] <= t + 1e-9:
+                demand = row[1:]
+        return demand
 
     def vehicle_config(self) -> dict:
         """The flown vehicle's configuration: ``vehicle``'s, its coefficients scaled as ``coefficients`` say."""

@@ -8,7 +8,7 @@ import sys
 
 from seapup_live_view.attach import DEFAULT_PORT, check_port
 
-__all__ = ["view_parser", "view_command"]
+__all__ = ["view_parser", "view_command", "teleop_parser", "teleop_command"]
 
 
 def view_parser() -> argparse.ArgumentParser:
@@ -51,5 +51,44 @@ def view_command(argv: list[str]) -> int:
     rules = [f"port:={args.port}", f"vehicle:={args.vehicle}"]
     if args.environment_file:
         rules.append(f"environment_file:={args.environment_file}")
+    os.execv(str(path), [str(path), "--ros-args", *[x for rule in rules for x in ("-p", rule)]])
+    return 1  # not reached
+
+
+def teleop_parser() -> argparse.ArgumentParser:
+    """``./seapup teleop``'s arguments."""
+    from seapup_bringup.output import add_json_argument
+    from seapup_control.manual import TELEOP_HELP
+    from seapup_common.topics import PILOT
+    parser = argparse.ArgumentParser(prog="./seapup teleop", description="the keyboard as the pilot's stick: a "
+                                     f"geometry_msgs/Twist on {PILOT} (REP-103 base_link) at 10 Hz for "
+                                     f"a manual velocity controller (docs/vehicles.md#manual-flight); {TELEOP_HELP}")
+    for name, (default, low, high, what) in TELEOP_OPTIONS.items():
+        parser.add_argument(f"--{name}", type=float, default=default, help=f"{what} ({low:g}-{high:g})")
+    add_json_argument(parser)
+    return parser
+
+
+#: ``./seapup teleop``'s options: default, range and meaning (the node's own ranges: config/teleop.yaml)
+TELEOP_OPTIONS = {"rate": (10.0, 1.0, 100.0, "messages a second [Hz]"),
+                  "step": (0.05, 0.001, 1.0, "one key press [m/s, rad/s]")}
+
+
+def teleop_command(argv: list[str]) -> int:
+    """``./seapup teleop``: the teleop node in this process (exec), on this domain."""
+    from seapup_bringup.output import emit_json
+    from seapup_common.processes import find_executable
+    parser = teleop_parser()
+    args = parser.parse_args(argv)
+    for name, (_, low, high, _) in TELEOP_OPTIONS.items():
+        if not low <= getattr(args, name) <= high:
+            parser.error(f"--{name} must be in [{low:g}, {high:g}], got {getattr(args, name)}")
+    if not os.isatty(sys.stdin.fileno()):
+        print("seapup teleop: error: it reads keys from a terminal, and stdin is not one", file=sys.stderr)
+        return 1
+    path = find_executable("seapup_control", "teleop")
+    from seapup_common.topics import PILOT
+    emit_json(args, {"topic": PILOT, "rate_hz": args.rate, "step": args.step, "pid": os.getpid()})
+    rules = [f"rate:={args.rate}", f"linear_step:={args.step}", f"angular_step:={args.step}"]
     os.execv(str(path), [str(path), "--ros-args", *[x for rule in rules for x in ("-p", rule)]])
     return 1  # not reached
