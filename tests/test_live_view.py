@@ -468,3 +468,46 @@ def test_launch_with_the_view_paces_the_graph_and_serves_a_self_tuner_s_estimate
         os.killpg(launch.pid, signal.SIGINT)
         _, err = launch.communicate(timeout=60)
     assert f"live view at ws://127.0.0.1:{port}" in err
+
+
+@pytest.mark.process
+def test_a_viewer_publishing_the_pilot_s_twist_reaches_the_graph_and_other_channels_are_refused(
+        node_process, ros_context, spin):
+    """A scripted Foxglove client (as the Teleop panel does: client publish, a JSON geometry_msgs/Twist) advertises
+    /seapup/pilot/cmd_vel and sends a stick: ``./seapup view`` publishes it on the graph, where a subscriber hears
+    it; a channel on another topic and a malformed stick are refused (said on /events), and nothing of theirs is
+    published."""
+    from geometry_msgs.msg import Twist
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from seapup_common.ros.node import RELIABLE_QOS
+    heard = []
+    probe = Node("pilot_probe", context=ros_context)
+    probe.create_subscription(Twist, "/seapup/pilot/cmd_vel", heard.append, RELIABLE_QOS)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(probe)
+    repo = Path(__file__).resolve().parents[1]
+    port = _free_port()
+    node_process([str(repo / "seapup"), "view", "--port", str(port)], name="view")
+
+    async def scenario():
+        client = await Client.connect(port)
+        assert await client.pump(lambda: "/events" in client.channels, 20.0)
+        client.subscribe("/events")
+        client.connection.write_message(json.dumps({"op": "advertise", "channels": [
+            {"id": 7, "topic": "/seapup/pilot/cmd_vel", "encoding": "json", "schemaName": "geometry_msgs/msg/Twist"},
+            {"id": 8, "topic": "/seapup/thrusters/command", "encoding": "json", "schemaName": "geometry_msgs/msg/Twist"}]}))
+        await client.pump(lambda: False, 0.5)
+        for channel, stick in ((7, {"linear": {"x": 0.2, "y": 0.1}, "angular": {"z": -0.05}}),
+                               (8, {"linear": {"x": 9.0}}), (7, {"linear": {"x": "fast"}})):
+            client.connection.write_message(struct.pack("<BI", 0x01, channel) + json.dumps(stick).encode(), binary=True)
+        assert await client.pump(lambda: len(client.messages.get("/events", [])) >= 2, 20.0)
+        log = _decoder(client.channels["/events"])
+        events = [log.FromString(m).message for _, m in client.messages["/events"]]
+        assert any("client channel \"/seapup/thrusters/command\"" in e for e in events), events
+        assert any("pilot linear: x must be a finite number" in e for e in events), events
+        client.connection.close()
+
+    asyncio.run(scenario())
+    assert spin(executor, lambda: len(heard) >= 1, 20.0)
+    assert [(m.linear.x, m.linear.y, m.angular.z) for m in heard] == [(0.2, 0.1, -0.05)]

@@ -45,7 +45,7 @@ import threading
 import time
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped, \
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist, TwistStamped, \
     Vector3Stamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path as PathMessage
@@ -63,7 +63,7 @@ from seapup_common import frames
 from seapup_common.ros import messages as conv
 from seapup_common.ros.node import (QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS, declare_guarded, one_of,
                                      path_or_empty, run_node)
-from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, POSITION,
+from seapup_common.topics import (APPLIED, CURRENT, DIAGNOSTICS, NAMESPACE, NAVIGATION_ODOMETRY, PILOT, POSITION,
                                   POSITION_REFERENCE, SET_CURRENT_SERVICE, SIMULATOR_PARAMETERS_SERVICE,
                                   SWITCH_CONTROLLER_SERVICE, TRUTH_ODOMETRY, UMBILICAL_SHAPE, VELOCITY_REFERENCE,
                                   task_action)
@@ -153,9 +153,13 @@ class LiveViewNode(Node):
         self._latest: dict = {}
         self._fixes = collections.deque(maxlen=50)   # the newest acoustic fixes
         self._seabed_sent_ns = -_SEABED_PERIOD_NS
+        # a viewer's stick (Foxglove's Teleop panel) goes to the graph as a pilot's Twist (seapup_control.manual)
+        self.pilot_publisher = self.create_publisher(Twist, PILOT, RELIABLE_QOS)
+        self._pilot_channels: set = set()   # (client id, client channel id) taken as the pilot's
         self.server = foxglove.start_server(   # on a private port: viewers come through the relay
             name="seapup", host="127.0.0.1", port=0,
-            capabilities=[Capability.Time, Capability.Parameters], services=self._viewer_services(foxglove),
+            capabilities=[Capability.Time, Capability.Parameters, Capability.ClientPublish],
+            services=self._viewer_services(foxglove),
             supported_encodings=["json"], server_listener=_Listener(self))
         from seapup_live_view.view_relay import Relay
         port = int(self.get_parameter("port").value)
@@ -548,6 +552,31 @@ class _Listener(ServerListener):
         values = self.node.viewer_parameters()
         wanted = set(names) & set(VIEW_PARAMETERS) if names else set(VIEW_PARAMETERS)
         return [Parameter(name, value=values[name]) for name in VIEW_PARAMETERS if name in wanted]
+
+    def on_client_advertise(self, client, channel):
+        try:
+            view_requests.pilot_channel(channel.topic, channel.encoding, channel.schema_name, PILOT)
+        except ViewRequestError as exc:   # refused: said, nothing published
+            self.node.refused(str(exc))
+            return
+        self.node._pilot_channels.add((client.id, channel.id))
+
+    def on_client_unadvertise(self, client, client_channel_id):
+        self.node._pilot_channels.discard((client.id, client_channel_id))
+
+    def on_message_data(self, client, client_channel_id, data):
+        """A viewer's pilot message, checked and published on the pilot's topic (a thread-safe publish)."""
+        if (client.id, client_channel_id) not in self.node._pilot_channels:
+            return
+        try:
+            linear, angular = view_requests.pilot_twist(data)
+        except ViewRequestError as exc:
+            self.node.refused(str(exc))
+            return
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.linear.z = linear
+        msg.angular.x, msg.angular.y, msg.angular.z = angular
+        self.node.pilot_publisher.publish(msg)
 
     def on_get_parameters(self, client, param_names, request_id=None):
         return self._parameters(param_names)

@@ -232,3 +232,43 @@ def parameter_request(parameters) -> list[tuple[str, object]]:
     if not checked:
         raise ViewRequestError("setParameters: no parameter named")
     return checked
+
+
+#: The pilot's channel a viewer may publish on (Foxglove's Teleop or Publish panel): a ``geometry_msgs/Twist`` in
+#: JSON, REP-103 ``base_link``; its schema named either way Foxglove names it.
+PILOT_SCHEMAS = ("geometry_msgs/msg/Twist", "geometry_msgs/Twist")
+#: The largest velocity component a pilot message may carry [m/s, rad/s] (the manual law bounds it again).
+PILOT_BOUND = 10.0
+
+
+def pilot_channel(topic: str, encoding: str, schema_name: str, pilot_topic: str) -> None:
+    """A viewer's advertised channel, taken only as the pilot's: ``pilot_topic``, JSON, a Twist.
+
+    Raises
+    ------
+    ViewRequestError
+        Any other channel (its topic, encoding or schema named).
+    """
+    if topic != pilot_topic or encoding != "json" or schema_name not in PILOT_SCHEMAS:
+        raise ViewRequestError(f"client channel {_shown(topic)} ({_shown(encoding)}, {_shown(schema_name)}): only "
+                               f"{pilot_topic} as JSON geometry_msgs/Twist is taken")
+
+
+def pilot_twist(payload: bytes) -> tuple[tuple, tuple]:
+    """A viewer's pilot message (JSON ``{"linear": {x, y, z}, "angular": {x, y, z}}``, missing components
+    zero) as (linear, angular) floats, each within +-:data:`PILOT_BOUND`.
+
+    Raises
+    ------
+    ViewRequestError
+        As :func:`parse_payload`, or a component that is not a finite number within the bound.
+    """
+    body = parse_payload(payload, "pilot", ("linear", "angular"))
+    out = []
+    for part in ("linear", "angular"):
+        vector = body.get(part, {})
+        if not isinstance(vector, dict) or set(vector) - {"x", "y", "z"}:
+            raise ViewRequestError(f"pilot: {part} must be an object of x, y, z, got {_shown(vector)}")
+        out.append(tuple(_number(f"pilot {part}", key, vector.get(key, 0.0), (-PILOT_BOUND, PILOT_BOUND))
+                         for key in ("x", "y", "z")))
+    return out[0], out[1]

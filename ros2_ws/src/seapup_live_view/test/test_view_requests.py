@@ -138,3 +138,27 @@ def test_a_valid_parameter_set_is_typed_for_the_graph():
     assert vr.parameter_request([("lockstep_pace", 3), ("controller", "gmv")]) == [("lockstep_pace", 3.0),
                                                                                    ("controller", "gmv")]
     assert vr.parameter_request([("lockstep_pace", 1e4)]) == [("lockstep_pace", 1e4)]   # the simulator's bound
+
+
+def test_only_the_pilot_s_json_twist_channel_is_taken_from_a_viewer():
+    vr.pilot_channel("/seapup/pilot/cmd_vel", "json", "geometry_msgs/msg/Twist", "/seapup/pilot/cmd_vel")
+    vr.pilot_channel("/seapup/pilot/cmd_vel", "json", "geometry_msgs/Twist", "/seapup/pilot/cmd_vel")
+    for topic, encoding, schema in (("/seapup/thrusters/command", "json", "geometry_msgs/msg/Twist"),
+                                    ("/seapup/pilot/cmd_vel", "cdr", "geometry_msgs/msg/Twist"),
+                                    ("/seapup/pilot/cmd_vel", "json", "std_msgs/String")):
+        with pytest.raises(ViewRequestError, match="only /seapup/pilot/cmd_vel as JSON geometry_msgs/Twist"):
+            vr.pilot_channel(topic, encoding, schema, "/seapup/pilot/cmd_vel")
+
+
+def test_a_pilot_message_is_a_bounded_finite_twist_missing_parts_zero():
+    linear, angular = vr.pilot_twist(json.dumps({"linear": {"x": 0.2, "y": -0.1}, "angular": {"z": 0.3}}).encode())
+    assert linear == (0.2, -0.1, 0.0) and angular == (0.0, 0.0, 0.3)
+    for payload, reason in ((b'{"linear": {"x": NaN}}', "not a JSON number"),
+                            (b'{"linear": {"x": "1"}}', "x must be a finite number"),
+                            (b'{"linear": {"x": 11}}', r"x must be in \[-10, 10\]"),
+                            (b'{"linear": {"w": 1}}', "must be an object of x, y, z"),
+                            (b'{"twist": {}}', "unknown keys"),
+                            (b"[1, 2]", "must be a JSON object"),
+                            (b"x" * 5000, "at most 4096")):
+        with pytest.raises(ViewRequestError, match=reason):
+            vr.pilot_twist(payload)
