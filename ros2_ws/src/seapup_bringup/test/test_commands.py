@@ -80,3 +80,26 @@ def test_did_you_mean_never_suggests_the_mistyped_name_itself():
     typo, right = "/seapup/simulatr/get_parameters", "/seapup/simulator/get_parameters"
     assert _did_you_mean(typo, [typo, right, "/seapup/navigator/get_parameters"]) == f"; did you mean {right}?"
     assert _did_you_mean(typo, [typo]) == ""
+
+
+def test_a_campaign_worker_logs_an_error_in_one_line():
+    """The workers' log filter (dask_worker_setup.OneLine): an exception logged with a record becomes its type
+    and reason after the message, no traceback (a worker's failed heartbeat once printed a screen of them)."""
+    import io
+    import logging
+    from seapup_bringup.dask_worker_setup import OneLine
+    stream = io.StringIO()
+    handler = logging.StreamHandler(stream)
+    handler.addFilter(OneLine())
+    logger = logging.getLogger("test.one_line")
+    logger.addHandler(handler)
+    logger.propagate = False
+    try:
+        try:
+            raise OSError("Stream is closed")
+        except OSError:
+            logger.exception("Failed to communicate with scheduler during %s.", "heartbeat")
+    finally:
+        logger.removeHandler(handler)
+    assert stream.getvalue() == ("Failed to communicate with scheduler during heartbeat. "
+                                 "(OSError: Stream is closed)\n")
