@@ -41,8 +41,8 @@ def batch_reason(spec: RunSpec, environment=None) -> str | None:
         return "only a run of one MFOL law (fixed-gain or scheduled) is batched"
     if spec.coefficients:
         return "a vehicle with scaled coefficients flies run by run"
-    from seapup_sim.vehicle_config import load_vehicle_config
-    if load_vehicle_config(spec.vehicle)["thrusters"].get("kind", "controllable_pitch") != "controllable_pitch":
+    from seapup_runs.spec import vehicle_thrusters
+    if (vehicle_thrusters(spec.vehicle) or ("controllable_pitch",))[0] != "controllable_pitch":
         return "the kernels step controllable-pitch thrusters only"
     env = environment if environment is not None else load_environment(spec.environment)
     if env.umbilical.enabled:

@@ -30,7 +30,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.contract import Command, MEASUREMENT_FIELDS
-from seapup_common.controllers import ControllerSpec, controller_type, create_controller
+from seapup_common.controllers import ControllerSpec, at_input_limit, controller_type, create_controller
 from seapup_runs.metrics import check_names, compute
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec, RunSpecError
@@ -130,11 +130,10 @@ def at_vehicle_limit(controller: ControllerSpec, limit: float) -> ControllerSpec
     """``controller`` with its input limit (``blade_pitch_limit``) at the vehicle's when the spec leaves it at
     the default and the vehicle's differs (a virtual-input vehicle's full scale, :mod:`seapup_sim.inputs`):
     the law then saturates, and winds back, where the vehicle does."""
-    kind = controller_type(controller.type)
-    if ("blade_pitch_limit" not in kind.parameters or "blade_pitch_limit" in controller.parameters
-            or limit == BLADE_PITCH_LIMIT):
+    if "blade_pitch_limit" in controller.parameters or limit == BLADE_PITCH_LIMIT:
         return controller
-    return dataclasses.replace(controller, parameters={**controller.parameters, "blade_pitch_limit": limit})
+    return dataclasses.replace(controller, parameters=at_input_limit(controller_type(controller.type),
+                                                                     controller.parameters, limit))
 
 
 def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Callable | None = None) -> RunResult:

@@ -40,7 +40,7 @@ from seapup_common.values import finite_real, is_real
 
 __all__ = ["RunSpecError", "PHYSICS_STEP", "ReferenceSteps", "RunEvent", "SelfTestDesign", "RunSpec",
            "EVENT_KINDS", "CURRENT_FIELDS", "MAX_RUN_SAMPLES", "MAX_PHYSICS_STEPS", "MAX_OPERATING_POINTS",
-           "MAX_NAME_LENGTH", "max_run_samples", "max_physics_steps", "number_hint"]
+           "MAX_NAME_LENGTH", "max_run_samples", "max_physics_steps", "number_hint", "vehicle_thrusters"]
 
 #: The RK4 physics step of the thesis's simulation [s] (sec. 3.2).
 PHYSICS_STEP = 0.1
@@ -142,12 +142,13 @@ def _pilot_steps(value) -> tuple:
 
 
 @functools.lru_cache(maxsize=64)
-def _thruster_count(vehicle: str) -> int | None:
-    """How many thrusters ``vehicle`` has (None when it cannot be read: refused where it is flown)."""
+def vehicle_thrusters(vehicle: str) -> tuple[str, int] | None:
+    """(kind, count) of ``vehicle``'s thrusters, read once per process (None when it cannot be read: refused
+    where it is flown)."""
     from seapup_sim.vehicle_config import ConfigError, load_vehicle_config
     try:
         thrusters = load_vehicle_config(vehicle)["thrusters"]
-        return len(thrusters["positions"])
+        return str(thrusters.get("kind", "controllable_pitch")), len(thrusters["positions"])
     except (ConfigError, KeyError, TypeError, OSError):
         return None
 
@@ -450,7 +451,8 @@ class RunSpec:
         if not isinstance(self.events, (list, tuple)):
             raise RunSpecError(f"events must be a list of events, got {_short(self.events)}")
         events = tuple(e if isinstance(e, RunEvent) else RunEvent.from_dict(e) for e in self.events)
-        count = _thruster_count(self.vehicle)
+        thrusters = vehicle_thrusters(self.vehicle)
+        count = None if thrusters is None else thrusters[1]
         for event in events:
             if event.kind == "thruster_efficiency" and count is not None and len(event.detail) != count:
                 raise RunSpecError(f"a thruster_efficiency event needs {count} factors ({self.vehicle} has {count} "
