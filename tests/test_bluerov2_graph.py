@@ -71,16 +71,30 @@ def test_a_mission_names_one_efficiency_per_thruster_of_its_vehicle():
 
 
 @pytest.mark.graph
-def test_the_bluerov2_demo_on_the_graph_is_the_mission_flown_in_process(bluerov2_mission, tmp_path):
+def test_the_bluerov2_demo_on_the_graph_is_the_mission_flown_in_process(tmp_path):
     """The self-test node with the launch's vehicle (its settings and input limit), the velocity controllers at
-    the launch's input limit, the simulator's eight-factor fouling service: the graph flies the BlueROV2's
-    mission command for command as the process does."""
+    the launch's input limit, the manager's swap, the simulator's eight-factor fouling service and the switch to
+    GMV: the graph flies the BlueROV2's mission command for command as the process does. Flown on the graph:
+    the legs that exercise what is this vehicle's own (the self-test, the hover with its swap, the fouled
+    thruster); the others (goto, inspection, seabed, current) are the Seapup's leg kinds, whose graph equality
+    ``tests/test_mission_flight.py`` proves, and the whole BlueROV2 mission flies in process above."""
     import io
     import numpy as np
-    from seapup_bringup.graph.mission_graph import fly_mission
-    config, flown = bluerov2_mission
-    on_graph = fly_mission(tmp_path, {"graph": dict(config["graph"]), "mission": config["mission"]}, io.StringIO())
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    from seapup_bringup.graph.mission_graph import fly_mission, mission_config, mission_path
+    from seapup_runs.mission import MissionSpec
+    from seapup_runs.mission_flight import run_mission
+    config = mission_config(mission_path("bluerov2_heavy"))
+    legs = [leg for leg in config["mission"] if leg["kind"] in ("self_test", "hover", "fouling")]
+    assert [leg["kind"] for leg in legs] == ["self_test", "hover", "fouling"]
+    spec = MissionSpec.load({"graph": config["graph"], "mission": legs})
+    flown = run_mission(spec, hierarchy_config(spec.graph))
+    on_graph = fly_mission(tmp_path, {"graph": dict(config["graph"]), "mission": legs}, io.StringIO())
     assert on_graph["stopped"] is None
-    assert [leg["status"] for leg in on_graph["legs"]] == [leg["status"] for leg in flown["legs"]]
+    assert [leg["status"] for leg in on_graph["legs"]] == [leg["status"] for leg in flown["legs"]] \
+        == ["succeeded"] * 3
     assert np.array_equal(np.round(on_graph["logs"]["command_t"], 6), np.round(flown["logs"]["command_t"], 6))
     assert np.abs(on_graph["logs"]["command"] - flown["logs"]["command"]).max() <= 1e-9
+    # the fouling (T1 at half) and the swap to GMV happened on both sides at the same sample
+    for key in ("foul_t", "switch_t"):
+        assert on_graph["legs"][-1][key] == flown["legs"][-1][key], key
