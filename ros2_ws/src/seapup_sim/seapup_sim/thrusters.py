@@ -251,13 +251,14 @@ class ThrustCurve:
 
     def command_for(self, thrust) -> np.ndarray:
         """The command of each thrust [N] (array), clipped to what the curve can give; the inverse of
-        :meth:`thrust` (the deadband's edge for the smallest thrusts either way)."""
+        :meth:`thrust` (the deadband's edge for the smallest thrusts either way; no thrust is no command, also
+        where a table is flat about zero, as a maker's data are over an ESC's own band)."""
         t = np.clip(np.asarray(thrust, dtype=float), self.max_reverse, self.max_forward)
         c = np.interp(t, self._monotone, self._grid)
         d = self.deadband
         if d > 0.0:
-            c = np.where(t == 0.0, 0.0, np.sign(c) * (d + np.abs(c) * (1.0 - d)))
-        return c
+            c = np.sign(c) * (d + np.abs(c) * (1.0 - d))
+        return np.where(t == 0.0, 0.0, c)
 
 
 @dataclass

@@ -138,6 +138,41 @@ def test_the_virtual_inputs_ask_the_thrusters_for_their_wrench_and_nothing_else(
     np.testing.assert_allclose(inputs.to_actuators(v * [1, -1, 1, -1]), inputs.to_actuators(v)[mirror], atol=1e-9)
 
 
+#: Blue Robotics, "T200 Thruster Public Performance Data 10-20 V" (Sept. 2019), sheet "16 V": bollard thrust
+#: [kgf] at the ESC's pulse width [us], read from the maker's data (independent of the file's [c, N] pairs)
+MAKER_16V = {1100: -4.07, 1200: -2.71, 1300: -1.44, 1400: -0.48, 1468: -0.04, 1472: 0.0, 1500: 0.0, 1528: 0.0,
+             1532: 0.04, 1600: 0.60, 1700: 1.82, 1800: 3.42, 1852: 4.51, 1900: 5.25}
+
+
+def test_the_maker_s_t200_curve_is_its_bollard_data_asymmetric_with_the_esc_s_band():
+    rov = VehicleModel(load_vehicle_config("bluerov2_heavy_t200"))
+    curve = rov.thrusters.curve
+    assert curve.table is not None and curve.coefficients is None   # the overlay replaced [vB]'s polynomial
+    pwm = np.array(sorted(MAKER_16V))
+    command = (pwm - 1500.0) / 400.0
+    np.testing.assert_allclose(curve.thrust(command), [MAKER_16V[p] * 9.80665 for p in pwm], atol=6e-4)
+    assert (curve.max_forward, curve.max_reverse) == (pytest.approx(5.25 * 9.80665, abs=6e-4),
+                                                      pytest.approx(-4.07 * 9.80665, abs=6e-4))
+    # the inverse through the ESC's flat band: no thrust, no command; the least thrust either way at its edge
+    np.testing.assert_array_equal(curve.command_for(np.zeros(3)), 0.0)
+    small = curve.command_for(np.array([0.01, -0.01]))
+    assert 0.07 < small[0] < 0.071 and -0.071 < small[1] < -0.07
+    thrust = np.linspace(curve.max_reverse, curve.max_forward, 401)
+    np.testing.assert_allclose(curve.thrust(curve.command_for(thrust)), thrust, atol=1e-9)
+    # the mixer's full scale follows it: heave is the vertical four pushing one way or the other (4 x 5.25 kgf
+    # against 4 x 4.07 kgf); surge the horizontal four at 45 deg, two forward and two in reverse either way
+    forward, reverse = curve.max_forward, -curve.max_reverse
+    np.testing.assert_allclose(sorted(rov.inputs.full_scale[2]), [4 * reverse, 4 * forward], rtol=1e-9)
+    np.testing.assert_allclose(rov.inputs.full_scale[0], 2 * (forward + reverse) * math.sqrt(0.5), rtol=1e-9)
+    # and every other number is bluerov2_heavy's
+    vb = VehicleModel(load_vehicle_config("bluerov2_heavy"))
+    np.testing.assert_array_equal(rov.m_rigid, vb.m_rigid)
+    np.testing.assert_array_equal(rov.thrusters.matrix, vb.thrusters.matrix)
+    assert rov.actuator_time_constant == vb.actuator_time_constant
+    report = check_model(rov)
+    assert report.ok, report.findings
+
+
 def test_it_hovers_level_and_check_model_notes_what_the_description_declares(rov):
     hover = trim(rov, 0.0)
     assert abs(hover.pitch_angle) < 1e-9 and hover.residual < 1e-9
