@@ -14,7 +14,8 @@ broadcasts as its clock (at a display's rate: every sample while the graph runs 
   navigator's estimate (a sphere of its 2-sigma horizontal uncertainty) and the acoustic fixes as they come;
 - ``/scene/seabed``: the environment's seabed around the vehicle (re-sent every few seconds: the server keeps
   nothing for a client that subscribes later);
-- ``/plot`` (JSON): the true body velocities against the references, blade pitches [deg] and the limit.
+- ``/plot`` (JSON): the true body velocities against the references, the inputs applied and their limit
+  (the Seapup's blade pitches [deg]; a virtual-input vehicle's in % of full scale: ``view_scene.plot_inputs``).
 
 Services through the server (JSON requests): ``switch_controller`` (``{"activate": "gmv"}`` -> the controller
 manager's switch), ``set_current`` (``{"enabled": true, "mean_speed": 0.26, ...}`` -> the simulator's),
@@ -87,7 +88,9 @@ EVENTS_TOPIC, ESTIMATE_TOPIC = "/events", "/estimate"
 #: The /plot channel's JSON schema (what a plot panel's paths name).
 PLOT_SCHEMA = {"title": "seapup.Plot", "type": "object", "properties": {
     "t": {"type": "number"}, "velocity": {"type": "array"}, "reference": {"type": "array"},
-    "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"}, "controller": {"type": "string"}}}
+    "inputs": {"type": "array"}, "input_limit": {"type": "number"}, "input_unit": {"type": "string"},
+    "input_names": {"type": "array"}, "blade_pitch_deg": {"type": "array"}, "pitch_limit_deg": {"type": "number"},
+    "controller": {"type": "string"}}}
 
 _SEABED_PERIOD_NS = 5_000_000_000
 #: Wall seconds between two samples shown (frames, plot, server time: every sample of a graph at up to 10x real time
@@ -369,8 +372,7 @@ class LiveViewNode(Node):
     def _plot(self, t_ns: int, pitch: np.ndarray, state: np.ndarray) -> dict:
         """The plot sample: the true body velocities (u, v, w, r: what the vehicle does, from the truth already
         read, so no instrument topic costs the graph a reader) against the velocity controllers' reference."""
-        plot = {"t": t_ns * 1e-9, "blade_pitch_deg": np.degrees(pitch).tolist(),
-                "pitch_limit_deg": float(np.degrees(self.shape.pitch_limit)), "controller": self.active_controller,
+        plot = {"t": t_ns * 1e-9, **view_scene.plot_inputs(self.shape, pitch), "controller": self.active_controller,
                 "velocity": [float(state[6]), float(state[7]), float(state[8]), float(state[11])]}
         reference = self._decoded(VELOCITY_REFERENCE)
         if reference is not None:

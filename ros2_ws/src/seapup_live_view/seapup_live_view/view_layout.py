@@ -3,8 +3,10 @@
 ``./seapup view --write-layout FILE`` writes it; the shipped copy is ``config/foxglove_layout.json`` (a test keeps
 it equal to :func:`layout`). Import it in Foxglove (Layouts -> Import from file): a 3D panel in ``odom``
 (ENU, up is up) following the vehicle, with its three scene topics; plots of the body velocities against
-the velocity controllers' references and of the blade pitches against the +-35 deg limit; the two service
-buttons. The paths name :data:`seapup_live_view.live_view_node.PLOT_SCHEMA`'s fields.
+the velocity controllers' references and of the inputs applied against their limit (the Seapup's blade
+pitches in degrees against +-35 deg; ``--vehicle bluerov2_heavy``: its virtual surge, sway, heave and yaw in
+percent of full scale, labelled so); the service buttons. The paths name
+:data:`seapup_live_view.live_view_node.PLOT_SCHEMA`'s fields.
 """
 from __future__ import annotations
 
@@ -16,13 +18,22 @@ __all__ = ["layout", "layout_json", "VELOCITY_AXES"]
 VELOCITY_AXES = ("u", "v", "w", "r")
 
 
-def layout():
-    """The layout object (``foxglove.layouts.Layout``)."""
+def layout(vehicle: str = "baseline"):
+    """The layout object (``foxglove.layouts.Layout``) for a vehicle configuration (its inputs' names, unit and
+    limit label the inputs' plot)."""
     from foxglove import layouts as L
     from seapup_live_view.live_view_node import EVENTS_TOPIC, PLOT_TOPIC, SCENE_TOPICS, SERVICES
+    from seapup_live_view.view_scene import plot_inputs, vehicle_shape
+    from seapup_sim.vehicle import VehicleModel
+    from seapup_sim.vehicle_config import load_vehicle_config
+
+    model = VehicleModel(load_vehicle_config(vehicle))
+    shape = vehicle_shape(model)
+    limit = plot_inputs(shape, [0.0] * 4)["input_limit"]
 
     scene = {topic: L.BaseRendererSceneUpdateTopicSettings(visible=True) for topic in SCENE_TOPICS}
-    three_d = L.ThreeDeePanel(title="Seapup (odom, ENU: up is up)", config=L.ThreeDeeConfig(
+    name = "Seapup" if shape.input_unit == "deg" else model.config_name   # blade-pitch inputs: the Seapup's
+    three_d = L.ThreeDeePanel(title=f"{name} (odom, ENU: up is up)", config=L.ThreeDeeConfig(
         follow_tf="base_link", follow_mode="follow-position", topics=scene))
     colours = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728")
     velocity_series = []
@@ -33,11 +44,12 @@ def layout():
                          line_style="dashed")]
     velocities = L.PlotPanel(title="body velocities vs references (m/s, rad/s)",
                              config=L.PlotConfig(paths=velocity_series, show_legend=True))
-    pitch_series = [L.PlotSeries(value=f"{PLOT_TOPIC}.blade_pitch_deg[{j}]", label=f"thruster {j + 1}", color=colours[j])
-                    for j in range(4)]
-    pitch_series += [L.PlotSeries(value=f"{PLOT_TOPIC}.pitch_limit_deg", label="+limit", color="#888888", line_style="dotted")]
-    pitches = L.PlotPanel(title="blade pitches (deg) and the 35 deg limit",
-                          config=L.PlotConfig(paths=pitch_series, show_legend=True))
+    input_series = [L.PlotSeries(value=f"{PLOT_TOPIC}.inputs[{j}]", label=name.replace("_", " "), color=colours[j])
+                    for j, name in enumerate(shape.input_names)]
+    input_series += [L.PlotSeries(value=f"{PLOT_TOPIC}.input_limit", label="+limit", color="#888888", line_style="dotted")]
+    what = ("blade pitches (deg)" if shape.input_unit == "deg" else "virtual inputs (% of full scale)")
+    pitches = L.PlotPanel(title=f"{what} and the {limit:g} {shape.input_unit} limit",
+                          config=L.PlotConfig(paths=input_series, show_legend=True))
     switch = L.ServiceCallPanel(title="switch controller", config=L.ServiceCallConfig(
         service_name=SERVICES[0], request_payload=json.dumps({"activate": "gmv"}), button_text="switch"))
     current = L.ServiceCallPanel(title="set current", config=L.ServiceCallConfig(
@@ -62,6 +74,6 @@ def layout():
         L.SplitItem(proportion=3, content=three_d), L.SplitItem(proportion=2, content=right)]))
 
 
-def layout_json() -> str:
-    """The layout as the JSON a Foxglove import takes (indented, stable: the shipped file is this text)."""
-    return json.dumps(json.loads(layout().to_json()), indent=2, sort_keys=True) + "\n"
+def layout_json(vehicle: str = "baseline") -> str:
+    """The layout as the JSON a Foxglove import takes (indented, stable: the shipped file is the Seapup's)."""
+    return json.dumps(json.loads(layout(vehicle).to_json()), indent=2, sort_keys=True) + "\n"

@@ -59,6 +59,10 @@ class VehicleShape:
     zero_thrust_pitch: float
     pitch_limit: float
     thrust_share: Callable = None   # applied inputs (4,) -> (N,) signed shares of full thrust
+    #: the four inputs' names, and how the plot shows them: the Seapup's blade pitches in degrees, a virtual-input
+    #: vehicle's surge, sway, heave and yaw in percent of their full scale (:func:`plot_inputs`)
+    input_names: tuple = ("input 1", "input 2", "input 3", "input 4")
+    input_unit: str = "deg"
 
 
 #: [m] the drawn diameter of a fixed-pitch thruster, whose description has none (a T200's nozzle is about 0.1 m)
@@ -82,7 +86,8 @@ def vehicle_shape(model) -> VehicleShape:
         def share(applied):   # eq. 2.18's bollard term: (beta - beta_0) over the limit
             pitch = np.asarray(applied, float).reshape(len(thrusters))
             return (pitch - beta0) / limit
-        return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, beta0, limit, share)
+        return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, beta0, limit, share,
+                            tuple(model.inputs.names), "deg")
     inputs, curve = model.inputs, th.curve
 
     def share(applied):       # the mixer's commands through the thrust curve, over the curve's full thrust
@@ -91,7 +96,27 @@ def vehicle_shape(model) -> VehicleShape:
             raise ValueError(f"a virtual-input vehicle reports 4 applied inputs, got shape {applied.shape}")
         thrust = curve.thrust(inputs.to_actuators(applied))
         return np.where(thrust >= 0.0, thrust / curve.max_forward, thrust / -curve.max_reverse)
-    return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, 0.0, float(model.pitch_limit), share)
+    return VehicleShape(0.5 * (low + high), high - low, thrusters, payloads, 0.0, float(model.pitch_limit), share,
+                        tuple(inputs.names), "%")
+
+
+#: The factor from an input's own unit to the plot's (radians to degrees; a fraction of full scale to percent).
+_PLOT_SCALE = {"deg": 180.0 / np.pi, "%": 100.0}
+
+
+def plot_inputs(shape: VehicleShape, applied) -> dict:
+    """The ``/plot`` fields of the four inputs applied: ``inputs`` and their limit ``input_limit`` in the unit
+    ``input_unit`` (the Seapup's blade pitches in degrees against the +-35 deg limit; a virtual-input vehicle's
+    surge, sway, heave and yaw in percent of full scale against 100 %), and their ``input_names``. A
+    blade-pitch vehicle also keeps ``blade_pitch_deg`` and ``pitch_limit_deg`` (the layout's fields before
+    there were other vehicles); a virtual-input vehicle has no blade pitches to show."""
+    scale = _PLOT_SCALE[shape.input_unit]
+    values = np.asarray(applied, float).reshape(4) * scale
+    out = {"inputs": values.tolist(), "input_limit": float(shape.pitch_limit * scale), "input_unit": shape.input_unit,
+           "input_names": list(shape.input_names)}
+    if shape.input_unit == "deg":
+        out["blade_pitch_deg"], out["pitch_limit_deg"] = out["inputs"], out["input_limit"]
+    return out
 
 
 def thrust_arrows(shape: VehicleShape, applied) -> list[tuple[np.ndarray, np.ndarray, float]]:

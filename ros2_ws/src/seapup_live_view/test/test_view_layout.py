@@ -50,3 +50,20 @@ def test_every_service_button_sends_a_request_the_view_accepts():
     assert len(buttons) == len(SERVICES)
     for button in buttons:
         check[button["serviceName"]](button["requestPayload"].encode())
+
+
+def test_a_virtual_input_vehicle_s_layout_labels_its_inputs_and_their_unit():
+    """``./seapup view --write-layout FILE --vehicle bluerov2_heavy``: the inputs' plot names surge, sway, heave
+    and yaw in percent of full scale against 100 %, the fields the view publishes for that vehicle; the 3D
+    panel names the vehicle."""
+    document = json.loads(layout_json("bluerov2_heavy"))
+    panels = [n for n in _walk(document) if n.get("type") == "panel"]
+    (inputs,) = [p for p in panels if p["panelType"] == "Plot" and "inputs" in p["title"]]
+    assert inputs["title"] == "virtual inputs (% of full scale) and the 100 % limit"
+    labels = [s["label"] for s in inputs["config"]["paths"]]
+    assert labels == ["surge", "sway", "heave", "yaw", "+limit"]
+    assert [s["value"] for s in inputs["config"]["paths"]][-1] == f"{PLOT_TOPIC}.input_limit"
+    (three_d,) = [p for p in panels if p["panelType"] == "ThreeDee"]
+    assert three_d["title"].startswith("bluerov2_heavy")
+    seapup = json.loads(layout_json())
+    assert "blade pitches (deg) and the 35 deg limit" in json.dumps(seapup)

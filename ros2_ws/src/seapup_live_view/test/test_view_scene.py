@@ -121,3 +121,19 @@ def test_a_virtual_input_vehicle_shows_each_of_its_thrusters_with_the_thrust_its
     assert all(length == 0.0 for _, _, length in view_scene.thrust_arrows(shape, [0.0] * 4))
     with pytest.raises(ValueError, match="4 applied inputs"):
         view_scene.thrust_arrows(shape, [0.0] * 8)
+
+
+def test_the_plot_shows_each_vehicle_s_inputs_in_their_own_unit_against_their_own_limit():
+    """The Seapup's inputs are blade pitches: degrees against the +-35 deg of seapup_common/data/interface.yaml
+    (and the layout's older fields alike); a virtual-input vehicle's are surge, sway, heave and yaw in
+    fractions of full scale: percent against 100 %, and no blade pitches."""
+    from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
+    seapup = view_scene.plot_inputs(_shape(), [0.1, -0.2, 0.0, math.radians(35.0)])
+    np.testing.assert_allclose(seapup["inputs"], np.degrees([0.1, -0.2, 0.0, math.radians(35.0)]))
+    assert seapup["input_limit"] == pytest.approx(math.degrees(BLADE_PITCH_LIMIT)) == pytest.approx(35.0)
+    assert seapup["input_unit"] == "deg" and seapup["input_names"][0] == "main_port"
+    assert seapup["blade_pitch_deg"] == seapup["inputs"] and seapup["pitch_limit_deg"] == seapup["input_limit"]
+    rov = view_scene.plot_inputs(_shape("bluerov2_heavy"), [0.25, -0.5, 1.0, 0.0])
+    assert rov["inputs"] == [25.0, -50.0, 100.0, 0.0] and rov["input_limit"] == 100.0 and rov["input_unit"] == "%"
+    assert rov["input_names"] == ["surge", "sway", "heave", "yaw"]
+    assert "blade_pitch_deg" not in rov and "pitch_limit_deg" not in rov

@@ -20,8 +20,8 @@ def view_parser() -> argparse.ArgumentParser:
                                                                        f"{DEFAULT_PORT})")
     parser.add_argument("--vehicle", default="baseline", help="configuration drawn (the simulator's)")
     parser.add_argument("--environment-file", default="", help="the seabed drawn until the simulator's is read")
-    parser.add_argument("--write-layout", metavar="FILE", help="write the Foxglove layout (3D, plots, services) to "
-                                                               "FILE and exit: import it in Foxglove")
+    parser.add_argument("--write-layout", metavar="FILE", help="write the Foxglove layout (3D, plots, services) for "
+                                                               "--vehicle to FILE and exit: import it in Foxglove")
     add_json_argument(parser)
     return parser
 
@@ -34,8 +34,14 @@ def view_command(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     if args.write_layout:
         from pathlib import Path
+        from seapup_common.config import ConfigError
         from seapup_live_view.view_layout import layout_json
-        Path(args.write_layout).write_text(layout_json())
+        try:
+            text = layout_json(args.vehicle)
+        except ConfigError as exc:
+            print(f"seapup view: error: {exc}", file=sys.stderr)
+            return 1
+        Path(args.write_layout).write_text(text)
         print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
         emit_json(args, {"layout": args.write_layout})
         return 0
