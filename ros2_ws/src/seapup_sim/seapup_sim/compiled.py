@@ -305,6 +305,36 @@ def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, exte
 
 
 @njit(**_JIT)
+def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, external, use_external, thrusters_on,
+               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
+               envelope, states, pitches, accel):
+    """A control period in one call: ``len(states)`` physics steps of :func:`rk4_checked` with the command held,
+    the current of step i ``currents[i]`` (the Gauss-Markov current is independent of the vehicle: its values
+    for the period are known before it), each step from the one before -- bit for bit the steps one call each
+    (tested). ``states[i]``, ``pitches[i]``: after step i; ``accel``: d(u, v, w)/dt over the last step, as
+    :meth:`seapup_sim.simulation.Simulation.advance` computes it. Returns -1, or ``12 i + j`` for state j out
+    of the envelope at step i (``states[i]`` then holds that step unwrapped; the steps before it are good)."""
+    buf = np.empty(RK4_SCRATCH)
+    n = states.shape[0]
+    for i in range(n):
+        start = x if i == 0 else states[i - 1]
+        pitch_start = pitch0 if i == 0 else pitches[i - 1]
+        new, pitch_end = states[i], pitches[i]
+        _rk4_into(start, pitch_start, command, tau_actuator, dt, currents[i], use_current, external, use_external,
+                  thrusters_on, efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions,
+                  scalars, new, pitch_end, buf)
+        for j in range(12):
+            if not math.isfinite(new[j]) or abs(new[j]) > envelope[j]:
+                return 12 * i + j
+        new[3] = (new[3] + math.pi) % (2 * math.pi) - math.pi
+        new[5] = (new[5] + math.pi) % (2 * math.pi) - math.pi
+        if i == n - 1:
+            for j in range(3):
+                accel[j] = (new[6 + j] - start[6 + j]) / dt
+    return -1
+
+
+@njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, active,
               new, pitch_end):

@@ -23,6 +23,7 @@ are tested against, and the path of any model that overrides ``derivatives``
 """
 from __future__ import annotations
 
+import functools
 import os
 
 import numpy as np
@@ -51,6 +52,14 @@ def default_backend() -> str:
 
 
 _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
+
+
+@functools.lru_cache(maxsize=8)
+def _still_water(steps: int) -> np.ndarray:
+    """(steps, 3) zeros, read-only: the currents of a period with no current (the kernel reads none of them)."""
+    zeros = np.zeros((steps, 3))
+    zeros.setflags(write=False)
+    return zeros
 
 
 def _command(command, limit: float) -> np.ndarray:
@@ -202,6 +211,36 @@ class VehicleIntegrator:
         self.state = new
         self.steps += 1
         return new.copy()
+
+    def step_period(self, command, steps: int, currents: np.ndarray | None = None) -> np.ndarray:
+        """``steps`` physics steps with ``command`` held, step i in the current ``currents[i]`` (NED, (steps, 3);
+        None: no current), by one kernel call (:func:`seapup_sim.compiled.rk4_period`): the steps of
+        :meth:`step` one after another, bit for bit (tested), for a compiled plant with no external wrench.
+        Returns d(u, v, w)/dt over the last step [m/s^2]."""
+        from seapup_sim import compiled
+        if not self.compiled:
+            raise RuntimeError("step_period needs the compiled plant (the reference steps one at a time)")
+        command = _command(command, self.model.pitch_limit)
+        self.held = command
+        use_current = currents is not None
+        if currents is None:
+            currents = _still_water(steps)
+        elif currents.shape != (steps, 3):
+            raise ValueError(f"step_period: {steps} steps need currents of shape ({steps}, 3), got {currents.shape}")
+        states, pitches, accel = np.empty((steps, 12)), np.empty((steps, 4)), np.empty(3)
+        bad = compiled.rk4_period(
+            self.state, self.pitch, command, float(self.model.actuator_time_constant), self.dt, currents,
+            use_current, _NONE6, False, bool(self.thrusters_on), self.model.thrusters.efficiency,
+            *self._compiled_arrays(), ENVELOPE, states, pitches, accel)
+        if bad >= 0:
+            good = bad // 12
+            if good:   # the steps before the bad one are taken, as step() one at a time takes them
+                self.state, self.pitch = states[good - 1], pitches[good - 1]
+                self.steps += good
+            raise DivergenceError(divergence(states[good], self.t + self.dt))
+        self.state, self.pitch = states[-1], pitches[-1]
+        self.steps += steps
+        return accel
 
     def _accept(self, new: np.ndarray, pitch: np.ndarray) -> np.ndarray:
         self._check(new, self.t + self.dt)

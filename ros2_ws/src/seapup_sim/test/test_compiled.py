@@ -190,3 +190,48 @@ def test_the_compiled_umbilical_refuses_what_the_reference_refuses():
             cable.wrench(state)
         messages.append(str(caught.value))
     assert messages[0] == messages[1] and "shorter than the distance" in messages[0]
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("with_current", [False, True])
+def test_a_period_in_one_call_is_its_steps_one_at_a_time(with_current):
+    """Simulation.advance's one kernel call per control period (VehicleIntegrator.step_period) against the same
+    period stepped a physics step at a time (its ``_advance_steps``): the same states, blade pitches,
+    accelerations and current, bit for bit, over a flight with commands swept between the blade-pitch limits
+    and, on the second, the thesis's Gauss-Markov current (sec. 3.9) drawn for each step."""
+    from seapup_sim.simulation import Simulation
+    environment = {"sensors": "ideal", "current": {"enabled": with_current, "mean_speed": 0.26, "speed_std": 0.086,
+                                                   "mean_direction": 0.3, "direction_std": 0.35, "break_time": 10.0}}
+    start = np.r_[0.0, 0.0, 30.0, np.zeros(9)]
+    fast, slow = (Simulation.from_config("baseline", environment, seed=3, dt=0.1, control_period=0.3, state=start)
+                  for _ in range(2))
+    rng = np.random.default_rng(7)
+    command = np.zeros(4)
+    for k in range(300):
+        if k % 10 == 0:
+            command = rng.uniform(-0.6, 0.6, 4)
+        fast.advance(command)
+        slow._advance_steps(command)
+        assert np.array_equal(fast.plant.state, slow.plant.state) and np.array_equal(fast.plant.pitch, slow.plant.pitch)
+        assert np.array_equal(fast.acceleration, slow.acceleration) and fast.t == slow.t
+        assert np.array_equal(fast._current_ned(), slow._current_ned())
+    assert fast.plant.steps == 900 and np.abs(fast.plant.state[6:9]).max() > 0.1   # it flew
+    if with_current:
+        assert np.abs(fast._current_ned()).max() > 0.05
+
+
+@pytest.mark.unit
+def test_a_period_that_diverges_keeps_the_steps_before_it_and_says_where():
+    plant = VehicleIntegrator(vehicle_model(load_vehicle_config("baseline")), backend="compiled")
+    plant.state[4], plant.state[10] = np.radians(76.0), 1.0   # pitching up at 1 rad/s, 9 deg from the envelope
+    twin = VehicleIntegrator(vehicle_model(load_vehicle_config("baseline")), backend="compiled",
+                             state=plant.state, pitch=plant.pitch)
+    with pytest.raises(DivergenceError, match="theta") as one_call:
+        plant.step_period(np.zeros(4), 50)
+    with pytest.raises(DivergenceError, match="theta") as one_at_a_time:   # the same steps, one call each
+        for _ in range(50):
+            twin.step(np.zeros(4))
+    assert plant.steps == twin.steps == 2 and str(one_call.value) == str(one_at_a_time.value)
+    assert np.array_equal(plant.state, twin.state) and abs(plant.state[4]) <= np.radians(85.0)
+    with pytest.raises(ValueError, match="shape"):
+        plant.step_period(np.zeros(4), 2, np.zeros((3, 3)))
