@@ -230,6 +230,7 @@ class MissionFlight:
         self.task = None
         self.task_result: dict | None = None
         self.setpoint = None           # the task controller's setpoint (PoseReference), None before the first goal
+        self._setpoint_yaw = (math.nan, math.nan)   # (a setpoint's yaw, as its message carries it)
         self.answered = False          # the present sample has its command
         self.skipped = 0               # samples nobody could answer (no fresh velocity): the plant held its command
         self.logs = {name: [] for name in ("command_t", "command", "truth_t", "truth_position", "truth_attitude",
@@ -301,7 +302,10 @@ class MissionFlight:
 
     def _send_setpoint(self, setpoint, stamp: float) -> None:
         t_ns = self._t_ns(stamp)
-        yaw = frames.euler_through_quaternion(0.0, 0.0, setpoint.yaw, normalise=False)[2]
+        if self._setpoint_yaw[0] != setpoint.yaw:   # a held setpoint's yaw crosses as the same quaternion each sample
+            self._setpoint_yaw = (setpoint.yaw,
+                                  frames.euler_through_quaternion(0.0, 0.0, setpoint.yaw, normalise=False)[2])
+        yaw = self._setpoint_yaw[1]
         from seapup_control.position_control import PoseReference
         self.setpoints.add(PoseReference(np.array(setpoint.position, float), yaw, t_ns * 1e-9), t_ns * 1e-9)
         self.logs["setpoint_t"].append(_stamp(t_ns))
