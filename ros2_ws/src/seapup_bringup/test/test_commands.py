@@ -72,6 +72,22 @@ def test_cli_writes_the_documented_json(tmp_path, capsys):
     assert set(data["umbilical"]["50"]) == {"max_u", "Fx", "Fz"}
 
 
+def test_verify_checks_a_virtual_input_vehicle_against_its_paper_or_says_why_it_cannot(tmp_path, capsys):
+    """Issue 45: ``./seapup verify --config bluerov2_heavy`` flies the description against [vB]'s own equations
+    (it had ended in an exception's name); a virtual-input vehicle with no published reference is refused in one
+    line naming why, not with Table 3.2's blade-pitch tests."""
+    out = tmp_path / "v.json"
+    assert main(["verify", "--config", "bluerov2_heavy", "--json", str(out), "--plots", str(tmp_path / "p")]) == 0
+    data = json.loads(out.read_text())
+    assert data["reference"] == "von_benzon_2022" and data["summary"] == {"ok": True, "passed": 5, "checks": 5}
+    assert {r["test"] for r in data["checks"]} >= {"surge ahead", "heave down", "yaw to starboard"}
+    assert [p.name for p in (tmp_path / "p").glob("*.png")] == ["reference_responses.png"]
+    capsys.readouterr()
+    assert main(["verify", "--config", "bluerov2_heavy_t200"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no published reference model" in err and "Error" not in err
+
+
 def test_did_you_mean_never_suggests_the_mistyped_name_itself():
     """The graph lists a service once a client asks for it, so the probe's own client for the typo was the
     "nearest" name: "service /seapup/simulatr/get_parameters is not available; did you mean

@@ -176,3 +176,29 @@ def write_plots(results: dict, histories: dict, out_dir: str | Path) -> list[Pat
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def write_reference_plot(histories: dict, rows: list[dict], out_dir: str | Path) -> Path:
+    """One panel per open-loop response of :func:`seapup_sim.fossen.verify_fossen`: the description flown by the
+    simulator against the paper's model (``reference_responses.png`` in ``out_dir``)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from seapup_sim.fossen import RESPONSES
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, len(RESPONSES), figsize=(4 * len(RESPONSES), 3.2), squeeze=False)
+    for ax, (name, _, index, unit), row in zip(axes[0], RESPONSES, rows):
+        t, ours, theirs = histories[name]
+        ax.plot(t, ours[:, index], label="description (simulator)")
+        ax.plot(t, theirs[:, index], "--", label="paper's equations")
+        ax.axhline(row["balance"], color="0.6", lw=0.8, ls=":", label="damping = force")
+        ax.set_title(name)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(unit)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "reference_responses.png"
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
