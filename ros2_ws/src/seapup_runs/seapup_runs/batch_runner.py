@@ -43,7 +43,7 @@ def batch_reason(spec: RunSpec, environment=None) -> str | None:
         return "a vehicle with scaled coefficients flies run by run"
     from seapup_runs.spec import vehicle_thrusters
     if (vehicle_thrusters(spec.vehicle) or ("controllable_pitch",))[0] != "controllable_pitch":
-        return "the kernels step controllable-pitch thrusters only"
+        return "a batch flies four blade pitches per vehicle: a virtual-input vehicle's mixer flies run by run"
     env = environment if environment is not None else load_environment(spec.environment)
     if env.umbilical.enabled:
         return "the umbilical's wrench is solved per vehicle"

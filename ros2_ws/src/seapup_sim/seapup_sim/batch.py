@@ -78,9 +78,9 @@ class BatchPlant:
                 raise ValueError(f"vehicle {i}: a batch steps VehicleModel's equations only, "
                                  f"not {type(model).__name__}'s")
             if model.thrusters.kind != "controllable_pitch":
-                raise ValueError(f"vehicle {i} ({model.config_name}): a batch steps the compiled kernels of "
-                                 "controllable-pitch thrusters; its thrusters are "
-                                 f"{model.thrusters.kind.replace('_', '-')}: fly it run by run")
+                raise ValueError(f"vehicle {i} ({model.config_name}): a batch steps four blade pitches per "
+                                 "vehicle; its thrusters are "
+                                 f"{model.thrusters.kind.replace('_', '-')} behind a mixer: fly it run by run")
         if not (np.isfinite(dt) and 0.0 < dt <= 1.0):
             raise ValueError(f"integration step must be in (0, 1] s, got {dt!r}")
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:

@@ -5,7 +5,9 @@ stay the reference implementation (and the only one a model that overrides ``der
 linearised model of eq. 3.2 -- ever uses). This module evaluates the same right-hand side (eq.
 2.1-2.3: rigid-body and added-mass Coriolis in Kirchhoff form, the hydrodynamic derivative table of
 sec. 2.3.3, the hydrostatics of sec. 2.3.2, the thrusters' K_T(J, beta) of eq. 2.18 with the momentum
-drag of eq. 2.19) and the same fourth-order Runge-Kutta step with the exactly solved blade-pitch lag,
+drag of eq. 2.19 -- or N fixed-pitch thrusters' static curve, a table or a polynomial, behind a mixer:
+:class:`~seapup_sim.thrusters.FixedPitchThrusters`) and the same fourth-order Runge-Kutta step with the
+exactly solved lag of the blade pitches (or the thrusters' commands),
 as compiled kernels on arrays packed from the model (:func:`pack`). Both are tested equal to 1e-12 on
 random states, inputs and every shipped configuration (``test/test_compiled.py``).
 
@@ -42,8 +44,6 @@ __all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_checked", "rk4_ba
 
 _JIT = dict(cache=True, nogil=True)
 
-#: scratch floats :func:`rhs` needs
-WORK = 104
 
 
 class Packed(NamedTuple):
@@ -62,15 +62,44 @@ class Packed(NamedTuple):
     h_coef: np.ndarray       # (n,): its coefficient
     h_signed: np.ndarray     # (n, w) int64: indices of its signed factors (6: the constant 1)
     h_absolute: np.ndarray   # (n, w) int64: indices of its |.| factors
-    directions: np.ndarray   # (4, 3): unit thrust axes
+    directions: np.ndarray   # (N, 3): unit thrust axes
     scalars: np.ndarray      # k_beta, beta_0, rho n^2 D^4, k_j/(n D), momentum-drag scale, epsilon,
-                             # W - B, and the hydrostatic arm W r_G - B r_B (3)
+                             # W - B, the hydrostatic arm W r_G - B r_B (3), then the thrusters' kind
+                             # (KIND_*), a fixed-pitch curve's deadband and how it is read (CURVE_*)
+    curve_x: np.ndarray      # a fixed-pitch thrust curve: the commands of its table (CURVE_TABLE), or unused
+    curve_y: np.ndarray      # its thrusts [N] there, or its polynomial's coefficients (CURVE_POLYNOMIAL)
 
 
 #: The matrices of :class:`Packed`'s row-compressed block, each by its first row: the rigid-body mass, the
-#: added mass, the inverse of their sum (6 x 6 each), the velocity of each thruster centre from nu (12 x 6),
-#: the installed thrust matrix c G (6 x 4) and the wrench of forces at the thruster centres (6 x 12).
-M_RIGID, M_ADDED, M_INV, POINT_MAP, THRUST_MATRIX, FORCE_MAP, SPARSE_ROWS = 0, 6, 12, 18, 30, 36, 42
+#: added mass, the inverse of their sum (6 x 6 each), the velocity of each thruster centre from nu (3N x 6;
+#: zeros for fixed-pitch thrusters, which have no momentum drag), then the installed thrust matrix (6 x N:
+#: c G, or a fixed-pitch set's B) and the wrench of forces at the thruster centres (6 x 3N): for N thrusters
+#: those two start at :func:`thrust_rows` (30 and 36 for the Seapup's four).
+M_RIGID, M_ADDED, M_INV, POINT_MAP = 0, 6, 12, 18
+#: the thrusters' kind (scalars[10]) and how a fixed-pitch curve is read (scalars[12])
+KIND_CONTROLLABLE_PITCH, KIND_FIXED_PITCH = 0.0, 1.0
+CURVE_POLYNOMIAL, CURVE_TABLE = 0.0, 1.0
+
+
+@njit(inline="always", **_JIT)
+def thrust_rows(n):
+    """(first row of the thrust matrix, of the force map) in the row-compressed block, for n thrusters."""
+    return POINT_MAP + 3 * n, POINT_MAP + 3 * n + 6
+
+
+def work_size(n: int) -> int:
+    """Scratch floats :func:`rhs` needs for n thrusters."""
+    return 76 + 7 * n
+
+
+#: scratch floats :func:`rhs` needs for the Seapup's four thrusters
+WORK = 104
+
+
+def rk4_scratch(n: int) -> int:
+    """Scratch floats of one RK4 step for n thrusters: the three lagged commands, four stages, the stage
+    state, :func:`rhs`'s work."""
+    return 3 * n + 5 * 12 + work_size(n)
 
 
 def _row_compressed(matrices) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -91,18 +120,32 @@ def pack(model) -> Packed:
     th, hydro = model.thrusters, model.hydro
     width = hydro._signed.shape[1] if len(hydro.terms) else 1
     n = len(hydro.terms)
-    sp_ptr, sp_idx, sp_val = _row_compressed([model.m_rigid, model.m_added, model.m_inv, th._point_map,
-                                              th.matrix, th._force_map])
+    hydrostatics = [model.weight - model.buoyancy, *model._hydrostatic_arm]
+    if th.kind == "fixed_pitch":   # no momentum drag: zero point and force maps
+        curve, count = th.curve, th.count
+        if curve.table is not None:
+            mode, cx, cy = CURVE_TABLE, curve.table[:, 0], curve.table[:, 1]
+        elif curve._droops:   # the monotone envelope, as ThrustCurve.thrust reads it
+            mode, cx, cy = CURVE_TABLE, curve._grid, curve._monotone
+        else:
+            mode, cx, cy = CURVE_POLYNOMIAL, np.zeros(1), curve.coefficients
+        maps = (np.zeros((3 * count, 6)), np.zeros((6, 3 * count)))
+        scalars = [0.0] * 6 + hydrostatics + [KIND_FIXED_PITCH, curve.deadband, mode]
+    else:
+        cx, cy, maps = np.zeros(1), np.zeros(1), (th._point_map, th._force_map)
+        scalars = [th.k_beta, th.zero_thrust_pitch, th._thrust_scale, th.k_j / (th.shaft_speed * th.diameter),
+                   th._md_scale, th.momentum_drag_epsilon] + hydrostatics + [KIND_CONTROLLABLE_PITCH, 0.0,
+                                                                             CURVE_POLYNOMIAL]
+    sp_ptr, sp_idx, sp_val = _row_compressed([model.m_rigid, model.m_added, model.m_inv, maps[0], th.matrix,
+                                              maps[1]])
     return Packed(
         sp_ptr=sp_ptr, sp_idx=sp_idx, sp_val=sp_val,
         h_axis=np.ascontiguousarray(hydro._axis if n else np.zeros(0), dtype=np.int64),
         h_coef=np.ascontiguousarray(hydro._coef if n else np.zeros(0), dtype=np.float64),
         h_signed=np.ascontiguousarray(hydro._signed if n else np.zeros((0, width)), dtype=np.int64),
         h_absolute=np.ascontiguousarray(hydro._absolute if n else np.zeros((0, width)), dtype=np.int64),
-        directions=np.ascontiguousarray(th.directions, dtype=np.float64),
-        scalars=np.array([th.k_beta, th.zero_thrust_pitch, th._thrust_scale,
-                          th.k_j / (th.shaft_speed * th.diameter), th._md_scale, th.momentum_drag_epsilon,
-                          model.weight - model.buoyancy, *model._hydrostatic_arm], dtype=np.float64))
+        directions=np.ascontiguousarray(th.directions, dtype=np.float64), scalars=np.array(scalars, dtype=np.float64),
+        curve_x=np.ascontiguousarray(cx, dtype=np.float64), curve_y=np.ascontiguousarray(cy, dtype=np.float64))
 
 
 @njit(inline="always", **_JIT)
@@ -156,11 +199,30 @@ def kirchhoff(ptr, idx, val, first, nu, out, m):
     out[5] = -(p * e - q * d) - (u * b - v * a)
 
 
+@njit(inline="always", **_JIT)
+def fixed_pitch_thrust(command, deadband, mode, curve_x, curve_y):
+    """:meth:`seapup_sim.thrusters.ThrustCurve.thrust` of one command: clipped to [-1, 1], the deadband's
+    rescaling, then the table (np.interp) or the polynomial (Horner's scheme, as numpy's polyval)."""
+    c = min(max(command, -1.0), 1.0)
+    if deadband > 0.0:
+        sign = 1.0 if c > 0.0 else (-1.0 if c < 0.0 else 0.0)
+        c = sign * max(abs(c) - deadband, 0.0) / (1.0 - deadband)
+    if mode == CURVE_TABLE:
+        return np.interp(c, curve_x, curve_y)
+    value = curve_y[curve_y.shape[0] - 1]
+    for i in range(curve_y.shape[0] - 2, -1, -1):
+        value = curve_y[i] + value * c
+    return value
+
+
 @njit(**_JIT)
 def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency,
-        sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, out, work):
-    """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term. ``work``: at least
-    :data:`WORK` floats of scratch (no allocation in the kernel)."""
+        sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, out,
+        work):
+    """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term, for N thrusters of either
+    kind (``pitch``: the Seapup's blade pitches, or fixed-pitch thrusters' lagged commands). ``work``: at least
+    :func:`work_size` (N) floats of scratch (no allocation in the kernel)."""
+    n = directions.shape[0]
     phi, theta = x[3], x[4]
     cf, sf = math.cos(phi), math.sin(phi)
     ct = math.cos(theta)
@@ -204,14 +266,23 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     tau = work[52:58]
     for i in range(6):
         tau[i] = rigid[i] + added[i] + hydro[i] + static[i]
-    if thrusters_on:
+    thrust_matrix, force_map = thrust_rows(n)
+    vel = work[58:58 + 3 * n]
+    thrust = work[58 + 3 * n:58 + 4 * n]
+    drag = work[58 + 4 * n:58 + 7 * n]
+    wrench = work[58 + 7 * n:64 + 7 * n]
+    moment = work[64 + 7 * n:70 + 7 * n]
+    if thrusters_on and scalars[10] == KIND_FIXED_PITCH:   # FixedPitchThrusters.wrench: B (eff * T(c))
+        for j in range(n):
+            thrust[j] = efficiency[j] * fixed_pitch_thrust(pitch[j], scalars[11], scalars[12], curve_x, curve_y)
+        spmv(sp_ptr, sp_idx, sp_val, thrust_matrix, 6, thrust, wrench)
+        for i in range(6):
+            tau[i] += wrench[i]
+    elif thrusters_on:
         k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (scalars[0], scalars[1], scalars[2], scalars[3],
                                                             scalars[4], scalars[5])
-        vel = work[58:70]
-        spmv(sp_ptr, sp_idx, sp_val, POINT_MAP, 12, nu_r, vel)
-        thrust = work[70:74]
-        drag = work[74:86]
-        for j in range(4):
+        spmv(sp_ptr, sp_idx, sp_val, POINT_MAP, 3 * n, nu_r, vel)
+        for j in range(n):
             v_axial = (vel[3 * j] * directions[j, 0] + vel[3 * j + 1] * directions[j, 1]) \
                 + vel[3 * j + 2] * directions[j, 2]
             bollard = k_beta * (pitch[j] - beta0)
@@ -220,10 +291,8 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
             scale = -md_scale * math.sqrt(k0 / math.pi)
             for i in range(3):
                 drag[3 * j + i] = scale * (vel[3 * j + i] - v_axial * directions[j, i])
-        wrench = work[86:92]
-        spmv(sp_ptr, sp_idx, sp_val, THRUST_MATRIX, 6, thrust, wrench)
-        moment = work[92:98]
-        spmv(sp_ptr, sp_idx, sp_val, FORCE_MAP, 6, drag, moment)
+        spmv(sp_ptr, sp_idx, sp_val, thrust_matrix, 6, thrust, wrench)
+        spmv(sp_ptr, sp_idx, sp_val, force_map, 6, drag, moment)
         for i in range(6):
             tau[i] += wrench[i] + moment[i]
     if use_external:
@@ -235,21 +304,23 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     out[3] = (p + sf * tt * q) + cf * tt * r
     out[4] = (0.0 * p + cf * q) + (-sf) * r
     out[5] = (0.0 * p + sf / ct * q) + cf / ct * r
-    accel = work[98:104]
+    accel = work[70 + 7 * n:76 + 7 * n]
     spmv(sp_ptr, sp_idx, sp_val, M_INV, 6, tau, accel)
     out[6:] = accel
 
 
 @njit(**_JIT)
 def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
-              pitch_end, buf):
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y,
+              new, pitch_end, buf):
     """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and ``pitch_end``, with its
     scratch ``buf`` (:data:`RK4_SCRATCH` floats) given."""
-    p0, ph, p1 = buf[0:4], buf[4:8], buf[8:12]
-    k1, k2, k3, k4, xs = buf[12:24], buf[24:36], buf[36:48], buf[48:60], buf[60:72]
-    work = buf[72:]
-    for j in range(4):
+    n = pitch0.shape[0]
+    p0, ph, p1 = buf[0:n], buf[n:2 * n], buf[2 * n:3 * n]
+    b = 3 * n
+    k1, k2, k3, k4, xs = buf[b:b + 12], buf[b + 12:b + 24], buf[b + 24:b + 36], buf[b + 36:b + 48], buf[b + 48:b + 60]
+    work = buf[b + 60:]
+    for j in range(n):
         if tau_actuator <= 0.0:
             p0[j] = command[j]
             ph[j] = command[j]
@@ -261,41 +332,41 @@ def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, extern
             p1[j] = command[j] + gap * math.exp(-dt / tau_actuator)
     half = 0.5 * dt
     rhs(x, p0, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k1, work)
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k1, work)
     for i in range(12):
         xs[i] = x[i] + half * k1[i]
     rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k2, work)
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k2, work)
     for i in range(12):
         xs[i] = x[i] + half * k2[i]
     rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k3, work)
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k3, work)
     for i in range(12):
         xs[i] = x[i] + dt * k3[i]
     rhs(xs, p1, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, k4, work)
+        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k4, work)
     sixth = dt / 6.0
     for i in range(12):
         new[i] = x[i] + sixth * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + k4[i])
-    for j in range(4):
+    for j in range(n):
         pitch_end[j] = p1[j]
 
 
-#: scratch floats of one RK4 step: the three lagged pitches, four stages, the stage state, :func:`rhs`'s work
-RK4_SCRATCH = 12 + 5 * 12 + WORK
+#: scratch floats of one RK4 step of the Seapup's four thrusters (:func:`rk4_scratch`)
+RK4_SCRATCH = rk4_scratch(4)
 
 
 @njit(**_JIT)
 def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
                 efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
-                envelope, new, pitch_end):
+                curve_x, curve_y, envelope, new, pitch_end):
     """One physics step (:func:`_rk4_into`), then what :meth:`seapup_sim.integrator.VehicleIntegrator.step` does with the new state, in the
     same call: the envelope check (:func:`seapup_sim.integrator.divergence`: a non-finite value, or one beyond
     ``envelope``) and the roll and yaw wrap to [-pi, pi). Returns -1, or the index of the first state out of the
     envelope (``new`` then holds the step unwrapped, for the caller's message)."""
     _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, new,
-              pitch_end, np.empty(RK4_SCRATCH))
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x,
+              curve_y, new, pitch_end, np.empty(3 * pitch0.shape[0] + 136 + 7 * pitch0.shape[0]))
     for i in range(12):
         if not math.isfinite(new[i]) or abs(new[i]) > envelope[i]:
             return i
@@ -307,14 +378,14 @@ def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, exte
 @njit(**_JIT)
 def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, external, use_external, thrusters_on,
                efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
-               envelope, states, pitches, accel):
+               curve_x, curve_y, envelope, states, pitches, accel):
     """A control period in one call: ``len(states)`` physics steps of :func:`rk4_checked` with the command held,
     the current of step i ``currents[i]`` (the Gauss-Markov current is independent of the vehicle: its values
     for the period are known before it), each step from the one before -- bit for bit the steps one call each
     (tested). ``states[i]``, ``pitches[i]``: after step i; ``accel``: d(u, v, w)/dt over the last step, as
     :meth:`seapup_sim.simulation.Simulation.advance` computes it. Returns -1, or ``12 i + j`` for state j out
     of the envelope at step i (``states[i]`` then holds that step unwrapped; the steps before it are good)."""
-    buf = np.empty(RK4_SCRATCH)
+    buf = np.empty(3 * pitch0.shape[0] + 136 + 7 * pitch0.shape[0])
     n = states.shape[0]
     for i in range(n):
         start = x if i == 0 else states[i - 1]
@@ -322,7 +393,7 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
         new, pitch_end = states[i], pitches[i]
         _rk4_into(start, pitch_start, command, tau_actuator, dt, currents[i], use_current, external, use_external,
                   thrusters_on, efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions,
-                  scalars, new, pitch_end, buf)
+                  scalars, curve_x, curve_y, new, pitch_end, buf)
         for j in range(12):
             if not math.isfinite(new[j]) or abs(new[j]) > envelope[j]:
                 return 12 * i + j
@@ -336,13 +407,13 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
 
 @njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, active,
-              new, pitch_end):
+              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x,
+              curve_y, active, new, pitch_end):
     """The physics step (:func:`_rk4_into`) for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
     flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
     a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads may step
     disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
-    buf = np.empty(RK4_SCRATCH)
+    buf = np.empty(3 * pitches.shape[1] + 136 + 7 * pitches.shape[1])
     for i in range(states.shape[0]):
         if not active[i]:
             new[i] = states[i]
@@ -350,7 +421,8 @@ def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, extern
             continue
         _rk4_into(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i],
                   use_external, thrusters_on[i], efficiency[i], sp_ptr[i], sp_idx[i], sp_val[i], h_axis[i],
-                  h_coef[i], h_signed[i], h_absolute[i], directions[i], scalars[i], new[i], pitch_end[i], buf)
+                  h_coef[i], h_signed[i], h_absolute[i], directions[i], scalars[i], curve_x[i], curve_y[i], new[i],
+                  pitch_end[i], buf)
 
 
 #: :func:`cable_solve`'s outcomes (``out[0]``)
@@ -522,7 +594,8 @@ def derivatives(packed: Packed, efficiency, state, pitch, current_ned=None, exte
         _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
         current_ned is not None,
         _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
-        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out, np.empty(WORK))
+        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out,
+        np.empty(work_size(packed.directions.shape[0])))
     return out
 
 
@@ -536,6 +609,14 @@ def warm() -> None:
     rk4_checked(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, _NONE3, False, _NONE6, False, True,
                 model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
+    rk4_period(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
+               model.thrusters.efficiency, *packed, np.ones(12), np.empty((2, 12)), np.empty((2, 4)), np.empty(3))
+    rov = VehicleModel(load_vehicle_config("bluerov2_heavy"))   # fixed-pitch thrusters: the curve's branch
+    mixed = rov.inputs.to_actuators(np.zeros(4))   # the mixer's commands: a read-only array
+    rk4_checked(np.zeros(12), np.zeros(8), mixed, 0.05, 0.1, _NONE3, False, _NONE6, False, True,
+                rov.thrusters.efficiency, *pack(rov), np.ones(12), np.empty(12), np.empty(8))
+    rk4_period(np.zeros(12), np.zeros(8), mixed, 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
+               rov.thrusters.efficiency, *pack(rov), np.ones(12), np.empty((2, 12)), np.empty((2, 8)), np.empty(3))
     polar_to_ned(np.zeros(2), np.zeros(2), np.zeros((2, 3)))
     cos_product(np.zeros(2), np.zeros(2), np.zeros(2))
     two = pack_batch([model, model])   # BatchPlant.step's calls

@@ -150,8 +150,7 @@ class VehicleIntegrator:
     @property
     def compiled(self) -> bool:
         """Whether the next step runs the compiled kernels."""
-        return (self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
-                and self.model.thrusters.kind == "controllable_pitch")
+        return self.backend == "compiled" and type(self.model).derivatives is VehicleModel.derivatives
 
     def _compiled_arrays(self):
         """The model packed for the kernels, re-packed when it was reconfigured (its ``revision``: configure()
@@ -175,7 +174,7 @@ class VehicleIntegrator:
         if self.compiled:
             command = _command(command, self.model.pitch_limit)
             self.held = command
-            return self._step_compiled(command, current_ned, external)
+            return self._step_compiled(self.model.inputs.to_actuators(command), current_ned, external)
         command, _ = check_blade_pitch(command, self.model.pitch_limit)
         self.held = command
         command = self.model.inputs.to_actuators(command)
@@ -196,7 +195,7 @@ class VehicleIntegrator:
         """:meth:`step` by one kernel call (:func:`seapup_sim.compiled.rk4_checked`: the step, its check and the
         angle wrap), the same arithmetic as the reference's step then :meth:`_accept`."""
         from seapup_sim import compiled
-        new, pitch = np.empty(12), np.empty(4)
+        new, pitch = np.empty(12), np.empty(len(command))
         bad = compiled.rk4_checked(
             np.ascontiguousarray(self.state, dtype=np.float64), np.ascontiguousarray(self.pitch, dtype=np.float64),
             command, float(self.model.actuator_time_constant), self.dt,
@@ -227,7 +226,8 @@ class VehicleIntegrator:
             currents = _still_water(steps)
         elif currents.shape != (steps, 3):
             raise ValueError(f"step_period: {steps} steps need currents of shape ({steps}, 3), got {currents.shape}")
-        states, pitches, accel = np.empty((steps, 12)), np.empty((steps, 4)), np.empty(3)
+        command = self.model.inputs.to_actuators(command)
+        states, pitches, accel = np.empty((steps, 12)), np.empty((steps, len(command))), np.empty(3)
         bad = compiled.rk4_period(
             self.state, self.pitch, command, float(self.model.actuator_time_constant), self.dt, currents,
             use_current, _NONE6, False, bool(self.thrusters_on), self.model.thrusters.efficiency,
