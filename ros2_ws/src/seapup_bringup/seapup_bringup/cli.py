@@ -463,6 +463,22 @@ def _quiet_teardown() -> None:
     sys.unraisablehook = lambda unraisable: None
 
 
+def error_reason(exc: BaseException) -> str:
+    """An unexpected error's one line: a file's reason and name for an ``OSError`` ("No such file or directory:
+    /x/y"), else the exception's type and first line (an error no verb foresaw, named for a bug report).
+
+    Examples
+    --------
+    >>> error_reason(FileNotFoundError(2, "No such file or directory", "/x/y"))
+    'No such file or directory: /x/y'
+    >>> error_reason(ValueError("bad\\nmore"))
+    'ValueError: bad'
+    """
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror}: {exc.filename}" if exc.filename else exc.strerror
+    return f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+
+
 def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
     """Run a command under the shared conventions (module docstring)."""
     from seapup_bringup.output import SIGNALS
@@ -487,8 +503,8 @@ def _dispatch(entry: Entry, argv: list[str], debug: bool) -> int:
         if not SIGNALS:
             if debug:
                 raise
-            print(f"seapup {entry.name}: error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-                  f" (./seapup --debug {entry.name} ... shows where)", file=sys.stderr)
+            print(f"seapup {entry.name}: error: {error_reason(exc)} (./seapup --debug {entry.name} ... shows where)",
+                  file=sys.stderr)
             return 1
         signum = SIGNALS[0]  # a signal surfaced inside a library as another error (rclpy, pybind11)
     print("seapup: interrupted", file=sys.stderr)

@@ -119,3 +119,13 @@ def test_a_campaign_worker_logs_an_error_in_one_line():
         logger.removeHandler(handler)
     assert stream.getvalue() == ("Failed to communicate with scheduler during heartbeat. "
                                  "(OSError: Stream is closed)\n")
+
+
+def test_a_file_that_cannot_be_written_is_said_with_its_reason_not_an_exception_s_name(tmp_path, capsys):
+    from seapup_bringup.cli import error_reason
+    assert main(["view", "--write-layout", str(tmp_path / "no" / "such" / "dir.json")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "No such file or directory" in err and "Error" not in err
+    assert not (tmp_path / "no").exists()
+    assert error_reason(IsADirectoryError(21, "Is a directory", "/tmp")) == "Is a directory: /tmp"
+    assert error_reason(RuntimeError("first\nsecond")) == "RuntimeError: first"   # a bug, named for its report

@@ -41,7 +41,12 @@ def view_command(argv: list[str]) -> int:
         except ConfigError as exc:
             print(f"seapup view: error: {exc}", file=sys.stderr)
             return 1
-        Path(args.write_layout).write_text(text)
+        try:
+            Path(args.write_layout).write_text(text)
+        except OSError as exc:
+            print(f"seapup view: error: cannot write the layout to {args.write_layout}: "
+                  f"{exc.strerror or exc}", file=sys.stderr)
+            return 1
         print(f"seapup view: layout written to {args.write_layout}", file=sys.stderr)
         emit_json(args, {"layout": args.write_layout})
         return 0
