@@ -73,7 +73,9 @@ def fly_batch(specs, threads: int = 1) -> list:
     from seapup_control.mfol_controller import BatchMFOL
     from seapup_sim.batch import BatchCurrent, BatchPlant, BatchSensors
     from seapup_sim.integrator import DivergenceError
+    from seapup_sim.linearised import vehicle_model
     from seapup_sim.simulation import Simulation
+    from seapup_sim.vehicle_config import load_vehicle_config
     from seapup_runs.runner import design, simulation_events, start_pitch
 
     specs = [design(s) for s in specs]
@@ -91,9 +93,16 @@ def fly_batch(specs, threads: int = 1) -> list:
         if s.start_pitch is None and s.vehicle not in trims:
             trims[s.vehicle] = start_pitch(s)
         pitches.append(start_pitch(s) if s.start_pitch is not None else trims[s.vehicle])
+    # one model per vehicle, shared by its runs: the batch plant steps its own copy of the state, pitch and
+    # efficiency of each, and a configuration event gives that run a model of its own (BatchPlant.configure)
+    models: dict = {}
+    for s in specs:
+        if (s.vehicle, s.dynamics) not in models:
+            models[s.vehicle, s.dynamics] = vehicle_model(load_vehicle_config(s.vehicle), s.dynamics)
     sims = [Simulation.from_config(s.vehicle, environments[i], seed=s.seed, dt=s.physics_step,
                                    control_period=s.control_period, events=simulation_events(s),
-                                   state=s.initial_state(), pitch=pitches[i].copy(), dynamics=s.dynamics)
+                                   state=s.initial_state(), pitch=pitches[i].copy(), dynamics=s.dynamics,
+                                   model=models[s.vehicle, s.dynamics])
             for i, s in enumerate(specs)]
     n, dt, substeps, samples = len(specs), spec0.physics_step, sims[0].substeps, spec0.samples
     plant = BatchPlant([sim.model for sim in sims], dt=dt, states=[sim.plant.state for sim in sims],

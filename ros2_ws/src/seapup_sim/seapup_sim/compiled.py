@@ -561,7 +561,8 @@ def pack_batch(models) -> Packed:
     """:func:`pack` of each model, stacked on a leading axis; hydrodynamic tables of different lengths are
     padded with terms of coefficient zero on the constant factor (they add exactly 0.0), and the
     row-compressed non-zeros with entries no row reaches (each vehicle keeps its own row starts)."""
-    packs = [pack(m) for m in models]
+    packed: dict = {}   # a model shared by several vehicles is packed once
+    packs = [packed[id(m)] if id(m) in packed else packed.setdefault(id(m), pack(m)) for m in models]
     terms = max(p.h_coef.shape[0] for p in packs)
     width = max(p.h_signed.shape[1] for p in packs)
     nnz = max(p.sp_idx.shape[0] for p in packs)

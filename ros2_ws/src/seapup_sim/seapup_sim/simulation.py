@@ -224,13 +224,16 @@ class Simulation:
     @classmethod
     def from_config(cls, vehicle: str | dict, environment=None, *, seed: int = 0,
                     dt: float = 0.1, control_period: float = 0.2, events=(), state=None, pitch=None,
-                    dynamics: str = "nonlinear"):
+                    dynamics: str = "nonlinear", model: VehicleModel | None = None):
         """Build vehicle and environment from a configuration name (or dict) and an
         environment (overrides, file or :class:`EnvironmentConfig`; see
         :func:`~seapup_sim.environment_config.load_environment`). ``dynamics`` chooses the
         plant: ``nonlinear`` (ch. 2) or ``linearised`` (eq. 3.2 about hover,
-        :mod:`seapup_sim.linearised`)."""
-        model = vehicle_model(load_vehicle_config(vehicle) if isinstance(vehicle, str) else vehicle, dynamics)
+        :mod:`seapup_sim.linearised`). ``model``: that vehicle's model already built (a batch's runs of one
+        vehicle share it: :mod:`seapup_runs.batch_runner`), used as it is instead of ``vehicle`` and
+        ``dynamics``."""
+        if model is None:
+            model = vehicle_model(load_vehicle_config(vehicle) if isinstance(vehicle, str) else vehicle, dynamics)
         env: EnvironmentConfig = load_environment(environment, rho=model.rho)
         streams = RandomStreams(seed)
         current = (GaussMarkovCurrent(env.current.params, dt, streams.generator("current"))
