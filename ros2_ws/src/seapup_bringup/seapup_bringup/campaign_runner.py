@@ -341,6 +341,17 @@ def _page(campaign, records: list[dict], rows: list[dict], out: Path) -> tuple[P
     return page, worst
 
 
+def workload(spec) -> str:
+    """What a run of a benchmark flies, in words: vehicle, law, sensors, current, sample period and length."""
+    from seapup_sim.environment_config import load_environment
+    env = load_environment(spec.environment)
+    current = (f"a {env.current.params.mean_speed:g} m/s Gauss-Markov current" if env.current.enabled
+               else "no current")
+    parameters = ", ".join(f"{k} {v}" for k, v in sorted(spec.controller.parameters.items()))
+    return (f"{spec.vehicle}, {spec.controller.type}{f' ({parameters})' if parameters else ''}, "
+            f"{env.sensors.name} sensors, {current}, T = {spec.control_period:g} s over {spec.duration:g} s")
+
+
 def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) -> dict:
     """The benchmark of a campaign's throughput (``./seapup bench``): ``runs`` fixed-gain MFOL runs (eq. 4.11,
     schedule off) of square-inspection with the baseline sensors, each its own seed, in tasks of ``per_task``
@@ -359,7 +370,8 @@ def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) ->
     rows = expand(campaign)
     groups = tasks(rows, campaign.runs_per_task)
     samples = sum(RunSpec.from_dict(r["spec"]).samples for r in rows)
-    out: dict = {"runs": len(rows), "runs_per_task": campaign.runs_per_task, "samples": samples}
+    out: dict = {"runs": len(rows), "runs_per_task": campaign.runs_per_task, "samples": samples,
+                 "workload": workload(RunSpec.from_dict(rows[0]["spec"]))}
     first_spec = rows[0]["spec"]
     for workers in worker_counts:
         client, cluster = _client(None, workers)

@@ -129,3 +129,25 @@ def test_a_file_that_cannot_be_written_is_said_with_its_reason_not_an_exception_
     assert not (tmp_path / "no").exists()
     assert error_reason(IsADirectoryError(21, "Is a directory", "/tmp")) == "Is a directory: /tmp"
     assert error_reason(RuntimeError("first\nsecond")) == "RuntimeError: first"   # a bug, named for its report
+
+
+def test_the_bench_draws_its_cost_curves_with_their_workloads(tmp_path):
+    """Issue 42 item 5: ./seapup bench --plots DIR draws cost against N and threads, and runs/s against workers,
+    each titled with what was flown (here from a bench's own dictionary, as the verb hands it over)."""
+    from seapup_bringup.campaign_runner import workload
+    from seapup_bringup.verbs.model_commands import bench_plots
+    from seapup_runs.spec import RunSpec
+    spec = RunSpec.from_dict({"vehicle": "camera", "environment": {"sensors": "haslar", "current": {
+        "enabled": True, "mean_speed": 0.26}}, "control_period": 0.2, "duration": 30.0,
+        "controller": {"type": "mfol", "parameters": {"schedule": False}}})
+    text = workload(spec)
+    assert text == "camera, mfol (schedule False), haslar sensors, a 0.26 m/s Gauss-Markov current, T = 0.2 s over 30 s"
+    point = {"cpu_us_per_vehicle_step": 4.0, "vehicle_steps_per_s": 250000.0}
+    out = {"batch_threads": {str(n): {"1": point, "2": point} for n in (1, 10, 100)},
+           "batch_plant": {"workload": "N x baseline"},
+           "campaign": {"runs": 8, "workload": text, "runs_per_s_1_worker": 100.0, "runs_per_s_2_workers": 180.0}}
+    paths = bench_plots(out, tmp_path / "plots")
+    assert [p.name for p in paths] == ["bench_batch.png", "bench_workers.png"]
+    assert all(p.read_bytes().startswith(b"\x89PNG") and p.stat().st_size > 5000 for p in paths)
+    del out["campaign"]
+    assert [p.name for p in bench_plots(out, tmp_path / "again")] == ["bench_batch.png"]

@@ -68,6 +68,7 @@ def bench_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-report", action="store_true", help="skip the reproduction report's cold/warm timing")
     parser.add_argument("--recording-minutes", type=float, default=10.0,
                         help="wall minutes of the recorder memory benchmark (0 skips it; default 10)")
+    parser.add_argument("--plots", help="write the cost curves (against N, threads and workers) as PNGs here")
     return parser
 
 
@@ -209,6 +210,57 @@ def _batch_step(model, vehicles: int, command, steps: int, threads: int = 1) -> 
             "rtf_per_vehicle": 0.1 * done / cpu}
 
 
+def bench_plots(out: dict, directory) -> list:
+    """The cost curves of a bench: the batch plant's CPU per vehicle-step and vehicle-steps/s against N on one and
+    two threads (``bench_batch.png``), and, with the campaign, its runs/s against Dask workers
+    (``bench_workers.png``); the paths written."""
+    import textwrap
+    from pathlib import Path
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    folder = Path(directory)
+    folder.mkdir(parents=True, exist_ok=True)
+    sweep = out["batch_threads"]
+    sizes = [int(n) for n in sweep]
+    fig, (cost, rate) = plt.subplots(1, 2, figsize=(10, 3.6))
+    for threads in ("1", "2"):
+        cost.plot(sizes, [sweep[str(n)][threads]["cpu_us_per_vehicle_step"] for n in sizes], "o-",
+                  label=f"{threads} thread{'s' if threads != '1' else ''}")
+        rate.plot(sizes, [sweep[str(n)][threads]["vehicle_steps_per_s"] for n in sizes], "o-",
+                  label=f"{threads} thread{'s' if threads != '1' else ''}")
+    for ax, label in ((cost, "CPU us per vehicle-step"), (rate, "vehicle-steps/s (wall)")):
+        ax.set_xscale("log")
+        ax.set_xlabel("vehicles in the batch, N")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+    cost.set_yscale("log")
+    fig.suptitle(textwrap.fill(f"batch plant: {out['batch_plant']['workload']}", 110), fontsize=8)
+    fig.tight_layout()
+    paths = [folder / "bench_batch.png"]
+    fig.savefig(paths[0], dpi=90)
+    plt.close(fig)
+    if "campaign" in out:
+        c = out["campaign"]
+        workers = sorted(int(k.split("_")[3]) for k in c if k.startswith("runs_per_s_"))
+        rates = [c[f"runs_per_s_{w}_worker{'s' if w > 1 else ''}"] for w in workers]
+        fig, ax = plt.subplots(figsize=(5, 3.6))
+        ax.plot(workers, rates, "o-", label="measured")
+        ax.plot(workers, [rates[0] * w for w in workers], ":", color="0.5", label="linear from 1 worker")
+        ax.set_xlabel("Dask workers (LocalCluster processes)")
+        ax.set_ylabel("runs/s")
+        ax.set_xticks(workers)
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+        ax.set_title(textwrap.fill(f"campaign: {c['runs']} runs of {c['workload']}", 60), fontsize=7)
+        fig.tight_layout()
+        paths.append(folder / "bench_workers.png")
+        fig.savefig(paths[-1], dpi=90)
+        plt.close(fig)
+    return paths
+
+
 def bench(argv: list[str]) -> int:
     """``./seapup bench``: speed of the model, the batch plant, campaigns, the umbilical, verify and the ROS
     graph."""
@@ -316,11 +368,17 @@ def bench(argv: list[str]) -> int:
                   f"at start, {r['rss_mb_after_1min']:.1f} after 1 min, {r['rss_mb_end']:.1f} at the end "
                   f"(max {r['rss_mb_max']:.1f}); slope {r['rss_slope_mb_per_min']:+.3f} MB/min", file=out_text)
     m, ref = out["model"], out["model_numpy"]
-    print(f"model: {m['step_us']:.1f} us per RK4 step (dt 0.1 s; {m['cpu_us']:.1f} us CPU) = {m['rtf']:.0f}x real time, "
-          f"compiled; the NumPy reference {ref['step_us']:.0f} us ({ref['cpu_us']:.0f} us CPU) = {ref['rtf']:.0f}x: "
-          f"{m['speedup_vs_numpy']:.0f} times faster in CPU time", file=out_text)
+    # the workloads, written beside their figures
+    pitches = ", ".join(f"{v:g}" for v in np.degrees(cmd).round(1))
+    m["workload"] = (f"{model.config_name}, the nonlinear plant, inputs held at ({pitches}) deg, still water, "
+                     "dt 0.1 s, one vehicle stepped a physics step a call")
+    out["batch_plant"]["workload"] = (f"N x {model.config_name}, inputs held at ({pitches}) deg, a 0.22 m/s "
+                                      "current, dt 0.1 s, all N stepped a physics step a call")
+    print(f"model ({m['workload']}): {m['step_us']:.1f} us per RK4 step ({m['cpu_us']:.1f} us CPU) = "
+          f"{m['rtf']:.0f}x real time, compiled; the NumPy reference {ref['step_us']:.0f} us ({ref['cpu_us']:.0f} us "
+          f"CPU) = {ref['rtf']:.0f}x: {m['speedup_vs_numpy']:.0f} times faster in CPU time", file=out_text)
     b = out["batch_plant"]
-    print(f"batch plant: {b['vehicles']} vehicles, {b['vehicle_steps_per_s']:.0f} vehicle-steps/s wall "
+    print(f"batch plant ({b['workload']}): N = {b['vehicles']}, {b['vehicle_steps_per_s']:.0f} vehicle-steps/s wall "
           f"({b['cpu_us_per_vehicle_step']:.1f} us CPU per vehicle-step, one core)", file=out_text)
     for n, by_threads in out["batch_threads"].items():
         one, two = by_threads["1"], by_threads["2"]
@@ -329,7 +387,8 @@ def bench(argv: list[str]) -> int:
               f"{two['cpu_us_per_vehicle_step']:.2f} us CPU per vehicle-step)", file=out_text)
     if "campaign" in out:
         c = out["campaign"]
-        print(f"campaign ({c['runs']} fixed-gain runs, {c['samples']} samples): {c['runs_per_s_1_worker']:.2f} runs/s "
+        print(f"campaign ({c['runs']} runs of {c['workload']}; {c['samples']} samples): "
+              f"{c['runs_per_s_1_worker']:.2f} runs/s "
               f"on 1 worker, {c['runs_per_s_2_workers']:.2f} on 2 ({c['scaling']:.2f}x; target >= 1.7x); "
               f"{c['closed_loop_samples_per_s']:.0f} closed-loop vehicle-samples/s on 2 workers; all {c['runs']} as one "
               f"batch in one process: {c['batch_samples_per_cpu_s']:.0f} per CPU second (set-up, flight and metrics; "
@@ -343,6 +402,9 @@ def bench(argv: list[str]) -> int:
     for method, value in out["estimator"].items():
         print(f"estimator {method} (4 outputs, 4 inputs, orders {value['orders']}, offset; ch. 7): "
               f"{value['step_us']:.1f} us per step (target <= 100 us)", file=out_text)
+    if args.plots:
+        for path in bench_plots(out, args.plots):
+            print(f"wrote {path}", file=out_text)
     for name, value in out["control_laws"].items():
         thesis = value.get("thesis_ratio_to_fixed")
         print(f"control law {name}: {value['cpu_us']:.0f} us CPU ({value['wall_us']:.0f} us wall) per step, "
