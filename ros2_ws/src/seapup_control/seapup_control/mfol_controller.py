@@ -38,6 +38,7 @@ and changes nothing.
 """
 from __future__ import annotations
 
+import bisect
 import math
 import types
 from dataclasses import dataclass
@@ -98,8 +99,10 @@ class GainSchedule:
         self._k_int = np.array([g.K_int for g in self.gains])
         self._k_err = np.array([g.K_err for g in self.gains])
         self._u0 = np.array([g.u0 for g in self.gains])
-        for table in (self._k_int, self._k_err, self._u0):   # gains_at hands out views of them
+        self._both = np.stack([self._k_int, self._k_err], axis=1)   # (points, 2, n, n): one interpolation for both
+        for table in (self._k_int, self._k_err, self._u0, self._both):   # gains_at hands out views of them
             table.setflags(write=False)
+        self._speed_list = speeds.tolist()
 
     @classmethod
     def from_document(cls, document) -> "GainSchedule":
@@ -128,20 +131,22 @@ class GainSchedule:
         return cls(points)
 
     def _weights(self, speed: float) -> tuple[int, int, float]:
-        if len(self.speeds) == 1 or speed <= self.speeds[0]:
+        speeds = self._speed_list   # plain floats: the same comparisons and arithmetic as on the array's
+        if len(speeds) == 1 or speed <= speeds[0]:
             return 0, 0, 0.0
-        if speed >= self.speeds[-1]:
-            last = len(self.speeds) - 1
+        if speed >= speeds[-1]:
+            last = len(speeds) - 1
             return last, last, 0.0
-        j = int(np.searchsorted(self.speeds, speed)) - 1
-        return j, j + 1, (speed - self.speeds[j]) / (self.speeds[j + 1] - self.speeds[j])
+        j = bisect.bisect_left(speeds, speed) - 1   # np.searchsorted's (side "left") index
+        return j, j + 1, (speed - speeds[j]) / (speeds[j + 1] - speeds[j])
 
     def gains_at(self, surge: float) -> tuple[np.ndarray, np.ndarray]:
         """(K_int, K_err) at a measured surge speed [m/s]."""
         i, j, w = self._weights(surge)
         if w == 0.0 and i == j:   # at an operating point or beyond the ends: (1 - 0) K + 0 K is K, bit for bit
             return self._k_int[i], self._k_err[i]
-        return (1 - w) * self._k_int[i] + w * self._k_int[j], (1 - w) * self._k_err[i] + w * self._k_err[j]
+        both = (1 - w) * self._both[i] + w * self._both[j]   # each element as (1 - w) K_i + w K_j
+        return both[0], both[1]
 
     def offset_at(self, surge_reference: float) -> np.ndarray:
         """u0(r): the inputs that hold a reference surge speed [rad] (eq. 5.6)."""

@@ -171,3 +171,27 @@ def test_the_law_s_solve_is_numpy_s_bit_for_bit_and_refuses_a_singular_matrix():
         np.linalg.solve(singular, np.ones(4))
     with pytest.raises(np.linalg.LinAlgError, match="Singular"):
         solve(singular, np.ones(4))
+
+
+@pytest.mark.unit
+def test_the_schedule_interpolates_each_gain_as_eq_4_41_reads_bit_for_bit():
+    """sec. 4.6's linear interpolation between operating points, K(u) = (1 - w) K_i + w K_j with w the surge
+    speed's fraction of the way from point i to j (clamped at the ends): the schedule's gains and offsets equal
+    that formula evaluated matrix by matrix, bit for bit, at speeds between, on and beyond the points."""
+    from seapup_control.mfol import TwoTermGains
+    rng = np.random.default_rng(5)
+    speeds = [0.0, 0.35, 0.7, 1.2]
+    gains = [TwoTermGains(rng.normal(size=(4, 4)), rng.normal(size=(4, 4)), rng.normal(size=4), np.zeros(4), 0.2)
+             for _ in speeds]
+    schedule = GainSchedule(list(zip(speeds, gains)))
+    for u in [*rng.uniform(-0.5, 1.6, 200), *speeds, 0.35 + 1e-12]:
+        if u <= speeds[0] or u >= speeds[-1]:
+            i = j = 0 if u <= speeds[0] else len(speeds) - 1
+            w = 0.0
+        else:
+            j = int(np.searchsorted(speeds, u))
+            i, w = j - 1, (u - speeds[j - 1]) / (speeds[j] - speeds[j - 1])
+        k_int, k_err = schedule.gains_at(float(u))
+        assert np.array_equal(k_int, (1 - w) * gains[i].K_int + w * gains[j].K_int), u
+        assert np.array_equal(k_err, (1 - w) * gains[i].K_err + w * gains[j].K_err), u
+        assert np.array_equal(schedule.offset_at(float(u)), (1 - w) * gains[i].u0 + w * gains[j].u0), u
