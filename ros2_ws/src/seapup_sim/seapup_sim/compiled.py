@@ -123,10 +123,10 @@ def pack(model) -> Packed:
     hydrostatics = [model.weight - model.buoyancy, *model._hydrostatic_arm]
     if th.kind == "fixed_pitch":   # no momentum drag: zero point and force maps
         curve, count = th.curve, th.count
-        if curve.table is not None:
-            mode, cx, cy = CURVE_TABLE, curve.table[:, 0], curve.table[:, 1]
-        elif curve._droops:   # the monotone envelope, as ThrustCurve.thrust reads it
+        if curve._droops:   # a curve that turns back: its monotone envelope, as ThrustCurve.thrust reads it
             mode, cx, cy = CURVE_TABLE, curve._grid, curve._monotone
+        elif curve.table is not None:
+            mode, cx, cy = CURVE_TABLE, curve.table[:, 0], curve.table[:, 1]
         else:
             mode, cx, cy = CURVE_POLYNOMIAL, np.zeros(1), curve.coefficients
         maps = (np.zeros((3 * count, 6)), np.zeros((6, 3 * count)))

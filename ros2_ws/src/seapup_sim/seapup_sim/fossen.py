@@ -186,7 +186,7 @@ def steady_speed(linear: float, quadratic: float, force: float) -> float:
 
 #: The open-loop responses compared: (name, the virtual inputs held, the output's state index, unit)
 #: (surge at 0.3 of full scale: 0.38 m/s, below the heave-pitch instability of [vB]'s model from about 0.45 m/s,
-#: which swings full surge through +-80 deg of pitch in both models; sway, heave and yaw at full scale)
+#: which swings full surge through 65-81 deg of pitch in the two models; sway, heave and yaw at full scale)
 RESPONSES = (("surge ahead", (0.3, 0.0, 0.0, 0.0), 6, "m/s"), ("sway to starboard", (0.0, 1.0, 0.0, 0.0), 7, "m/s"),
              ("heave down", (0.0, 0.0, 1.0, 0.0), 8, "m/s"), ("heave up", (0.0, 0.0, -1.0, 0.0), 8, "m/s"),
              ("yaw to starboard", (0.0, 0.0, 0.0, 1.0), 11, "rad/s"))

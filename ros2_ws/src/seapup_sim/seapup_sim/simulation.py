@@ -38,7 +38,7 @@ from seapup_common.contract import (MEASUREMENT_FIELDS, Command, Measurement, Re
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.current import CurrentParams, GaussMarkovCurrent
 from seapup_sim.environment_config import EnvironmentConfig, load_environment
-from seapup_sim.integrator import VehicleIntegrator
+from seapup_sim.integrator import DivergenceError, VehicleIntegrator
 from seapup_sim.sensors import SensorProfile, SensorSuite
 from seapup_sim.umbilical import Umbilical
 from seapup_sim.linearised import vehicle_model
@@ -337,14 +337,25 @@ class Simulation:
         if self.umbilical is None and plant.compiled and (
                 self._next_event >= len(self.events)
                 or self.events[self._next_event].time > plant.t + self.control_period + 1e-9):
+            current = self.current
+            before = (plant.state, plant.pitch, plant.steps, plant.held,
+                      None if current is None else (current.speed, current.direction,
+                                                    current.rng.bit_generator.state))
             currents = None
-            if self.current is not None:
+            if current is not None:
                 currents = np.empty((self.substeps, 3))
                 for i in range(self.substeps):
-                    currents[i] = self.current.velocity_ned()
-                    self.current.step()
-            self._accel = plant.step_period(command, self.substeps, currents)
-            return
+                    currents[i] = current.velocity_ned()
+                    current.step()
+            try:
+                self._accel = plant.step_period(command, self.substeps, currents)
+                return
+            except DivergenceError:
+                # undone, then flown a step at a time: it fails at the same step, leaving the plant, the current
+                # and the acceleration as the reference leaves them (the current stepped once per step taken)
+                plant.state, plant.pitch, plant.steps, plant.held, saved = before
+                if saved is not None:
+                    current.speed, current.direction, current.rng.bit_generator.state = saved
         self._advance_steps(command)
 
     def _advance_steps(self, command) -> None:

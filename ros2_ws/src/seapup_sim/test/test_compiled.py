@@ -5,6 +5,8 @@ checks against the thesis (eq. 2.1-2.3, Table 3.2) and against conservation laws
 random states, blade pitches, currents, external wrenches and thruster efficiencies, for every shipped
 configuration, with the thrusters on and off and with and without the actuator lag.
 """
+import re
+
 import numpy as np
 import pytest
 
@@ -86,15 +88,17 @@ def test_one_compiled_step_is_the_reference_step(name, lag):
             except DivergenceError as exc:   # a random state the step cannot take (a light vehicle at dt 0.2 s)
                 return str(exc)
         a, b = (stepped(s) for s in steps)
-        if isinstance(b, str):   # the same state refused (its value alike to rounding), neither step taken
+        if isinstance(b, str):   # the same state refused, its value alike to rounding, neither step taken
+            value = re.compile(r"np\.float64\(([-+0-9.e]+)\)")
             assert isinstance(a, str) and a.split(" = ")[0] == b.split(" = ")[0], (a, b)
+            assert float(value.search(a).group(1)) == pytest.approx(float(value.search(b).group(1)), rel=1e-9)
             assert steps[0].steps == steps[1].steps == 0
             diverged.append(k)
             continue
         assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-12, (k, a - b)
         assert np.max(np.abs(steps[0].pitch - steps[1].pitch)) <= 1e-15
         assert steps[0].t == steps[1].t == dt
-    assert len(diverged) <= 25, diverged   # most random states are stepped, and compared
+    assert len(diverged) <= 15, diverged   # most random states are stepped, and compared
 
 
 @pytest.mark.unit
@@ -212,31 +216,83 @@ def test_the_compiled_umbilical_refuses_what_the_reference_refuses():
 
 
 @pytest.mark.unit
+@pytest.mark.parametrize("vehicle", ["baseline", "bluerov2_heavy"])
 @pytest.mark.parametrize("with_current", [False, True])
-def test_a_period_in_one_call_is_its_steps_one_at_a_time(with_current):
+def test_a_period_in_one_call_is_its_steps_one_at_a_time(vehicle, with_current):
     """Simulation.advance's one kernel call per control period (VehicleIntegrator.step_period) against the same
-    period stepped a physics step at a time (its ``_advance_steps``): the same states, blade pitches,
-    accelerations and current, bit for bit, over a flight with commands swept between the blade-pitch limits
-    and, on the second, the thesis's Gauss-Markov current (sec. 3.9) drawn for each step."""
-    from seapup_sim.simulation import Simulation
+    period stepped a physics step at a time (its ``_advance_steps``): the same states, actuators, accelerations
+    and current, bit for bit, over a flight with commands swept between the inputs' limits, the thesis's
+    Gauss-Markov current (sec. 3.9) drawn for each step on the second, and events -- at a period's start and in
+    the middle of one, where advance steps one at a time -- changing the fouling and the current."""
+    from seapup_sim.simulation import Event, Simulation
+    from seapup_sim.current import CurrentParams
     environment = {"sensors": "ideal", "current": {"enabled": with_current, "mean_speed": 0.26, "speed_std": 0.086,
                                                    "mean_direction": 0.3, "direction_std": 0.35, "break_time": 10.0}}
+    count = VehicleModel(load_vehicle_config(vehicle)).thrusters.count
+    events = [Event(6.0, "thruster_efficiency", [0.5] + [1.0] * (count - 1)),
+              Event(12.1, "current", CurrentParams(0.1, 0.02, -1.0, 0.1, 10.0))]
     start = np.r_[0.0, 0.0, 30.0, np.zeros(9)]
-    fast, slow = (Simulation.from_config("baseline", environment, seed=3, dt=0.1, control_period=0.3, state=start)
-                  for _ in range(2))
+    fast, slow = (Simulation.from_config(vehicle, environment, seed=3, dt=0.1, control_period=0.3, state=start,
+                                         events=events) for _ in range(2))
     rng = np.random.default_rng(7)
+    limit = fast.model.pitch_limit
     command = np.zeros(4)
     for k in range(300):
         if k % 10 == 0:
-            command = rng.uniform(-0.6, 0.6, 4)
+            command = rng.uniform(-1.1, 1.1, 4) * limit
         fast.advance(command)
         slow._advance_steps(command)
         assert np.array_equal(fast.plant.state, slow.plant.state) and np.array_equal(fast.plant.pitch, slow.plant.pitch)
         assert np.array_equal(fast.acceleration, slow.acceleration) and fast.t == slow.t
         assert np.array_equal(fast._current_ned(), slow._current_ned())
     assert fast.plant.steps == 900 and np.abs(fast.plant.state[6:9]).max() > 0.1   # it flew
-    if with_current:
-        assert np.abs(fast._current_ned()).max() > 0.05
+    assert fast.model.thrusters.efficiency[0] == 0.5 and fast.current is not None   # the events happened
+    assert np.abs(fast._current_ned()).max() > 0.05
+
+
+@pytest.mark.unit
+def test_a_period_that_diverges_in_a_simulation_leaves_it_as_the_steps_one_at_a_time_do():
+    """A period whose second step leaves the envelope: advance raises as the reference does, with the plant at
+    the step before, the current stepped once per step taken, the acceleration of the last step taken."""
+    from seapup_sim.simulation import Simulation
+    environment = {"sensors": "ideal", "current": {"enabled": True, "mean_speed": 0.26, "speed_std": 0.086,
+                                                   "mean_direction": 0.3, "direction_std": 0.35, "break_time": 10.0}}
+    start = np.r_[0.0, 0.0, 30.0, 0.0, np.radians(78.0), 0.0, 0.0, 0.0, 0.0, 0.0, 0.9, 0.0]   # pitching up fast
+    fast, slow = (Simulation.from_config("baseline", environment, seed=3, dt=0.1, control_period=1.0, state=start)
+                  for _ in range(2))
+    with pytest.raises(DivergenceError) as a:
+        fast.advance(np.zeros(4))
+    with pytest.raises(DivergenceError) as b:
+        slow._advance_steps(np.zeros(4))
+    assert str(a.value) == str(b.value) and fast.plant.steps == slow.plant.steps == 2
+    assert np.array_equal(fast.plant.state, slow.plant.state) and np.array_equal(fast.acceleration, slow.acceleration)
+    assert np.array_equal(fast._current_ned(), slow._current_ned())
+    assert fast.current.rng.bit_generator.state == slow.current.rng.bit_generator.state
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("curve", [
+    {"polynomial": [0.0, 20.0, 0.0, 10.0], "deadband": 0.1},                 # Horner's branch, with a deadband
+    {"table": [[-1.0, -30.0], [-0.9, -30.2], [0.0, 0.0], [0.9, 30.2], [1.0, 30.0]], "deadband": 0.05}])  # turns back
+def test_fixed_pitch_curves_of_every_branch_are_the_reference_s(curve):
+    """The kernels' fixed-pitch thrust for a polynomial that does not turn back (Horner's scheme) and for a table
+    that does (its monotone envelope), each with a deadband, against the NumPy reference on random states."""
+    config = load_vehicle_config("bluerov2_heavy")
+    deadband = curve.pop("deadband")
+    config["thrusters"]["thrust_curve"] = curve
+    config["thrusters"]["deadband"] = deadband
+    model = VehicleModel(config)
+    packed = compiled.pack(model)
+    assert packed.scalars[12] == (compiled.CURVE_POLYNOMIAL if "polynomial" in curve else compiled.CURVE_TABLE)
+    assert model.thrusters.curve._droops == ("table" in curve)
+    rng = np.random.default_rng(3)
+    worst = 0.0
+    for k in range(200):
+        state, pitch, current, external = _random_inputs(rng, model)
+        ours = compiled.derivatives(packed, model.thrusters.efficiency, state, pitch, current, external)
+        ref = model.derivatives(state, pitch, current, external)
+        worst = max(worst, float(np.max(np.abs(ours - ref) / np.maximum(1.0, np.abs(ref)))))
+    assert worst <= 1e-12, worst
 
 
 @pytest.mark.unit

@@ -370,10 +370,11 @@ def bench(argv: list[str]) -> int:
     m, ref = out["model"], out["model_numpy"]
     # the workloads, written beside their figures
     pitches = ", ".join(f"{v:g}" for v in np.degrees(cmd).round(1))
-    m["workload"] = (f"{model.config_name}, the nonlinear plant, inputs held at ({pitches}) deg, still water, "
-                     "dt 0.1 s, one vehicle stepped a physics step a call")
-    out["batch_plant"]["workload"] = (f"N x {model.config_name}, inputs held at ({pitches}) deg, a 0.22 m/s "
-                                      "current, dt 0.1 s, all N stepped a physics step a call")
+    m["workload"] = (f"{model.config_name}, the nonlinear plant in open loop (no law, no sensors), inputs held at "
+                     f"({pitches}) deg, still water, dt 0.1 s, one vehicle stepped a physics step a call")
+    out["batch_plant"]["workload"] = (f"N x {model.config_name} in open loop (no law, no sensors), inputs held at "
+                                      f"({pitches}) deg, a 0.22 m/s current, dt 0.1 s, all N stepped a physics step "
+                                      "a call")
     print(f"model ({m['workload']}): {m['step_us']:.1f} us per RK4 step ({m['cpu_us']:.1f} us CPU) = "
           f"{m['rtf']:.0f}x real time, compiled; the NumPy reference {ref['step_us']:.0f} us ({ref['cpu_us']:.0f} us "
           f"CPU) = {ref['rtf']:.0f}x: {m['speedup_vs_numpy']:.0f} times faster in CPU time", file=out_text)
