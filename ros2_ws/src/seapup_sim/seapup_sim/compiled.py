@@ -610,8 +610,14 @@ def warm() -> None:
     rk4_checked(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, _NONE3, False, _NONE6, False, True,
                 model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
-    rk4_period(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
-               model.thrusters.efficiency, *packed, np.ones(12), np.empty((2, 12)), np.empty((2, 4)), np.empty(3))
+    # and with a read-only command (a law's Command holds its pitches read-only): each is its own numba type
+    frozen = np.zeros(4)
+    frozen.setflags(write=False)
+    for command in (np.zeros(4), frozen):
+        rk4_period(np.zeros(12), np.zeros(4), command, 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
+                   model.thrusters.efficiency, *packed, np.ones(12), np.empty((2, 12)), np.empty((2, 4)), np.empty(3))
+    rk4_checked(np.zeros(12), np.zeros(4), frozen, 0.05, 0.1, _NONE3, False, _NONE6, False, True,
+                model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
     rov = VehicleModel(load_vehicle_config("bluerov2_heavy"))   # fixed-pitch thrusters: the curve's branch
     mixed = rov.inputs.to_actuators(np.zeros(4))   # the mixer's commands: a read-only array
     rk4_checked(np.zeros(12), np.zeros(8), mixed, 0.05, 0.1, _NONE3, False, _NONE6, False, True,

@@ -56,10 +56,10 @@ _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
 
 @functools.lru_cache(maxsize=8)
 def _still_water(steps: int) -> np.ndarray:
-    """(steps, 3) zeros, read-only: the currents of a period with no current (the kernel reads none of them)."""
-    zeros = np.zeros((steps, 3))
-    zeros.setflags(write=False)
-    return zeros
+    """(steps, 3) zeros: the currents of a period with no current (the kernel reads none of them). Writable, as
+    the arrays :func:`seapup_sim.compiled.warm` compiles the kernel for: a read-only one is another numba type,
+    compiled on its first call -- seconds in which a lockstep simulator answers nobody."""
+    return np.zeros((steps, 3))
 
 
 def _command(command, limit: float) -> np.ndarray:

@@ -310,3 +310,42 @@ def test_a_period_that_diverges_keeps_the_steps_before_it_and_says_where():
     assert np.array_equal(plant.state, twin.state) and abs(plant.state[4]) <= np.radians(85.0)
     with pytest.raises(ValueError, match="shape"):
         plant.step_period(np.zeros(4), 2, np.zeros((3, 3)))
+
+
+_FLIGHTS = r'''
+import numpy as np
+from seapup_sim import compiled
+compiled.warm()
+kernels = ("rk4_checked", "rk4_period", "rk4_batch", "rhs")
+before = {k: len(getattr(compiled, k).signatures) for k in kernels}
+from seapup_common.contract import Command
+from seapup_sim.simulator_core import SimulatorConfig, SimulatorCore
+from seapup_sim.simulation import Simulation
+current = {"enabled": True, "mean_speed": 0.2, "speed_std": 0.05, "mean_direction": 0.0, "direction_std": 0.1}
+for vehicle in ("baseline", "bluerov2_heavy"):
+    for environment in ({}, {"current": current}):
+        core = SimulatorCore(SimulatorConfig(vehicle, 0, environment=environment), np.r_[0, 0, 30.0, np.zeros(9)])
+        for k in range(3):   # the simulator node's path: a command through the gate, a period
+            core.submit(np.array(core.hover, float), core.t_ns, lockstep=True)
+            core.step()
+        sim = Simulation.from_config(vehicle, environment, state=np.r_[0, 0, 30.0, np.zeros(9)])
+        for k in range(3):   # a run's path: a law's Command, its pitches read-only
+            sim.advance(Command(np.zeros(4), 0.0).blade_pitch)
+            sim.plant.step(Command(np.zeros(4), 0.0).blade_pitch)
+after = {k: len(getattr(compiled, k).signatures) for k in kernels}
+print(before == after, before, after)
+'''
+
+
+@pytest.mark.process
+def test_every_kernel_call_of_a_flight_is_a_type_warm_compiled():
+    """The simulator node's and an in-process run's calls of the kernels, for both kinds of thrusters, with and
+    without a current, are of the argument types ``warm`` (``./seapup setup``) compiles: a type it does not is
+    compiled at its first call, seconds in which a lockstep simulator answers nobody (a fresh clone's demo once
+    failed so: a period's still-water currents were a read-only array). In a process of its own, so no earlier
+    call has loaded another type."""
+    import subprocess
+    import sys
+    done = subprocess.run([sys.executable, "-c", _FLIGHTS], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("True"), done.stdout
