@@ -520,11 +520,12 @@ class RunSpec:
     def pilot_at(self, t: float) -> tuple | None:
         """The scripted pilot's demand in force at ``t`` [s]: (x, y, z [m/s], yaw [rad/s]) of a ``Twist`` in
         ``base_link`` (REP-103), or None before its first step."""
-        demand = None
-        for row in self.pilot:
-            if row[0] <= t + 1e-9:
-                demand = row[1:]
-        return demand
+        k = bisect.bisect_right(self._pilot_times, t + 1e-9)   # a binary search, as ReferenceSteps.at
+        return self.pilot[k - 1][1:] if k else None
+
+    @functools.cached_property
+    def _pilot_times(self) -> tuple:
+        return tuple(row[0] for row in self.pilot)
 
     def vehicle_config(self) -> dict:
         """The flown vehicle's configuration: ``vehicle``'s, its coefficients scaled as ``coefficients`` say."""

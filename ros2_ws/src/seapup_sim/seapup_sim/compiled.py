@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
-           "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "WORK", "RK4_SCRATCH"]
+           "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "work_size", "rk4_scratch"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -87,16 +87,14 @@ def thrust_rows(n):
     return POINT_MAP + 3 * n, POINT_MAP + 3 * n + 6
 
 
-def work_size(n: int) -> int:
+@njit(inline="always", **_JIT)
+def work_size(n):
     """Scratch floats :func:`rhs` needs for n thrusters."""
     return 76 + 7 * n
 
 
-#: scratch floats :func:`rhs` needs for the Seapup's four thrusters
-WORK = 104
-
-
-def rk4_scratch(n: int) -> int:
+@njit(inline="always", **_JIT)
+def rk4_scratch(n):
     """Scratch floats of one RK4 step for n thrusters: the three lagged commands, four stages, the stage
     state, :func:`rhs`'s work."""
     return 3 * n + 5 * 12 + work_size(n)
@@ -314,7 +312,7 @@ def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, extern
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y,
               new, pitch_end, buf):
     """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and ``pitch_end``, with its
-    scratch ``buf`` (:data:`RK4_SCRATCH` floats) given."""
+    scratch ``buf`` (:func:`rk4_scratch` floats) given."""
     n = pitch0.shape[0]
     p0, ph, p1 = buf[0:n], buf[n:2 * n], buf[2 * n:3 * n]
     b = 3 * n
@@ -352,9 +350,6 @@ def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, extern
         pitch_end[j] = p1[j]
 
 
-#: scratch floats of one RK4 step of the Seapup's four thrusters (:func:`rk4_scratch`)
-RK4_SCRATCH = rk4_scratch(4)
-
 
 @njit(**_JIT)
 def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
@@ -366,7 +361,7 @@ def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, exte
     envelope (``new`` then holds the step unwrapped, for the caller's message)."""
     _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x,
-              curve_y, new, pitch_end, np.empty(3 * pitch0.shape[0] + 136 + 7 * pitch0.shape[0]))
+              curve_y, new, pitch_end, np.empty(rk4_scratch(pitch0.shape[0])))
     for i in range(12):
         if not math.isfinite(new[i]) or abs(new[i]) > envelope[i]:
             return i
@@ -385,7 +380,7 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
     (tested). ``states[i]``, ``pitches[i]``: after step i; ``accel``: d(u, v, w)/dt over the last step, as
     :meth:`seapup_sim.simulation.Simulation.advance` computes it. Returns -1, or ``12 i + j`` for state j out
     of the envelope at step i (``states[i]`` then holds that step unwrapped; the steps before it are good)."""
-    buf = np.empty(3 * pitch0.shape[0] + 136 + 7 * pitch0.shape[0])
+    buf = np.empty(rk4_scratch(pitch0.shape[0]))
     n = states.shape[0]
     for i in range(n):
         start = x if i == 0 else states[i - 1]
@@ -413,7 +408,7 @@ def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, extern
     flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
     a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads may step
     disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
-    buf = np.empty(3 * pitches.shape[1] + 136 + 7 * pitches.shape[1])
+    buf = np.empty(rk4_scratch(pitches.shape[1]))
     for i in range(states.shape[0]):
         if not active[i]:
             new[i] = states[i]
