@@ -51,7 +51,7 @@ def test_the_demo_mission_shipped_for_the_bluerov2_flies_every_leg_in_process(bl
     assert [leg["status"] for leg in legs] == ["succeeded"] * len(config["mission"]), \
         [leg.get("message") for leg in legs]
     assert abs(flown["logs"]["command"]).max() <= 1.0
-    fouled = legs[-1]
+    fouled = next(leg for leg in legs if leg["kind"] == "fouling")
     from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
     from seapup_runs.actuators import actuator_activity
     logs = flown["logs"]
@@ -65,9 +65,11 @@ def test_a_mission_names_one_efficiency_per_thruster_of_its_vehicle():
     from seapup_runs.mission import MissionError, MissionSpec
     from seapup_bringup.graph.mission_graph import mission_config, mission_path
     config = mission_config(mission_path("bluerov2_heavy"))
-    leg = dict(config["mission"][-1], foul={"after": 10.0, "efficiency": [1.0] * 33})
+    index = next(i for i, leg in enumerate(config["mission"]) if leg["kind"] == "fouling")
+    legs = list(config["mission"])
+    legs[index] = dict(legs[index], foul={"after": 10.0, "efficiency": [1.0] * 33})
     with pytest.raises(MissionError, match="one value per thruster"):
-        MissionSpec.load({"graph": config["graph"], "mission": [*config["mission"][:-1], leg]})
+        MissionSpec.load({"graph": config["graph"], "mission": legs})
 
 
 @pytest.mark.graph

@@ -39,10 +39,10 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
 
     run, summary, out = quiet_demo
     legs = {leg["kind"]: leg for leg in summary["legs"]}
-    assert [leg["status"] for leg in summary["legs"]] == ["succeeded"] * 7
+    assert [leg["status"] for leg in summary["legs"]] == ["succeeded"] * 8
     # and the truth agrees with every verdict: the estimate within 4 of its stated std at each leg's end
-    assert [leg["truth_verdict"] for leg in summary["legs"]] == [""] * 7
-    assert {"self_test", "hover", "goto", "inspection", "follow_seabed", "current", "fouling"} == set(legs)
+    assert [leg["truth_verdict"] for leg in summary["legs"]] == [""] * 8
+    assert {"self_test", "hover", "goto", "inspection", "follow_seabed", "current", "fouling", "manual"} == set(legs)
     assert legs["goto"]["end_error_true"] <= 0.5 + 0.3            # arrival tolerance + navigation error
     assert legs["follow_seabed"]["altitude_true_max"] <= 0.3       # on the 1 in 10 slope, from the truth
     assert legs["current"]["hold_rms"] <= 0.5                      # station keeping in the 0.26 m/s current
@@ -64,6 +64,11 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     assert "legs marked for their actuators: fouled thruster" in run.stdout + run.stderr
     assert [leg["name"] for leg in summary["legs"] if leg["thrashed"] or leg["actuator_verdict"]] == [fouled["name"]]
     assert all(leg["max_step_deg"] <= 70.0 + 1e-6 and leg["samples"] > 0 for leg in summary["legs"])
+    # issue 45: a pilot flies the fouled vehicle (the scripted stick, sent as a teleop tool sends it) and hands it
+    # back at speed to the task and the scheduled law without a bump
+    manual = legs["manual"]
+    assert manual["hand_back_velocity"][0] > 0.15 and manual["hand_back_step_deg"] <= manual["hand_back_normal_deg"]
+    assert manual["hold_rms"] <= 0.2
     for line in ("leg ", "self-test", "station keeping", "swap step", "thrash s"):
         assert line in run.stdout + run.stderr
     for name in summary["plots"]:
@@ -116,7 +121,7 @@ def test_the_demo_mission_flies_every_leg_and_its_bag_opens_with_rosbags_and_mca
     assert taken > 0.95 * samples and counts["/seapup/thrusters/command"] >= taken, (taken, samples)
     # the controllers that flew (every configured one also says once that it heard its first reference)
     assert {name for name, (n, _) in last.items() if n > 0} == {"seapup/mfol_fixed", "seapup/mfol_scheduled",
-                                                                 "seapup/gmv"}
+                                                                 "seapup/gmv", "seapup/manual"}
     assert sum(late for _, late in last.values()) <= 0.01 * sum(n for n, _ in last.values())
     # one time base: every stamped message of every topic is logged no earlier than its own header stamp,
     # and no node stamps with the wall clock on this sim-time graph (/diagnostics once mixed the two)

@@ -6,8 +6,9 @@ sample, to the stated tolerance (docs/missions.md).
 Independent truth: the lockstep ROS graph, whose nodes each run in their own process and talk only through
 DDS messages; the in-process runner shares only the pure cores with it. The mission is written here (not the
 shipped demo) and has a leg of every kind and every act: the self-test action and the controllers it
-configures, a hover with a controller swap in it, a goto, an inspection creep, seabed following, a current
-switched on for station keeping, and a fouling with a switch to a self-tuner.
+configures, a hover with a controller swap in it, a goto, an inspection creep, a pilot's manual flight handed
+back to a task, seabed following, a current switched on for station keeping, and a fouling with a switch to a
+self-tuner.
 """
 from __future__ import annotations
 
@@ -25,14 +26,17 @@ from tests.test_sil_example import controller_file  # noqa: F401 - the session's
 
 MISSION = """
 graph: {mode: lockstep, initial_controller: "", seed: 3, start_depth: 50.0, sensors: baseline, current: false,
-        seabed_kind: slope, seabed_depth: 65.0, seabed_gradient: -0.1, seabed_direction: 1.5707963267948966}
+        seabed_kind: slope, seabed_depth: 65.0, seabed_gradient: -0.1, seabed_direction: 1.5707963267948966,
+        manual: true}
 mission:
   - {name: tune, kind: self_test, goal: {operating_points: [0.0]}, expected: 90,
-     configure: [mfol_fixed, mfol_scheduled, explicit, gmv], activate: mfol_fixed}
+     configure: [mfol_fixed, mfol_scheduled, explicit, gmv, manual], activate: mfol_fixed}
   - {name: hold and swap, kind: hover, goal: {hold_current: true, duration: 8.0}, expected: 8,
      switch: {after: 4.0, request: {activate: [mfol_scheduled], deactivate: [mfol_fixed]}}}
   - {name: step aside, kind: goto, offset: [2.0, 1.0, 0.5], turn: 0.5, goal: {tolerance: 0.5}, expected: 20}
   - {name: creep, kind: inspection, body_velocity: [0.15, 0.0, 0.05], seconds: 6.0, expected: 10}
+  - {name: by hand, kind: manual, controller: manual, hand_back: mfol_scheduled, seconds: 6.0, expected: 12,
+     pilot: [[0.0, 0.15, 0.0, 0.0, 0.0], [3.0, 0.15, 0.05, 0.0, 0.1]], goal: {duration: 4.0}}
   - {name: over the slope, kind: follow_seabed, expected: 10,
      goal: {altitude: 12.0, yaw: 1.5707963267948966, speed: 0.1, duration: 10.0}}
   - {name: in current, kind: current, goal: {duration: 8.0}, face: 0.5, expected: 8,
@@ -46,7 +50,8 @@ mission:
 #: (measured: none -- every command of this mission and of the demo's 3 176 samples equal, bit for bit)
 COMMAND_TOLERANCE = 1e-9
 #: what is compared exactly (times on the sample grid, verdicts) and what to within a relative 1e-6
-EXACT = ("name", "kind", "status", "t0", "t1", "end_time", "foul_t", "switch_t", "thrashed", "samples")
+EXACT = ("name", "kind", "status", "t0", "t1", "end_time", "foul_t", "switch_t", "take_t", "hand_back_t", "thrashed",
+         "samples")
 
 
 @pytest.fixture(scope="module")
@@ -86,6 +91,33 @@ def test_a_swap_in_process_is_bumpless(flown):
     its first command moves the pitches no more than the outgoing law's commands did just before."""
     hover = flown["legs"][1]
     assert hover["switch_step_deg"] <= max(hover["normal_step_deg"], 5.0)
+
+
+def test_a_pilot_flies_the_stick_and_the_task_takes_the_vehicle_back_without_a_bump(flown, spec, hierarchy,
+                                                                                       monkeypatch):
+    """Issue 45's hand-back: the manual controller flies the scripted stick (REP-103's forward 0.15 m/s, left
+    0.05 m/s, counter-clockwise 0.1 rad/s are FRD's u 0.15, v -0.05, r -0.1), and the task takes the vehicle back
+    at speed: the pilot's controller in and the task's back each move the blade pitches no more than the flight
+    did just before (the bound of a swap, above), because the task controller followed the vehicle while the
+    pilot flew. Without that following -- the task holding where the pilot took over -- the position controller
+    has wound its references toward that point and the same hand-back steps the pitches several times more."""
+    manual = next(leg for leg in flown["legs"] if leg["kind"] == "manual")
+    assert manual["status"] == "succeeded" and manual["hand_back_t"] == manual["take_t"] + 6.0
+    np.testing.assert_allclose(manual["hand_back_velocity"], [0.15, -0.05, 0.0, -0.1], atol=0.01)
+    assert manual["take_step_deg"] <= max(manual["take_normal_deg"], 5.0)
+    assert manual["hand_back_step_deg"] <= max(manual["hand_back_normal_deg"], 5.0)
+    assert manual["hold_rms"] < 0.5 and not manual["thrashed"]
+
+    from seapup_control import tasks
+    hover = tasks.Hover.__init__
+
+    def holding(self, *args, follow=False, **kwargs):   # the take-over point held instead of followed
+        hover(self, *args, **{**kwargs, "hold_current": kwargs.get("hold_current", False) or follow})
+    monkeypatch.setattr(tasks.Hover, "__init__", holding)
+    document = yaml.safe_load(MISSION)
+    document["mission"] = [leg for leg in document["mission"] if leg["kind"] in ("self_test", "manual")]
+    naive = next(leg for leg in run_mission(MissionSpec.load(document), hierarchy)["legs"] if leg["kind"] == "manual")
+    assert naive["hand_back_step_deg"] > 3 * max(manual["hand_back_step_deg"], 1.0)
 
 
 def test_a_goal_the_task_controller_refuses_stops_the_mission_with_its_reason(hierarchy):

@@ -84,6 +84,7 @@ class ManualPilot:
         self.output = np.zeros(4)
         self.t: float | None = None
         self.refused = 0
+        self.received = 0   # demands taken (a harness holding the graph waits for its own: diagnostics' pilot_received)
 
     def pilot(self, t: float, body_velocity) -> None:
         """The pilot's demand (u, v, w, r) at time ``t`` [s], bounded to the limits; a non-finite one is refused
@@ -94,12 +95,14 @@ class ManualPilot:
             raise ContractError(f"a pilot demand needs 4 finite values and a finite time, got {body_velocity!r}")
         self.demand = np.clip(demand, -self.limits, self.limits)
         self.demand_t = float(t)
+        self.received += 1
 
     def reset(self, t: float, velocity) -> None:
         """Take over at ``t`` from the vehicle moving at ``velocity`` (u, v, w, r): the reference starts there
-        (bounded), the pilot's earlier demand forgotten."""
+        (bounded) and moves toward the pilot's demand from the next sample -- a stick already held when the
+        controller comes in counts, an older one than ``silence_timeout`` is silence (:meth:`silent`)."""
         self.output = np.clip(np.asarray(velocity, dtype=float), -self.limits, self.limits)
-        self.t, self.demand, self.demand_t = float(t), np.zeros(4), None
+        self.t = float(t)
 
     def silent(self, t: float) -> bool:
         """No demand yet, or the last one older than ``silence_timeout``."""
@@ -154,7 +157,7 @@ class ManualLaw:
     def diagnostics(self) -> dict:
         return {**self.inner.diagnostics(), "pilot_demand": self.manual.demand.tolist(),
                 "pilot_silent": self.manual.silent(self.manual.t if self.manual.t is not None else 0.0),
-                "pilot_refused": self.manual.refused}
+                "pilot_refused": self.manual.refused, "pilot_received": self.manual.received}
 
 
 def create_manual(parameters: dict, document, sample_period: float | None) -> ManualLaw:

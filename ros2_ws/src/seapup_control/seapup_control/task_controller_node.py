@@ -146,7 +146,7 @@ class TaskControllerNode(Node):
         estimate = self.estimate if self._fresh() else None
         if kind == "hover":
             return HoverTask(self.limits, estimate, hold_current=goal.hold_current,
-                             pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration)
+                             pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration, follow=goal.follow)
         if kind == "goto":
             return GotoTask(self.limits, estimate, (goal.x, goal.y, goal.z), goal.yaw, speed=goal.speed,
                             tolerance=goal.tolerance, yaw_tolerance=goal.yaw_tolerance, timeout=goal.timeout)

@@ -172,16 +172,25 @@ class Task(abc.ABC):
 
 
 class Hover(Task):
-    """Hold ``pose`` (x, y, z, yaw) -- or the estimated pose at the start -- for ``duration`` s (0 = until cancelled)."""
+    """Hold ``pose`` (x, y, z, yaw) -- or the estimated pose at the start -- for ``duration`` s (0 = until cancelled).
+
+    With ``follow`` the setpoint is instead the estimated pose at every sample: while a pilot flies the vehicle
+    (:mod:`seapup_control.manual`) the position controller then tracks it -- its slew-limited reference follows
+    the setpoint's rate, the vehicle's own velocity, as its feed-forward (sec. 8.3's references the thrusters can
+    follow) -- so the task that takes the vehicle back starts from the velocity the vehicle has, without a bump
+    (the tracking mode of a bumpless transfer). Its errors are then the vehicle's excursion from where it was at
+    the start.
+    """
 
     kind = "hover"
 
     def __init__(self, limits: TaskLimits, estimate: NavigationEstimate | None, *, hold_current: bool = True,
-                 pose=(0.0, 0.0, 0.0, 0.0), duration: float = 0.0):
+                 pose=(0.0, 0.0, 0.0, 0.0), duration: float = 0.0, follow: bool = False):
         super().__init__(limits)
         estimate = _check_estimate(estimate, limits)
         self.duration = _in_range("duration", duration, 0.0, limits.max_duration, "s")
-        if hold_current:
+        self.follow = bool(follow)
+        if hold_current or self.follow:
             self.target = np.array(estimate.position, dtype=float)
             self.yaw = estimate.yaw
         else:
@@ -200,7 +209,9 @@ class Hover(Task):
         horizontal = float(math.hypot(error[0], error[1]))
         yaw_error = float(wrap_angle(estimate.yaw - self.yaw))
         self.stats.add(horizontal=horizontal, depth=float(error[2]), yaw=yaw_error)
-        step = TaskStep(PoseReference(self.target, self.yaw, t),
+        setpoint = (PoseReference(estimate.position, estimate.yaw, t) if self.follow
+                    else PoseReference(self.target, self.yaw, t))
+        step = TaskStep(setpoint,
                         {"elapsed": elapsed, "horizontal_error": horizontal, "depth_error": float(error[2]),
                          "yaw_error": yaw_error})
         if self.duration > 0 and elapsed >= self.duration - 1e-9:

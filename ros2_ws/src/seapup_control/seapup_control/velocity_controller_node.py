@@ -90,7 +90,7 @@ from seapup_common.ros.messages import MeasurementCollector, SampleFeed, diagnos
 from seapup_common.ros.graph import SubscriberGate
 from seapup_common.ros.node import (COMMAND_QOS, QUIET_PUBLISHER, QUIET_SUBSCRIPTION, RELIABLE_QOS, STREAM_QOS,
                                     QosWatch, declare_from_package_file, declare_guarded, one_of,
-                                    refuse_invalid_transitions, run_node, text)
+                                    graph_time_ns, refuse_invalid_transitions, run_node, text)
 from seapup_common.ros.sample_bytes import command_bytes
 from seapup_common.topics import CLOCK, DIAGNOSTICS, FORWARDED_COMMAND, NAMESPACE
 from seapup_control.ros.diagnostics_pace import DiagnosticsPace
@@ -343,14 +343,18 @@ class VelocityControllerNode(LifecycleNode):
         self.get_logger().warn(f"sensor message rejected: {reason}", throttle_duration_sec=2.0)
 
     def _on_pilot(self, msg) -> None:
-        """The pilot's demand, timed by the node's clock (the simulator's in lockstep); a malformed one counted."""
-        t = self.get_clock().now().nanoseconds * 1e-9
+        """The pilot's demand, timed by the graph's time as the node knows it (its clock under ``use_sim_time``,
+        else the newest sample: :func:`~seapup_common.ros.node.graph_time_ns`; the wall clock would make a
+        stick on a simulated-time graph never silent); a malformed one counted. Said at once in diagnostics
+        (``pilot_received``): a harness holding the graph waits for its stick there."""
+        t_ns = graph_time_ns(self, self.policy.latest_ns)
         try:
-            self.controller.pilot(t, (msg.linear.x, msg.linear.y, msg.linear.z),
+            self.controller.pilot(t_ns * 1e-9, (msg.linear.x, msg.linear.y, msg.linear.z),
                                   (msg.angular.x, msg.angular.y, msg.angular.z))
         except ContractError as exc:   # a non-finite stick: counted in diagnostics, never flown
             self.counts["rejected_pilot"] = self.counts.get("rejected_pilot", 0) + 1
             self.get_logger().warn(f"pilot message rejected: {exc}", throttle_duration_sec=2.0)
+        self._diagnose(t_ns)
 
     def _on_velocity(self, data: bytes) -> None:
         t_ns = self.raw_feed.velocity(data)

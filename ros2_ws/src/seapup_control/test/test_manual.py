@@ -85,3 +85,18 @@ def test_the_manual_law_flies_the_seapup_to_the_pilot_s_demand_and_takes_over_wi
     assert first[0] == pytest.approx(0.2, abs=1e-9)   # bumpless: from the measured speed
     np.testing.assert_allclose(held[:2], [0.25, 0.1], atol=0.01)
     assert np.abs(sim.sample().state[6:9]).max() < 0.02   # silent since 50 s: at rest
+
+
+def test_a_stick_held_when_the_pilot_takes_over_counts_and_a_silent_one_does_not():
+    """The teleop tool's stick sent at the sample the manual controller comes in is flown from the next sample
+    (the take-over starts from the measured velocity, then ramps toward it); one older than the silence
+    timeout is not."""
+    pilot = ManualPilot(acceleration=(0.05, 0.05, 0.05, 0.1), silence_timeout=1.0)
+    pilot.pilot(10.0, [0.2, 0.0, 0.0, 0.0])
+    pilot.reset(10.0, [0.05, 0.0, 0.0, 0.0])
+    assert pilot.reference(10.0).velocity.tolist() == [0.05, 0.0, 0.0, 0.0]
+    assert pilot.reference(10.2).velocity[0] == pytest.approx(0.05 + 0.05 * 0.2)
+    stale = ManualPilot(silence_timeout=1.0)
+    stale.pilot(0.0, [0.2, 0.0, 0.0, 0.0])
+    stale.reset(5.0, [0.0, 0.0, 0.0, 0.0])
+    assert stale.reference(5.2).velocity.tolist() == [0.0, 0.0, 0.0, 0.0]

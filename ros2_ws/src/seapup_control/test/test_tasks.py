@@ -68,3 +68,19 @@ def test_a_moving_setpoint_waits_for_a_vehicle_that_falls_behind():
     # never back (a fix pulling the estimate back does not pull the setpoint), never past the end
     assert advance_along(2.0, 0.2, 0.3, vehicle_along=0.0, lead=0.5, end=10.0) == 2.0
     assert advance_along(9.99, 0.2, 0.3, vehicle_along=9.9, lead=0.5, end=10.0) == 10.0
+
+
+def test_a_followed_hover_sets_the_vehicle_s_own_pose_and_measures_its_excursion():
+    """Hover(follow=True), the task controller's part of a manual flight: each setpoint is the estimate's pose at
+    that sample (so the position controller's feed-forward is the vehicle's own velocity), its errors the distance
+    from where it started; it ends only by its duration (0: when cancelled)."""
+    task = Hover(LIMITS, estimate((1.0, 2.0, 30.0), yaw=0.3), follow=True, duration=0.0)
+    for k in range(50):
+        here = (1.0 + 0.04 * k, 2.0 - 0.02 * k, 30.0 + 0.01 * k)
+        step = task.step(0.2 * k, estimate(here, yaw=0.3 + 0.01 * k, t=0.2 * k))
+        np.testing.assert_array_equal(step.setpoint.position, here)
+        assert step.setpoint.yaw == pytest.approx(0.3 + 0.01 * k) and step.setpoint.t == 0.2 * k
+        assert step.feedback["horizontal_error"] == pytest.approx(math.hypot(0.04 * k, 0.02 * k))
+        assert not step.done
+    held = Hover(LIMITS, estimate((1.0, 2.0, 30.0)), duration=0.0)   # not followed: the start is held
+    assert held.step(1.0, estimate((3.0, 2.0, 30.0), t=1.0)).setpoint.position.tolist() == [1.0, 2.0, 30.0]

@@ -23,6 +23,13 @@ A mission document (``seapup_bringup/config/mission.yaml`` is the demo's) has tw
     - ``follow_seabed`` -- ``goal``: ``altitude`` [m], ``yaw`` [rad], ``speed`` [m/s], ``duration`` [s];
     - ``current`` -- the current set (``current``: ``enabled`` and sec. 3.9's Gauss-Markov fields), then
       station keeping (``goal.duration``) facing ``face`` [rad] if given;
+    - ``manual`` -- flown by hand, then handed back to a task (:mod:`seapup_control.manual`): the velocity
+      controller ``controller`` (a ``manual`` one) is activated and flies the scripted ``pilot`` (rows
+      ``[t, x, y, z, yaw]``: from ``t`` s into the leg a ``Twist``'s linear x, y, z [m/s] and angular z [rad/s] in
+      REP-103's ``base_link``, sent every :data:`PILOT_PERIOD` s as a teleop tool sends it) for ``seconds``
+      while the task controller follows the vehicle (a hover with ``follow``); then, at once, ``hand_back`` is
+      activated and the following cancelled (the task controller hovers where the vehicle is), and a hover holds
+      where the vehicle is (``goal.duration``) from the next hold;
     - ``fouling`` -- sec. 7.4.4: a creep (``body_velocity``) whose thrusters' efficiencies become
       ``foul.efficiency`` ``foul.after`` s in, ``fouled_seconds`` long; then, held, the ``switch``
       (``activate`` / ``deactivate``) and a second creep of ``adaptive_seconds``, its tracking counted
@@ -41,15 +48,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from seapup_runs.spec import (CURRENT_FIELDS, MAX_THRUSTERS, RunSpecError, _finite, _name, _numbers,
-                              _refuse_unknown, _short)
+                              _pilot_steps, _refuse_unknown, _short)
 
-__all__ = ["MissionSpec", "MissionError", "LEG_KINDS", "MAX_LEGS", "MAX_SECONDS", "load_mission", "leg_goal",
-           "fouling_creep", "fouling_result", "leg_numbers_of"]
+__all__ = ["MissionSpec", "MissionError", "LEG_KINDS", "MAX_LEGS", "MAX_SECONDS", "PILOT_PERIOD", "load_mission",
+           "leg_goal", "fouling_creep", "fouling_result", "leg_numbers_of", "pilot_sends", "manual_result"]
 
 #: At most this many legs in a mission (the demo has 7).
 MAX_LEGS = 1000
 #: Any timed part of a leg (a duration, a creep, an expected time) [s]: a day of simulated time.
 MAX_SECONDS = 86_400.0
+#: [s] how often a manual leg's scripted pilot sends its stick (a teleop tool's 2 Hz; a manual controller's
+#: ``silence_timeout`` must be longer, :mod:`seapup_control.manual`).
+PILOT_PERIOD = 0.5
 #: The largest offset of a goto and the largest body velocity a leg may ask for [m, m/s]: the vehicle's
 #: tether is 100 m class and its top speed about 0.7 m/s (sec. 5.3.1); these are generous bounds, not limits.
 MAX_OFFSET = 10_000.0
@@ -177,6 +187,9 @@ LEG_KINDS: dict[str, tuple[dict, tuple]] = {
     "current": ({"current": _current, "face": _angle,
                  "goal": lambda v, w: _mapping(v, w, _GOALS["current"], required=("duration",))},
                 ("current", "goal")),
+    "manual": ({"controller": _name, "hand_back": _name, "pilot": lambda v, w: _pilot(v, w), "seconds": _seconds,
+                "goal": lambda v, w: _mapping(v, w, _DURATION, required=("duration",))},
+               ("controller", "hand_back", "pilot", "seconds", "goal")),
     "fouling": ({"current": _current, "body_velocity": _body_velocity, "fouled_seconds": _seconds,
                  "foul": lambda v, w: _mapping(v, w, {"after": lambda x, y: _number(x, y, 0.0, MAX_SECONDS),
                                                       "efficiency": _efficiency}, required=("after", "efficiency")),
@@ -184,6 +197,20 @@ LEG_KINDS: dict[str, tuple[dict, tuple]] = {
                  "tune_in": lambda v, w: _number(v, w, 0.0, MAX_SECONDS)},
                 ("body_velocity", "fouled_seconds", "foul", "switch", "adaptive_seconds")),
 }
+
+
+def _pilot(value, what: str) -> list[list[float]]:
+    """A manual leg's scripted pilot: rows [t, x, y, z, yaw] (:func:`seapup_runs.spec._pilot_steps`: finite,
+    times from 0 rising, at most 1000), each speed within :data:`MAX_SPEED`."""
+    try:
+        rows = _pilot_steps(value)
+    except RunSpecError as exc:
+        raise MissionError(f"{what}: {exc}") from None
+    if not rows:
+        raise MissionError(f"{what} needs at least one [t, x, y, z, yaw] row")
+    if any(abs(v) > MAX_SPEED for row in rows for v in row[1:]):
+        raise MissionError(f"{what}: speeds must be within {MAX_SPEED:g} m/s (rad/s), got {_short(value)}")
+    return [list(row) for row in rows]
 
 
 def _poles(value, what: str) -> list[float]:
@@ -220,6 +247,11 @@ def _leg(value, index: int) -> dict:
     if kind == "hover" and "switch" in leg and leg["switch"]["after"] >= leg["goal"]["duration"]:
         raise MissionError(f"{label}: switch after {leg['switch']['after']:g} s is not within the hover's "
                            f"{leg['goal']['duration']:g} s")
+    if kind == "manual" and leg["pilot"][-1][0] >= leg["seconds"]:
+        raise MissionError(f"{label}: the pilot's last row at {leg['pilot'][-1][0]:g} s is not within its "
+                           f"{leg['seconds']:g} s")
+    if kind == "manual" and leg["controller"] == leg["hand_back"]:
+        raise MissionError(f"{label}: hand_back must be another controller than {leg['controller']!r}")
     if kind == "fouling" and leg["foul"]["after"] >= leg["fouled_seconds"]:
         raise MissionError(f"{label}: foul after {leg['foul']['after']:g} s is not within fouled_seconds "
                            f"({leg['fouled_seconds']:g} s)")
@@ -379,3 +411,32 @@ def fouling_result(leg: dict, fixed: dict, adaptive: dict, marks: dict) -> dict:
         adaptive.get("status") if fixed.get("status") == "succeeded" else fixed.get("status")
     return {**adaptive, "status": status, "t0": fixed["t0"], "t1": adaptive["t1"], **marks,
             "controller": leg["switch"]["activate"][0], "tune_in": float(leg.get("tune_in", 0.0))}
+
+
+def pilot_sends(leg: dict) -> list[tuple[float, tuple]]:
+    """A manual leg's stick as a teleop tool sends it: (time into the leg [s], (x, y, z, yaw) of the row in force)
+    every :data:`PILOT_PERIOD` s from 0 to before ``seconds`` (none before the first row: the pilot is silent).
+
+    >>> pilot_sends({"pilot": [[0.0, 0.2, 0, 0, 0], [1.0, 0, 0, 0, 0.1]], "seconds": 1.5})
+    [(0.0, (0.2, 0, 0, 0)), (0.5, (0.2, 0, 0, 0)), (1.0, (0, 0, 0, 0.1))]
+    """
+    rows, out = leg["pilot"], []
+    for k in range(int(math.ceil(leg["seconds"] / PILOT_PERIOD - 1e-9))):
+        t = k * PILOT_PERIOD
+        in_force = [row for row in rows if row[0] <= t + 1e-9]
+        if in_force:
+            out.append((t, tuple(in_force[-1][1:])))
+    return out
+
+
+def manual_result(leg: dict, piloted: dict, held: dict, marks: dict) -> dict:
+    """A manual leg's entry from its two goals' (the followed hover the pilot flew, cancelled at the hand-back,
+    then the hover after it): succeeded when the first was cancelled and the second succeeded, else the first
+    that did not; its window from the pilot's start to the
+    hold's end; the times the pilot took over and handed back (``marks``) and the two controllers."""
+    piloted_ok = piloted.get("status") == "canceled"   # the following ends by the hand-back's cancel
+    status = "succeeded" if piloted_ok and held.get("status") == "succeeded" else \
+        held.get("status") if piloted_ok else piloted.get("status")
+    return {**held, "status": status, "t0": piloted["t0"], "t1": held["t1"], **marks,
+            "controller": leg["controller"], "hand_back": leg["hand_back"], "piloted_s": float(leg["seconds"])}
+

@@ -55,7 +55,8 @@ from seapup_common.contract import (Command, ContractError, LatestReadings, Meas
                                      StampedReferences)
 from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, at_input_limit, controller_type,
                                        create_controller)
-from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
+from seapup_runs.mission import (PILOT_PERIOD, fouling_creep, fouling_result, leg_goal, leg_numbers_of, manual_result,
+                                 pilot_sends)
 
 __all__ = ["run_mission", "MissionFlightError", "next_boundary", "HOLD_CHUNK", "MissionFlight", "HierarchyConfig",
            "MAX_MISSION_SECONDS"]
@@ -164,6 +165,7 @@ class _Goal:
     yaw_tolerance: float = 0.0
     timeout: float = 0.0
     altitude: float = 0.0
+    follow: bool = False
 
 
 def _stamp(ns: int) -> float:
@@ -229,6 +231,7 @@ class MissionFlight:
         self.estimate: NavigationEstimate | None = None
         self.task = None
         self.task_result: dict | None = None
+        self.cancel_requested = False  # the running task is cancelled at the next estimate
         self.setpoint = None           # the task controller's setpoint (PoseReference), None before the first goal
         self._setpoint_yaw = (math.nan, math.nan)   # (a setpoint's yaw, as its message carries it)
         self.answered = False          # the present sample has its command
@@ -291,7 +294,13 @@ class MissionFlight:
     def _task_step(self, estimate: NavigationEstimate) -> None:
         """The task controller at estimate t_k: the task steps; the setpoint goes out stamped t_k + T."""
         self.estimate = estimate
-        if self.task is not None and self.task_result is None:
+        if self.task is not None and self.task_result is None and self.cancel_requested:
+            # as the task controller's node: a cancelled task hovers where the vehicle is
+            self.setpoint = self.task.hold(estimate, estimate.t)
+            self.task_result = {"status": "canceled", "message": "cancelled: hovering where it is",
+                                "end_time": estimate.t}
+            self.cancel_requested = False
+        elif self.task is not None and self.task_result is None:
             step = self.task.step(estimate.t, estimate, self._altitude_at(estimate.t))
             self.setpoint = step.setpoint
             if step.done:
@@ -418,9 +427,13 @@ class MissionFlight:
                                    float(detail.get("mean_direction", 0.0)), float(detail.get("direction_std", 0.0)), tc)
         self.core.set_current(params)
 
-    def goal(self, kind: str, fields: dict, during: tuple | None = None, timeout: float = 3600.0) -> dict:
+    def goal(self, kind: str, fields: dict, during: tuple | None = None, timeout: float = 3600.0, acts=(),
+             cancel_after: float | None = None) -> dict:
         """A task goal accepted at the present hold, flown to its end; the graph held after it (module
-        docstring). ``during = (after, act)``: ``act()`` at the hold ``after`` s in."""
+        docstring). ``during = (after, act)``: ``act()`` at the hold ``after`` s in; ``acts``: more such pairs in
+        rising time, none after the task's end; ``cancel_after``: cancelled at the hold that long in (the task
+        controller then hovers where the vehicle is at the next estimate), as
+        :meth:`seapup_bringup.graph.sil.SilGraph.goal` does on the graph."""
         from seapup_control.tasks import FollowSeabed, Goto, Hover, TaskRejected
         goal = _Goal(**fields)
         estimate = self.estimate if (self.estimate is not None
@@ -428,7 +441,7 @@ class MissionFlight:
         try:
             if kind == "hover":
                 task = Hover(self.limits, estimate, hold_current=goal.hold_current,
-                             pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration)
+                             pose=(goal.x, goal.y, goal.z, goal.yaw), duration=goal.duration, follow=goal.follow)
             elif kind == "goto":
                 task = Goto(self.limits, estimate, (goal.x, goal.y, goal.z), goal.yaw, speed=goal.speed,
                             tolerance=goal.tolerance, yaw_tolerance=goal.yaw_tolerance, timeout=goal.timeout)
@@ -445,6 +458,13 @@ class MissionFlight:
             self._send_setpoint(self.setpoint, self.estimate.t + self.period)
         acted = None
         end = accepted + timeout
+        for after, act in acts:
+            while self.task_result is None and self.t < accepted + after - 1e-6 and self.t < end:
+                self.step()
+            if self.task_result is not None:
+                break
+            self.answer()        # held there, the sample answered by the controller in force
+            act()
         if during is not None:
             while self.task_result is None and self.t < accepted + during[0] - 1e-6 and self.t < end:
                 self.step()
@@ -452,6 +472,11 @@ class MissionFlight:
                 self.run_to(next_boundary(self.task_result["end_time"]))
             self.answer()        # held there, the sample answered by the controller in force
             acted = during[1]()
+        if cancel_after is not None:
+            while self.task_result is None and self.t < accepted + cancel_after - 1e-6 and self.t < end:
+                self.step()
+            self.answer()
+            self.cancel_requested = self.task_result is None
         while self.task_result is None:
             if self.t >= end:
                 raise MissionFlightError(f"{kind} goal not finished within {timeout:g} s simulated")
@@ -461,6 +486,15 @@ class MissionFlight:
         self.run_to(next_boundary(result["end_time"]))
         return {"accepted": True, "rejection": "", "success": result["status"] == "succeeded", **result,
                 "accepted_t": accepted, "end_t": self.t, "during": acted}
+
+    def pilot(self, controller: str, demand) -> None:
+        """A pilot's stick (x, y, z, yaw of a REP-103 ``Twist``) heard now by manual velocity controller
+        ``controller``, as its node hears the teleop tool's message while the graph is held
+        (:meth:`seapup_bringup.graph.sil.SilGraph.pilot`)."""
+        law = self.configured.get(controller)
+        if law is None or not callable(getattr(law, "pilot", None)):
+            raise MissionFlightError(f"{controller!r} is not a configured manual velocity controller")
+        law.pilot(self.now, tuple(demand[:3]), (0.0, 0.0, float(demand[3])))
 
     def fly_self_test(self, goal: dict) -> dict:
         """The self-test action from the present hold to its end; held at the sample after its last."""
@@ -533,6 +567,8 @@ def _fly_leg(flight: MissionFlight, leg: dict, swap: dict, during: tuple | None 
     kind = leg["kind"]
     if kind == "fouling":
         return _fly_fouling(flight, leg, swap)
+    if kind == "manual":
+        return _fly_manual(flight, leg)
     if kind == "self_test":
         out = flight.fly_self_test(leg.get("goal", {}))
         flight.configure(out.pop("document"))
@@ -572,3 +608,42 @@ def _fly_fouling(flight: MissionFlight, leg: dict, swap: dict) -> dict:
     flight.switch(**leg["switch"])
     adaptive = _fly_leg(flight, fouling_creep(leg, leg["adaptive_seconds"]), swap)
     return fouling_result(leg, fixed, adaptive, marks)
+
+
+def _fly_manual(flight: MissionFlight, leg: dict) -> dict:
+    """A manual leg (:mod:`seapup_runs.mission`): the pilot's controller in, its stick sent every
+    :data:`~seapup_runs.mission.PILOT_PERIOD` s while the task controller follows the vehicle, then the hand-back
+    and a hover where the vehicle is (as ``seapup_bringup.graph.mission_graph`` flies it on the graph)."""
+    check_pilot_period(leg, flight.laws)
+    marks = {"take_t": flight.t}
+    flight.switch(activate=[leg["controller"]], deactivate=[flight.active] if flight.active else [])
+    sends = pilot_sends(leg)
+    if sends and sends[0][0] == 0.0:   # the first stick at the hold the pilot takes over at
+        flight.pilot(leg["controller"], sends.pop(0)[1])
+
+    def hand_back():
+        marks["hand_back_t"] = flight.t
+        flight.switch(activate=[leg["hand_back"]], deactivate=[leg["controller"]])
+    acts = [*((after, lambda demand=demand: flight.pilot(leg["controller"], demand)) for after, demand in sends),
+            (float(leg["seconds"]), hand_back)]
+    piloted = leg_numbers_of(flight.goal("hover", {"follow": True}, acts=acts, cancel_after=float(leg["seconds"])),
+                             None, {})
+    held = leg_numbers_of(flight.goal("hover", {"hold_current": True, "duration": float(leg["goal"]["duration"])}),
+                          None, {})
+    return manual_result(leg, piloted, held, marks)
+
+
+def check_pilot_period(leg: dict, laws: dict) -> None:
+    """A manual leg's controller is a manual one of the hierarchy whose ``silence_timeout`` outlasts the stick's
+    period (:data:`~seapup_runs.mission.PILOT_PERIOD`), or :class:`MissionFlightError` says why not. ``laws``:
+    :attr:`HierarchyConfig.velocity_controllers`."""
+    name = leg["controller"]
+    if name not in laws or laws[name][0] != "manual":
+        raise MissionFlightError(f"{leg['name']}: {name!r} is not a manual velocity controller of the hierarchy "
+                                 f"({', '.join(n for n, law in laws.items() if law[0] == 'manual') or 'none'}; "
+                                 "the launch argument manual:=true adds one)")
+    timeout = float(laws[name][1]["silence_timeout"])
+    if timeout <= PILOT_PERIOD:
+        raise MissionFlightError(f"{leg['name']}: {name}'s silence_timeout {timeout:g} s is not longer than the "
+                                 f"pilot's period {PILOT_PERIOD:g} s: the stick would go silent between sends")
+

@@ -13,7 +13,8 @@ simulated seconds, one row per sample heard:
   and its stated horizontal standard deviation [m].
 
 A leg is a mapping with its ``kind``, ``t0`` and ``t1`` (its goal's window, simulated [s]) and what its kind
-adds (``hold_from``, ``goal``, ``target`` and ``tolerance``, ``foul_t``, ``switch_t``, ``tune_in``;
+adds (``hold_from``, ``goal``, ``target`` and ``tolerance``, ``foul_t``, ``switch_t``, ``tune_in``, ``take_t``,
+``hand_back_t``;
 :mod:`seapup_runs.mission`).
 """
 from __future__ import annotations
@@ -26,7 +27,7 @@ from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_runs.actuators import THRASH_ALLOWANCE_S, actuator_activity
 
 __all__ = ["mission_numbers", "leg_numbers", "actuator_verdict", "velocity_tracking", "navigation_check", "swap_bump",
-           "NAVIGATION_SIGMAS"]
+           "manual_handover", "NAVIGATION_SIGMAS"]
 
 
 def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict, limit: float = BLADE_PITCH_LIMIT) -> list:
@@ -43,6 +44,8 @@ def mission_numbers(legs: list, logs: dict, seabed: dict, swap: dict, limit: flo
     for leg in legs:
         if leg["kind"] == "fouling" and "switch_t" in leg:
             leg.update(swap_bump(logs, leg["switch_t"]))
+        if leg["kind"] == "manual" and "hand_back_t" in leg:
+            leg.update(manual_handover(logs, leg))
     return legs
 
 
@@ -58,10 +61,11 @@ def leg_numbers(logs: dict, leg: dict, seabed, limit: float = BLADE_PITCH_LIMIT)
     window = (t >= t0) & (t <= t1)
     if not window.any():
         return out
-    if leg["kind"] in ("hover", "current"):
+    if leg["kind"] in ("hover", "current", "manual"):
+        start = leg["hand_back_t"] if leg["kind"] == "manual" else t0   # a manual leg holds after the hand-back
         st = logs["setpoint_t"]
-        held = (st >= t0) & (st <= t1)
-        steady = window & (t >= t0 + leg.get("hold_from", 0.0))  # after braking from the previous leg's speed
+        held = (st >= start) & (st <= t1)
+        steady = window & (t >= start + leg.get("hold_from", 0.0))  # after braking from the previous leg's speed
         if held.any() and steady.any():  # the point held is the leg's last setpoint (the pose at acceptance)
             errors = truth[steady] - logs["setpoint"][held][-1, :3]
             horizontal = np.hypot(errors[:, 0], errors[:, 1])
@@ -139,6 +143,20 @@ def navigation_check(logs: dict, leg: dict, t_end: float, truth_end) -> dict:
         if end > limit:
             out["truth_verdict"] = f"ended {end:.2f} m from the target in truth (tolerance + navigation: {limit:.2f} m)"
     return out
+
+
+def manual_handover(logs: dict, leg: dict) -> dict:
+    """A manual leg's hand-overs (:func:`swap_bump` at each): the command change into the pilot's controller
+    (``take_step_deg``) and back into the task's (``hand_back_step_deg``), the largest one-sample change in the
+    15 s before each (``take_normal_deg``, ``hand_back_normal_deg``), and the truth's (u, v, w) and r when the
+    pilot handed back (``hand_back_velocity``: what the task took over from)."""
+    take, back = swap_bump(logs, leg["take_t"]), swap_bump(logs, leg["hand_back_t"])
+    t = logs["truth_t"]
+    at = np.flatnonzero(t <= leg["hand_back_t"] + 1e-6)
+    velocity = logs["truth_velocity"][at[-1]] if len(at) else np.full(6, math.nan)
+    return {"take_step_deg": take["switch_step_deg"], "take_normal_deg": take["normal_step_deg"],
+            "hand_back_step_deg": back["switch_step_deg"], "hand_back_normal_deg": back["normal_step_deg"],
+            "hand_back_velocity": [float(v) for v in (*velocity[:3], velocity[5])]}
 
 
 def swap_bump(logs: dict, t_switch: float) -> dict:

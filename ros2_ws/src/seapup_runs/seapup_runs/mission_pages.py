@@ -21,9 +21,17 @@ def task_error(leg: dict) -> str:
         return f"end {leg['distance']:.2f} m, xt {leg['cross_track_rms']:.2f} m"
     if leg["kind"] == "follow_seabed":
         return f"alt rms {leg['altitude_rms']:.2f} m"
-    if leg["kind"] in ("hover", "current"):
+    if leg["kind"] in ("hover", "current", "manual"):   # a manual leg's: the hover after the hand-back
         return f"rms {leg['horizontal_rms']:.2f} m"
     return ""
+
+
+def swap_step(leg: dict) -> tuple | None:
+    """(blade-pitch change into the incoming controller's first command, the largest one-sample change in the
+    15 s before it) [deg] of a leg's swap -- a manual leg's: its hand-back to the task's controller -- or None."""
+    step, normal = ((leg.get("hand_back_step_deg"), leg.get("hand_back_normal_deg")) if leg["kind"] == "manual"
+                    else (leg.get("switch_step_deg"), leg.get("normal_step_deg")))
+    return None if step is None or math.isnan(step) else (step, normal)
 
 
 def truth_error(leg: dict) -> str:
@@ -58,8 +66,8 @@ def leg_table(legs: list, text) -> None:
     print(head, file=text)
     print("-" * len(head), file=text)
     for leg in legs:
-        swap = leg.get("switch_step_deg", math.nan)
-        swap = "" if math.isnan(swap) else f"{swap:.2f} ({leg['normal_step_deg']:.2f}) deg"
+        swap = swap_step(leg)
+        swap = "" if swap is None else f"{swap[0]:.2f} ({swap[1]:.2f}) deg"
         nav = f"{leg['nav_error']:.2f} ({leg['nav_std']:.2f}){' !' if leg.get('truth_verdict') else ''}" \
             if "nav_error" in leg else ""
         print(f"{leg['name']:<20}{leg.get('status', ''):<11}{leg['duration']:>7.1f}{leg['wall_s']:>7.1f}  "
@@ -72,7 +80,7 @@ def leg_table(legs: list, text) -> None:
           "missed by more than tolerance + that); thrash s: the longest stretch of blade pitches swinging between "
           f"their limits ('!': longer than the thesis's commissioning, {THRASH_ALLOWANCE_S:g} s, sec. 7.6.1); swap "
           "step: blade-pitch change into the incoming controller's first command (largest one-sample change in the "
-          "15 s before it); "
+          "15 s before it; a manual leg's: the hand-back to the task's controller); "
           "v err: the fouled-thruster leg's velocity-tracking RMS from the truth before the fouling / fouled under "
           "the fixed gains / under the self-tuner once tuned in", file=text)
 
@@ -137,7 +145,7 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
     from seapup_runs.pages import CSS, esc, figure, fmt
     rows = []
     for leg in summary["legs"]:
-        swap = leg.get("switch_step_deg")
+        swap = swap_step(leg)
         passed = leg_passed(leg)
         rows.append(
             f'<tr class="row-{"passed" if passed else "failed"}" data-leg="{esc(leg["name"])}" '
@@ -148,7 +156,7 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
             f'<td class=num>{fmt(leg.get("nav_error"))} ({fmt(leg.get("nav_std"))})</td>'
             f'<td class=num>{fmt(leg.get("saturation_pct"))}</td>'
             f'<td class=num data-thrashed="{str(bool(leg.get("thrashed"))).lower()}">{esc(thrash(leg))}</td>'
-            f'<td class=num>{"" if swap is None or swap != swap else fmt(swap) + " (" + fmt(leg.get("normal_step_deg")) + ")"}</td>'
+            f'<td class=num>{"" if swap is None else fmt(swap[0]) + " (" + fmt(swap[1]) + ")"}</td>'
             f'<td class=status>{"passed" if passed else "failed"}'
             f'{"<div class=reason>" + esc(leg["truth_verdict"]) + "</div>" if leg.get("truth_verdict") else ""}'
             f'{marked(leg)}'
@@ -177,7 +185,8 @@ def index_page(summary: dict, config: dict, out: Path) -> Path:
 <tbody>{"".join(rows)}</tbody></table>
 <p class=reason>Truth errors count from each leg's <code>hold_from</code> (after braking from the previous leg or
 reaching the altitude); the swap step is the blade-pitch change into the incoming controller's first command, beside
-the largest one-sample change in the 15 s before it. Thrashing is the longest stretch of blade pitches swinging between
+the largest one-sample change in the 15 s before it (a manual leg's: the hand-back from the pilot's controller to the
+task's). Thrashing is the longest stretch of blade pitches swinging between
 their limits (one-sample changes of at least the limit, each within {THRASH_ALLOWANCE_S:g} s of the last); a leg that
 thrashed longer than the thesis's self-tuner did while commissioning ({THRASH_ALLOWANCE_S:g} s, sec. 7.6.1) is marked,
 not failed. The fouled-thruster leg's

@@ -24,6 +24,9 @@ def a_mission() -> dict:
                 {"name": "stream", "kind": "current", "current": {"enabled": True, "mean_speed": 0.2, "speed_std": 0.0,
                                                                   "mean_direction": 0.0, "direction_std": 0.0},
                  "goal": {"duration": 30.0}, "face": 0.0},
+                {"name": "by hand", "kind": "manual", "controller": "manual", "hand_back": "mfol_fixed",
+                 "pilot": [[0.0, 0.2, 0.0, 0.0, 0.0], [10.0, 0.0, 0.1, 0.0, 0.1]], "seconds": 20.0,
+                 "goal": {"duration": 10.0}},
                 {"name": "foul", "kind": "fouling", "body_velocity": [0.2, 0.1, 0.1], "fouled_seconds": 20.0,
                  "foul": {"after": 5.0, "efficiency": [0.5, 1, 1, 1]},
                  "switch": {"activate": ["gmv"], "deactivate": ["mfol_fixed"]}, "adaptive_seconds": 20.0}]}
@@ -34,7 +37,7 @@ def test_a_mission_with_every_kind_of_leg_is_taken_as_written():
     assert [leg["kind"] for leg in spec.legs] == list(LEG_KINDS)
     assert spec.to_dict() == a_mission()
     assert spec.graph["seed"] == 3 and isinstance(spec.graph["seed"], int)   # a launch argument stays an integer
-    assert spec.expected_seconds == 150 + 6 * 60.0
+    assert spec.expected_seconds == 150 + 7 * 60.0
 
 
 def test_the_shipped_demo_mission_is_valid(tmp_path):
@@ -62,8 +65,17 @@ def refused(change, match: str):
     (lambda d: d["mission"][3].update(body_velocity=[0.2, 0.0]), "body_velocity needs 3 values, got 2"),
     (lambda d: d["mission"][3].update(body_velocity=[50.0, 0.0, 0.0]), r"body_velocity must be within \+-5 m/s"),
     (lambda d: d["mission"][1]["switch"].update(after=20.0), "switch after 20 s is not within the hover's 20 s"),
-    (lambda d: d["mission"][6]["foul"].update(after=20.0), r"foul after 20 s is not within fouled_seconds \(20 s\)"),
-    (lambda d: d["mission"][6]["foul"].update(efficiency=[1.5, 1, 1, 1]), r"efficiency must be values in \[0, 1\], one per thruster"),
+    (lambda d: d["mission"][7]["foul"].update(after=20.0), r"foul after 20 s is not within fouled_seconds \(20 s\)"),
+    (lambda d: d["mission"][7]["foul"].update(efficiency=[1.5, 1, 1, 1]), r"efficiency must be values in \[0, 1\], one per thruster"),
+    (lambda d: d["mission"][6].update(pilot=[]), r"mission leg 7 \('by hand', manual\) pilot needs at least one"),
+    (lambda d: d["mission"][6].update(pilot=[[0.0, 0.2, 0.0, 0.0]]), "pilot row needs 5 values"),
+    (lambda d: d["mission"][6].update(pilot=[[5.0, 0.2, 0, 0, 0], [1.0, 0, 0, 0, 0]]), "pilot rows need times >= 0 s, rising"),
+    (lambda d: d["mission"][6].update(pilot=[[0.0, 9.0, 0, 0, 0]]), r"speeds must be within 5 m/s"),
+    (lambda d: d["mission"][6].update(pilot=[[0.0, math.inf, 0, 0, 0]]), "finite"),
+    (lambda d: d["mission"][6].update(seconds=10.0), r"the pilot's last row at 10 s is not within its 10 s"),
+    (lambda d: d["mission"][6].update(hand_back="manual"), "hand_back must be another controller than 'manual'"),
+    (lambda d: d["mission"][6].pop("goal"), r"mission leg 7 \('by hand', manual\) needs goal"),
+    (lambda d: d["mission"][6]["goal"].update(hold_current=True), r"unknown .*goal key\(s\) \['hold_current'\]"),
     (lambda d: d["mission"][1]["switch"].update(request={}), "activates or deactivates nothing"),
     (lambda d: d["mission"][0].pop("activate"), r"mission leg 1 \('tune', self_test\) needs activate"),
     (lambda d: d["mission"][0].update(configure=[]), "configure must be a non-empty list"),

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from seapup_bringup.output import progress, stopped_by_signal
 from seapup_common import topics
-from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of
+from seapup_runs.mission import fouling_creep, fouling_result, leg_goal, leg_numbers_of, manual_result, pilot_sends
 from seapup_runs.mission_metrics import mission_numbers
 
 __all__ = ["MISSION", "GRAPH", "RECORDED", "mission_path", "mission_config", "fly_mission"]
@@ -85,12 +85,14 @@ def mission_config(path: Path | None = None, document=None) -> dict:
     if unknown:
         raise MissionError(f"{path}: graph argument {unknown[0]!r} is not one of {GRAPH}'s: "
                            f"{', '.join(sorted(declared))}")
-    controllers = sorted(n.name for n in load_graph(graph) if n.executable == "velocity_controller")
+    arguments = {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in config["graph"].items()}
+    controllers = sorted(n.name for n in load_graph(graph, arguments) if n.executable == "velocity_controller")
     for leg in config["mission"]:
         request = leg.get("switch", {})
         request = request.get("request", request)   # a hover's switch has its request inside
         named = [*leg.get("configure", []), *([leg["activate"]] if "activate" in leg else []),
-                 *request.get("activate", []), *request.get("deactivate", [])]
+                 *request.get("activate", []), *request.get("deactivate", []),
+                 *[leg[key] for key in ("controller", "hand_back") if key in leg]]
         strangers = [name for name in named if name not in controllers]
         if strangers:
             raise MissionError(f"{path}: leg {leg['name']!r} names {strangers[0]!r}, not a velocity controller of "
@@ -113,7 +115,8 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     from seapup_bringup.graph.hierarchy_config import hierarchy_config
 
     graph = config["graph"]
-    simulator = hierarchy_config(graph).simulator
+    hierarchy = hierarchy_config(graph)
+    simulator = hierarchy.simulator
     seabed = simulator["environment"]["seabed"]
     from seapup_sim.vehicle import VehicleModel
     from seapup_sim.vehicle_config import load_vehicle_config
@@ -131,7 +134,7 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
             start, wall = sil.t, time.monotonic()
             progress(f"{leg['name']:<18}", done / total)
             try:
-                numbers = _fly_leg(sil, leg, swap)
+                numbers = _fly_leg(sil, leg, swap, laws=hierarchy.velocity_controllers)
             except BaseException as exc:  # interrupted: the legs flown so far still get their numbers
                 if not stopped_by_signal(exc):
                     raise
@@ -202,10 +205,48 @@ def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
     return fouling_result(leg, fixed, adaptive, marks)
 
 
-def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None) -> dict:
+def _fly_manual(sil, leg: dict, laws: dict) -> dict:
+    """A manual leg (:func:`seapup_runs.mission_flight._fly_manual` flies it in process): the pilot's controller
+    in, its stick published as a teleop tool publishes it, at holds, while the task controller follows the
+    vehicle; ``seconds`` in, held there, the hand-back: the task's controller in and the following cancelled (the
+    task controller hovers where the vehicle is from the next estimate); then a hover where the vehicle is."""
+    from seapup_runs.mission_flight import check_pilot_period
+    check_pilot_period(leg, laws)
+    marks = {"take_t": sil.t}
+    # from whichever law flies (best effort: the others' deactivations are skipped, as not active)
+    _switch(sil, leg, [leg["controller"]], [name for name in laws if name != leg["controller"]], strict=False)
+    sends = pilot_sends(leg)
+    if sends and sends[0][0] == 0.0:   # the first stick at the hold the pilot takes over at
+        sil.pilot(leg["controller"], sends.pop(0)[1])
+    def hand_back():
+        marks["hand_back_t"] = sil.t
+        _switch(sil, leg, [leg["hand_back"]], [leg["controller"]])
+    acts = [*((after, lambda demand=demand: sil.pilot(leg["controller"], demand)) for after, demand in sends),
+            (float(leg["seconds"]), hand_back)]
+    piloted = _goal(sil, leg, "hover", {"follow": True}, acts=acts, cancel_after=float(leg["seconds"]))
+    held = _goal(sil, leg, "hover", {"hold_current": True, "duration": float(leg["goal"]["duration"])})
+    return manual_result(leg, piloted, held, marks)
+
+
+def _switch(sil, leg: dict, activate: list, deactivate: list, strict: bool = True) -> None:
+    reply = sil.switch(activate=activate, deactivate=deactivate, strict=strict)
+    if not reply.ok:
+        raise RuntimeError(f"{leg['name']}: switch refused: {reply.message}")
+
+
+def _goal(sil, leg: dict, kind: str, goal: dict, acts=(), cancel_after: float | None = None) -> dict:
+    result = sil.goal(kind, timeout=600.0, acts=acts, cancel_after=cancel_after, **goal)
+    if not result["accepted"]:
+        raise RuntimeError(f"{leg['name']}: goal rejected: {result['rejection']}")
+    return leg_numbers_of(result, None, goal)
+
+
+def _fly_leg(sil, leg: dict, swap: dict, during: tuple | None = None, laws: dict | None = None) -> dict:
     kind = leg["kind"]
     if kind == "fouling":
         return _fly_fouling(sil, leg, swap)
+    if kind == "manual":
+        return _fly_manual(sil, leg, laws or {})
     if kind == "self_test":
         t0 = sil.t
         fields = {k: [float(x) for x in v] if isinstance(v, list) else v for k, v in leg.get("goal", {}).items()}

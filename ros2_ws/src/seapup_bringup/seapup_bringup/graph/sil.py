@@ -316,12 +316,14 @@ class SilGraph:
 
     # -- goals, actions, services ------------------------------------------------------------------
     def goal(self, kind: str, *, timeout: float = 300.0, cancel_after: float | None = None,
-             during: tuple | None = None, **fields) -> dict:
+             during: tuple | None = None, acts=(), **fields) -> dict:
         """Send a task goal and wait for its end; ``{"status", "accepted", "rejection", "accepted_t", "end_t",
         <result fields>}`` (``accepted_t``, ``end_t``: simulated times the probe heard it accepted and ended).
 
         ``cancel_after`` [s simulated]: cancel the goal that long after its acceptance. ``during = (seconds,
-        function)``: call ``function()`` that long after it (its return value: ``during``). A rejected goal:
+        function)``: call ``function()`` that long after it (its return value: ``during``). ``acts``: more
+        ``(seconds, function)`` pairs in rising time, each called (paced: held there) that long after the
+        acceptance while the goal runs, none after its end (a manual leg's pilot). A rejected goal:
         ``accepted: False`` and the reason the task controller published."""
         from rclpy.action import ActionClient
 
@@ -341,9 +343,10 @@ class SilGraph:
                 return {"status": "rejected", "accepted": False, "rejection": reason}
             accepted_t, future = self.t, handle.get_result_async()
             if self.paced:
-                during_result = self._paced_goal(future, handle, during, cancel_after, timeout, heard, setpoints == 0)
+                during_result = self._paced_goal(future, handle, during, cancel_after, timeout, heard, setpoints == 0,
+                                                 acts)
             else:
-                during_result = self._unpaced_goal(future, handle, during, cancel_after, timeout)
+                during_result = self._unpaced_goal(future, handle, during, cancel_after, timeout, acts)
             if not self.spin_until(future.done, timeout):
                 raise SilError(f"{kind} goal not finished within {timeout:g} s{self._dead()}")
             response = future.result()
@@ -355,8 +358,14 @@ class SilGraph:
         finally:
             client.destroy()
 
-    def _unpaced_goal(self, future, handle, during, cancel_after, timeout: float):
-        """A goal's ``during`` call and cancel by the simulated time heard; the ``during`` result."""
+    def _unpaced_goal(self, future, handle, during, cancel_after, timeout: float, acts=()):
+        """A goal's ``during`` call, ``acts`` and cancel by the simulated time heard; the ``during`` result."""
+        start = self.t
+        for after, act in acts:
+            self.spin_until(lambda: self.t >= start + after or future.done(), timeout)
+            if future.done():
+                break
+            act()
         during_result = None
         if during is not None:
             start = self.t
@@ -376,7 +385,7 @@ class SilGraph:
         _harness_wait(self, lambda: readiness.handled_since(self.log["diagnostics"], "seapup/task_controller", held),
                       "task controller at the hold")
 
-    def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int, first: bool):
+    def _paced_goal(self, future, handle, during, cancel_after, timeout: float, heard: int, first: bool, acts=()):
         """A task goal accepted while the graph is held: its ``during`` call and cancel made at holds, and the graph
         held again after its end (module docstring); the ``during`` result. ``first``: it starts the setpoints."""
         held = self.held
@@ -392,6 +401,11 @@ class SilGraph:
         during_result, end = None, lambda: result_end_time(future)
         settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
                              held, self._pacing.period_ns * 1e-9)   # feedback since the goal was sent
+        for after, act in acts:
+            self._advance(held + after, done=future.done, end_time=end, timeout=timeout, settle=settle)
+            if future.done():
+                break
+            act()
         if during is not None:
             self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout, settle=settle)
             during_result = during[1]()
@@ -446,6 +460,28 @@ class SilGraph:
             return future.result()
         finally:
             self._node.destroy_client(client)
+
+    def pilot(self, controller: str, demand) -> None:
+        """A pilot's stick (x, y, z [m/s], yaw [rad/s] of a REP-103 ``Twist``) sent as a teleop tool sends it, on
+        :data:`seapup_common.topics.PILOT`; paced, the harness then waits until manual velocity controller
+        ``controller`` says (its diagnostics' ``pilot_received``) it has every stick sent, so the stick is in
+        force from the held sample whatever the load."""
+        from geometry_msgs.msg import Twist
+        from seapup_common.ros.node import COMMAND_QOS
+        sent = self.__dict__.setdefault("_pilot_sent", {"publisher": None, "count": 0})
+        if sent["publisher"] is None:
+            sent["publisher"] = self._node.create_publisher(Twist, topics.PILOT, COMMAND_QOS)
+            # matched before the first stick goes (a message sent before discovery would be lost)
+            _harness_wait(self, lambda: sent["publisher"].get_subscription_count() > 0, "pilot subscriber")
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.linear.z = (float(v) for v in demand[:3])
+        msg.angular.z = float(demand[3])
+        sent["publisher"].publish(msg)
+        sent["count"] += 1
+        if self.paced:
+            count = sent["count"]   # a count, not a time: stream_started compares the status value with it
+            _harness_wait(self, lambda: readiness.stream_started(self.log["diagnostics"], f"seapup/{controller}", count,
+                                                                 400, key="pilot_received"), "pilot's stick")
 
     def switch(self, activate=(), deactivate=(), strict: bool = True, timeout: float = 10.0):
         """The controller manager's switch_controller; the response (``ok``, ``message``)."""
