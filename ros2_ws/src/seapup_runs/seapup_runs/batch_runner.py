@@ -76,9 +76,9 @@ def fly_batch(specs, threads: int = 1) -> list:
     from seapup_sim.linearised import vehicle_model
     from seapup_sim.simulation import Simulation
     from seapup_sim.vehicle_config import load_vehicle_config
-    from seapup_runs.runner import design, simulation_events, start_pitch
+    from seapup_runs.runner import design_all, simulation_events, start_pitch
 
-    specs = [design(s) for s in specs]
+    specs = design_all(specs)
     environments = environments_of(specs)
     for i, spec in enumerate(specs):
         reason = batch_reason(spec, environments[i])

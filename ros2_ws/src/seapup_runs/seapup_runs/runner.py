@@ -35,7 +35,7 @@ from seapup_runs.metrics import check_names, compute
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec, RunSpecError
 
-__all__ = ["run", "design", "simulation_events", "start_pitch", "DesignFailed"]
+__all__ = ["run", "design", "design_all", "simulation_events", "start_pitch", "DesignFailed"]
 
 
 class DesignFailed(RuntimeError):
@@ -56,15 +56,41 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
     DesignFailed
         If the self-test does not finish.
     """
-    from seapup_common.controllers import controller_type
+    missing = _undesigned(spec)
+    return spec.with_controllers({i: _design_document(spec, progress) for i in missing}) if missing else spec
 
-    missing = [i for i, (_, c) in enumerate(spec.controller_timeline())
-               if c.document is None and not c.file and controller_type(c.type).needs_document]
-    if not missing:
-        return spec
+
+def design_all(specs) -> list[RunSpec]:
+    """:func:`design` of each of ``specs``, each distinct design worked out once: a campaign's rows mostly
+    share one (the same self-test settings, period, vehicle and coefficients), whose document :func:`design`
+    would otherwise look up per row -- reading the vehicle's description and keying it, about a third of a
+    millisecond a run."""
+    documents: dict = {}
+    out = []
+    for spec in specs:
+        missing = _undesigned(spec)
+        if missing:
+            share = (None if spec.design is None else json.dumps(spec.design.to_dict(), sort_keys=True, default=str),
+                     spec.control_period, spec.vehicle, json.dumps(spec.coefficients, sort_keys=True, default=str))
+            if share not in documents:
+                documents[share] = _design_document(spec)
+            spec = spec.with_controllers({i: documents[share] for i in missing})
+        out.append(spec)
+    return out
+
+
+def _undesigned(spec: RunSpec) -> list[int]:
+    """The controllers of ``spec``'s timeline that need a design document and have none."""
+    from seapup_common.controllers import controller_type
+    return [i for i, (_, c) in enumerate(spec.controller_timeline())
+            if c.document is None and not c.file and controller_type(c.type).needs_document]
+
+
+def _design_document(spec: RunSpec, progress: Callable[[float], None] | None = None) -> dict:
+    """The design document of ``spec``'s :class:`~seapup_runs.spec.SelfTestDesign` (:func:`design`)."""
     if spec.design is None:
-        raise RunSpecError(f"controller {spec.controller_timeline()[missing[0]][1].type!r} needs a design document: "
-                           "give its file/document or the run's 'design' (a self-test)")
+        raise RunSpecError(f"controller {spec.controller_timeline()[_undesigned(spec)[0]][1].type!r} needs a design "
+                           "document: give its file/document or the run's 'design' (a self-test)")
     from seapup_sim.vehicle_config import load_vehicle_config, scaled
     d = spec.design
     # on the run's own vehicle, its coefficients as flown (the self-test needs no model), unless nominal
@@ -83,7 +109,7 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
         if flown.test.phase.value != "done":
             raise DesignFailed(f"the self-test designing {spec.name!r} {flown.test.phase.value}: {flown.test.reason}")
         _DESIGNS[key] = result_document(flown.test)
-    return spec.with_controllers({i: _DESIGNS[key] for i in missing})
+    return _DESIGNS[key]
 
 
 def simulation_events(spec: RunSpec) -> list:

@@ -156,3 +156,30 @@ def test_a_reference_profile_longer_than_the_run_is_measured_on_the_steps_flown(
     u = short.metrics["outputs"]["u"]
     assert u["reference"] == pytest.approx(0.2)     # the step at 20 s, to 0.2 m/s
     assert 0.0 < u["rise95_s"] < 4.0
+
+
+def test_design_all_gives_each_spec_design_s_document_working_each_distinct_design_out_once(monkeypatch):
+    """A campaign's rows mostly share one design: design_all reads the vehicle and keys the self-test once per
+    distinct design, and every spec gets the document design() gives it alone."""
+    from seapup_runs import runner
+    from seapup_runs.runner import design, design_all
+    from seapup_sim import vehicle_config
+
+    def spec(seed, points):
+        return RunSpec.from_dict({"name": f"r{seed}", "seed": seed, "duration": 1.0, "controller": {"type": "mfol"},
+                                  "design": {"vehicle": "baseline", "operating_points": points}})
+    specs = [spec(1, [0.0]), spec(2, [0.0]), spec(3, [0.0, 0.3]), spec(4, [0.0]),
+             RunSpec(duration=1.0, controller=ControllerSpec("hold"))]
+    alone = [design(s) for s in specs]
+    reads = []
+    load = vehicle_config.load_vehicle_config
+    monkeypatch.setattr(vehicle_config, "load_vehicle_config", lambda name: reads.append(name) or load(name))
+    together = design_all(specs)
+    assert len(reads) == 2                                     # two distinct designs, not four designed runs
+    for a, b in zip(alone, together):
+        assert a.to_dict() == b.to_dict()
+    assert together[0].controller.document is together[1].controller.document is together[3].controller.document
+    assert together[2].controller.document != together[0].controller.document
+    assert together[4] is specs[4]                             # nothing to design: the spec itself
+    with pytest.raises(RunSpecError, match="needs a design document"):
+        runner.design_all([RunSpec(duration=1.0, controller=ControllerSpec("mfol"))])
