@@ -37,7 +37,7 @@ def test_every_controller_of_the_demo_graph_gets_the_file_its_law_needs():
     controllers, managed = _velocity_controllers(graph)
     assert sorted(name for name, _ in controllers) == sorted(managed)   # the manager configures each of them
     needing = {name for name, kind in controllers if controller_type(kind).needs_document}
-    assert needing == {"mfol_fixed", "mfol_scheduled", "explicit", "gmv"}
+    assert needing == {"mfol_fixed", "mfol_scheduled", "explicit", "gmv", "manual"}   # manual: the mission's pilot
     given = set()
     for leg in mission["mission"]:
         if leg["kind"] == "self_test":   # its result is set as controller_file of each node it lists

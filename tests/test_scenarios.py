@@ -187,7 +187,10 @@ def test_band_after_the_rise_of_known_responses():
     and closer after; an underdamped second-order step (zeta = 0.5) keeps within its overshoot,
     exp(-pi zeta / sqrt(1 - zeta^2)) = 16.3 %."""
     from seapup_control.response_metrics import rise_time
-    from seapup_runs.metrics import _band_after_rise
+    from seapup_runs.metrics import _bands_after_rise
+
+    def _band_after_rise(t, y, reference, rise):   # one row of the stacked form
+        return float(_bands_after_rise(t, y[None], reference, np.array([rise]))[0])
     t = np.linspace(0.0, 20.0, 20001)
     lag = 1.0 - np.exp(-t)
     assert _band_after_rise(t, lag, 1.0, rise_time(t, lag, 1.0)) == pytest.approx(5.0, abs=0.01)  # the next sample

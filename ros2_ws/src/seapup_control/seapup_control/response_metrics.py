@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["rise_time", "overshoot_percent", "settled_value", "Settled", "settle", "MetricError",
-           "saturation_time", "LimitCycle", "limit_cycle"]
+__all__ = ["rise_time", "rise_times", "overshoot_percent", "overshoot_percents", "settled_value", "Settled", "settle",
+           "settle_rows", "MetricError", "saturation_time", "LimitCycle", "limit_cycle"]
 
 
 class MetricError(ValueError):
@@ -46,27 +46,51 @@ def rise_time(t, y, target: float, start: float | None = None, fraction: float =
     2.996
     """
     t, y = _series(t, y)
-    y0 = y[0] if start is None else float(start)
+    return float(_rise_times(t, y[None], target, start, fraction)[0])
+
+
+def rise_times(t, ys, target: float, start: float | None = None, fraction: float = 0.95) -> np.ndarray:
+    """:func:`rise_time` of each row of ``ys`` (runs x samples) over the times ``t`` they share, computed for
+    all rows at once (a campaign's runs: :func:`seapup_runs.metrics.compute_all`); the same numbers, element for
+    element (the one implementation: :func:`rise_time` is this of one row)."""
+    t, ys = np.asarray(t, float), np.asarray(ys, float)
+    if ys.ndim != 2:
+        raise ValueError(f"need rows of samples (runs x samples), got shape {ys.shape}")
+    _series(t, ys[0] if len(ys) else t)
+    return _rise_times(t, ys, target, start, fraction)
+
+
+def _rise_times(t: np.ndarray, ys: np.ndarray, target: float, start: float | None, fraction: float) -> np.ndarray:
+    """:func:`rise_times` of checked arrays: per row, the first sample at or beyond the level (linear
+    interpolation from the one before), 0 when the first is, NaN when none is."""
+    y0 = ys[:, 0] if start is None else np.full(len(ys), float(start))
     level = y0 + fraction * (target - y0)
-    sign = 1.0 if target >= y0 else -1.0
-    above = np.flatnonzero(sign * (y - level) >= 0)
-    if above.size == 0:
-        return math.nan
-    k = int(above[0])
-    if k == 0:
-        return 0.0
-    frac = (level - y[k - 1]) / (y[k] - y[k - 1])
-    return float(t[k - 1] + frac * (t[k] - t[k - 1]) - t[0])
+    sign = np.where(target >= y0, 1.0, -1.0)
+    hit = sign[:, None] * (ys - level[:, None]) >= 0
+    k = hit.argmax(axis=1)
+    reached = hit.any(axis=1)
+    crossed = reached & (k > 0)          # interpolated from the sample before: y[k - 1] short of the level, y[k] not
+    before = np.maximum(k, 1) - 1
+    rows = np.arange(len(ys))
+    below, at = ys[rows, before], ys[rows, before + 1]
+    frac = (level - below) / np.where(crossed, at - below, 1.0)   # a crossing's two samples differ
+    value = t[before] + frac * (t[before + 1] - t[before]) - t[0]
+    return np.where(crossed, value, np.where(reached, 0.0, math.nan))
 
 
 def overshoot_percent(y, target: float, start: float = 0.0) -> float:
     """Largest excursion beyond ``target``, in percent of the step (0 if none; NaN for a zero step)."""
-    y = np.asarray(y, float)
+    return float(overshoot_percents(np.asarray(y, float)[None], target, start)[0])
+
+
+def overshoot_percents(ys, target: float, start: float = 0.0) -> np.ndarray:
+    """:func:`overshoot_percent` of each row of ``ys`` (runs x samples) at once."""
+    ys = np.asarray(ys, float)
     step = target - start
     if step == 0:
-        return math.nan
-    beyond = (y - target) / step
-    return float(max(0.0, np.max(beyond)) * 100.0)
+        return np.full(len(ys), math.nan)
+    largest = np.max((ys - target) / step, axis=1)
+    return np.where(largest > 0.0, largest, 0.0) * 100.0   # max(0, .) of each: NaN (no finite excursion) is 0
 
 
 def _window(t: np.ndarray, window: float) -> np.ndarray:
@@ -173,13 +197,28 @@ def settle(t, y, window: float, *, relative: float = 0.05, floor: float = 0.0) -
     True
     """
     t, y = _series(t, y)
+    return settle_rows(t, y[None], window, relative=relative, floor=floor)[0]
+
+
+def settle_rows(t, ys, window: float, *, relative: float = 0.05, floor: float = 0.0) -> list[Settled]:
+    """:func:`settle` of each row of ``ys`` (runs x samples) over the times ``t`` they share, the window's means,
+    extremes and deviations reduced for all rows at once (a campaign's runs); the same numbers, row for row
+    (the one implementation: :func:`settle` is this of one row)."""
+    t, ys = np.asarray(t, float), np.asarray(ys, float)
+    if ys.ndim != 2:
+        raise ValueError(f"need rows of samples (runs x samples), got shape {ys.shape}")
+    _series(t, ys[0] if len(ys) else t)
     if not (math.isfinite(relative) and relative >= 0 and math.isfinite(floor) and floor >= 0):
         raise MetricError(f"relative and floor must be finite and >= 0, got {relative!r}, {floor!r}")
-    inside = y[_window(t, window)]
-    value = float(np.mean(inside))
-    tolerance = max(relative * abs(value), floor)
-    return Settled(value, bool(np.max(np.abs(inside - value)) <= tolerance), float(window),
-                   float(np.min(inside)), float(np.max(inside)), tolerance)
+    inside = ys[:, _window(t, window)]
+    values = np.mean(inside, axis=1)
+    deviation = np.max(np.abs(inside - values[:, None]), axis=1)
+    lows, highs = np.min(inside, axis=1), np.max(inside, axis=1)
+    out = []
+    for value, worst, low, high in zip(values.tolist(), deviation.tolist(), lows.tolist(), highs.tolist()):
+        tolerance = max(relative * abs(value), floor)
+        out.append(Settled(value, bool(worst <= tolerance), float(window), low, high, tolerance))
+    return out
 
 
 def saturation_time(t, command, limit: float) -> np.ndarray:

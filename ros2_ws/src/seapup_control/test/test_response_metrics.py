@@ -92,3 +92,43 @@ def test_limit_cycle_found_with_its_period_and_not_in_a_decay_or_noise():
     assert not limit_cycle(t, 0.02 * rng.normal(size=t.size), 0.005).detected   # large, but not periodic
     fast = limit_cycle(t, 0.01 * np.sign(np.sin(2 * np.pi * t / 2.0)), 0.005)
     assert fast.detected and fast.period == pytest.approx(2.0, rel=0.05)
+
+
+def _rise_time_reference(t, y, target, start=None, fraction=0.95):
+    """rise_time as written before it worked on rows (issue 42): the scalar search and interpolation."""
+    y0 = y[0] if start is None else float(start)
+    level = y0 + fraction * (target - y0)
+    sign = 1.0 if target >= y0 else -1.0
+    above = np.flatnonzero(sign * (y - level) >= 0)
+    if above.size == 0:
+        return math.nan
+    k = int(above[0])
+    if k == 0:
+        return 0.0
+    frac = (level - y[k - 1]) / (y[k] - y[k - 1])
+    return float(t[k - 1] + frac * (t[k] - t[k - 1]) - t[0])
+
+
+def test_rise_times_and_overshoots_of_many_rows_are_the_one_row_figures_bit_for_bit():
+    """A campaign's metrics work on all its runs at once: each row's rise time and overshoot are the scalar
+    search's, to the bit -- rising and falling steps, from the first sample or a given start, a row that never
+    gets there, one there at once, one with a NaN."""
+    from seapup_control.response_metrics import overshoot_percents, rise_times
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 10.0, 0.2)
+    lag = 1.0 - np.exp(-t / rng.uniform(0.3, 3.0, (40, 1)))
+    rows = np.vstack([0.3 * lag + 0.01 * rng.standard_normal(lag.shape),      # rising, noisy
+                      0.3 - 0.25 * lag,                                         # falling from 0.3
+                      0.1 * lag,                                                # never reaches 0.3
+                      np.full((1, t.size), 0.31)])                              # there from the first sample
+    rows[5, 7] = math.nan
+    for target, start in ((0.3, 0.0), (0.3, None), (0.05, 0.3), (-0.2, 0.0)):
+        many = rise_times(t, rows, target, start=start)
+        one = [_rise_time_reference(t, row, target, start) for row in rows]
+        np.testing.assert_array_equal(many, one)
+        assert [rise_time(t, row, target, start=start) for row in rows] == pytest.approx(one, nan_ok=True, abs=0)
+        expected = [overshoot_percent(row, target, start or 0.0) for row in rows]
+        np.testing.assert_array_equal(overshoot_percents(rows, target, start or 0.0), expected)
+    assert np.isnan(rise_times(t, rows[80:120], 0.3, start=0.0)).all()          # the row cases meant are there
+    assert rise_times(t, rows[-1:], 0.3, start=0.0)[0] == 0.0
+    assert np.isnan(overshoot_percents(rows, 0.0, 0.0)).all()    # a zero step has no overshoot

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from seapup_runs.metrics import compute
+from seapup_runs.metrics import compute_all
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec
 
@@ -160,9 +160,10 @@ def fly_batch(specs, threads: int = 1) -> list:
                          for e in spec.plant_events()), key=lambda e: e["time"])
         series = Series.from_states(t, states[:, i], {name: v[:, i] for name, v in measured.items()},
                                     reference[:, i], command[:, i], applied[:, i], events)
-        result = RunResult(spec, series)
-        result.metrics = compute(result)
-        results.append(result)
+        results.append(RunResult(spec, series))
+    flown = [r for r in results if isinstance(r, RunResult)]
+    for result, metrics in zip(flown, compute_all(flown)):   # computed over the batch at once
+        result.metrics = metrics
     return results
 
 

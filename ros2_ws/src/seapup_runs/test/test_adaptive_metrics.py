@@ -39,3 +39,57 @@ def test_square_wave_steps_are_measured_each_with_the_first_order_rise():
         assert cycle["overshoot_pct"] == pytest.approx(0.0, abs=1e-6)
         assert abs(cycle["steady_error_pct"]) < 0.01
     assert out["u"]["later"]["rise95_s"] == out["u"]["cycles"][1]["rise95_s"]
+
+
+def _square_reference(t, y, steps, end) -> dict:
+    """The square-wave figures as written run by run before issue 42 (one rise time, overshoot and mean per
+    cycle and run): the reference compute_all's stacked form must give bit for bit."""
+    from seapup_control.response_metrics import overshoot_percent, rise_time
+    from seapup_runs.adaptive_metrics import _TO_THESIS
+    from seapup_runs.result import REFERENCE_NAMES
+    out = {}
+    for j, key in enumerate(REFERENCE_NAMES):
+        on = [(t0, r[j], (steps[k + 1][0] if k + 1 < len(steps) else end)) for k, (t0, r) in enumerate(steps)
+              if r[j] != 0.0]
+        if not on:
+            continue
+        cycles = []
+        for t0, ref, t1 in on:
+            sel = (t >= t0 - 1e-9) & (t < t1 - 1e-9)
+            last = sel & (t >= t1 - 1.0 - 1e-9)
+            cycles.append({"start_s": t0, "rise95_s": rise_time(t[sel], y[sel, j], ref, start=0.0),
+                           "overshoot_pct": overshoot_percent(y[sel, j], ref, start=0.0),
+                           "steady_error_pct": float(100.0 * (ref - np.mean(y[last, j])) / abs(ref))})
+        later = cycles[1:] or cycles
+        out[key] = {"reference": float(on[0][1] * _TO_THESIS[j]), "cycles": cycles,
+                    "later": {name: float(np.mean([c[name] for c in later])) for name in
+                              ("rise95_s", "overshoot_pct", "steady_error_pct")}}
+    return out
+
+
+def test_a_campaign_s_metrics_computed_together_are_each_run_s_own_bit_for_bit():
+    """compute_all (a batch's metrics at once: the square waves' figures of runs that share their times and
+    steps stacked) gives each run exactly what compute gives it alone, and the square figures are those of the
+    run-by-run code they replaced -- runs of two scenarios (two groups), seeds, a fouling, a noisy and an ideal
+    instrument fit."""
+    import dataclasses
+    import json
+    from seapup_runs.metrics import compute, compute_all
+    from seapup_runs.runner import run
+    from seapup_runs.scenarios import scenario_spec
+    from seapup_runs.spec import RunEvent
+    specs = [scenario_spec("square-inspection", seed=1), scenario_spec("square-inspection", seed=2, sensors="ideal"),
+             scenario_spec("square-turn", seed=3), scenario_spec("square-turn", seed=9)]
+    fouled = scenario_spec("square-inspection", seed=4)
+    specs.append(dataclasses.replace(fouled, events=(*fouled.events,
+                                                    RunEvent(12.0, "thruster_efficiency", [0.5, 1.0, 1.0, 1.0]))))
+    results = [run(spec) for spec in specs]
+    together = compute_all(results)
+    assert json.dumps(together, sort_keys=True, default=str) == json.dumps([compute(r) for r in results],
+                                                                           sort_keys=True, default=str)
+    for result, metrics in zip(results, together):
+        t, y = result.series.t[:-1], result.series.velocity()[:-1]
+        steps = [(float(t0), np.asarray(r, float)) for t0, r in result.reference_steps_flown()]
+        expected = _square_reference(t, y, steps, result.spec.duration)
+        assert json.dumps(metrics["adaptive"]["square"], sort_keys=True) == json.dumps(expected, sort_keys=True)
+        assert metrics["adaptive"]["square"]                                  # stepped outputs were measured

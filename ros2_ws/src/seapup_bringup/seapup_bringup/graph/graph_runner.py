@@ -35,7 +35,7 @@ import yaml
 
 from seapup_bringup.graph import readiness
 from seapup_bringup.graph.sil_probe import stamp_s
-from seapup_common.topics import PILOT, typed
+from seapup_common.topics import typed
 from seapup_runs.run_graph import graph_document
 from seapup_runs.logs import RECORDED_TOPICS, series_from_logs
 from seapup_runs.metrics import compute
@@ -234,23 +234,17 @@ def run_on_graph(spec: RunSpec, out_dir: str | Path | None = None,
                                     sort_keys=False))
     limit = 60.0 + 2.0 * spec.duration if timeout is None else float(timeout)
 
-    sent = {"t": None, "publisher": None}
+    sent = {"t": None}
 
     def pilot(sil) -> None:
-        """A scripted pilot (spec.pilot): its demand in force sent as a teleop tool sends it (a Twist on
-        seapup_common.topics.PILOT, from the harness's node) whenever the graph has reached a new sample."""
+        """A scripted pilot (spec.pilot): its demand in force sent as a teleop tool sends it
+        (:func:`~seapup_bringup.graph.sil.send_pilot`) whenever the graph has reached a new sample."""
         if not spec.pilot or sil.t == sent["t"]:
             return
         demand = spec.pilot_at(sil.t)
         if demand is not None:
-            from geometry_msgs.msg import Twist
-            from seapup_common.ros.node import COMMAND_QOS
-            if sent["publisher"] is None:
-                sent["publisher"] = sil.probe.node.create_publisher(Twist, PILOT, COMMAND_QOS)
-            msg = Twist()
-            msg.linear.x, msg.linear.y, msg.linear.z = demand[:3]
-            msg.angular.z = demand[3]
-            sent["publisher"].publish(msg)
+            from seapup_bringup.graph.sil import send_pilot
+            send_pilot(sil, demand)
         sent["t"] = sil.t
 
     def flight(sil) -> None:

@@ -210,6 +210,7 @@ def _fly_manual(sil, leg: dict, laws: dict) -> dict:
     in, its stick published as a teleop tool publishes it, at holds, while the task controller follows the
     vehicle; ``seconds`` in, held there, the hand-back: the task's controller in and the following cancelled (the
     task controller hovers where the vehicle is from the next estimate); then a hover where the vehicle is."""
+    from seapup_bringup.graph.sil import send_pilot
     from seapup_runs.mission_flight import check_pilot_period
     check_pilot_period(leg, laws)
     marks = {"take_t": sil.t}
@@ -217,11 +218,11 @@ def _fly_manual(sil, leg: dict, laws: dict) -> dict:
     _switch(sil, leg, [leg["controller"]], [name for name in laws if name != leg["controller"]], strict=False)
     sends = pilot_sends(leg)
     if sends and sends[0][0] == 0.0:   # the first stick at the hold the pilot takes over at
-        sil.pilot(leg["controller"], sends.pop(0)[1])
+        send_pilot(sil, sends.pop(0)[1], leg["controller"])
     def hand_back():
         marks["hand_back_t"] = sil.t
         _switch(sil, leg, [leg["hand_back"]], [leg["controller"]])
-    acts = [*((after, lambda demand=demand: sil.pilot(leg["controller"], demand)) for after, demand in sends),
+    acts = [*((after, lambda demand=demand: send_pilot(sil, demand, leg["controller"])) for after, demand in sends),
             (float(leg["seconds"]), hand_back)]
     piloted = _goal(sil, leg, "hover", {"follow": True}, acts=acts, cancel_after=float(leg["seconds"]))
     held = _goal(sil, leg, "hover", {"hold_current": True, "duration": float(leg["goal"]["duration"])})

@@ -72,6 +72,45 @@ def _harness_wait(sil, predicate, what: str, wait: float = HARNESS_WAIT) -> None
         ended[what] = ended.get(what, 0) + 1
 
 
+def _acts(advance, done, acts, during):
+    """A goal's acts in time order, each made where ``advance(seconds after the acceptance)`` left the graph
+    (paced: held there): ``acts`` while the goal runs, none after its end; then ``during``'s, whose result is
+    returned (None without one), even when the goal ended first (:meth:`SilGraph.goal`)."""
+    for after, act in acts:
+        advance(after)
+        if done():
+            break
+        act()
+    if during is None:
+        return None
+    advance(during[0])
+    return during[1]()
+
+
+def send_pilot(sil, demand, controller: str | None = None) -> None:
+    """A pilot's stick (x, y, z [m/s], yaw [rad/s] of a REP-103 ``Twist``) sent from the harness's node as a
+    teleop tool sends it, on :data:`seapup_common.topics.PILOT`. With ``controller`` (a manual velocity
+    controller) the first waits until a subscriber has matched (a message sent before discovery would be lost)
+    and, on a paced graph, the harness then waits until that controller says it has every stick sent (its
+    diagnostics' ``pilot_received``), so the stick is in force from the held sample whatever the load."""
+    from geometry_msgs.msg import Twist
+    from seapup_common.ros.node import COMMAND_QOS
+    sent = sil.__dict__.setdefault("_pilot_sent", {"publisher": None, "count": 0})
+    if sent["publisher"] is None:
+        sent["publisher"] = sil.probe.node.create_publisher(Twist, topics.PILOT, COMMAND_QOS)
+        if controller is not None:
+            _harness_wait(sil, lambda: sent["publisher"].get_subscription_count() > 0, "pilot subscriber")
+    msg = Twist()
+    msg.linear.x, msg.linear.y, msg.linear.z = (float(v) for v in demand[:3])
+    msg.angular.z = float(demand[3])
+    sent["publisher"].publish(msg)
+    sent["count"] += 1
+    if controller is not None and sil.paced:
+        count = sent["count"]   # a count, not a time: stream_started compares the status value with it
+        _harness_wait(sil, lambda: readiness.stream_started(sil.log["diagnostics"], f"seapup/{controller}", count, 400,
+                                                            key="pilot_received"), "pilot's stick")
+
+
 def _stream_acknowledged(sil, key: str, node: str, value: str = "stream_start") -> None:
     """Wait until ``node`` said (status ``value``: :func:`~seapup_bringup.graph.readiness.stream_started`) that the
     stream the probe logs as ``key`` started at the first message heard: acknowledged by every reader, or had."""
@@ -361,16 +400,8 @@ class SilGraph:
     def _unpaced_goal(self, future, handle, during, cancel_after, timeout: float, acts=()):
         """A goal's ``during`` call, ``acts`` and cancel by the simulated time heard; the ``during`` result."""
         start = self.t
-        for after, act in acts:
-            self.spin_until(lambda: self.t >= start + after or future.done(), timeout)
-            if future.done():
-                break
-            act()
-        during_result = None
-        if during is not None:
-            start = self.t
-            self.spin_until(lambda: self.t >= start + during[0] or future.done(), timeout)
-            during_result = during[1]()
+        during_result = _acts(lambda after: self.spin_until(lambda: self.t >= start + after or future.done(), timeout),
+                              future.done, acts, during)
         if cancel_after is not None:
             start = self.t
             self.spin_until(lambda: self.t >= start + cancel_after or future.done(), timeout)
@@ -398,17 +429,11 @@ class SilGraph:
             self._advance(held + 1e-3, timeout=timeout)
             _harness_wait(self, lambda: self.log["reference"], "first reference")
             _first_reference_heard(self)
-        during_result, end = None, lambda: result_end_time(future)
+        end = lambda: result_end_time(future)   # noqa: E731
         settle = task_settle(self.spin_until, future.done, lambda: [fb.elapsed for _, fb in self.feedback[heard:]],
                              held, self._pacing.period_ns * 1e-9)   # feedback since the goal was sent
-        for after, act in acts:
-            self._advance(held + after, done=future.done, end_time=end, timeout=timeout, settle=settle)
-            if future.done():
-                break
-            act()
-        if during is not None:
-            self._advance(held + during[0], done=future.done, end_time=end, timeout=timeout, settle=settle)
-            during_result = during[1]()
+        during_result = _acts(lambda after: self._advance(held + after, done=future.done, end_time=end,
+                                                          timeout=timeout, settle=settle), future.done, acts, during)
         if cancel_after is not None:
             self._advance(held + cancel_after, done=future.done, end_time=end, timeout=timeout, settle=settle)
             if not future.done():
@@ -460,28 +485,6 @@ class SilGraph:
             return future.result()
         finally:
             self._node.destroy_client(client)
-
-    def pilot(self, controller: str, demand) -> None:
-        """A pilot's stick (x, y, z [m/s], yaw [rad/s] of a REP-103 ``Twist``) sent as a teleop tool sends it, on
-        :data:`seapup_common.topics.PILOT`; paced, the harness then waits until manual velocity controller
-        ``controller`` says (its diagnostics' ``pilot_received``) it has every stick sent, so the stick is in
-        force from the held sample whatever the load."""
-        from geometry_msgs.msg import Twist
-        from seapup_common.ros.node import COMMAND_QOS
-        sent = self.__dict__.setdefault("_pilot_sent", {"publisher": None, "count": 0})
-        if sent["publisher"] is None:
-            sent["publisher"] = self._node.create_publisher(Twist, topics.PILOT, COMMAND_QOS)
-            # matched before the first stick goes (a message sent before discovery would be lost)
-            _harness_wait(self, lambda: sent["publisher"].get_subscription_count() > 0, "pilot subscriber")
-        msg = Twist()
-        msg.linear.x, msg.linear.y, msg.linear.z = (float(v) for v in demand[:3])
-        msg.angular.z = float(demand[3])
-        sent["publisher"].publish(msg)
-        sent["count"] += 1
-        if self.paced:
-            count = sent["count"]   # a count, not a time: stream_started compares the status value with it
-            _harness_wait(self, lambda: readiness.stream_started(self.log["diagnostics"], f"seapup/{controller}", count,
-                                                                 400, key="pilot_received"), "pilot's stick")
 
     def switch(self, activate=(), deactivate=(), strict: bool = True, timeout: float = 10.0):
         """The controller manager's switch_controller; the response (``ok``, ``message``)."""
