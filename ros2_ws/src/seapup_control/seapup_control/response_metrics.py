@@ -80,12 +80,14 @@ def _rise_times(t: np.ndarray, ys: np.ndarray, target: float, start: float | Non
 
 def overshoot_percent(y, target: float, start: float = 0.0) -> float:
     """Largest excursion beyond ``target``, in percent of the step (0 if none; NaN for a zero step)."""
-    return float(overshoot_percents(np.asarray(y, float)[None], target, start)[0])
+    return float(overshoot_percents(np.asarray(y, float).reshape(1, -1), target, start)[0])
 
 
 def overshoot_percents(ys, target: float, start: float = 0.0) -> np.ndarray:
     """:func:`overshoot_percent` of each row of ``ys`` (runs x samples) at once."""
     ys = np.asarray(ys, float)
+    if ys.ndim != 2:
+        raise ValueError(f"need rows of samples (runs x samples), got shape {ys.shape}")
     step = target - start
     if step == 0:
         return np.full(len(ys), math.nan)
@@ -210,8 +212,8 @@ def settle_rows(t, ys, window: float, *, relative: float = 0.05, floor: float = 
     _series(t, ys[0] if len(ys) else t)
     if not (math.isfinite(relative) and relative >= 0 and math.isfinite(floor) and floor >= 0):
         raise MetricError(f"relative and floor must be finite and >= 0, got {relative!r}, {floor!r}")
-    inside = ys[:, _window(t, window)]
-    values = np.mean(inside, axis=1)
+    inside = np.ascontiguousarray(ys[:, _window(t, window)])   # rows in memory order: each row's mean sums as
+    values = np.mean(inside, axis=1)                             # the one-row mean does (pairwise from 8 on)
     deviation = np.max(np.abs(inside - values[:, None]), axis=1)
     lows, highs = np.min(inside, axis=1), np.max(inside, axis=1)
     out = []

@@ -76,15 +76,21 @@ def _squares(t, ys, steps, end) -> list[dict]:
             within = ys[:, sel, j]
             figures.append((t0, {"rise95_s": rise_times(t[sel], within, ref, start=0.0),
                                  "overshoot_pct": overshoot_percents(within, ref, start=0.0),
-                                 "steady_error_pct": 100.0 * (ref - np.mean(ys[:, last, j], axis=1)) / abs(ref)}))
+                                 "steady_error_pct": 100.0 * (ref - _row_means(ys[:, last, j])) / abs(ref)}))
         later = figures[1:] or figures
-        means = {name: np.mean(np.column_stack([f[name] for _, f in later]), axis=1) for name in _CYCLE}
+        means = {name: _row_means(np.column_stack([f[name] for _, f in later])) for name in _CYCLE}
         for i, out in enumerate(outs):
             out[key] = {"reference": float(on[0][1] * _TO_THESIS[j]),
                         "cycles": [{"start_s": t0, **{name: float(f[name][i]) for name in _CYCLE}}
                                    for t0, f in figures],
                         "later": {name: float(means[name][i]) for name in _CYCLE}}
     return outs
+
+
+def _row_means(rows: np.ndarray) -> np.ndarray:
+    """Each row's mean, summed as the mean of that row alone (rows laid out in memory order first: numpy sums
+    a row pairwise from 8 values on, in the order of the row's memory)."""
+    return np.mean(np.ascontiguousarray(rows), axis=1)
 
 
 def _square(t, y, steps, end) -> dict:
