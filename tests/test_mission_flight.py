@@ -235,3 +235,31 @@ def test_a_mission_that_starts_from_a_design_file_flies_alike_in_the_current(con
     _compare_legs(on_graph["legs"], flown["legs"])
     assert np.array_equal(np.round(on_graph["logs"]["command_t"], 6), np.round(flown["logs"]["command_t"], 6))
     assert np.abs(on_graph["logs"]["command"] - flown["logs"]["command"]).max() <= COMMAND_TOLERANCE
+
+
+def test_a_manual_leg_the_hierarchy_cannot_fly_is_refused_before_anything_flies(spec, hierarchy):
+    """A manual leg needs a manual velocity controller (the launch argument manual:=true) whose silence timeout
+    outlasts the gap between the stick's sends: 0.5 s rounded up to whole control periods (0.6 s at 5 Hz)."""
+    import dataclasses
+    from seapup_runs.mission_flight import HierarchyConfig, check_manual_legs
+    legs = [leg for leg in spec.to_dict()["mission"] if leg["kind"] == "manual"]
+    check_manual_legs(legs, hierarchy)                                       # the test's mission: fine
+    without = dict(yaml.safe_load(MISSION))
+    without["graph"] = {**without["graph"], "manual": False}
+    without["mission"][0]["configure"] = ["mfol_fixed"]
+    with pytest.raises(MissionFlightError, match=r"'manual' is not a manual velocity controller .*manual:=true"):
+        run_mission(MissionSpec.load(without), hierarchy_config_of(without))
+    kind, parameters, period = hierarchy.velocity_controllers["manual"]
+
+    def with_timeout(seconds):
+        laws = {**hierarchy.velocity_controllers, "manual": (kind, {**parameters, "silence_timeout": seconds}, period)}
+        return dataclasses.replace(hierarchy, velocity_controllers=laws)
+    with pytest.raises(MissionFlightError, match=r"silence_timeout 0.55 s is not longer than the 0.6 s between"):
+        check_manual_legs(legs, with_timeout(0.55))
+    check_manual_legs(legs, with_timeout(0.65))
+    assert isinstance(hierarchy, HierarchyConfig)
+
+
+def hierarchy_config_of(document):
+    from seapup_bringup.graph.hierarchy_config import hierarchy_config
+    return hierarchy_config(MissionSpec.load(document).graph)

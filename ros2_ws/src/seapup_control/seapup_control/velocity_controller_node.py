@@ -247,6 +247,7 @@ class VelocityControllerNode(LifecycleNode):
             subscribe(BladePitch, FORWARDED_COMMAND,
                       lambda msg: self.policy.on_vehicle_command(stamp_to_ns(msg.header.stamp)), RELIABLE_QOS)]
         if callable(getattr(self.controller, "pilot", None)):   # manual flight: the pilot's stick (REP-103 Twist)
+            self._pilot_said = None   # the sample whose stick diagnostics last said (_on_pilot)
             self._interfaces.append(subscribe(Twist, "pilot/cmd_vel", self._on_pilot, COMMAND_QOS))
         self._qos_watch = QosWatch(self)
         if lockstep:
@@ -345,8 +346,9 @@ class VelocityControllerNode(LifecycleNode):
     def _on_pilot(self, msg) -> None:
         """The pilot's demand, timed by the graph's time as the node knows it (its clock under ``use_sim_time``,
         else the newest sample: :func:`~seapup_common.ros.node.graph_time_ns`; the wall clock would make a
-        stick on a simulated-time graph never silent); a malformed one counted. Said at once in diagnostics
-        (``pilot_received``): a harness holding the graph waits for its stick there."""
+        stick on a simulated-time graph never silent); a malformed one counted. Said in diagnostics
+        (``pilot_received``) at once, but once a sample at most (a teleop panel sends at 10-50 Hz): a harness
+        holding the graph waits for its stick there."""
         t_ns = graph_time_ns(self, self.policy.latest_ns)
         try:
             self.controller.pilot(t_ns * 1e-9, (msg.linear.x, msg.linear.y, msg.linear.z),
@@ -354,7 +356,9 @@ class VelocityControllerNode(LifecycleNode):
         except ContractError as exc:   # a non-finite stick: counted in diagnostics, never flown
             self.counts["rejected_pilot"] = self.counts.get("rejected_pilot", 0) + 1
             self.get_logger().warn(f"pilot message rejected: {exc}", throttle_duration_sec=2.0)
-        self._diagnose(t_ns)
+        if t_ns != self._pilot_said:
+            self._pilot_said = t_ns
+            self._diagnose(t_ns)
 
     def _on_velocity(self, data: bytes) -> None:
         t_ns = self.raw_feed.velocity(data)

@@ -63,9 +63,8 @@ def settle_floors() -> tuple[np.ndarray, float]:
     0.02 kt for u, v, w, 0.005 deg/s for r, 0.25 deg for roll and pitch); SI (m/s, rad/s for u, v, w,
     r; rad for the pitch angle). A swing the instruments cannot see is settled. Worked out once per version of
     ``sensors.yaml`` (every run's metrics ask: reading the profile cost a tenth of a campaign run's metrics)."""
-    from seapup_common.config import parsed_yaml
-    from seapup_sim.sensors import _profiles_file, load_sensor_profile
-    document = parsed_yaml(_profiles_file(), shared=True)   # the same object while the file is unchanged
+    from seapup_sim.sensors import load_sensor_profile, profiles_document
+    document = profiles_document()   # the same object while the file is unchanged
     if _FLOORS.get("document") is not document:
         baseline = load_sensor_profile("baseline")
         _FLOORS.update(document=document, floors=(3.0 * np.array([*baseline.velocity_std, baseline.rate_std[2]]),
@@ -252,13 +251,15 @@ def compute_all(results) -> list[dict]:
     results = list(results)
     for result in results:
         check_names(result.spec.metrics)
-    together = {name: dict(zip(members, many([results[i] for i in members])))
-                for name, many in _MANY.items()
-                for members in [[i for i, r in enumerate(results) if name in r.spec.metrics]] if members}
+    together: dict = {}   # metric -> run index -> its figures
+    for name, many in _MANY.items():
+        members = [i for i, result in enumerate(results) if name in result.spec.metrics]
+        if members:
+            together[name] = dict(zip(members, many([results[i] for i in members])))
     out = []
     for i, result in enumerate(results):
         merged = {}
-        for name in result.spec.metrics:
+        for name in result.spec.metrics:   # merged in the spec's order, as compute merges them
             merged.update(together[name][i] if name in together else METRICS[name](result))
         out.append(merged)
     return out

@@ -42,6 +42,7 @@ most :data:`MAX_SECONDS`. Units SI and radians.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -247,9 +248,10 @@ def _leg(value, index: int) -> dict:
     if kind == "hover" and "switch" in leg and leg["switch"]["after"] >= leg["goal"]["duration"]:
         raise MissionError(f"{label}: switch after {leg['switch']['after']:g} s is not within the hover's "
                            f"{leg['goal']['duration']:g} s")
-    if kind == "manual" and leg["pilot"][-1][0] >= leg["seconds"]:
-        raise MissionError(f"{label}: the pilot's last row at {leg['pilot'][-1][0]:g} s is not within its "
-                           f"{leg['seconds']:g} s")
+    if kind == "manual" and leg["pilot"][-1][0] > (_sends(leg["seconds"]) - 1) * PILOT_PERIOD + 1e-9:
+        raise MissionError(f"{label}: the pilot's last row at {leg['pilot'][-1][0]:g} s comes after its last send "
+                           f"({(_sends(leg['seconds']) - 1) * PILOT_PERIOD:g} s: the stick goes every "
+                           f"{PILOT_PERIOD:g} s within the leg's {leg['seconds']:g} s), so it would never be flown")
     if kind == "manual" and leg["controller"] == leg["hand_back"]:
         raise MissionError(f"{label}: hand_back must be another controller than {leg['controller']!r}")
     if kind == "fouling" and leg["foul"]["after"] >= leg["fouled_seconds"]:
@@ -421,12 +423,18 @@ def pilot_sends(leg: dict) -> list[tuple[float, tuple]]:
     [(0.0, (0.2, 0, 0, 0)), (0.5, (0.2, 0, 0, 0)), (1.0, (0, 0, 0, 0.1))]
     """
     rows, out = leg["pilot"], []
-    for k in range(int(math.ceil(leg["seconds"] / PILOT_PERIOD - 1e-9))):
+    times = [row[0] for row in rows]
+    for k in range(_sends(leg["seconds"])):
         t = k * PILOT_PERIOD
-        in_force = [row for row in rows if row[0] <= t + 1e-9]
+        in_force = bisect.bisect_right(times, t + 1e-9)   # rows at or before t
         if in_force:
-            out.append((t, tuple(in_force[-1][1:])))
+            out.append((t, tuple(rows[in_force - 1][1:])))
     return out
+
+
+def _sends(seconds: float) -> int:
+    """How many sends a manual leg of ``seconds`` makes (at 0, :data:`PILOT_PERIOD`, ... before ``seconds``)."""
+    return int(math.ceil(seconds / PILOT_PERIOD - 1e-9))
 
 
 def manual_result(leg: dict, piloted: dict, held: dict, marks: dict) -> dict:

@@ -490,7 +490,7 @@ class MissionFlight:
     def pilot(self, controller: str, demand) -> None:
         """A pilot's stick (x, y, z, yaw of a REP-103 ``Twist``) heard now by manual velocity controller
         ``controller``, as its node hears the teleop tool's message while the graph is held
-        (:meth:`seapup_bringup.graph.sil.SilGraph.pilot`)."""
+        (:func:`seapup_bringup.graph.sil.send_pilot`)."""
         law = self.configured.get(controller)
         if law is None or not callable(getattr(law, "pilot", None)):
             raise MissionFlightError(f"{controller!r} is not a configured manual velocity controller")
@@ -539,8 +539,9 @@ def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float
         A leg that cannot be flown (its goal refused, the self-test failed): which and why.
     """
     from seapup_runs.mission_metrics import mission_numbers
-    flight = MissionFlight(hierarchy, max_seconds)
     plan = [dict(leg, index=i) for i, leg in enumerate(spec.to_dict()["mission"])]
+    check_manual_legs(plan, hierarchy)
+    flight = MissionFlight(hierarchy, max_seconds)
     total, done = sum(leg.get("expected", 60.0) for leg in plan), 0.0
     legs, swap = [], {}
     for leg in plan:
@@ -611,39 +612,50 @@ def _fly_fouling(flight: MissionFlight, leg: dict, swap: dict) -> dict:
 
 
 def _fly_manual(flight: MissionFlight, leg: dict) -> dict:
-    """A manual leg (:mod:`seapup_runs.mission`): the pilot's controller in, its stick sent every
-    :data:`~seapup_runs.mission.PILOT_PERIOD` s while the task controller follows the vehicle, then the hand-back
-    and a hover where the vehicle is (as ``seapup_bringup.graph.mission_graph`` flies it on the graph)."""
-    check_pilot_period(leg, flight.laws)
+    """A manual leg (:mod:`seapup_runs.mission`): the pilot's controller in (from whichever law flies), its stick
+    sent every :data:`~seapup_runs.mission.PILOT_PERIOD` s while the task controller follows the vehicle, then the
+    hand-back -- at ``seconds``, or at once should the following end earlier -- and a hover where the vehicle is
+    (as ``seapup_bringup.graph.mission_graph`` flies it on the graph)."""
     marks = {"take_t": flight.t}
-    flight.switch(activate=[leg["controller"]], deactivate=[flight.active] if flight.active else [])
+    if flight.active != leg["controller"]:
+        flight.switch(activate=[leg["controller"]], deactivate=[flight.active] if flight.active else [])
     sends = pilot_sends(leg)
     if sends and sends[0][0] == 0.0:   # the first stick at the hold the pilot takes over at
         flight.pilot(leg["controller"], sends.pop(0)[1])
 
     def hand_back():
         marks["hand_back_t"] = flight.t
-        flight.switch(activate=[leg["hand_back"]], deactivate=[leg["controller"]])
+        if flight.active != leg["hand_back"]:
+            flight.switch(activate=[leg["hand_back"]], deactivate=[flight.active] if flight.active else [])
     acts = [*((after, lambda demand=demand: flight.pilot(leg["controller"], demand)) for after, demand in sends),
             (float(leg["seconds"]), hand_back)]
     piloted = leg_numbers_of(flight.goal("hover", {"follow": True}, acts=acts, cancel_after=float(leg["seconds"])),
                              None, {})
+    if "hand_back_t" not in marks:   # the following ended before its time: handed back where it ended
+        hand_back()
     held = leg_numbers_of(flight.goal("hover", {"hold_current": True, "duration": float(leg["goal"]["duration"])}),
                           None, {})
     return manual_result(leg, piloted, held, marks)
 
 
-def check_pilot_period(leg: dict, laws: dict) -> None:
-    """A manual leg's controller is a manual one of the hierarchy whose ``silence_timeout`` outlasts the stick's
-    period (:data:`~seapup_runs.mission.PILOT_PERIOD`), or :class:`MissionFlightError` says why not. ``laws``:
-    :attr:`HierarchyConfig.velocity_controllers`."""
-    name = leg["controller"]
-    if name not in laws or laws[name][0] != "manual":
-        raise MissionFlightError(f"{leg['name']}: {name!r} is not a manual velocity controller of the hierarchy "
-                                 f"({', '.join(n for n, law in laws.items() if law[0] == 'manual') or 'none'}; "
-                                 "the launch argument manual:=true adds one)")
-    timeout = float(laws[name][1]["silence_timeout"])
-    if timeout <= PILOT_PERIOD:
-        raise MissionFlightError(f"{leg['name']}: {name}'s silence_timeout {timeout:g} s is not longer than the "
-                                 f"pilot's period {PILOT_PERIOD:g} s: the stick would go silent between sends")
+def check_manual_legs(legs, hierarchy: HierarchyConfig) -> None:
+    """Before anything flies: each manual leg's controller is a manual one of the hierarchy whose
+    ``silence_timeout`` outlasts the gap between the stick's sends -- every
+    :data:`~seapup_runs.mission.PILOT_PERIOD` s, each on the first sample at or after its time, so up to that
+    period rounded up to whole control periods -- or :class:`MissionFlightError` says why not."""
+    laws = hierarchy.velocity_controllers
+    period = float(hierarchy.simulator.get("control_period", 0.2))
+    gap = math.ceil(PILOT_PERIOD / period - 1e-9) * period
+    for leg in legs:
+        if leg["kind"] != "manual":
+            continue
+        name = leg["controller"]
+        if name not in laws or laws[name][0] != "manual":
+            raise MissionFlightError(f"{leg['name']}: {name!r} is not a manual velocity controller of the hierarchy "
+                                     f"({', '.join(n for n, law in laws.items() if law[0] == 'manual') or 'none'}; "
+                                     "the launch argument manual:=true adds one)")
+        timeout = float(laws[name][1]["silence_timeout"])
+        if timeout <= gap + 1e-9:
+            raise MissionFlightError(f"{leg['name']}: {name}'s silence_timeout {timeout:g} s is not longer than the "
+                                     f"{gap:g} s between the pilot's sends: the stick would go silent between them")
 

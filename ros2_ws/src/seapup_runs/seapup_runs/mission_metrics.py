@@ -62,7 +62,7 @@ def leg_numbers(logs: dict, leg: dict, seabed, limit: float = BLADE_PITCH_LIMIT)
     if not window.any():
         return out
     if leg["kind"] in ("hover", "current", "manual"):
-        start = leg["hand_back_t"] if leg["kind"] == "manual" else t0   # a manual leg holds after the hand-back
+        start = leg.get("hand_back_t", t0) if leg["kind"] == "manual" else t0   # a manual leg holds after its hand-back
         st = logs["setpoint_t"]
         held = (st >= start) & (st <= t1)
         steady = window & (t >= start + leg.get("hold_from", 0.0))  # after braking from the previous leg's speed

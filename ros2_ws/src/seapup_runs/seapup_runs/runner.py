@@ -57,7 +57,10 @@ def design(spec: RunSpec, progress: Callable[[float], None] | None = None) -> Ru
         If the self-test does not finish.
     """
     missing = _undesigned(spec)
-    return spec.with_controllers({i: _design_document(spec, progress) for i in missing}) if missing else spec
+    if not missing:
+        return spec
+    document = _design_document(spec, progress)
+    return spec.with_controllers({i: document for i in missing})
 
 
 def design_all(specs) -> list[RunSpec]:

@@ -42,7 +42,7 @@ from seapup_common.contract import CheckedVariances, ContractError, Measurement,
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
-__all__ = ["SensorProfile", "load_sensor_profile", "sensor_profiles", "SensorSuite", "INSTRUMENTS"]
+__all__ = ["SensorProfile", "load_sensor_profile", "sensor_profiles", "profiles_document", "SensorSuite", "INSTRUMENTS"]
 
 #: The instruments, each with its own random stream ``sensors.<name>``.
 INSTRUMENTS = ("velocity", "rates", "attitude", "depth", "altitude", "position", "position_dropout",
@@ -52,6 +52,12 @@ INSTRUMENTS = ("velocity", "rates", "attitude", "depth", "altitude", "position",
 @functools.cache
 def _profiles_file() -> Path:
     return Path(str(resources.files("seapup_sim") / "environment" / "sensors.yaml"))
+
+
+def profiles_document() -> dict:
+    """``sensors.yaml`` as parsed, shared and read only: the same object while the file is unchanged (a cache
+    keyed on it is dropped when the file changes)."""
+    return parsed_yaml(_profiles_file(), shared=True)
 
 
 def sensor_profiles() -> list[str]:

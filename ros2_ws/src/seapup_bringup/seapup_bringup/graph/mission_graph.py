@@ -114,8 +114,10 @@ def fly_mission(out: Path, config: dict, text, extra_nodes=()) -> dict:
     from seapup_bringup.graph.graph_runner import GraphSpec, fly_graph
     from seapup_bringup.graph.hierarchy_config import hierarchy_config
 
+    from seapup_runs.mission_flight import check_manual_legs
     graph = config["graph"]
     hierarchy = hierarchy_config(graph)
+    check_manual_legs(config["mission"], hierarchy)   # before the graph starts
     simulator = hierarchy.simulator
     seabed = simulator["environment"]["seabed"]
     from seapup_sim.vehicle import VehicleModel
@@ -208,23 +210,25 @@ def _fly_fouling(sil, leg: dict, swap: dict) -> dict:
 def _fly_manual(sil, leg: dict, laws: dict) -> dict:
     """A manual leg (:func:`seapup_runs.mission_flight._fly_manual` flies it in process): the pilot's controller
     in, its stick published as a teleop tool publishes it, at holds, while the task controller follows the
-    vehicle; ``seconds`` in, held there, the hand-back: the task's controller in and the following cancelled (the
-    task controller hovers where the vehicle is from the next estimate); then a hover where the vehicle is."""
+    vehicle; ``seconds`` in (or at once should the following end earlier), held there, the hand-back: the task's
+    controller in and the following cancelled (the task controller hovers where the vehicle is from the next
+    estimate); then a hover where the vehicle is. Each switch from whichever law flies (best effort: a law that
+    is not active is not deactivated, one already active is left as it is), as the process's."""
     from seapup_bringup.graph.sil import send_pilot
-    from seapup_runs.mission_flight import check_pilot_period
-    check_pilot_period(leg, laws)
     marks = {"take_t": sil.t}
-    # from whichever law flies (best effort: the others' deactivations are skipped, as not active)
     _switch(sil, leg, [leg["controller"]], [name for name in laws if name != leg["controller"]], strict=False)
     sends = pilot_sends(leg)
     if sends and sends[0][0] == 0.0:   # the first stick at the hold the pilot takes over at
         send_pilot(sil, sends.pop(0)[1], leg["controller"])
+
     def hand_back():
         marks["hand_back_t"] = sil.t
-        _switch(sil, leg, [leg["hand_back"]], [leg["controller"]])
+        _switch(sil, leg, [leg["hand_back"]], [name for name in laws if name != leg["hand_back"]], strict=False)
     acts = [*((after, lambda demand=demand: send_pilot(sil, demand, leg["controller"])) for after, demand in sends),
             (float(leg["seconds"]), hand_back)]
     piloted = _goal(sil, leg, "hover", {"follow": True}, acts=acts, cancel_after=float(leg["seconds"]))
+    if "hand_back_t" not in marks:   # the following ended before its time: handed back where it ended
+        hand_back()
     held = _goal(sil, leg, "hover", {"hold_current": True, "duration": float(leg["goal"]["duration"])})
     return manual_result(leg, piloted, held, marks)
 

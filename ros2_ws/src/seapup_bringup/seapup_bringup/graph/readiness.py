@@ -98,6 +98,24 @@ def handled_since(diagnostics: list, name: str, t: float, window: int = WINDOW) 
                for array in diagnostics[-window:] for status in array.status)
 
 
+def status_value(diagnostics: list, name: str, key: str, start: int = 0) -> str | None:
+    """The value of ``key`` in the newest status of node ``name`` among ``diagnostics[start:]``, or None."""
+    for array in reversed(diagnostics[start:]):
+        for status in array.status:
+            if status.name == name:
+                for kv in status.values:
+                    if kv.key == key:
+                        return kv.value
+    return None
+
+
+def said_otherwise(diagnostics: list, start: int, name: str, key: str, before: str | None) -> bool:
+    """Whether node ``name`` published, among ``diagnostics[start:]``, a status whose ``key`` is not ``before``
+    (a count that moved on, or began again after the node was configured anew)."""
+    return any(status.name == name and kv.key == key and kv.value != before
+               for array in diagnostics[start:] for status in array.status for kv in status.values)
+
+
 def stream_started(diagnostics: list, name: str, t: float, window: int = WINDOW, key: str = "stream_start") -> bool:
     """Whether node ``name`` said (its status value ``key``) that a stream started with the message stamped ``t``
     [s] or later: ``stream_start``, a stream of its that its readers acknowledged or that it waited for in vain

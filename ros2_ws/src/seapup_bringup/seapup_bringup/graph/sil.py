@@ -91,11 +91,12 @@ def send_pilot(sil, demand, controller: str | None = None) -> None:
     """A pilot's stick (x, y, z [m/s], yaw [rad/s] of a REP-103 ``Twist``) sent from the harness's node as a
     teleop tool sends it, on :data:`seapup_common.topics.PILOT`. With ``controller`` (a manual velocity
     controller) the first waits until a subscriber has matched (a message sent before discovery would be lost)
-    and, on a paced graph, the harness then waits until that controller says it has every stick sent (its
-    diagnostics' ``pilot_received``), so the stick is in force from the held sample whatever the load."""
+    and, on a paced graph, the harness then waits until that controller says it has this one (its diagnostics'
+    ``pilot_received`` count moved on since the harness last heard it), so the stick is in force from the held
+    sample whatever the load."""
     from geometry_msgs.msg import Twist
     from seapup_common.ros.node import COMMAND_QOS
-    sent = sil.__dict__.setdefault("_pilot_sent", {"publisher": None, "count": 0})
+    sent = sil.__dict__.setdefault("_pilot_sent", {"publisher": None})
     if sent["publisher"] is None:
         sent["publisher"] = sil.probe.node.create_publisher(Twist, topics.PILOT, COMMAND_QOS)
         if controller is not None:
@@ -103,12 +104,12 @@ def send_pilot(sil, demand, controller: str | None = None) -> None:
     msg = Twist()
     msg.linear.x, msg.linear.y, msg.linear.z = (float(v) for v in demand[:3])
     msg.angular.z = float(demand[3])
+    name, log = f"seapup/{controller}", sil.log["diagnostics"]
+    seen, before = len(log), readiness.status_value(log, name, "pilot_received")   # its count until now
     sent["publisher"].publish(msg)
-    sent["count"] += 1
-    if controller is not None and sil.paced:
-        count = sent["count"]   # a count, not a time: stream_started compares the status value with it
-        _harness_wait(sil, lambda: readiness.stream_started(sil.log["diagnostics"], f"seapup/{controller}", count, 400,
-                                                            key="pilot_received"), "pilot's stick")
+    if controller is not None and sil.paced:   # its count moved on (or began again): it has this stick
+        _harness_wait(sil, lambda: readiness.said_otherwise(log, seen, name, "pilot_received", before),
+                      "pilot's stick")
 
 
 def _stream_acknowledged(sil, key: str, node: str, value: str = "stream_start") -> None:
@@ -402,8 +403,7 @@ class SilGraph:
         start = self.t
         during_result = _acts(lambda after: self.spin_until(lambda: self.t >= start + after or future.done(), timeout),
                               future.done, acts, during)
-        if cancel_after is not None:
-            start = self.t
+        if cancel_after is not None:   # that long after the acceptance, as paced
             self.spin_until(lambda: self.t >= start + cancel_after or future.done(), timeout)
             if not future.done():
                 self.spin_until(handle.cancel_goal_async().done, 10.0)
