@@ -424,10 +424,15 @@ class LiveViewNode(Node):
         return serve
 
     def _switch(self, payload: bytes) -> bytes:
-        name = view_requests.switch_request(payload)
-        ros = SwitchController.Request(activate_controllers=[name], strictness=SwitchController.Request.STRICT)
-        response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), ros)
+        response = self._switch_to(view_requests.switch_request(payload))
         return json.dumps({"ok": bool(response.ok), "message": response.message}).encode()
+
+    def _switch_to(self, name: str):
+        """The manager's switch (strict) to ``name`` from the controller flying (view_requests.switch_lists)."""
+        activate, deactivate = view_requests.switch_lists(name, self.active_controller)
+        return self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), SwitchController.Request(
+            activate_controllers=activate, deactivate_controllers=deactivate,
+            strictness=SwitchController.Request.STRICT))
 
     def _set_current(self, payload: bytes) -> bytes:
         ros = SetCurrent.Request(**view_requests.current_request(payload))
@@ -498,8 +503,7 @@ class LiveViewNode(Node):
                 raise RuntimeError(f"the simulator refused lockstep_pace: {response.results[0].reason}")
             self._pace = float(value)
         elif name == "controller":
-            response = self._call(self._client(SwitchController, SWITCH_CONTROLLER_SERVICE), SwitchController.Request(
-                activate_controllers=[value], strictness=SwitchController.Request.STRICT))
+            response = self._switch_to(value)
             if not response.ok:
                 raise RuntimeError(f"switch to {value} refused: {response.message}")
             self.active_controller = value

@@ -272,3 +272,15 @@ def pilot_twist(payload: bytes) -> tuple[tuple, tuple]:
         out.append(tuple(_number(f"pilot {part}", key, vector.get(key, 0.0), (-PILOT_BOUND, PILOT_BOUND))
                          for key in ("x", "y", "z")))
     return out[0], out[1]
+
+
+def switch_lists(name: str, active: str) -> tuple[list, list]:
+    """The controller manager's switch to velocity controller ``name`` from ``active`` (the one flying, '' for
+    none): (activate, deactivate). The manager activates nothing while another controller is active unless the
+    same request deactivates it (exactly one commands the thrusters), so a viewer's switch names both.
+
+    >>> switch_lists("manual", "mfol_fixed"), switch_lists("gmv", "")
+    ((['manual'], ['mfol_fixed']), (['gmv'], []))
+    """
+    return [name], ([active] if active and active != name else [])
+

@@ -162,3 +162,17 @@ def test_a_pilot_message_is_a_bounded_finite_twist_missing_parts_zero():
                             (b"x" * 5000, "at most 4096")):
         with pytest.raises(ViewRequestError, match=reason):
             vr.pilot_twist(payload)
+
+
+def test_a_viewer_s_switch_deactivates_the_controller_flying_as_the_manager_requires():
+    """The manager refuses to activate a controller while another flies unless the same request deactivates it
+    (its pure core, seapup_control.controller_manager): the view's switch names both, so a viewer swaps laws, or
+    takes the vehicle by hand, in flight."""
+    from seapup_control.controller_manager import STRICT, ControllerManagerCore, SwitchError
+    core = ControllerManagerCore(["mfol_fixed", "gmv", "manual"], "mfol_fixed")
+    core.active = "mfol_fixed"
+    with pytest.raises(SwitchError, match="mfol_fixed is active"):
+        core.plan_switch(["manual"], [], STRICT)            # what the view asked before
+    plan = core.plan_switch(*vr.switch_lists("manual", core.active), STRICT)
+    assert plan.activate == ["manual"] and plan.deactivate == ["mfol_fixed"]
+    assert vr.switch_lists("gmv", "") == (["gmv"], []) and vr.switch_lists("gmv", "gmv") == (["gmv"], [])
