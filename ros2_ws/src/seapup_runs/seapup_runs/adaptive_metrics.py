@@ -98,21 +98,26 @@ def _square(t, y, steps, end) -> dict:
     return _squares(t, y[None], steps, end)[0]
 
 
-def _square_key(result: RunResult) -> tuple:
-    """What runs must share for :func:`_squares` to treat them together: the sample times, the reference steps
-    flown and the duration."""
+def shared_key(result: RunResult) -> tuple:
+    """What runs must share for their figures to be reduced together (:func:`adaptive_all`,
+    :func:`seapup_runs.metrics.step_response_all`): the sample times, the reference steps flown and the duration."""
     return (result.series.t.tobytes(), tuple((t, tuple(r.tolist())) for t, r in _steps(result)),
             result.spec.duration)
+
+
+def grouped(results, key) -> list[list[int]]:
+    """The indices of ``results`` grouped by ``key(result)``, in order of first appearance."""
+    groups: dict = {}
+    for i, result in enumerate(results):
+        groups.setdefault(key(result), []).append(i)
+    return list(groups.values())
 
 
 def adaptive_all(results) -> list[dict]:
     """:func:`adaptive` of each result, the square-wave figures of runs that share their times and steps (a
     campaign's) computed together: the same numbers as one by one (tested), at a fraction of the cost."""
-    groups: dict = {}
-    for i, result in enumerate(results):
-        groups.setdefault(_square_key(result), []).append(i)
     squares = {}
-    for members in groups.values():
+    for members in grouped(results, shared_key):
         first = results[members[0]]
         steps = _steps(first)
         if len(steps) > 1:

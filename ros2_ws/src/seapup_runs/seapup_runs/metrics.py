@@ -33,7 +33,7 @@ import numpy as np
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_control.response_metrics import (MetricError, limit_cycle, overshoot_percents, rise_times, saturation_time,
                                              settle_rows)
-from seapup_runs.adaptive_metrics import adaptive, adaptive_all
+from seapup_runs.adaptive_metrics import adaptive, adaptive_all, grouped, shared_key
 from seapup_runs.result import REFERENCE_NAMES, RunResult
 
 __all__ = ["METRICS", "compute", "compute_all", "check_names", "step_response", "step_response_all", "MetricError",
@@ -106,13 +106,8 @@ def step_response_all(results) -> list[dict]:
     """:func:`step_response` of each result, the figures of runs that share their sample times, reference steps,
     duration, current step and controller timing (a campaign's batch) reduced over all of them at once: the same
     numbers as one by one (tested)."""
-    groups: dict = {}
-    for i, result in enumerate(results):
-        key = (result.series.t.tobytes(), tuple((t, tuple(r)) for t, r in result.reference_steps_flown()),
-               result.spec.duration, _current_step_time(result), _late_controller(result))
-        groups.setdefault(key, []).append(i)
     out: list = [None] * len(results)
-    for members in groups.values():
+    for members in grouped(results, lambda r: (*shared_key(r), _current_step_time(r), _late_controller(r))):
         for i, figures in zip(members, _step_responses([results[i] for i in members])):
             out[i] = figures
     return out
