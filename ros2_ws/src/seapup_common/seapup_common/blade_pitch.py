@@ -97,7 +97,7 @@ def check_blade_pitch(pitch, limit: float = BLADE_PITCH_LIMIT) -> tuple[np.ndarr
         If the command does not have exactly four elements or any is NaN or
         infinite. Nothing is clipped or returned in that case.
     """
-    if not (np.isfinite(limit) and limit > 0.0):
+    if not (math.isfinite(limit) and limit > 0.0):
         raise ValueError(f"blade-pitch limit must be finite and > 0 rad, got {limit!r}")
     if within_limits(pitch, limit):   # the usual case: the same answer as below, a third of its cost
         return pitch.copy(), 0

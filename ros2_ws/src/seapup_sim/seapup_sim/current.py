@@ -163,6 +163,20 @@ class GaussMarkovCurrent:
         self.direction = c.a_alpha + c.b * self.direction + c.d * w_a
         return self.speed, self.direction
 
+    def velocities(self, n: int) -> np.ndarray:
+        """The next ``n`` samples' velocities in NED, (n, 3): row i is :meth:`velocity_ned` before the i-th of ``n``
+        calls of :meth:`step`, which are made -- the same numbers, the draws read at once (a generator's
+        ``standard_normal(n)`` is its next n single draws) and the recursion in plain floats."""
+        c = self.coef
+        draws = (math.sqrt(c.var_w_c) * self.rng.standard_normal(n)).tolist() if c.var_w_c > 0 else [0.0] * n
+        speed, direction, rows = self.speed, self.direction, []
+        for w_c in draws:
+            rows.append((speed * math.cos(direction), speed * math.sin(direction), 0.0))
+            speed = c.a_c + c.b * speed + c.d * w_c
+            direction = c.a_alpha + c.b * direction + c.d * (c.w_alpha_per_w_c * w_c)
+        self.speed, self.direction = speed, direction
+        return np.array(rows).reshape(n, 3)
+
     def velocity_ned(self) -> np.ndarray:
         """Current velocity in NED [m/s] (horizontal)."""
         return np.array([self.speed * math.cos(self.direction), self.speed * math.sin(self.direction), 0.0])

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from seapup_common.config import parsed_yaml
-from seapup_common.contract import CheckedVariances, ContractError, Measurement, Reading
+from seapup_common.contract import INVALID_READING, CheckedVariances, ContractError, Measurement, Reading
 from seapup_common.random_streams import RandomStreams
 from seapup_sim.vehicle import cross, rotation_body_to_ned
 
@@ -126,30 +126,40 @@ def load_sensor_profile(name: str) -> SensorProfile:
                          float(alt.get("field_of_view", 0.0)), copy.deepcopy(dict(p.get("strapdown", {}))))
 
 
+def _frozen(values: list) -> np.ndarray:
+    """A read-only array of ``values``."""
+    array = np.array(values)
+    array.setflags(write=False)
+    return array
+
+
 def _measurement(t: float, values: dict, variances: CheckedVariances) -> Measurement:
     """What ``Measurement.build(t, variances=variances, **values)`` gives for readings :meth:`SensorSuite.measure`
-    made itself -- fresh float arrays of their fields' sizes (made read-only here, not copied) and floats --
-    checked at once: every number finite (a NaN or inf is refused with build's error), stamped ``t``."""
-    numbers = []
-    for value in values.values():
-        if value is None:
-            continue
-        if isinstance(value, float):
-            numbers.append(value)
-        else:
-            numbers.extend(value.tolist())
-            value.setflags(write=False)
-    if not all(map(math.isfinite, numbers)):
-        bad = next(name for name, value in values.items() if value is not None
-                   and not all(map(math.isfinite, np.atleast_1d(value).tolist())))
-        raise ContractError(f"{bad} must be finite, got {np.atleast_1d(values[bad]).tolist()}")
-    return Measurement(t, **{name: Reading(value, t, variances[name]) for name, value in values.items()
-                             if value is not None})
+    made itself -- lists of floats of their fields' sizes (made read-only arrays here) and floats, None where
+    invalid -- checked at once: every number finite (a NaN or inf is refused with build's error), stamped ``t``."""
+    total = 0.0
+    for value in values.values():   # a NaN or inf anywhere makes the sum non-finite (so may an overflow: looked at)
+        if value is not None:
+            total += value if isinstance(value, float) else sum(value)
+    if not math.isfinite(total):
+        bad = next((name for name, value in values.items() if value is not None
+                    and not all(map(math.isfinite, value if isinstance(value, list) else [value]))), None)
+        if bad is not None:
+            raise ContractError(f"{bad} must be finite, got {np.atleast_1d(values[bad]).tolist()}")
+    readings = {}
+    for name, value in values.items():
+        if value is not None:
+            if isinstance(value, list):
+                value = np.array(value)
+                value.setflags(write=False)
+            readings[name] = Reading(value, t, variances[name])
+    return Measurement(t, **readings)
 
 
 #: standard normal draws read from an instrument's stream at a time (:meth:`SensorSuite._normals`)
 NORMALS_BLOCK = 48   # whole readings of 1 and 3 draws, fewer than a batch block (seapup_sim.batch._Draws)
-_EMPTY = (np.zeros(0), 0)
+_EMPTY = ([], 0)
+_ZEROS = {k: [0.0] * k for k in (1, 3)}
 
 
 def _wrap(angle: float) -> float:
@@ -194,33 +204,46 @@ class SensorSuite:
         if self._profile_arrays[0] is not p:
             stds = {"velocity": p.velocity_std, "rates": p.rate_std, "attitude": p.attitude_std,
                     "depth": [p.depth_std], "altitude": [p.altitude_std], "position": [p.position_std] * 3}
-            stds = {name: np.asarray(std, float) for name, std in stds.items()}
+            stds = {name: tuple(float(v) for v in std) for name, std in stds.items()}
             self._profile_arrays = (p, CheckedVariances.of(p.variances()),
-                                    {name: std if (std > 0).any() else None for name, std in stds.items()})
+                                    {name: std if any(v > 0 for v in std) else None for name, std in stds.items()})
         return self._profile_arrays
 
     def _noise(self, instrument: str, size: int) -> np.ndarray:
-        std = self._checked()[2][instrument]
-        if std is None:   # noise-free: no draw
-            return np.zeros(size)
-        return std * self._normals(instrument, std.shape[0])
+        """The instrument's next ``size`` noise values (an array; :meth:`_draws`)."""
+        return np.array(self._draws(self._checked()[2][instrument], instrument, size))
 
-    def _normals(self, instrument: str, k: int) -> np.ndarray:
-        """The instrument stream's next ``k`` standard normal draws, read :data:`NORMALS_BLOCK` at a time: a
-        generator's ``standard_normal(n)`` is its next n single draws, so the readings are those of drawing k
-        at each (tested), at a fraction of the cost of a generator call per reading."""
+    def _draws(self, std, instrument: str, k: int) -> list:
+        """``k`` noise values of ``instrument`` whose standard deviations are ``std`` (k floats; None:
+        noise-free, no draw, zeros): ``std[i]`` times the stream's next standard normal draws, each product the
+        one ``std * draws`` gives on arrays. The draws are read :data:`NORMALS_BLOCK` at a time: a generator's
+        ``standard_normal(n)`` is its next n single draws, so the readings are those of drawing k at each
+        (tested), at a fraction of the cost of a generator call per reading."""
+        if std is None:
+            return _ZEROS[k]
         buffer, used = self._buffered.get(instrument, _EMPTY)
         if used + k > len(buffer):
-            buffer = np.concatenate([buffer[used:], self.rng[instrument].standard_normal(NORMALS_BLOCK)])
+            buffer = buffer[used:] + self.rng[instrument].standard_normal(NORMALS_BLOCK).tolist()
             used = 0
         self._buffered[instrument] = (buffer, used + k)
-        return buffer[used:used + k]
+        if k == 3:
+            return [std[0] * buffer[used], std[1] * buffer[used + 1], std[2] * buffer[used + 2]]
+        return [a * b for a, b in zip(std, buffer[used:used + k])]
+
+    def _normals(self, instrument: str, k: int) -> np.ndarray:
+        """The instrument stream's next ``k`` standard normal draws (as :meth:`_draws` reads them)."""
+        buffer, used = self._buffered.get(instrument, _EMPTY)
+        if used + k > len(buffer):
+            buffer = buffer[used:] + self.rng[instrument].standard_normal(NORMALS_BLOCK).tolist()
+            used = 0
+        self._buffered[instrument] = (buffer, used + k)
+        return np.array(buffer[used:used + k])
 
     def unused_normals(self, instrument: str) -> np.ndarray:
         """The draws read from the instrument's stream and not yet used (a copy): who takes the stream over
         (:class:`seapup_sim.batch.BatchSensors`) uses them first."""
         buffer, used = self._buffered.get(instrument, _EMPTY)
-        return buffer[used:].copy()
+        return np.array(buffer[used:], dtype=float)
 
     def _strapdown_velocity(self, t: float, state: np.ndarray, specific_force: np.ndarray) -> np.ndarray:
         """Integrate accelerometers (true specific force + drifting zero + noise), removing
@@ -242,17 +265,19 @@ class SensorSuite:
         self._sd_velocity = v + dt * v_dot
         return self._sd_velocity.copy()
 
-    def _altitude(self, state: np.ndarray) -> float | None:
+    def _altitude(self, state: np.ndarray, stds: dict | None = None) -> float | None:
         p = self.profile
         if self.seabed is None:
             return None
-        vertical = self.seabed(state[0], state[1]) - state[2]
-        tilt = math.cos(state[3]) * math.cos(state[4])
+        x, y, z, phi, theta = state[:5].tolist()
+        vertical = self.seabed(x, y) - z
+        tilt = math.cos(phi) * math.cos(theta)
         if vertical <= 0 or tilt <= 0:
             return None  # seabed above the vehicle, or the beam pointing up
         # slant range along body z over a locally flat bottom; beyond max_range: no echo
-        reading = vertical / tilt + self._noise("altitude", 1)[0]
-        return float(reading) if p.altimeter_min_range <= reading <= p.altimeter_max_range else None
+        stds = self._checked()[2] if stds is None else stds
+        reading = vertical / tilt + self._draws(stds["altitude"], "altitude", 1)[0]
+        return reading if p.altimeter_min_range <= reading <= p.altimeter_max_range else None
 
     def measure(self, t: float, state: np.ndarray, specific_force=None) -> Measurement:
         """Readings at time ``t`` for the true ``state`` (see module docstring).
@@ -260,22 +285,40 @@ class SensorSuite:
         ``specific_force`` (body axes, :func:`seapup_sim.vehicle.specific_force`)
         is needed only for strapdown velocity.
         """
-        p = self.profile
-        values = {}
+        p, variances, stds = self._checked()
+        draws, t = self._draws, float(t)
+        x = state.tolist()
+        # each reading in plain floats, the sums those of the arrays' (state + noise), then one array a field
         if p.strapdown_enabled:
             if specific_force is None:
                 raise ValueError("strapdown velocity needs the specific force")
-            values["velocity"] = self._strapdown_velocity(t, state, np.asarray(specific_force, float))
+            velocity = self._strapdown_velocity(t, state, np.asarray(specific_force, float)).tolist()
         else:
             self._sd_velocity = self._last_t = None  # re-aligned if strapdown is switched on later
-            values["velocity"] = state[6:9] + self._noise("velocity", 3)
-        values["rates"] = state[9:12] + self._noise("rates", 3)
-        att = state[3:6] + self._noise("attitude", 3)
-        values["attitude"] = np.array([_wrap(att[0]), att[1], _wrap(att[2])])
-        values["depth"] = float(state[2] + self._noise("depth", 1)[0])
-        values["altitude"] = self._altitude(state)
+            n = draws(stds["velocity"], "velocity", 3)
+            velocity = [x[6] + n[0], x[7] + n[1], x[8] + n[2]]
+        n = draws(stds["rates"], "rates", 3)
+        rates = [x[9] + n[0], x[10] + n[1], x[11] + n[2]]
+        n = draws(stds["attitude"], "attitude", 3)
+        attitude = [_wrap(x[3] + n[0]), x[4] + n[1], _wrap(x[5] + n[2])]
+        depth = x[2] + draws(stds["depth"], "depth", 1)[0]
+        altitude = self._altitude(state, stds)
+        position = None
         if t + 1e-9 >= self._next_fix:
             self._next_fix = t + 1.0 / p.position_rate_hz
             if self.rng["position_dropout"].random() >= p.position_dropout:
-                values["position"] = state[:3] + self._noise("position", 3)
-        return _measurement(float(t), values, self._checked()[1])
+                n = draws(stds["position"], "position", 3)
+                position = [x[0] + n[0], x[1] + n[1], x[2] + n[2]]
+        total = sum(velocity) + sum(rates) + sum(attitude) + depth   # NaN or inf anywhere: not finite
+        if altitude is not None:
+            total += altitude
+        if position is not None:
+            total += sum(position)
+        if not math.isfinite(total):
+            return _measurement(t, {"velocity": velocity, "rates": rates, "attitude": attitude, "depth": depth,
+                                    "altitude": altitude, "position": position}, variances)
+        return Measurement(t, Reading(_frozen(velocity), t, variances["velocity"]),
+                           Reading(_frozen(rates), t, variances["rates"]),
+                           Reading(_frozen(attitude), t, variances["attitude"]), Reading(depth, t, variances["depth"]),
+                           INVALID_READING if altitude is None else Reading(altitude, t, variances["altitude"]),
+                           INVALID_READING if position is None else Reading(_frozen(position), t, variances["position"]))

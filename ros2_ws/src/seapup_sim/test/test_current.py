@@ -122,3 +122,23 @@ def test_bad_parameters_are_refused():
         coefficients(THESIS, 0.0)
     with pytest.raises(TypeError):
         GaussMarkovCurrent(THESIS, 0.2, rng=np.random)  # global state is not accepted
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("params", [CurrentParams(0.26, 0.086, 0.3, math.radians(20.0), 10.0),
+                                    CurrentParams(0.3, 0.0, -1.0, 0.0, 5.0)])
+def test_a_period_s_velocities_are_the_sample_by_sample_ones_bit_for_bit(params):
+    """velocities(n) (the simulator's control period drawn at once) against n calls of velocity_ned() then step()
+    on a twin from the same seed: the same rows and the same state after, bit for bit, over periods of 0 to 5
+    steps, for a random current and a steady one (no draws)."""
+    one, twin = (GaussMarkovCurrent(params, 0.1, np.random.default_rng(3)) for _ in range(2))
+    for n in [2, 2, 0, 5, 1, 3] * 20:
+        rows = one.velocities(n)
+        expected = []
+        for _ in range(n):
+            expected.append(twin.velocity_ned())
+            twin.step()
+        assert rows.shape == (n, 3)
+        np.testing.assert_array_equal(rows, np.reshape(expected, (n, 3)))
+        assert (one.speed, one.direction) == (twin.speed, twin.direction)
+    assert one.rng.standard_normal() == twin.rng.standard_normal()   # the streams read as far
