@@ -1,11 +1,21 @@
-"""The navigator's Kalman filter steps compiled with numba (issue 44: a mission flown in process).
+"""The navigator's Kalman filter steps and the MFOL law's sample compiled with numba (issue 44: a mission flown in
+process).
 
 :class:`seapup_control.navigation.Navigator` keeps the NumPy reference (``compiled=False``): the prediction
 ``x += T R v``, ``P += T^2 R diag(var) R^T + q_walk T I`` (inflated while coasting), and the Joseph-form
 update of a fix (H = I) or of one component (the depth, H a unit row), each about ten small array operations
 a sample in NumPy. Here each is one call on the filter's arrays, in place, in the reference's order of
 operations (no ``fastmath``), so the two agree to rounding (``test/test_navigation.py`` flies both along
-whole runs). ``cache=True``: compiled once per machine (``./seapup setup`` warms it, :func:`warm`).
+whole runs).
+
+:class:`seapup_control.mfol_controller.MFOLController` keeps its NumPy sample as the reference
+(``compiled=False``); :func:`mfol_sample` is that sample of eq. 5.6 (the gains interpolated at the measured surge
+speed, the offset at the reference's, sec. 4.6; the back-calculated integrators) in one call, about twenty small
+array operations in NumPy. Its products and solves are the same BLAS and LAPACK calls as the reference's (numba
+calls scipy's), in the same order, so the two give the same bits here (``test/test_mfol_controller.py`` flies
+both and says so if a machine's libraries differ: then they agree to rounding).
+
+``cache=True``: compiled once per machine (``./seapup setup`` warms it, :func:`warm`).
 """
 from __future__ import annotations
 
@@ -14,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["predict", "fuse_component", "fuse_fix", "warm"]
+__all__ = ["predict", "fuse_component", "fuse_fix", "mfol_sample", "position_sample", "warm"]
 
 _JIT = {"cache": True, "nogil": True}
 
@@ -88,8 +98,110 @@ def fuse_fix(x, P, y, variance, gate):
     return True
 
 
+@njit(**_JIT)
+def _interpolation(speeds, speed):
+    """(i, j, w) of the schedule's linear interpolation at ``speed`` (``GainSchedule._weights``): held beyond the
+    first and last operating points."""
+    last = speeds.shape[0] - 1
+    if last == 0 or speed <= speeds[0]:
+        return 0, 0, 0.0
+    if speed >= speeds[last]:
+        return last, last, 0.0
+    j = np.searchsorted(speeds, speed) - 1   # side "left", as bisect_left
+    return j, j + 1, (speed - speeds[j]) / (speeds[j + 1] - speeds[j])
+
+
+@njit(**_JIT)
+def mfol_sample(speeds, both, offsets, work, counts, u, v, w, r, ref_u, ref_v, ref_w, ref_r, starting, limit,
+                anti_windup):
+    """One sample of the MFOL law (eq. 5.6, module docstring) for the outputs (u, v, w, r) and the reference
+    (ref_u, ref_v, ref_w, ref_r), in place in ``work`` (6, n): its rows the integrators q (re-set first from row 1,
+    the command to start from, when ``starting``: the bumpless start), then written the error, the command before
+    saturation, the command, and 1.0 where saturated (counted in ``counts``). ``speeds`` (points,), ``both``
+    (points, 2, n, n): each operating point's (K_int, K_err), ``offsets`` (points, n): its u0."""
+    n = work.shape[1]
+    q, error = work[0], work[2]
+    i, j, x = _interpolation(speeds, u)
+    if x == 0.0 and i == j:   # at a point or beyond the ends: the point's gains
+        k_int, k_err = both[i, 0].copy(), both[i, 1].copy()
+    else:                     # each element as (1 - x) K_i + x K_j
+        k_int = (1 - x) * both[i, 0] + x * both[j, 0]
+        k_err = (1 - x) * both[i, 1] + x * both[j, 1]
+    i, j, x = _interpolation(speeds, ref_u)
+    u0 = offsets[i].copy() if x == 0.0 and i == j else (1 - x) * offsets[i] + x * offsets[j]
+    error[0], error[1], error[2], error[3] = ref_u - u, ref_v - v, ref_w - w, ref_r - r
+    if starting:
+        q[:] = np.linalg.solve(k_int, work[1] - u0)
+    proportional = k_err @ error
+    raw = k_int @ q + proportional + u0
+    command = np.minimum(np.maximum(raw, -limit), limit)
+    work[3] = raw
+    work[4] = command
+    for k in range(n):
+        saturated = abs(raw[k]) > limit
+        work[5, k] = 1.0 if saturated else 0.0
+        counts[k] += saturated
+    if anti_windup:   # the state that reproduces the held command, then integrate
+        q[:] = np.linalg.solve(k_int, command - proportional - u0) + error
+    else:
+        q[:] = q + error
+
+
+@njit(**_JIT)
+def _wrap(angle):
+    """``seapup_common.frames.wrap_angle`` of a float: to (-pi, pi]."""
+    wrapped = (angle + math.pi) % (2 * math.pi) - math.pi
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+@njit(**_JIT)
+def _max(a, b):
+    """Python's ``max(a, b)``: ``a`` unless ``b`` is greater (the same zero's sign as the reference's)."""
+    return b if b > a else a
+
+
+@njit(**_JIT)
+def _min(a, b):
+    """Python's ``min(a, b)``: ``a`` unless ``b`` is smaller."""
+    return b if b < a else a
+
+
+@njit(**_JIT)
+def position_sample(x, y, z, phi, theta, psi, has_reference, rx, ry, rz, ryaw, feedforward, gains, speed_limits,
+                    yaw_gain, max_yaw_rate, acceleration_limits, period, last, out, limited):
+    """One sample of the global position controller (``seapup_control.position_control``, sec. 4.2): the body
+    velocities (u, v, w, r) wanted for the estimated pose (x, y, z, phi, theta, psi) and the setpoint (rx, ry, rz,
+    ryaw) plus its ``feedforward`` rate -- zero without a setpoint -- each moved from ``last`` by at most its
+    acceleration limit times ``period`` into ``out``, ``limited`` where that held it back. The reference's float
+    arithmetic in its order (PositionController.update with ``compiled=False``)."""
+    w0 = w1 = w2 = w3 = 0.0
+    if has_reference:
+        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+        cp, sp = math.cos(psi), math.sin(psi)
+        r00, r01, r02 = cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf
+        r10, r11, r12 = sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf
+        r20, r21, r22 = -st, ct * sf, ct * cf
+        dx, dy, dz = rx - x, ry - y, rz - z
+        fx, fy, fz, fr = feedforward[0], feedforward[1], feedforward[2], feedforward[3]
+        w0 = gains[0] * (r00 * dx + r10 * dy + r20 * dz) + (r00 * fx + r10 * fy + r20 * fz)
+        w1 = gains[1] * (r01 * dx + r11 * dy + r21 * dz) + (r01 * fx + r11 * fy + r21 * fz)
+        w2 = gains[2] * (r02 * dx + r12 * dy + r22 * dz) + (r02 * fx + r12 * fy + r22 * fz)
+        scale = _max(_max(1.0, abs(w0) / speed_limits[0]), abs(w1) / speed_limits[1])
+        w0 /= scale
+        w1 /= scale
+        w2 = _min(_max(w2, -speed_limits[2]), speed_limits[2])
+        w3 = _min(_max(yaw_gain * _wrap(ryaw - psi) + fr, -max_yaw_rate), max_yaw_rate)
+    for i in range(4):
+        want = w0 if i == 0 else (w1 if i == 1 else (w2 if i == 2 else w3))
+        step = acceleration_limits[i] * period
+        value = last[i] + _min(_max(want - last[i], -step), step)
+        out[i] = value
+        limited[i] = abs(want - value) > 1e-12
+
+
 def warm() -> None:
-    """Compile (or load from the cache) the kernels with the types the navigator passes."""
+    """Compile (or load from the cache) the kernels with the types the navigator, the MFOL law and the position
+    controller pass."""
     x, P, v = np.zeros(3), np.eye(3), np.ones(3)
     predict(x, P, np.zeros(3), v, v, 0.2, 1e-4, 1.0)
     fuse_component(x, P, 2, 1.0, 0.01, 10.0)
@@ -97,3 +209,12 @@ def warm() -> None:
     fix = np.ones(3)
     fix.setflags(write=False)   # a Reading's value is read-only: its own specialisation
     fuse_fix(x, P, fix, v, 10.0)
+    for points in (1, 3):
+        speeds, both, offsets = np.arange(float(points)), np.tile(np.eye(4), (points, 2, 1, 1)), np.zeros((points, 4))
+        for array in (speeds, both, offsets):
+            array.setflags(write=False)   # the schedule's tables are read-only
+        mfol_sample(speeds, both, offsets, np.zeros((6, 4)), np.zeros(4, dtype=np.int64), 0.1, 0.0, 0.0, 0.0,
+                    0.2, 0.0, 0.0, 0.0, True, 0.6, True)
+    tables = tuple(np.ones(k) for k in (4, 3, 3, 4))
+    position_sample(0.0, 0.0, 1.0, 0.0, 0.0, 0.0, True, 1.0, 0.0, 1.0, 0.5, *tables[:3], 0.5, 0.26, tables[3], 0.2,
+                    np.zeros(4), np.zeros(4), np.zeros(4, dtype=np.bool_))

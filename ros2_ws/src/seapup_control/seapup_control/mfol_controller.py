@@ -48,6 +48,7 @@ from scipy.linalg.lapack import dgesv as _dgesv
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, INPUT_LIMIT_RANGE, VIRTUAL_INPUT_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
+from seapup_common.kernels import numba_installed
 from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
 
@@ -106,6 +107,8 @@ class GainSchedule:
         for table in (self._k_int, self._k_err, self._u0, self._both):   # gains_at hands out views of them
             table.setflags(write=False)
         self._speed_list = speeds.tolist()
+        self.speeds_table = np.array(speeds)   # the operating points' speeds, read only (the compiled law's)
+        self.speeds_table.setflags(write=False)
 
     @classmethod
     def from_document(cls, document) -> "GainSchedule":
@@ -191,7 +194,8 @@ class MFOLController:
     array([0.3, 0. , 0. , 0. ])
     """
 
-    def __init__(self, schedule, limit: float = BLADE_PITCH_LIMIT, anti_windup: bool = True):
+    def __init__(self, schedule, limit: float = BLADE_PITCH_LIMIT, anti_windup: bool = True,
+                 compiled: bool | None = None):
         self.schedule = schedule if isinstance(schedule, GainSchedule) else GainSchedule([(0.0, schedule)])
         if not (math.isfinite(limit) and limit > 0):
             raise DesignError(f"limit must be > 0 rad, got {limit!r}")
@@ -199,11 +203,35 @@ class MFOLController:
         self.anti_windup = bool(anti_windup)
         self.sample_period = self.schedule.sample_period
         m = self.schedule.size
-        self.q = np.zeros(m)
-        self._start_from: np.ndarray | None = None  # set by reset(): the command to start from
-        self.state: ControllerState | None = None
+        self.kernel = None   # seapup_control.compiled.mfol_sample, or None: the NumPy reference
+        if m == 4 and (numba_installed() if compiled is None else compiled):
+            from seapup_control.compiled import mfol_sample
+            self.kernel = mfol_sample
+            self._tables = (self.schedule.speeds_table, self.schedule._both, self.schedule._u0)
+        # the compiled sample's work rows (seapup_control.compiled.mfol_sample): the integrators, the command to
+        # start from, then the last sample's error, command before saturation, command and saturated flags
+        self._work = np.zeros((6, m))
+        self._starting = False       # reset() was called: the next sample starts bumpless
+        self._last_t: float | None = None
         self.saturated_samples = np.zeros(m, dtype=int)
         self.last_applied: tuple[float, np.ndarray] | None = None  # (t, pitch) the vehicle reported
+
+    @property
+    def q(self) -> np.ndarray:
+        """The integrators' state (a view of the law's own array: read only)."""
+        return self._work[0]
+
+    @q.setter
+    def q(self, value) -> None:
+        self._work[0] = value
+
+    @property
+    def state(self) -> ControllerState | None:
+        """What the law did at its last sample (copies), None before the first sample after a reset."""
+        if self._last_t is None:
+            return None
+        work = self._work
+        return ControllerState(self._last_t, work[2].copy(), work[0].copy(), work[3].copy(), work[5] > 0.5)
 
     def reset(self, applied: Command) -> None:
         """Bumpless start: the integrator state that makes the first command the applied one at zero error.
@@ -216,8 +244,9 @@ class MFOLController:
         pitch = np.clip(np.asarray(applied.blade_pitch, float), -self.limit, self.limit)
         k_int, _ = self.schedule.gains_at(0.0)
         self.q = np.linalg.solve(k_int, pitch - self.schedule.offset_at(0.0))
-        self._start_from = pitch
-        self.state = None
+        self._work[1] = pitch
+        self._starting = True
+        self._last_t = None
         self.saturated_samples[:] = 0
         self.last_applied = None
 
@@ -233,18 +262,20 @@ class MFOLController:
     def diagnostics(self) -> dict:
         """The last sample's error, integrator state, command before saturation, saturated thrusters,
         saturation counts, and the applied pitch last reported (empty before the first sample)."""
-        if self.state is None:
+        state = self.state
+        if state is None:
             return {}
-        out = {"error": self.state.error.tolist(), "integrator": self.state.integrator.tolist(),
-               "command_unsaturated": self.state.command_unsaturated.tolist(),
-               "saturated": [bool(s) for s in self.state.saturated],
+        out = {"error": state.error.tolist(), "integrator": state.integrator.tolist(),
+               "command_unsaturated": state.command_unsaturated.tolist(),
+               "saturated": [bool(s) for s in state.saturated],
                "saturated_samples": self.saturated_samples.tolist()}
         if self.last_applied is not None:
             out["applied"] = self.last_applied[1].tolist()
         return out
 
     def update(self, t: float, measurement: Measurement, reference: Reference) -> Command:
-        """One sample of eq. 5.6 with back-calculated integrators (see the module docstring).
+        """One sample of eq. 5.6 with back-calculated integrators (see the module docstring): by the compiled
+        kernel (:func:`seapup_control.compiled.mfol_sample`) or the NumPy reference (``compiled=False``).
 
         Raises
         ------
@@ -252,16 +283,30 @@ class MFOLController:
             If the measurement has no valid velocity/rate reading or the
             reference is not a :class:`Reference` (nothing changes).
         """
-        y = measurement.body_velocity()  # raises ContractError when invalid
+        velocity, rates = measurement.velocity.value, measurement.rates.value
+        if velocity is None or rates is None:
+            measurement.body_velocity()   # raises the contract's ContractError
         if not isinstance(reference, Reference):
             raise ContractError(f"reference must be a Reference, got {type(reference).__name__}")
-        r = reference.velocity
+        if self.kernel is None:
+            return self._update_numpy(t, np.concatenate((velocity, rates[2:])), reference.velocity)
+        u, v, w = velocity.tolist()
+        a, b, c, d = reference.velocity.tolist()
+        work = self._work
+        self.kernel(*self._tables, work, self.saturated_samples, u, v, w, float(rates[2]), a, b, c, d,
+                    self._starting, self.limit, self.anti_windup)
+        self._starting = False
+        self._last_t = float(t)
+        return Command(work[4], stamp=t)   # copied (and checked finite) by Command
+
+    def _update_numpy(self, t: float, y: np.ndarray, r: np.ndarray) -> Command:
+        """:meth:`update`'s sample in NumPy: the reference the compiled kernel is tested against."""
         error = r - y
         k_int, k_err = self.schedule.gains_at(float(y[SURGE]))
         u0 = self.schedule.offset_at(float(r[SURGE]))
-        if self._start_from is not None:  # first sample after reset(): bumpless at this operating point
-            self.q = solve(k_int, self._start_from - u0)
-            self._start_from = None
+        if self._starting:  # first sample after reset(): bumpless at this operating point
+            self.q = solve(k_int, self._work[1] - u0)
+            self._starting = False
         proportional = k_err @ error
         raw = k_int @ self.q + proportional + u0
         command = np.minimum(np.maximum(raw, -self.limit), self.limit)   # np.clip of finite values, at half its cost
@@ -271,7 +316,9 @@ class MFOLController:
         else:                  # the thesis's law as written: q_{k+1} = q_k + e_k whatever the thrusters hold
             self.q = self.q + error
         self.saturated_samples += saturated
-        self.state = ControllerState(float(t), error, self.q.copy(), raw, saturated)
+        work = self._work
+        work[2], work[3], work[4], work[5] = error, raw, command, saturated
+        self._last_t = float(t)
         return Command(command, stamp=t)
 
 

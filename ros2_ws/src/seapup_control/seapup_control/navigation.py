@@ -170,6 +170,7 @@ class Navigator:
         self._rejected_innovations: list[np.ndarray] = []  # of the rejected fixes in a row
         self._last_fix_stamp = -math.inf
         self._last_depth_stamp = -math.inf
+        self._variances: dict = {}   # (a float or read-only variance, or its id; the default) -> (it, the filter's)
 
     # -- the filter ------------------------------------------------------------------------
     def _predict(self, dt: float, velocity_variance: np.ndarray, coasting: bool) -> None:
@@ -216,11 +217,31 @@ class Navigator:
         return True
 
     def _variance(self, reading, default_std) -> np.ndarray:
-        var = np.atleast_1d(np.asarray(reading.variance, dtype=float))
+        """The reading's variance, each component not stated (0) the default's square. One that cannot change --
+        a float, or a read-only array (a sensor suite's, the same every sample) -- is worked out once (the filter
+        never writes the result)."""
+        given = reading.variance
+        if isinstance(given, float):
+            key = (given, default_std)
+        elif isinstance(given, np.ndarray) and not given.flags.writeable:
+            key = (id(given), default_std)
+        else:
+            key = None
+        if key is not None:
+            known = self._variances.get(key)
+            if known is not None and (known[0] is given or isinstance(given, float)):
+                return known[1]
+        var = np.atleast_1d(np.asarray(given, dtype=float))
         if (var > 0).all():   # every component stated (the usual case): the reading's own
-            return var.copy()
-        default = np.broadcast_to(np.asarray(default_std, dtype=float) ** 2, var.shape)
-        return np.where(var > 0, var, default)
+            var = var.copy()
+        else:
+            default = np.broadcast_to(np.asarray(default_std, dtype=float) ** 2, var.shape)
+            var = np.where(var > 0, var, default)
+        if key is not None:
+            if len(self._variances) >= 16:
+                self._variances.clear()
+            self._variances[key] = (given, var)
+        return var
 
     def update(self, measurement: Measurement) -> NavigationEstimate | None:
         """Advance to ``measurement.t`` and fuse what it holds; the estimate (None until initialised).

@@ -37,7 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from seapup_common.contract import ContractError, Reference
-from seapup_common.frames import rotation_body_to_ned, wrap_angle
+from seapup_common.frames import wrap_angle
+from seapup_common.kernels import numba_installed
 
 __all__ = ["PositionControllerParams", "PoseReference", "PositionController"]
 
@@ -97,15 +98,16 @@ class PoseReference:
     yaw: float
     t: float = 0.0
 
-    def __post_init__(self):
-        position = np.array(self.position, dtype=float)
-        if position.shape != (3,) or not all(map(math.isfinite, position.tolist())):
-            raise ContractError(f"pose reference position needs 3 finite values, got {self.position!r}")
-        if not math.isfinite(float(self.yaw)) or not math.isfinite(float(self.t)):
-            raise ContractError(f"pose reference yaw and time must be finite, got {self.yaw!r}, {self.t!r}")
-        position.setflags(write=False)
-        object.__setattr__(self, "position", position)
-        object.__setattr__(self, "yaw", float(self.yaw))
+    def __init__(self, position, yaw: float, t: float = 0.0):
+        # the frozen fields written into the dict (as seapup_common.contract.Reading's), checked first
+        checked = np.array(position, dtype=float)
+        if checked.shape != (3,) or not all(map(math.isfinite, checked.tolist())):
+            raise ContractError(f"pose reference position needs 3 finite values, got {position!r}")
+        if not math.isfinite(float(yaw)) or not math.isfinite(float(t)):
+            raise ContractError(f"pose reference yaw and time must be finite, got {yaw!r}, {t!r}")
+        checked.setflags(write=False)
+        d = self.__dict__
+        d["position"], d["yaw"], d["t"] = checked, float(yaw), t
 
 
 class PositionController:
@@ -118,13 +120,20 @@ class PositionController:
         T [s] of the velocity loop it feeds.
     """
 
-    def __init__(self, params: PositionControllerParams, sample_period: float):
+    def __init__(self, params: PositionControllerParams, sample_period: float, compiled: bool | None = None):
         if not (math.isfinite(sample_period) and sample_period > 0):
             raise ValueError(f"sample period must be finite and > 0 s, got {sample_period!r}")
         self.params = params
         self.sample_period = float(sample_period)
         self.reference: PoseReference | None = None
         self._feedforward = np.zeros(4)  # (dx, dy, dz [m/s] odom_ned, dpsi [rad/s])
+        self.kernel = None   # seapup_control.compiled.position_sample, or None: the reference below
+        if numba_installed() if compiled is None else compiled:
+            from seapup_control.compiled import position_sample
+            self.kernel = position_sample
+            self._tables = tuple(np.array(v, dtype=float) for v in (params.gains, params.speed_limits))
+            self._scalars = (float(params.yaw_gain), float(params.max_yaw_rate))
+            self._acceleration = np.array(params.acceleration_limits, dtype=float)
         self.reset()
 
     def reset(self, velocity_reference=None) -> None:
@@ -163,6 +172,15 @@ class PositionController:
                                                                            [*position.tolist(), *attitude.tolist()])):
             raise ContractError(f"position controller needs a finite position (3) and attitude (3), got "
                                 f"{position.tolist()}, {attitude.tolist()}")
+        if self.kernel is not None:   # the same arithmetic compiled (seapup_control.compiled.position_sample)
+            reference = self.reference
+            rx, ry, rz = (0.0, 0.0, 0.0) if reference is None else reference.position.tolist()
+            out, limited = np.empty(4), np.empty(4, dtype=bool)
+            self.kernel(*position.tolist(), *attitude.tolist(), reference is not None, rx, ry, rz,
+                        0.0 if reference is None else reference.yaw, self._feedforward, *self._tables,
+                        *self._scalars, self._acceleration, self.sample_period, self.last, out, limited)
+            self.last, self.limited = out, limited
+            return Reference(out)
         p = self.params
         if self.reference is None:
             wanted = (0.0, 0.0, 0.0, 0.0)
@@ -171,7 +189,12 @@ class PositionController:
             x, y, z = position.tolist()
             rx, ry, rz = self.reference.position.tolist()
             fx, fy, fz, fr = self._feedforward.tolist()
-            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation_body_to_ned(phi, theta, psi).tolist()
+            # R of eq. 2.1 (frames.rotation_body_to_ned's products, in floats)
+            cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+            cp, sp = math.cos(psi), math.sin(psi)
+            r00, r01, r02 = cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf
+            r10, r11, r12 = sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf
+            r20, r21, r22 = -st, ct * sf, ct * cf
             c0, c1, c2 = (r00, r10, r20), (r01, r11, r21), (r02, r12, r22)   # R's columns: the body axes in odom_ned
             dx, dy, dz = rx - x, ry - y, rz - z
             v = [g * (c[0] * dx + c[1] * dy + c[2] * dz) + (c[0] * fx + c[1] * fy + c[2] * fz)

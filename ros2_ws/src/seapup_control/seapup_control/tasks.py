@@ -34,7 +34,7 @@ from seapup_common.frames import wrap_angle
 from seapup_control.position_control import PoseReference
 
 __all__ = ["TaskRejected", "TaskLimits", "TaskStep", "Task", "Hover", "Goto", "FollowSeabed", "TrackingStats",
-           "advance_along"]
+           "advance_along", "norm3"]
 
 
 class TaskRejected(ValueError):
@@ -117,6 +117,12 @@ class TrackingStats:
 
     def rms(self, name: str) -> float:
         return math.sqrt(self.sums[name] / self.count) if self.count else 0.0
+
+
+def norm3(x: float, y: float, z: float) -> float:
+    """|(x, y, z)| in plain floats: ``sqrt(x x + y y + z z)``, summed in order as numpy's ``np.linalg.norm`` of three
+    values sums them (tested), at a tenth of its cost."""
+    return math.sqrt(x * x + y * y + z * z)
 
 
 def advance_along(previous: float, dt: float, speed: float, vehicle_along: float, lead: float, end: float) -> float:
@@ -205,14 +211,15 @@ class Hover(Task):
 
     def step(self, t, estimate, altitude=None) -> TaskStep:
         elapsed = self.elapsed(t)
-        error = estimate.position - self.target
-        horizontal = float(math.hypot(error[0], error[1]))
+        (px, py, pz), (tx, ty, tz) = estimate.position.tolist(), self.target.tolist()
+        ex, ey, depth_error = px - tx, py - ty, pz - tz
+        horizontal = math.hypot(ex, ey)
         yaw_error = float(wrap_angle(estimate.yaw - self.yaw))
-        self.stats.add(horizontal=horizontal, depth=float(error[2]), yaw=yaw_error)
+        self.stats.add(horizontal=horizontal, depth=depth_error, yaw=yaw_error)
         setpoint = (PoseReference(estimate.position, estimate.yaw, t) if self.follow
                     else PoseReference(self.target, self.yaw, t))
         step = TaskStep(setpoint,
-                        {"elapsed": elapsed, "horizontal_error": horizontal, "depth_error": float(error[2]),
+                        {"elapsed": elapsed, "horizontal_error": horizontal, "depth_error": depth_error,
                          "yaw_error": yaw_error})
         if self.duration > 0 and elapsed >= self.duration - 1e-9:
             step.done, step.success, step.message = True, True, f"held {elapsed:.1f} s"
@@ -261,15 +268,19 @@ class Goto(Task):
 
     def step(self, t, estimate, altitude=None) -> TaskStep:
         elapsed = self.elapsed(t)
-        offset = estimate.position - self.start
-        along = float(offset @ self.direction)
+        # the 3-vectors in plain floats: the sums of products numpy's dot and norm make of them (tested)
+        px, py, pz = estimate.position.tolist()
+        (sx, sy, sz), (dx, dy, dz) = self.start.tolist(), self.direction.tolist()
+        ox, oy, oz = px - sx, py - sy, pz - sz
+        along = ox * dx + oy * dy + oz * dz
         dt = 0.0 if self._t_last is None else t - self._t_last
         self._t_last = t
         self._travelled = travelled = advance_along(self._travelled, dt, self.speed, along, self.limits.max_lead,
                                                     self.length)
-        setpoint = PoseReference(self.start + travelled * self.direction, self.yaw, t)
-        cross = float(np.linalg.norm(offset - along * self.direction))
-        distance = float(np.linalg.norm(self.target - estimate.position))
+        setpoint = PoseReference([sx + travelled * dx, sy + travelled * dy, sz + travelled * dz], self.yaw, t)
+        cross = norm3(ox - along * dx, oy - along * dy, oz - along * dz)
+        tx, ty, tz = self.target.tolist()
+        distance = norm3(tx - px, ty - py, tz - pz)
         yaw_error = float(wrap_angle(estimate.yaw - self.yaw))
         if travelled < self.length:
             self.stats.add(cross_track=cross)

@@ -84,3 +84,19 @@ def test_a_followed_hover_sets_the_vehicle_s_own_pose_and_measures_its_excursion
         assert not step.done
     held = Hover(LIMITS, estimate((1.0, 2.0, 30.0)), duration=0.0)   # not followed: the start is held
     assert held.step(1.0, estimate((3.0, 2.0, 30.0), t=1.0)).setpoint.position.tolist() == [1.0, 2.0, 30.0]
+
+
+@pytest.mark.unit
+def test_the_tasks_float_norms_and_dots_are_numpy_s_bit_for_bit():
+    """The tasks' 3-vector arithmetic in plain floats (norm3, the along-track dot product) against np.linalg.norm
+    and numpy's dot over random vectors from millimetres to kilometres: the same bits, so a goto's distance,
+    cross-track error and arrival are those the array code computed (a machine whose BLAS sums otherwise is told
+    here)."""
+    from seapup_control.tasks import norm3
+    rng = np.random.default_rng(12)
+    for _ in range(20000):
+        v, d = rng.normal(size=3) * rng.choice([1e-3, 1.0, 30.0, 1e4]), rng.normal(size=3)
+        (x, y, z), (a, b, c) = v.tolist(), d.tolist()
+        assert norm3(x, y, z) == float(np.linalg.norm(v))
+        assert x * a + y * b + z * c == float(v @ d)
+    assert norm3(3.0, 4.0, 12.0) == 13.0
