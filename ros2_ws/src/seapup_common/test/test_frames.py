@@ -126,3 +126,27 @@ def test_the_float_round_trip_is_the_message_round_trip_bit_for_bit():
         differ += not np.array_equal(np.array(euler_through_quaternion(*euler, normalise=False)), plain)
     assert differ == 0
     assert euler_through_quaternion(0.1, 0.2, 0.3) == pytest.approx((0.1, 0.2, 0.3), abs=1e-15)
+
+
+@pytest.mark.unit
+def test_the_compiled_round_trip_is_the_float_one_bit_for_bit():
+    """seapup_common.compiled_frames (the in-process mission's round trips, compiled) against
+    euler_through_quaternion, both ways of normalising: the same bits over the sphere, beyond it (angles a
+    simulator may hold unwrapped), at gimbal lock, at tiny angles, at +-pi and for the zero rotation's NaN; and
+    rows() is the scalar function row by row."""
+    from seapup_common import compiled_frames
+    rng = np.random.default_rng(8)
+    angles = rng.uniform(-4.0, 4.0, (4000, 3))
+    angles[::5, 1] = rng.choice([math.pi / 2, -math.pi / 2, 0.0], len(angles[::5]))
+    angles[1::7] *= 1e-9
+    angles[2::11] = [math.pi, 0.0, -math.pi]
+    angles[3::13, 1] = math.pi / 2 + rng.uniform(-1e-7, 1e-7, len(angles[3::13]))
+    angles[4] = [2 * math.pi, 0.0, 0.0]   # w = 0: the sign of the first non-zero component decides
+    for normalise in (True, False):
+        expected = np.array([euler_through_quaternion(*row, normalise=normalise) for row in angles.tolist()])
+        got = np.array([compiled_frames.euler_through_quaternion(*row, normalise) for row in angles.tolist()])
+        np.testing.assert_array_equal(got, expected)
+        np.testing.assert_array_equal(compiled_frames.rows(angles, normalise), expected)
+    # a genuine round trip: small angles come back, a yaw beyond pi comes back wrapped
+    np.testing.assert_allclose(compiled_frames.rows(np.array([[0.1, 0.2, 0.3], [0.1, -0.2, 3.5]]), True),
+                               [[0.1, 0.2, 0.3], [0.1, -0.2, 3.5 - 2 * math.pi]], atol=1e-14)

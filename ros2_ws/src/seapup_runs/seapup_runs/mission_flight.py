@@ -55,6 +55,7 @@ from seapup_common.contract import (Command, ContractError, LatestReadings, Meas
                                      StampedReferences)
 from seapup_common.controllers import (ControllerRegistryError, ControllerSpec, at_input_limit, controller_type,
                                        create_controller)
+from seapup_common.kernels import numba_installed
 from seapup_runs.mission import (PILOT_PERIOD, fouling_creep, fouling_result, leg_goal, leg_numbers_of, manual_result,
                                  pilot_sends)
 
@@ -128,9 +129,28 @@ class HierarchyConfig:
         return kind.name, parameters, float(given.get("sample_period", 0.0) or 0.0) or None
 
 
-def _via_quaternion(attitude) -> np.ndarray:
+def _round_trip():
+    """:func:`seapup_common.frames.euler_through_quaternion` (phi, theta, psi, normalise): compiled
+    (:mod:`seapup_common.compiled_frames`, the same bits) where numba is installed."""
+    if numba_installed():
+        from seapup_common.compiled_frames import euler_through_quaternion
+        return euler_through_quaternion
+    return lambda phi, theta, psi, normalise: frames.euler_through_quaternion(phi, theta, psi, normalise=normalise)
+
+
+def _through_quaternions(attitudes: list) -> np.ndarray:
+    """Each row of ``attitudes`` (Euler angles) as a message carries it (:func:`_via_quaternion`), (n, 3)."""
+    angles = np.asarray(attitudes, float).reshape(-1, 3)
+    if numba_installed():
+        from seapup_common.compiled_frames import rows
+        return rows(np.ascontiguousarray(angles), True)
+    return np.array([frames.euler_through_quaternion(*row) for row in angles.tolist()]).reshape(-1, 3)
+
+
+def _via_quaternion(attitude, round_trip=None) -> np.ndarray:
     """Euler angles as a message carries them: to a quaternion and back (an IMU's normalised on receipt)."""
-    return np.array(frames.euler_through_quaternion(*attitude.tolist()))
+    phi, theta, psi = attitude.tolist()
+    return np.array((round_trip or _round_trip())(phi, theta, psi, True))
 
 
 class _Collector(LatestReadings):
@@ -140,14 +160,19 @@ class _Collector(LatestReadings):
     def __init__(self, fields):
         super().__init__()
         self.fields = tuple(fields)
+        self._round_trip = _round_trip()
 
     def add(self, measurement: Measurement, t: float) -> None:
         latest = self.latest
         for name in self.fields:
             reading = getattr(measurement, name)
             if reading.value is not None:   # valid: kept (LatestReadings.keep)
-                value = _via_quaternion(reading.value) if name == "attitude" else reading.value
-                latest[name] = Reading(value, t, reading.variance)
+                if name == "attitude":
+                    latest[name] = Reading(_via_quaternion(reading.value, self._round_trip), t, reading.variance)
+                elif reading.stamp == t:    # stamped as the node stamps it already: the same reading
+                    latest[name] = reading
+                else:
+                    latest[name] = Reading(reading.value, t, reading.variance)
 
 
 @dataclasses.dataclass
@@ -200,6 +225,7 @@ class MissionFlight:
         self.period = config.control_period
         self.period_ns = int(round(self.period * 1e9))
         self.k = 0
+        self._round_trip = _round_trip()
         self.max_samples = int(max_seconds / self.period)
         navigator = hierarchy.navigator
         self.navigator = Navigator(NavigatorParams.from_mapping({k: v for k, v in navigator.items()
@@ -236,8 +262,7 @@ class MissionFlight:
         self._setpoint_yaw = (math.nan, math.nan)   # (a setpoint's yaw, as its message carries it)
         self.answered = False          # the present sample has its command
         self.skipped = 0               # samples nobody could answer (no fresh velocity): the plant held its command
-        self.logs = {name: [] for name in ("command_t", "command", "truth_t", "truth_position", "truth_attitude",
-                                           "truth_velocity",
+        self.logs = {name: [] for name in ("command_t", "command", "truth_t", "truth_state",
                                            "setpoint_t", "setpoint", "reference_t", "reference", "estimate_t",
                                            "estimate_position", "estimate_horizontal_std")}
         self._publish()
@@ -265,9 +290,7 @@ class MissionFlight:
         self.answered = False
         logs = self.logs
         logs["truth_t"].append(stamp)
-        logs["truth_position"].append(sample.state[:3])
-        logs["truth_attitude"].append(_via_quaternion(sample.state[3:6]))
-        logs["truth_velocity"].append(sample.state[6:12])
+        logs["truth_state"].append(sample.state)   # split at finish(), the attitude through a quaternion
         measurement = sample.measurement
         self.law_readings.add(measurement, t)
         altitude = measurement.altitude
@@ -281,7 +304,8 @@ class MissionFlight:
             return
         # as the navigator's odometry carries it: the attitude through a quaternion (the estimate's arrays are
         # the navigator's copies, Navigator.estimate)
-        attitude = np.array(frames.euler_through_quaternion(*estimate.attitude.tolist(), normalise=False))
+        phi, theta, psi = estimate.attitude.tolist()
+        attitude = np.array(self._round_trip(phi, theta, psi, False))
         estimate = NavigationEstimate(t, estimate.position, estimate.position_cov, attitude, estimate.velocity,
                                       estimate.rates)
         logs["estimate_t"].append(stamp)
@@ -513,8 +537,13 @@ class MissionFlight:
                 "controller_file": "", "self_test_duration": float(test.duration)}
 
     def finish(self) -> dict:
-        """The logs as arrays."""
-        return {name: np.asarray(values, float) for name, values in self.logs.items()}
+        """The logs as arrays: the true states as the simulator's odometry carries them (``truth_position``,
+        ``truth_attitude`` through a quaternion, ``truth_velocity``)."""
+        logs = {name: np.asarray(values, float) for name, values in self.logs.items() if name != "truth_state"}
+        states = np.asarray(self.logs["truth_state"], float).reshape(-1, 12)
+        logs.update(truth_position=states[:, :3].copy(), truth_attitude=_through_quaternions(states[:, 3:6]),
+                    truth_velocity=states[:, 6:12].copy())
+        return logs
 
 
 def run_mission(spec, hierarchy: HierarchyConfig, progress: Callable[[str, float], None] | None = None,
