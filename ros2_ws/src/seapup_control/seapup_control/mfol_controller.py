@@ -48,7 +48,7 @@ from scipy.linalg.lapack import dgesv as _dgesv
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT, INPUT_LIMIT_RANGE, VIRTUAL_INPUT_LIMIT
 from seapup_common.contract import Command, ContractError, Measurement, Reference
-from seapup_common.kernels import numba_installed
+from seapup_common.kernels import compiled_by_default
 from seapup_common.controllers import ControllerType, Ranged
 from seapup_control.mfol import DesignError, TwoTermGains
 
@@ -182,6 +182,12 @@ class MFOLController:
         The gains (a single :class:`~seapup_control.mfol.TwoTermGains` is a fixed-gain controller).
     limit : float
         Blade-pitch limit [rad] the vehicle saturates at (default +/-35 deg).
+    anti_windup : bool
+        Back-calculated integrators (module docstring); False: the thesis's law as written.
+    compiled : bool, optional
+        The sample by the compiled kernel (:func:`seapup_control.compiled.mfol_sample`) or by the NumPy
+        reference (False); default :func:`seapup_common.kernels.compiled_by_default`. The two give the same
+        numbers (tested).
 
     Examples
     --------
@@ -204,7 +210,7 @@ class MFOLController:
         self.sample_period = self.schedule.sample_period
         m = self.schedule.size
         self.kernel = None   # seapup_control.compiled.mfol_sample, or None: the NumPy reference
-        if m == 4 and (numba_installed() if compiled is None else compiled):
+        if m == 4 and (compiled_by_default() if compiled is None else compiled):
             from seapup_control.compiled import mfol_sample
             self.kernel = mfol_sample
             self._tables = (self.schedule.speeds_table, self.schedule._both, self.schedule._u0)

@@ -38,7 +38,7 @@ import numpy as np
 
 from seapup_common.contract import ContractError, Reference
 from seapup_common.frames import wrap_angle
-from seapup_common.kernels import numba_installed
+from seapup_common.kernels import compiled_by_default
 
 __all__ = ["PositionControllerParams", "PoseReference", "PositionController"]
 
@@ -118,6 +118,9 @@ class PositionController:
     params : PositionControllerParams
     sample_period : float
         T [s] of the velocity loop it feeds.
+    compiled : bool, optional
+        The sample by the compiled kernel (:func:`seapup_control.compiled.position_sample`) or in plain floats
+        (False); default :func:`seapup_common.kernels.compiled_by_default`. The same numbers (tested).
     """
 
     def __init__(self, params: PositionControllerParams, sample_period: float, compiled: bool | None = None):
@@ -128,7 +131,7 @@ class PositionController:
         self.reference: PoseReference | None = None
         self._feedforward = np.zeros(4)  # (dx, dy, dz [m/s] odom_ned, dpsi [rad/s])
         self.kernel = None   # seapup_control.compiled.position_sample, or None: the reference below
-        if numba_installed() if compiled is None else compiled:
+        if compiled_by_default() if compiled is None else compiled:
             from seapup_control.compiled import position_sample
             self.kernel = position_sample
             self._tables = tuple(np.array(v, dtype=float) for v in (params.gains, params.speed_limits))
