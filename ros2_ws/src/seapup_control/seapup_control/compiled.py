@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["predict", "fuse_component", "fuse_fix", "mfol_sample", "position_sample", "warm"]
+__all__ = ["predict", "fuse_component", "fuse_fix", "mfol_sample", "position_sample", "explicit_design", "warm"]
 
 _JIT = {"cache": True, "nogil": True}
 
@@ -199,6 +199,46 @@ def position_sample(x, y, z, phi, theta, psi, has_reference, rx, ry, rz, ryaw, f
         limited[i] = abs(want - value) > 1e-12
 
 
+@njit(error_model="numpy", **_JIT)   # a singular matrix's condition is inf (1 / 0), as numpy's
+def explicit_design(phi, gamma, k, c, min_rcond, k_int, k_err):
+    """The explicit self-tuner's redesign from a finite estimate (``ExplicitSelfTuner._designed`` after its
+    trace and pole rules; sec. 7.3, eq. 4.18-4.19, 4.10-4.11): B0^-1 = Gamma, B1^-1 = (I - Phi)^-1 Gamma, the
+    two-term gains of ``seapup_control.mfol.design`` for the loop poles ``k``, ``c`` into ``k_int``, ``k_err``.
+    Returns (0, rcond) for a design; (1, rcond) when the row-equilibrated Gamma's reciprocal condition is below
+    ``min_rcond``; (2, rcond) when the design fails (B0^-1 or B1^-1 with a condition above 1e12 or not finite;
+    an exactly singular I - Phi raises numpy's LinAlgError), (3, rcond) for non-finite gains -- the caller then
+    asks the reference why. The reference's LAPACK
+    routines (the condition by the SVD, dgesdd; solves and inverses by dgesv) and products in its order."""
+    n = phi.shape[0]
+    scaled = np.empty((n, n))
+    for i in range(n):
+        largest = 0.0
+        for j in range(n):
+            largest = max(largest, abs(gamma[i, j]))
+        largest = max(largest, 1e-300)
+        for j in range(n):
+            scaled[i, j] = gamma[i, j] / largest
+    rcond = 1.0 / np.linalg.cond(scaled)
+    if not rcond >= min_rcond:
+        return 1, rcond
+    identity = np.eye(n)
+    b1inv = np.linalg.solve(identity - phi, gamma)   # an exactly singular I - Phi raises, as the reference's
+    # B0^-1 or B1^-1 the reference refuses: a condition (dgesdd) beyond 1e12 or not finite
+    condition0, condition1 = np.linalg.cond(gamma), np.linalg.cond(b1inv)
+    if not (math.isfinite(condition0) and condition0 <= 1e12 and math.isfinite(condition1) and condition1 <= 1e12):
+        return 2, rcond
+    b0 = np.linalg.solve(gamma, identity)
+    b1 = np.linalg.solve(b1inv, identity)
+    for j in range(n):
+        integral, proportional = (1.0 - k[j]) * (1.0 - c[j]), 2.0 - k[j] - c[j]
+        for i in range(n):
+            k_int[i, j] = b0[i, j] * integral
+            k_err[i, j] = b0[i, j] * proportional - b1[i, j]
+            if not (math.isfinite(k_int[i, j]) and math.isfinite(k_err[i, j])):
+                return 3, rcond
+    return 0, rcond
+
+
 def warm() -> None:
     """Compile (or load from the cache) the kernels with the types the navigator, the MFOL law and the position
     controller pass."""
@@ -218,3 +258,5 @@ def warm() -> None:
     tables = tuple(np.ones(k) for k in (4, 3, 3, 4))
     position_sample(0.0, 0.0, 1.0, 0.0, 0.0, 0.0, True, 1.0, 0.0, 1.0, 0.5, *tables[:3], 0.5, 0.26, tables[3], 0.2,
                     np.zeros(4), np.zeros(4), np.zeros(4, dtype=np.bool_))
+    gains = np.zeros((4, 4)), np.zeros((4, 4))
+    explicit_design(0.5 * np.eye(4), 0.1 * np.eye(4), np.full(4, 0.8), np.full(4, 0.8), 1e-4, *gains)

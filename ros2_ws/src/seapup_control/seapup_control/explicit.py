@@ -52,6 +52,7 @@ import numpy as np
 
 from seapup_common.blade_pitch import BLADE_PITCH_LIMIT
 from seapup_common.controllers import ControllerType, Ranged
+from seapup_common.kernels import compiled_by_default
 from seapup_control.mfol import DesignError, LoopPoles, MFOLModel, TwoTermGains, design
 from seapup_control.mfol_controller import GainSchedule
 from seapup_control.self_tuning import OUTPUTS, TUNER_PARAMETERS, SelfTuner, TunerJacket, jacket_from
@@ -72,6 +73,10 @@ class ExplicitSelfTuner(SelfTuner):
         The loop poles each redesign places (sec. 5.2), at the gains' sample period.
     forgetting, p0, commissioning_samples, jacket, limit
         As :class:`~seapup_control.self_tuning.SelfTuner`.
+    compiled : bool, optional
+        The redesign (:func:`seapup_control.compiled.explicit_design`) and the estimator's square-root update
+        compiled, or both in NumPy (False); default :func:`seapup_common.kernels.compiled_by_default`. The
+        same numbers (tested).
 
     Examples
     --------
@@ -92,13 +97,18 @@ class ExplicitSelfTuner(SelfTuner):
 
     def __init__(self, fixed: TwoTermGains, poles: LoopPoles, forgetting: float = 0.999, p0: float = 1e4,
                  commissioning_samples: int = 5, jacket: TunerJacket | None = None,
-                 limit: float = BLADE_PITCH_LIMIT):
+                 limit: float = BLADE_PITCH_LIMIT, compiled: bool | None = None):
         super().__init__(fixed, forgetting, p0, commissioning_samples, jacket, limit)
         if poles.k.size != 4 or not math.isclose(poles.sample_period, fixed.sample_period, rel_tol=1e-9):
             raise DesignError("the loop poles must be four, at the fixed gains' sample period")
         self.poles = poles
         self.estimator = RecursiveArmax(ArmaxOrders(ny=4, nu=4, na=1, nb=1, nc=0, offset=True), "ls",
-                                        forgetting=Forgetting(self.forgetting), p0=self.p0)
+                                        forgetting=Forgetting(self.forgetting), p0=self.p0, compiled=compiled)
+        self.kernel = None   # seapup_control.compiled.explicit_design, or None: the reference (_design_numpy)
+        if compiled_by_default() if compiled is None else compiled:
+            from seapup_control.compiled import explicit_design
+            self.kernel = explicit_design
+            self._poles = (np.array(poles.k, dtype=float), np.array(poles.c, dtype=float))
         self._start(np.zeros(4))
 
     def _restart(self) -> None:
@@ -133,6 +143,22 @@ class ExplicitSelfTuner(SelfTuner):
         radius = float(np.max(np.abs(np.linalg.eigvals(phi))))
         if radius >= self.jacket.max_pole:
             return None, "fallback_insane", f"estimated open-loop pole |z| = {radius:.3f} >= {self.jacket.max_pole:g}"
+        if self.kernel is not None:   # the same design compiled; what it cannot make, the reference explains
+            k_int, k_err = np.empty((4, 4)), np.empty((4, 4))
+            try:
+                code, rcond = self.kernel(np.array(phi, dtype=float), np.array(gamma, dtype=float), *self._poles,
+                                          float(self.jacket.min_rcond), k_int, k_err)
+            except np.linalg.LinAlgError:   # I - Phi exactly singular
+                code, rcond = 2, math.nan
+            if code == 0:
+                return TwoTermGains(k_int, k_err, np.zeros(4), np.zeros(4), self.sample_period), "", ""
+            if code == 1:
+                return None, "fallback_singular_b0", f"estimated B0^-1 nearly singular (rcond {rcond:.2g})"
+        return self._design_numpy(phi, gamma)
+
+    def _design_numpy(self, phi: np.ndarray, gamma: np.ndarray) -> tuple[TwoTermGains | None, str, str]:
+        """:meth:`_designed` after its trace and pole rules, in NumPy: the reference the compiled design
+        (:func:`seapup_control.compiled.explicit_design`) is tested against, and what says why it failed."""
         scale = np.maximum(np.abs(gamma).max(axis=1, keepdims=True), 1e-300)  # equilibrate the rows (units)
         rcond = 1.0 / np.linalg.cond(gamma / scale)
         if not rcond >= self.jacket.min_rcond:

@@ -85,13 +85,16 @@ class GMVSelfTuner(SelfTuner):
         n, the order of the implicit model (1 or more).
     forgetting, p0, commissioning_samples, jacket, limit
         As :class:`~seapup_control.self_tuning.SelfTuner`.
+    compiled : bool, optional
+        The estimator's square-root update compiled (:func:`seapup_ident.compiled.ud_update`, the same bits) or
+        in NumPy (False); default :func:`seapup_common.kernels.compiled_by_default`.
     """
 
     kind = "gmv self-tuner"
 
     def __init__(self, fixed: TwoTermGains, b0inv, weighting: float = 0.001, order: int = 2,
                  forgetting: float = 0.999, p0: float = 1e4, commissioning_samples: int = 5,
-                 jacket: TunerJacket | None = None, limit: float = BLADE_PITCH_LIMIT):
+                 jacket: TunerJacket | None = None, limit: float = BLADE_PITCH_LIMIT, compiled: bool | None = None):
         super().__init__(fixed, forgetting, p0, commissioning_samples, jacket, limit)
         b0inv = np.asarray(b0inv, dtype=float)
         if b0inv.shape != (4, 4) or not np.all(np.isfinite(b0inv)):
@@ -108,7 +111,7 @@ class GMVSelfTuner(SelfTuner):
             raise DesignError("G0 = B0^-1 + lambda I is singular: the self-test's B0^-1 cannot fix the law")
         self.G0_inv = np.linalg.inv(self.G0)
         self.n_params = 8 * self.order + 5
-        self.estimator = RecursiveRegression(self.n_params, 4, self.forgetting, self.p0)
+        self.estimator = RecursiveRegression(self.n_params, 4, self.forgetting, self.p0, compiled=compiled)
         self._start(np.zeros(4))
 
     def _restart(self) -> None:

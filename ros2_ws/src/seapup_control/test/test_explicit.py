@@ -7,6 +7,8 @@ Jacketing: a plant left at rest with estimation forced on winds the covariance u
 lambda^-t, eq. 6.12), the trace rule falls back to the fixed gains without a bump; with the default jacket
 estimation freezes instead.
 """
+import importlib
+
 import numpy as np
 import pytest
 
@@ -177,3 +179,31 @@ def test_the_registered_type_builds_from_a_controller_file_and_refuses_what_it_c
         create_explicit(EXPLICIT_TYPE.complete({"forgetting": 1.5}), _document(), T)
     with pytest.raises(ValueError, match="T = 0.2 s"):
         create_explicit(EXPLICIT_TYPE.complete({}), _document(), 0.05)
+
+
+@pytest.mark.parametrize("case", ["tracking", "fallbacks"])
+def test_the_compiled_redesign_and_estimator_fly_the_numpy_reference_bit_for_bit(case):
+    """ExplicitSelfTuner with its compiled redesign and square-root update (the default where numba is loaded)
+    against compiled=False along the same closed loop: every command, mode, reason, count and estimate equal bit
+    for bit -- while tracking squares on all four axes, and on a plant whose estimate goes through the jacket's
+    refusals (a nearly singular B0^-1, poles beyond max_pole, the trace rule) so that the compiled design's
+    failures are explained by the reference's words."""
+    importlib.import_module("numba")   # loaded, as in a process that flies a plant
+    references = _squares(400)
+    plant, jacket = (PHI, GAMMA, D), TunerJacket()
+    if case == "fallbacks":
+        gamma = GAMMA.copy()
+        gamma[:, 3] = gamma[:, 2] * 1.0001   # two thrusters that nearly do the same: B0^-1 nearly singular
+        plant, jacket = (PHI * 1.05, gamma, D), TunerJacket(min_rcond=1e-3, max_pole=0.99, max_trace_growth=3.0)
+    tuners = {kind: ExplicitSelfTuner(_fixed_gains(), THESIS_POLES_5HZ, forgetting=0.97, jacket=jacket,
+                                      compiled=kind) for kind in (True, False)}
+    assert tuners[True].kernel is not None and tuners[False].kernel is None
+    logs = {kind: _fly(tuner, references, plant=plant) for kind, tuner in tuners.items()}
+    assert np.array_equal(logs[True]["u"], logs[False]["u"]) and logs[True]["mode"] == logs[False]["mode"]
+    assert tuners[True].events == tuners[False].events and tuners[True].counts == tuners[False].counts
+    np.testing.assert_array_equal(tuners[True].estimate_matrix(), tuners[False].estimate_matrix())
+    counts = tuners[True].counts
+    if case == "tracking":
+        assert counts["adaptive"] > 300
+    else:
+        assert counts["fallback"] > 20 and counts["adaptive"] > 20, counts

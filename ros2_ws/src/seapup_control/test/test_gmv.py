@@ -6,6 +6,8 @@ output of eq. 7.5, and then (Koivo's design) the closed loop's characteristic po
 det(B + lambda (1 - z^-1)(I - A z^-1)) with unit DC gain; with lambda = 0 the output error y(t+1) - r(t) is the
 one-step prediction error, so its variance is the noise variance: minimum variance (Astrom's result for k = 1).
 """
+import importlib
+
 import numpy as np
 import pytest
 
@@ -154,3 +156,23 @@ def test_bad_input_changes_nothing_and_the_registered_type_builds_from_a_control
     singular = dict(document, operating_points=[dict(document["operating_points"][0], B0inv=np.zeros((4, 4)).tolist())])
     with pytest.raises(ValueError, match="singular"):
         create_gmv(GMV_TYPE.complete({"lambda": 0.0}), singular, T)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("order", [1, 2])
+def test_the_compiled_estimator_flies_the_numpy_reference_bit_for_bit(order):
+    """GMVSelfTuner with its estimator's compiled square-root update (the default where numba is loaded) against
+    compiled=False, with noise, the default jacket and a trace limit that engages: every command, count, event
+    and estimate equal bit for bit."""
+    importlib.import_module("numba")   # loaded, as in a process that flies a plant
+    from seapup_ident.recursive import ud_update
+    jacket = TunerJacket(max_trace_growth=1.5)
+    tuners = {kind: GMVSelfTuner(_fixed(), B, weighting=0.01, order=order, forgetting=0.98, jacket=jacket,
+                                 compiled=kind) for kind in (True, False)}
+    assert tuners[True].estimator._ud is not ud_update and tuners[False].estimator._ud is ud_update
+    flown = {kind: _fly(tuner, _squares(400), noise=0.002, seed=order) for kind, tuner in tuners.items()}
+    for a, b in zip(flown[True], flown[False]):
+        assert np.array_equal(a, b)
+    assert tuners[True].counts == tuners[False].counts and tuners[True].events == tuners[False].events
+    assert np.array_equal(tuners[True].estimate_matrix(), tuners[False].estimate_matrix())
+    assert tuners[True].counts["adaptive"] > 100

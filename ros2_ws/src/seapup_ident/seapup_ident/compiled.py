@@ -1,19 +1,22 @@
-"""The RPEM step's arithmetic compiled with numba (issue 26: RPEM at <= 100 us per sample).
+"""The RPEM step's and the square-root least squares' arithmetic compiled with numba (issue 26: RPEM at <= 100 us
+per sample; issue 42: the self-tuners' estimators).
 
 :meth:`seapup_ident.recursive.RecursiveArmax._rpem_update_numpy` stays the reference (eq. 6.19-6.22: the
 gradient psi_i filtered through 1/C_ii, the covariance update per output with forgetting, symmetrisation
 and the Levenberg-Marquardt term); :func:`rpem_gradient_step` does the same per output in one compiled
 call, where the NumPy version spends its time in some twenty small array operations. The projection of
 sec. 6.3 (shrinking the step until C is stable) stays in Python: it tests roots. Both paths are tested to
-agree to rounding along whole estimation runs (``test/test_recursive.py``). ``cache=True``: compiled once
-per machine (``./seapup setup`` warms it).
+agree to rounding along whole estimation runs (``test/test_recursive.py``). :func:`ud_update` is
+:func:`seapup_ident.recursive.ud_update` (Bierman's and Peterka's update of P = U D U^T, eq. 6.17) with its
+running sums as loops, in the reference's order (its one product, U^T phi, is the same BLAS call), so the two
+give the same bits (tested). ``cache=True``: compiled once per machine (``./seapup setup`` warms it).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-__all__ = ["rpem_gradient_step", "warm"]
+__all__ = ["rpem_gradient_step", "ud_update", "warm"]
 
 
 @njit(cache=True, nogil=True)
@@ -94,9 +97,37 @@ def _regularise(P, delta, L, Q):
             P[b, a] = m
 
 
+@njit(cache=True, nogil=True)
+def ud_update(U, D, phi, lam, gain):
+    """:func:`seapup_ident.recursive.ud_update` in place on ``U``, ``D``; the gain into ``gain``. The reference's
+    cumulative sums (beta_j = lam + sum_{k<=j} f_k g_k; nu_ij = sum_{k<=j} U_ik g_k, from the U before the
+    update) as running sums, added in the same order."""
+    n = U.shape[0]
+    f = U.T @ phi
+    g = D * f
+    beta = np.empty(n + 1)
+    beta[0] = lam
+    for j in range(n):
+        beta[j + 1] = beta[j] + f[j] * g[j]
+    for i in range(n):
+        running = U[i, 0] * g[0]   # nu_i0: the cumulative sum's first term, as it is
+        for j in range(1, n):
+            nu_before = running
+            running = running + U[i, j] * g[j]
+            U[i, j] = U[i, j] + nu_before * (-f[j] / beta[j])
+        gain[i] = running / beta[n]
+    for j in range(n):
+        D[j] = D[j] * (beta[j] / (beta[j + 1] * lam))
+
+
 def warm() -> None:
     """Compile (or load from the cache) the kernel with the types the estimator passes."""
     rpem_gradient_step(np.repeat(np.eye(3)[None], 2, axis=0), np.zeros((2, 1, 3)), np.ones(3), np.zeros((2, 1)),
                        np.ones(2), 1e-6, np.ones(2), np.zeros((3, 2)))
     rpem_gradient_step(np.repeat(np.eye(3)[None], 2, axis=0), np.zeros((2, 1, 3)), np.ones(3), np.zeros((2, 0)),
                        np.ones(2), 1e-6, np.ones(2), np.zeros((3, 2)))
+    U, D, gain = np.eye(3), np.full(3, 10.0), np.zeros(3)
+    ud_update(U, D, np.ones(3), 0.99, gain)
+    phi = np.ones(3)
+    phi.setflags(write=False)
+    ud_update(U, D, phi, 0.99, gain)

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from seapup_common.kernels import numba_installed
+from seapup_common.kernels import compiled_by_default, numba_installed
 from seapup_ident.armax import ArmaxModel, ArmaxOrders, Regressor, is_stable
 
 __all__ = ["DataError", "Forgetting", "Jacket", "ud_update", "RecursiveArmax", "RecursiveRegression", "METHODS"]
@@ -134,6 +134,20 @@ def ud_update(U: np.ndarray, D: np.ndarray, phi: np.ndarray, lam: float) -> np.n
     return nu[:, -1] / beta[-1]
 
 
+def _ud_kernel(compiled: bool):
+    """:func:`ud_update` (U, D, phi, lam) -> the gain: the compiled kernel's (a fresh gain array, the regressor
+    contiguous) when ``compiled``, else the reference itself."""
+    if not compiled:
+        return ud_update
+    from seapup_ident.compiled import ud_update as kernel
+
+    def update(U, D, phi, lam):
+        gain = np.empty(U.shape[0])
+        kernel(U, D, np.ascontiguousarray(phi, dtype=float), float(lam), gain)
+        return gain
+    return update
+
+
 class RecursiveArmax:
     """Recursive multivariable ARMAX identification (eq. 6.12, 6.24, 6.27), MATLAB-like object API.
 
@@ -169,8 +183,9 @@ class RecursiveArmax:
     keep_history : bool
         Keep Theta, lambda, trace P and the prediction errors of every sample (``history``).
     compiled : bool, optional
-        RPEM's gradient step by the compiled kernel (default: when numba is installed) or by the NumPy
-        reference (False).
+        RPEM's gradient step by the compiled kernel (default: when numba is installed) and the square-root
+        update of LS and ELS by :func:`seapup_ident.compiled.ud_update` (the same bits; default
+        :func:`seapup_common.kernels.compiled_by_default`), or both by the NumPy reference (False).
 
     Examples
     --------
@@ -209,6 +224,8 @@ class RecursiveArmax:
         if self.compiled and method == "rpem":   # loaded now (from numba's cache), not at the first sample
             from seapup_ident.compiled import rpem_gradient_step
             self._gradient_step = rpem_gradient_step
+        # the square-root update compiled where numba is loaded already (the same bits: _ud_kernel)
+        self._ud = _ud_kernel(compiled_by_default() if compiled is None else bool(compiled))
         self.reset()
 
     # -- state -----------------------------------------------------------------------------
@@ -310,7 +327,7 @@ class RecursiveArmax:
             if trace[0] > self.jacket.max_trace:
                 lam = 1.0
                 self.counts["trace_limited"] += 1
-            gain = ud_update(self._U, self._D, phi, lam)
+            gain = self._ud(self._U, self._D, phi, lam)
             self.theta += np.outer(gain, error)
         self.counts["updates"] += int(updated)
         residual = y - self.theta.T @ phi   # a posteriori: the noise estimate e(t) for ELS/RPEM
@@ -400,6 +417,9 @@ class RecursiveRegression:
         lambda in (0, 1] (eq. 6.13).
     p0 : float
         P(0) = p0 I (eq. 6.16).
+    compiled : bool, optional
+        The square-root update by the compiled kernel (:func:`seapup_ident.compiled.ud_update`, the same bits)
+        or by :func:`ud_update`; default :func:`seapup_common.kernels.compiled_by_default`.
 
     Examples
     --------
@@ -411,7 +431,8 @@ class RecursiveRegression:
     array([ 3., -2.])
     """
 
-    def __init__(self, n_params: int, n_outputs: int, forgetting: float = 1.0, p0: float = 1e3):
+    def __init__(self, n_params: int, n_outputs: int, forgetting: float = 1.0, p0: float = 1e3,
+                 compiled: bool | None = None):
         if int(n_params) < 1 or int(n_outputs) < 1:
             raise ValueError(f"a regression needs n_params >= 1 and n_outputs >= 1, got {n_params}, {n_outputs}")
         if not (math.isfinite(forgetting) and 0.0 < forgetting <= 1.0):
@@ -420,6 +441,7 @@ class RecursiveRegression:
             raise ValueError(f"p0 must be finite and > 0, got {p0!r}")
         self.n_params, self.n_outputs = int(n_params), int(n_outputs)
         self.forgetting, self.p0 = float(forgetting), float(p0)
+        self._ud = _ud_kernel(compiled_by_default() if compiled is None else bool(compiled))
         self.reset()
 
     def reset(self) -> None:
@@ -451,7 +473,7 @@ class RecursiveRegression:
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(z))):
             raise DataError("non-finite sample: not used")
         error = z - self.theta.T @ x
-        gain = ud_update(self._U, self._D, x, self.forgetting)
+        gain = self._ud(self._U, self._D, x, self.forgetting)
         self.theta += np.outer(gain, error)
         self.updates += 1
         return error

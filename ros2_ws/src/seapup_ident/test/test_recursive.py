@@ -7,6 +7,8 @@
   Lyapunov equation), ELS and RPEM to the true parameters;
 - (c) RPEM's C(z^-1) stays inside the stability region.
 """
+import importlib
+
 import numpy as np
 import pytest
 import scipy.linalg
@@ -333,6 +335,37 @@ def test_the_ud_update_as_running_sums_is_the_column_loop_bit_for_bit():
             gain = ud_update(U, D, phi, lam)
             assert np.array_equal(gain, _ud_update_by_columns(U_ref, D_ref, phi, lam))
             assert np.array_equal(U, U_ref) and np.array_equal(D, D_ref)
+
+
+@pytest.mark.unit
+def test_the_compiled_ud_update_is_the_reference_bit_for_bit():
+    """seapup_ident.compiled.ud_update against ud_update from the same factors, over sizes 1-40 (the explicit
+    self-tuner's 36 parameters, the GMV predictor's 13-69), forgetting 0.9-1, regressors from tiny to large and
+    read-only ones: the same gain, U and D bit for bit, sample after sample; and the estimators use it by default
+    where numba is loaded, giving the reference's estimates bit for bit along a run."""
+    importlib.import_module("numba")   # loaded, as in a process that flies a plant: the kernel by default
+    from seapup_ident.compiled import ud_update as kernel
+    from seapup_ident.recursive import RecursiveRegression
+    rng = np.random.default_rng(4)
+    for n in [1, 2, 5, 13, 21, 36, 40]:
+        U = np.triu(rng.normal(size=(n, n)), 1) + np.eye(n)
+        D = rng.uniform(0.1, 10.0, n)
+        U_ref, D_ref = U.copy(), D.copy()
+        for _ in range(30):
+            phi, lam = rng.normal(size=n) * rng.choice([1e-4, 1.0, 1e3]), float(rng.uniform(0.9, 1.0))
+            phi.setflags(write=bool(rng.integers(2)))
+            gain = np.empty(n)
+            kernel(U, D, phi, lam, gain)
+            assert np.array_equal(gain, ud_update(U_ref, D_ref, phi, lam))
+            assert np.array_equal(U, U_ref) and np.array_equal(D, D_ref)
+    runs = [RecursiveRegression(9, 2, forgetting=0.99, p0=1e4, compiled=kind) for kind in (None, False)]
+    assert runs[0]._ud is not ud_update and runs[1]._ud is ud_update
+    for _ in range(400):
+        x = rng.normal(size=9)
+        z = x[:2] * 3.0 - x[2:4] + 0.01 * rng.normal(size=2)
+        errors = [est.update(x, z) for est in runs]
+        assert np.array_equal(errors[0], errors[1])
+    assert np.array_equal(runs[0].theta, runs[1].theta) and runs[0].trace == runs[1].trace
 
 
 @pytest.mark.unit

@@ -11,13 +11,21 @@ times. Each vehicle is built by :class:`~seapup_sim.simulation.Simulation` exact
 :class:`~seapup_runs.result.RunResult` is the one ``run(spec)`` gives, to rounding (the plant, current and
 sensors bit for bit; the laws' stacked products to the last bits: ``test/test_batch_runner.py``).
 
+The self-tuners of ch. 7 (``explicit``, ``gmv``) fly in the same batch: the plants, currents and sensors
+batched with the rest, each run's law its own object (its estimator and jacket, with compiled kernels where
+they exist: :func:`seapup_ident.compiled.ud_update`, :func:`seapup_control.compiled.explicit_design`), told the
+applied blade pitch and given the run's readings at each sample as :func:`seapup_runs.runner.run` tells and
+gives them -- so each such run is the one flown alone bit for bit, its estimate traces, mode events and jacket
+counts included (``test/test_batch_runner.py``). What a law logs is filed under its run (:data:`RUN_INDEX`).
+
 What the batch does not fly (:func:`batch_reason` says why, and :func:`seapup_runs.campaign.fly_rows` flies
-those runs one by one): other controllers (the self-tuners' per-sample estimation is per-run Python anyway),
-controller switches, the linearised plant, the umbilical, strapdown velocity, and a current switched on or
-off during a run. A vehicle that diverges stops alone: its entry is the
+those runs one by one): other controllers, controller switches, the linearised plant, the umbilical, strapdown
+velocity, and a current switched on or off during a run. A vehicle that diverges stops alone: its entry is the
 :class:`~seapup_sim.integrator.DivergenceError` the single run would raise.
 """
 from __future__ import annotations
+
+import contextvars
 
 import numpy as np
 
@@ -25,7 +33,13 @@ from seapup_runs.metrics import compute_all
 from seapup_runs.result import RunResult, Series
 from seapup_runs.spec import RunEvent, RunSpec
 
-__all__ = ["batch_reason", "fly_batch", "batch_key", "environments_of"]
+__all__ = ["batch_reason", "fly_batch", "batch_key", "environments_of", "RUN_INDEX", "BATCHED_LAWS"]
+
+#: Which run of a batch the code running now serves (its index in :func:`fly_batch`'s specs; None: the batch as a
+#: whole): a log handler files a law's records under its run (:func:`seapup_runs.campaign.run_log`).
+RUN_INDEX: contextvars.ContextVar = contextvars.ContextVar("seapup_batch_run", default=None)
+#: The control laws a batch flies: MFOL stacked (BatchMFOL), the self-tuners run by run.
+BATCHED_LAWS = ("mfol", "explicit", "gmv")
 
 _MEASURED = {"velocity": ("u", "v", "w"), "rates": ("p", "q", "r"), "attitude": ("roll", "pitch", "yaw"),
              "position": ("x", "y", "z"), "depth": ("depth",), "altitude": ("altitude",)}
@@ -37,8 +51,8 @@ def batch_reason(spec: RunSpec, environment=None) -> str | None:
     from seapup_sim.environment_config import load_environment
     if spec.dynamics != "nonlinear":
         return f"the {spec.dynamics} plant has no compiled kernel"
-    if len(spec.controller_timeline()) != 1 or spec.controller.type != "mfol":
-        return "only a run of one MFOL law (fixed-gain or scheduled) is batched"
+    if len(spec.controller_timeline()) != 1 or spec.controller.type not in BATCHED_LAWS:
+        return f"only a run of one law of {', '.join(BATCHED_LAWS)} is batched (no switches)"
     if spec.coefficients:
         return "a vehicle with scaled coefficients flies run by run"
     from seapup_runs.spec import vehicle_thrusters
@@ -69,6 +83,7 @@ def fly_batch(specs, threads: int = 1) -> list:
     ValueError
         If a spec cannot be batched (:func:`batch_reason`) or the specs do not share one :func:`batch_key`.
     """
+    from seapup_common.contract import Command, Measurement, Reading
     from seapup_common.controllers import create_controller
     from seapup_control.mfol_controller import BatchMFOL
     from seapup_sim.batch import BatchCurrent, BatchPlant, BatchSensors
@@ -76,7 +91,7 @@ def fly_batch(specs, threads: int = 1) -> list:
     from seapup_sim.linearised import vehicle_model
     from seapup_sim.simulation import Simulation
     from seapup_sim.vehicle_config import load_vehicle_config
-    from seapup_runs.runner import design_all, simulation_events, start_pitch
+    from seapup_runs.runner import _jacket, at_vehicle_limit, design_all, simulation_events, start_pitch
 
     specs = design_all(specs)
     environments = environments_of(specs)
@@ -113,7 +128,13 @@ def fly_batch(specs, threads: int = 1) -> list:
     slot = {i: k for k, i in enumerate(with_current)}
     currents = BatchCurrent([sims[i].current for i in with_current]) if with_current else None
     sensors = BatchSensors([sim.sensors for sim in sims])
-    law = BatchMFOL([create_controller(s.controller, s.control_period) for s in specs])
+    laws = [create_controller(at_vehicle_limit(s.controller, sims[i].model.pitch_limit), s.control_period)
+            for i, s in enumerate(specs)]
+    stacked = [i for i, s in enumerate(specs) if s.controller.type == "mfol"]   # one BatchMFOL
+    alone = [i for i, s in enumerate(specs) if s.controller.type != "mfol"]     # each its own law
+    law = BatchMFOL([laws[i] for i in stacked]) if stacked else None
+    variances = [sim.sensors._checked()[1] for sim in sims]   # each suite's, as its readings carry them
+    estimates: list[dict] = [{} for _ in specs]
     pending = [list(sim.events) for sim in sims]
     next_event = min((e.time for events in pending for e in events), default=np.inf)
     references = {}
@@ -135,12 +156,33 @@ def fly_batch(specs, threads: int = 1) -> list:
                 measured[name][k] = values[:, j]
         if k == samples:
             break
-        if k == 0:
-            law.reset(plant.pitch)
-        ref = np.empty((n, 4))
+        if k == 0 and law is not None:
+            law.reset(plant.pitch[stacked])
+        ref, in_force = np.empty((n, 4)), {}
         for profile, rows in references.items():
-            ref[rows] = profile.at(now).velocity
-        out = law.update(np.column_stack([read["velocity"], read["rates"][:, 2]]), ref)
+            in_force[profile] = profile.at(now)
+            ref[rows] = in_force[profile].velocity
+        out = np.empty((n, 4))
+        if law is not None:
+            out[stacked] = law.update(np.column_stack([read["velocity"][stacked], read["rates"][stacked, 2]]),
+                                      ref[stacked])
+        for i in alone:   # as runner.run: told the applied pitch, then the sample's readings and reference
+            token = RUN_INDEX.set(i)
+            try:
+                controller = laws[i]
+                if k == 0:
+                    controller.reset(Command(plant.pitch[i], now))
+                controller.applied(now, Command(plant.pitch[i], now))
+                velocity_i, rates_i = read["velocity"][i].copy(), read["rates"][i].copy()
+                velocity_i.setflags(write=False)
+                rates_i.setflags(write=False)
+                measurement = Measurement(now, Reading(velocity_i, now, variances[i]["velocity"]),
+                                          Reading(rates_i, now, variances[i]["rates"]))
+                out[i] = controller.update(now, measurement, in_force[specs[i].reference]).blade_pitch
+                for name, value in controller.named_estimate().items():
+                    estimates[i].setdefault(name, np.full(samples + 1, np.nan))[k] = value
+            finally:
+                RUN_INDEX.reset(token)
         reference[k], command[k] = ref, out
         for _ in range(substeps):
             if plant.t + 1e-9 >= next_event:
@@ -151,19 +193,27 @@ def fly_batch(specs, threads: int = 1) -> list:
             if currents is not None:
                 currents.step()
 
-    results = []
+    results, jackets = [], []
     for i, spec in enumerate(specs):
         if not plant.active[i]:
             results.append(DivergenceError(plant.errors[i]))
+            jackets.append({})
             continue
-        events = sorted(({"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]}
-                         for e in spec.plant_events()), key=lambda e: e["time"])
+        events = [{"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]}
+                  for e in spec.plant_events()]
+        jacket = _jacket([laws[i]], events) if i in alone else {}   # a self-tuner's mode events and counts
+        estimate = ({"names": list(estimates[i]), "values": np.column_stack(list(estimates[i].values()))}
+                    if estimates[i] else None)
         series = Series.from_states(t, states[:, i], {name: v[:, i] for name, v in measured.items()},
-                                    reference[:, i], command[:, i], applied[:, i], events)
+                                    reference[:, i], command[:, i], applied[:, i],
+                                    sorted(events, key=lambda e: e["time"]), estimate)
         results.append(RunResult(spec, series))
-    flown = [r for r in results if isinstance(r, RunResult)]
-    for result, metrics in zip(flown, compute_all(flown)):   # computed over the batch at once
+        jackets.append(jacket)
+    flown = [(r, jacket) for r, jacket in zip(results, jackets) if isinstance(r, RunResult)]
+    for (result, jacket), metrics in zip(flown, compute_all([r for r, _ in flown])):   # over the batch at once
         result.metrics = metrics
+        if jacket:
+            result.metrics["jacket"] = jacket
     return results
 
 

@@ -540,15 +540,30 @@ RUN_LOGGERS = CORE_LOGGERS + ("seapup_runs",)
 LOG_LINES_KEPT = 20
 
 
+class _Lines(list):
+    """:func:`run_log`'s lines, with those of each run of a batch apart (``by_run``) and the rest (``shared``)."""
+
+    def __init__(self):
+        super().__init__()
+        self.by_run: dict[int, list[str]] = {}
+        self.shared: list[str] = []
+
+
 @contextmanager
 def run_log():
     """The records the cores log meanwhile (:data:`RUN_LOGGERS`), as lines, instead of on the process's stderr:
-    for code that flies many runs (a campaign task, a benchmark) and keeps or counts what they said."""
-    lines: list[str] = []
+    for code that flies many runs (a campaign task, a benchmark) and keeps or counts what they said. The list
+    also files each line under the run of a batch that said it (``lines.by_run``, by
+    :data:`seapup_runs.batch_runner.RUN_INDEX`; ``lines.shared``: the others)."""
+    from seapup_runs.batch_runner import RUN_INDEX
+    lines = _Lines()
 
     class Keep(logging.Handler):
         def emit(self, record):
-            lines.append(f"{record.levelname.lower()}: {record.getMessage()}")
+            line = f"{record.levelname.lower()}: {record.getMessage()}"
+            lines.append(line)
+            run = RUN_INDEX.get()
+            (lines.shared if run is None else lines.by_run.setdefault(run, [])).append(line)
     handler = Keep(logging.INFO)
     loggers = [logging.getLogger(name) for name in RUN_LOGGERS]
     saved = [(logger, logger.propagate, logger.level) for logger in loggers]
@@ -577,7 +592,8 @@ def _failed(record: dict, exc: BaseException) -> None:
 
 def _fly_batched(rows: list[dict]) -> dict[int, dict]:
     """The rows whose runs can share a batch (:mod:`seapup_runs.batch_runner`), flown a batch per sample grid;
-    their records by position in ``rows``. A batch shares its time, and its log lines, among its runs."""
+    their records by position in ``rows``. A batch shares its time among its runs; each keeps its own log lines
+    (a self-tuner's) and the batch's."""
     from seapup_runs.batch_runner import batch_key, batch_reason, environments_of, fly_batch
     groups: dict[tuple, list[tuple[int, RunSpec]]] = {}
     read: dict = {}
@@ -599,14 +615,15 @@ def _fly_batched(rows: list[dict]) -> dict[int, dict]:
             except Exception:   # e.g. a design that fails: each run then says why on its own
                 continue
         wall, cpu = (time.perf_counter() - wall) / len(members), (time.process_time() - cpu) / len(members)
-        for (k, spec), result in zip(members, results):
+        for position, ((k, spec), result) in enumerate(zip(members, results)):
             record = _record(rows[k])
             record["name"] = spec.name
             if isinstance(result, Exception):
                 _failed(record, result)
             else:
                 record.update({f"metric.{key}": v for key, v in flatten(result.metrics).items()})
-            record["log_lines"], record["log"] = len(lines), "\n".join(lines[:LOG_LINES_KEPT])
+            said = lines.shared + lines.by_run.get(position, [])   # its own lines and the batch's
+            record["log_lines"], record["log"] = len(said), "\n".join(said[:LOG_LINES_KEPT])
             record["wall_s"], record["cpu_s"] = wall, cpu
             out[k] = record
     return out
@@ -650,9 +667,10 @@ def _fly_mission_row(row: dict) -> dict:
 
 
 def fly_rows(rows: list[dict]) -> list[dict]:
-    """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs of one
-    MFOL law on one sample grid fly together as a batch (:func:`seapup_runs.batch_runner.fly_batch`, the same
-    results to rounding), the others one by one."""
+    """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs of one law
+    (MFOL, fixed-gain or scheduled, or a self-tuner) on one sample grid fly together as a batch
+    (:func:`seapup_runs.batch_runner.fly_batch`, the same results: MFOL's to rounding, the self-tuners' bit for
+    bit), the others one by one."""
     from seapup_runs.runner import run
     plain = [k for k, row in enumerate(rows) if row.get("kind") != "mission"]   # run specs: maybe batched
     batched = {plain[i]: record for i, record in _fly_batched([rows[k] for k in plain]).items()}

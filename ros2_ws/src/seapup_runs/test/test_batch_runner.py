@@ -93,11 +93,55 @@ def _flat(value, prefix=""):
 @pytest.mark.unit
 def test_what_a_batch_cannot_fly_is_named_and_refused():
     base = _base()
-    gmv = RunSpec.from_dict({**base, "controller": {"type": "gmv"}})
-    assert "MFOL" in batch_reason(gmv)
+    hold = RunSpec.from_dict({**base, "controller": {"type": "hold"}})
+    assert "mfol, explicit, gmv" in batch_reason(hold)
+    switched = RunSpec.from_dict({**base, "events": [{"time": 4.0, "kind": "controller", "detail": {"type": "gmv"}}]})
+    assert "no switches" in batch_reason(switched)
+    assert batch_reason(RunSpec.from_dict({**base, "controller": {"type": "gmv"}})) is None
     cable = RunSpec.from_dict({**base, "environment": {"umbilical": {"enabled": True}}})
     assert "umbilical" in batch_reason(cable)
     with pytest.raises(ValueError, match="cannot fly in a batch"):
-        fly_batch([RunSpec.from_dict(base), gmv])
+        fly_batch([RunSpec.from_dict(base), hold])
     with pytest.raises(ValueError, match="one control period"):
         fly_batch([RunSpec.from_dict(base), RunSpec.from_dict({**base, "duration": 10.0})])
+
+
+@pytest.mark.unit
+def test_the_self_tuners_in_a_batch_are_the_runs_flown_alone_bit_for_bit():
+    """Explicit and GMV runs (ch. 7's randomised cases: fouling, the camera fitted mid-run, currents, the three
+    sensor profiles, the laws' settings) flown as one batch with MFOL runs among them: each self-tuner run's
+    series -- states, commands, readings, estimate traces, mode events -- and metrics with the jacket's counts
+    are those of the run flown alone, bit for bit; what each law logged is filed under its own run."""
+    from seapup_runs.batch_runner import RUN_INDEX, batch_key
+    from seapup_runs.campaign import run_log
+    from seapup_runs.randomised import random_adaptive_spec
+    candidates = [random_adaptive_spec(number) for number in range(60)]
+    grid = batch_key(candidates[0])
+    tuners = [s for s in candidates if batch_key(s) == grid and batch_reason(s) is None][:6]
+    assert {s.controller.type for s in tuners} == {"explicit", "gmv"}
+    mfol = RunSpec.from_dict({**tuners[0].to_dict(), "controller": {"type": "mfol"}, "name": "mfol"})
+    specs = [tuners[0], mfol, *tuners[1:]]
+    with run_log() as lines:
+        batched = fly_batch(specs)
+    assert RUN_INDEX.get() is None
+    engaged = 0
+    for position, (spec, mine) in enumerate(zip(specs, batched)):
+        if spec is mfol:
+            continue
+        with run_log() as alone_lines:
+            alone = run(spec)
+        a, b = alone.series, mine.series
+        for left, right in ((a.t, b.t), (a.states(), b.states()), (a.command, b.command), (a.applied, b.applied),
+                            (a.estimate["values"], b.estimate["values"])):
+            np.testing.assert_array_equal(left, right)
+        assert a.estimate["names"] == b.estimate["names"] and a.events == b.events
+        for name, values in a.measured.items():
+            np.testing.assert_array_equal(values, b.measured[name])
+        flat_a, flat_b = _flat(alone.metrics), _flat(mine.metrics)
+        assert flat_a.keys() == flat_b.keys()
+        for key, value in flat_a.items():
+            assert value == flat_b[key] or (value != value and flat_b[key] != flat_b[key]), key   # NaN: NaN
+        assert mine.metrics["jacket"]["samples"] == spec.samples
+        assert lines.by_run.get(position, []) == list(alone_lines)
+        engaged += mine.metrics["jacket"]["engagements"] + mine.metrics["jacket"]["adaptive"]
+    assert engaged > 0
