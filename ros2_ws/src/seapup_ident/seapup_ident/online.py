@@ -109,7 +109,10 @@ class OnlineIdentifier:
         self._last_used: int | None = None
         self._filled = 0          # samples in the regressor since the last restart
         self.counts = {"used": 0, "dropped": 0, "rejected": 0, "segments": 0}
-        self.stamps = StampGate()
+        # one gate per stream: the graph's time each stream has reached. A stream that lags another (an executor
+        # that takes one topic's queue before the next, on a loaded machine) is then not read as a reset of the
+        # shared time, after which the leading stream's next reading looked 60 s ahead and was refused
+        self.stamps = {kind: StampGate() for kind in ("velocity", "attitude", "applied")}
 
     def add(self, kind: str, stamp_ns: int, values) -> list[UsedSample]:
         """A reading of ``kind`` (velocity: u, v, w, r; attitude: roll, pitch; applied: 4 pitches) at
@@ -126,9 +129,10 @@ class OnlineIdentifier:
             self.counts["rejected"] += 1
             raise DataError(f"{kind} reading at {stamp_ns * 1e-9:.3f} s is beyond what the vehicle can do "
                             f"(|value| <= {READING_LIMITS[kind]:g}): {values.tolist()}")
-        if not self.stamps.accept(stamp_ns):  # one far-future stamp would make every real sample late
+        gate = self.stamps[kind]
+        if not gate.accept(stamp_ns):  # one far-future stamp would make every real sample late
             self.counts["rejected"] += 1
-            raise DataError(f"{kind} reading {self.stamps.why(stamp_ns)}")
+            raise DataError(f"{kind} reading {gate.why(stamp_ns)}")
         if kind not in self.kinds:
             return []
         if self._last_used is not None and stamp_ns <= self._last_used:

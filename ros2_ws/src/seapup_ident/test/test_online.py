@@ -123,3 +123,22 @@ def test_a_reading_no_vehicle_gives_or_stamped_far_ahead_is_refused_and_changes_
     assert ident.counts["rejected"] == 2 and ident.counts["used"] == clean.counts["used"]
     assert np.all(np.isfinite(ident.estimator.theta))
     np.testing.assert_allclose(ident.estimator.theta, clean.estimator.theta, rtol=1e-12, atol=1e-15)
+
+
+def test_a_stream_that_lags_another_by_more_than_a_minute_is_not_a_reset():
+    """An executor on a loaded machine may take one topic's queue in long runs: 80 s of velocity readings, two
+    seconds of applied pitches, the next 80 s of velocity, then the rest of the pitches. Each stream keeps its own
+    graph's time, so the lagging stream's stamps (more than a minute behind the leading one's) are not read as a
+    simulator reset -- with one shared time, the next velocity readings then looked 78 s ahead and were refused
+    -- and every sample is used, as with the readings interleaved."""
+    stamps, y, applied, _ = published(800)
+    clean, _ = online(stamps, y, applied)
+    ident = OnlineIdentifier(ArmaxOrders(4, 4, 1, 1, 0), "ls", ("u", "v", "w", "r"), forgetting=Forgetting(1.0),
+                             p0=1e6)
+    for kind, taken in (("velocity", range(0, 400)), ("applied", range(0, 10)), ("velocity", range(400, 800)),
+                        ("applied", range(10, 800))):   # each topic's queue taken in long runs
+        for k in taken:
+            ident.add(kind, int(stamps[k]), y[k] if kind == "velocity" else applied[k])
+    assert ident.counts["rejected"] == 0
+    assert ident.counts["used"] == clean.counts["used"] > 790
+    np.testing.assert_allclose(ident.estimator.theta, clean.estimator.theta, rtol=1e-9, atol=1e-12)
