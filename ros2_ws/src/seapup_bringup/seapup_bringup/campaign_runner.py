@@ -256,9 +256,13 @@ def _part_done(path: Path, group: list[dict], text) -> bool:
 
 def _columns_safe(records: list[dict]) -> list[dict]:
     """Rows whose metric columns have one type each across tasks (a metric's numbers as float; parameters as
-    given: a seed stays an integer)."""
+    given: a seed stays an integer), each with every column of the task (None where a run has no such value):
+    ``pa.Table.from_pylist`` takes its columns from the first row alone, and dropped the metrics a task's first
+    run did not have -- a run with a change event, or a step on an axis the first run held, lost those figures
+    from the table."""
+    columns = list(dict.fromkeys(k for r in records for k in r))
     return [{k: (float(v) if k.startswith("metric.") and isinstance(v, int) and not isinstance(v, bool) else v)
-             for k, v in r.items()} for r in records]
+             for k, v in ((k, r.get(k)) for k in columns)} for r in records]
 
 
 def _concat(tables):

@@ -151,3 +151,21 @@ def test_the_bench_draws_its_cost_curves_with_their_workloads(tmp_path):
     assert all(p.read_bytes().startswith(b"\x89PNG") and p.stat().st_size > 5000 for p in paths)
     del out["campaign"]
     assert [p.name for p in bench_plots(out, tmp_path / "again")] == ["bench_batch.png"]
+
+
+def test_a_task_s_table_keeps_every_metric_of_every_run():
+    """A task's rows as the campaign writes them (campaign_runner._columns_safe, then pyarrow): a metric only a
+    later run has (a change event's figures, a step on an axis the first run held) is kept for it, None for the
+    others -- pyarrow's from_pylist takes its columns from the first row and dropped such a metric for every run
+    of the task (adaptive-500 lost figures of about a hundred runs in tasks of 10) -- and an integer metric is a
+    float whatever run comes first."""
+    import pyarrow as pa
+    from seapup_bringup.campaign_runner import _columns_safe
+    records = [{"index": 0, "status": "ok", "metric.a": 1, "param.seed": 3},
+               {"index": 1, "status": "ok", "metric.a": 2.5, "metric.change.time_s": 8.6, "param.seed": 4},
+               {"index": 2, "status": "failed", "error": "diverged", "param.seed": 5}]
+    table = pa.Table.from_pylist(_columns_safe(records)).to_pydict()
+    assert table["metric.change.time_s"] == [None, 8.6, None]
+    assert table["metric.a"] == [1.0, 2.5, None] and table["error"] == [None, None, "diverged"]
+    assert table["param.seed"] == [3, 4, 5] and pa.Table.from_pylist(_columns_safe(records)).schema.field(
+        "metric.a").type == pa.float64()
