@@ -242,6 +242,7 @@ class RecursiveArmax:
             self._psi = np.zeros((o.ny, max(o.nc, 1), n))                   # psi(t-1) .. psi(t-nc)
         else:
             self._U, self._D = np.eye(n), np.full(n, self.p0)               # one P shared by the outputs
+        self._trace: float | None = None   # trace P of U and D as they are (None: work it out)
         self.t = 0
         self._pending = None
         self.residual = np.zeros(o.ny)   # the last sample's a posteriori residual y - Theta(t)^T phi(t)
@@ -271,7 +272,9 @@ class RecursiveArmax:
         """trace P per output."""
         if self.method == "rpem":
             return np.trace(self._P, axis1=1, axis2=2)
-        return np.full(self.orders.ny, float(np.sum(self._D * np.sum(self._U ** 2, axis=0))))
+        if self._trace is None:   # worked out once per update of U and D (a self-tuner asks thrice a sample)
+            self._trace = float(np.sum(self._D * np.sum(self._U ** 2, axis=0)))
+        return np.full(self.orders.ny, self._trace)
 
     @property
     def model(self) -> ArmaxModel:
@@ -328,6 +331,7 @@ class RecursiveArmax:
                 lam = 1.0
                 self.counts["trace_limited"] += 1
             gain = self._ud(self._U, self._D, phi, lam)
+            self._trace = None
             self.theta += np.outer(gain, error)
         self.counts["updates"] += int(updated)
         residual = y - self.theta.T @ phi   # a posteriori: the noise estimate e(t) for ELS/RPEM
@@ -448,12 +452,15 @@ class RecursiveRegression:
         """Back to Theta = 0 and P = p0 I."""
         self.theta = np.zeros((self.n_params, self.n_outputs))
         self._U, self._D = np.eye(self.n_params), np.full(self.n_params, self.p0)
+        self._trace: float | None = None
         self.updates = 0
 
     @property
     def trace(self) -> float:
-        """trace P."""
-        return float(np.sum(self._D * np.sum(self._U ** 2, axis=0)))
+        """trace P (worked out once per update)."""
+        if self._trace is None:
+            self._trace = float(np.sum(self._D * np.sum(self._U ** 2, axis=0)))
+        return self._trace
 
     @property
     def covariance(self) -> np.ndarray:
@@ -474,6 +481,7 @@ class RecursiveRegression:
             raise DataError("non-finite sample: not used")
         error = z - self.theta.T @ x
         gain = self._ud(self._U, self._D, x, self.forgetting)
+        self._trace = None
         self.theta += np.outer(gain, error)
         self.updates += 1
         return error
