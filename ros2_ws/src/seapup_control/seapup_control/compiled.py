@@ -107,7 +107,8 @@ def _interpolation(speeds, speed):
         return 0, 0, 0.0
     if speed >= speeds[last]:
         return last, last, 0.0
-    j = np.searchsorted(speeds, speed) - 1   # side "left", as bisect_left
+    # side "left", as bisect_left; kept within the table whatever the speed (a NaN: the caller never passes one)
+    j = min(max(np.searchsorted(speeds, speed) - 1, 0), last - 1)
     return j, j + 1, (speed - speeds[j]) / (speeds[j + 1] - speeds[j])
 
 
@@ -135,16 +136,17 @@ def mfol_sample(speeds, both, offsets, work, counts, u, v, w, r, ref_u, ref_v, r
     proportional = k_err @ error
     raw = k_int @ q + proportional + u0
     command = np.minimum(np.maximum(raw, -limit), limit)
+    if anti_windup:   # the state that reproduces the held command, then integrate (a singular K_int raises here,
+        held = np.linalg.solve(k_int, command - proportional - u0) + error   # before the counts change)
+    else:
+        held = q + error
+    q[:] = held
     work[3] = raw
     work[4] = command
     for k in range(n):
         saturated = abs(raw[k]) > limit
         work[5, k] = 1.0 if saturated else 0.0
         counts[k] += saturated
-    if anti_windup:   # the state that reproduces the held command, then integrate
-        q[:] = np.linalg.solve(k_int, command - proportional - u0) + error
-    else:
-        q[:] = q + error
 
 
 @njit(**_JIT)

@@ -224,8 +224,8 @@ class MFOLController:
 
     @property
     def q(self) -> np.ndarray:
-        """The integrators' state (a view of the law's own array: read only)."""
-        return self._work[0]
+        """The integrators' state (a copy: what it is now)."""
+        return self._work[0].copy()
 
     @q.setter
     def q(self, value) -> None:
@@ -294,12 +294,13 @@ class MFOLController:
             measurement.body_velocity()   # raises the contract's ContractError
         if not isinstance(reference, Reference):
             raise ContractError(f"reference must be a Reference, got {type(reference).__name__}")
-        if self.kernel is None:
-            return self._update_numpy(t, np.concatenate((velocity, rates[2:])), reference.velocity)
         u, v, w = velocity.tolist()
+        r = float(rates[2])
+        if self.kernel is None or not math.isfinite(u + v + w + r):   # a reading the contract let through unchecked
+            return self._update_numpy(t, np.concatenate((velocity, rates[2:])), reference.velocity)
         a, b, c, d = reference.velocity.tolist()
         work = self._work
-        self.kernel(*self._tables, work, self.saturated_samples, u, v, w, float(rates[2]), a, b, c, d,
+        self.kernel(*self._tables, work, self.saturated_samples, u, v, w, r, a, b, c, d,
                     self._starting, self.limit, self.anti_windup)
         self._starting = False
         self._last_t = float(t)

@@ -170,7 +170,7 @@ class Navigator:
         self._rejected_innovations: list[np.ndarray] = []  # of the rejected fixes in a row
         self._last_fix_stamp = -math.inf
         self._last_depth_stamp = -math.inf
-        self._variances: dict = {}   # (a float or read-only variance, or its id; the default) -> (it, the filter's)
+        self._variances: dict = {}   # (a float variance or a read-only one's id, the default's id) -> (it, result, default)
 
     # -- the filter ------------------------------------------------------------------------
     def _predict(self, dt: float, velocity_variance: np.ndarray, coasting: bool) -> None:
@@ -218,18 +218,18 @@ class Navigator:
 
     def _variance(self, reading, default_std) -> np.ndarray:
         """The reading's variance, each component not stated (0) the default's square. One that cannot change --
-        a float, or a read-only array (a sensor suite's, the same every sample) -- is worked out once (the filter
-        never writes the result)."""
+        a float, or a read-only array that owns its data (a sensor suite's, the same every sample) -- is worked out
+        once per default (the filter never writes the result)."""
         given = reading.variance
         if isinstance(given, float):
-            key = (given, default_std)
-        elif isinstance(given, np.ndarray) and not given.flags.writeable:
-            key = (id(given), default_std)
+            key = (given, id(default_std))
+        elif isinstance(given, np.ndarray) and not given.flags.writeable and given.base is None:   # owns its data
+            key = (id(given), id(default_std))
         else:
             key = None
         if key is not None:
             known = self._variances.get(key)
-            if known is not None and (known[0] is given or isinstance(given, float)):
+            if known is not None and known[2] is default_std and (known[0] is given or isinstance(given, float)):
                 return known[1]
         var = np.atleast_1d(np.asarray(given, dtype=float))
         if (var > 0).all():   # every component stated (the usual case): the reading's own
@@ -240,7 +240,7 @@ class Navigator:
         if key is not None:
             if len(self._variances) >= 16:
                 self._variances.clear()
-            self._variances[key] = (given, var)
+            self._variances[key] = (given, var, default_std)   # both kept: their ids stay theirs
         return var
 
     def update(self, measurement: Measurement) -> NavigationEstimate | None:

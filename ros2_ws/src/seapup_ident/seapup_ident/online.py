@@ -130,6 +130,13 @@ class OnlineIdentifier:
             raise DataError(f"{kind} reading at {stamp_ns * 1e-9:.3f} s is beyond what the vehicle can do "
                             f"(|value| <= {READING_LIMITS[kind]:g}): {values.tolist()}")
         gate = self.stamps[kind]
+        if gate.latest_ns is None:   # a stream's first reading: judged by the time the others have reached
+            known = [other for other in self.stamps.values() if other.latest_ns is not None]
+            leader = max(known, key=lambda other: other.latest_ns) if known else None
+            if leader is not None and stamp_ns > leader.latest_ns + leader.max_jump_ns:
+                self.counts["rejected"] += 1
+                leader.refused += 1
+                raise DataError(f"{kind} reading {leader.why(stamp_ns)}")
         if not gate.accept(stamp_ns):  # one far-future stamp would make every real sample late
             self.counts["rejected"] += 1
             raise DataError(f"{kind} reading {gate.why(stamp_ns)}")

@@ -30,6 +30,7 @@ controller that chooses u(t) after the estimate has seen y(t): :meth:`RecursiveA
 """
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass, field
 
@@ -134,18 +135,22 @@ def ud_update(U: np.ndarray, D: np.ndarray, phi: np.ndarray, lam: float) -> np.n
     return nu[:, -1] / beta[-1]
 
 
+def _ud_compiled(U: np.ndarray, D: np.ndarray, phi: np.ndarray, lam: float) -> np.ndarray:
+    """:func:`ud_update` by the compiled kernel (:func:`seapup_ident.compiled.ud_update`, the same bits): a fresh
+    gain array, the regressor made contiguous."""
+    from seapup_ident.compiled import ud_update as kernel
+    gain = np.empty(U.shape[0])
+    kernel(U, D, np.ascontiguousarray(phi, dtype=float), float(lam), gain)
+    return gain
+
+
 def _ud_kernel(compiled: bool):
-    """:func:`ud_update` (U, D, phi, lam) -> the gain: the compiled kernel's (a fresh gain array, the regressor
-    contiguous) when ``compiled``, else the reference itself."""
+    """:func:`ud_update`'s implementation (U, D, phi, lam) -> the gain: the compiled one when ``compiled`` (loaded
+    now, from numba's cache), else the reference itself. Module functions both, so an estimator pickles."""
     if not compiled:
         return ud_update
-    from seapup_ident.compiled import ud_update as kernel
-
-    def update(U, D, phi, lam):
-        gain = np.empty(U.shape[0])
-        kernel(U, D, np.ascontiguousarray(phi, dtype=float), float(lam), gain)
-        return gain
-    return update
+    importlib.import_module("seapup_ident.compiled")   # numba and the kernel loaded now, not at the first sample
+    return _ud_compiled
 
 
 class RecursiveArmax:

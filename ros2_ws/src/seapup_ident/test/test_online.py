@@ -142,3 +142,21 @@ def test_a_stream_that_lags_another_by_more_than_a_minute_is_not_a_reset():
     assert ident.counts["rejected"] == 0
     assert ident.counts["used"] == clean.counts["used"] > 790
     np.testing.assert_allclose(ident.estimator.theta, clean.estimator.theta, rtol=1e-9, atol=1e-12)
+
+
+def test_a_stream_s_first_reading_far_ahead_of_the_others_is_refused():
+    """Each stream keeps its own graph's time, but a stream's first reading is judged by the time the others have
+    reached: an applied pitch stamped 10^6 s ahead of the velocity readings, as the first of its stream, is refused
+    (counted) and the identification goes on with the real ones."""
+    from seapup_ident.recursive import DataError
+    stamps, y, applied, _ = published(50)
+    ident = OnlineIdentifier(ArmaxOrders(4, 4, 1, 1, 0), "ls", ("u", "v", "w", "r"), forgetting=Forgetting(1.0),
+                             p0=1e6)
+    ident.add("velocity", int(stamps[0]), y[0])
+    with pytest.raises(DataError, match="ahead of the graph's time"):
+        ident.add("applied", int(stamps[0]) + 10**6 * 10**9, applied[0])
+    for k, stamp in enumerate(stamps):
+        ident.add("applied", int(stamp), applied[k])
+        if k:
+            ident.add("velocity", int(stamp), y[k])
+    assert ident.counts["rejected"] == 1 and ident.counts["used"] >= 48

@@ -8,6 +8,7 @@
 - (c) RPEM's C(z^-1) stays inside the stability region.
 """
 import importlib
+import pickle
 
 import numpy as np
 import pytest
@@ -366,6 +367,9 @@ def test_the_compiled_ud_update_is_the_reference_bit_for_bit():
         errors = [est.update(x, z) for est in runs]
         assert np.array_equal(errors[0], errors[1])
     assert np.array_equal(runs[0].theta, runs[1].theta) and runs[0].trace == runs[1].trace
+    again = pickle.loads(pickle.dumps(runs[0]))   # an estimator with the kernel pickles (a Dask task's state)
+    x = rng.normal(size=9)
+    assert np.array_equal(again.update(x, x[:2]), runs[1].update(x, x[:2]))
 
 
 @pytest.mark.unit

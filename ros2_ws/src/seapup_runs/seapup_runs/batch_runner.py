@@ -167,6 +167,9 @@ def fly_batch(specs, threads: int = 1) -> list:
             out[stacked] = law.update(np.column_stack([read["velocity"][stacked], read["rates"][stacked, 2]]),
                                       ref[stacked])
         for i in alone:   # as runner.run: told the applied pitch, then the sample's readings and reference
+            if not plant.active[i]:   # its plant diverged: its run ended there, as the single run's raise ends it
+                out[i] = plant.pitch[i]
+                continue
             token = RUN_INDEX.set(i)
             try:
                 controller = laws[i]

@@ -598,7 +598,7 @@ def _failed(record: dict, exc: BaseException) -> None:
 def _fly_batched(rows: list[dict]) -> dict[int, dict]:
     """The rows whose runs can share a batch (:mod:`seapup_runs.batch_runner`), flown a batch per sample grid;
     their records by position in ``rows``. A batch shares its time among its runs; each keeps its own log lines
-    (a self-tuner's) and the batch's."""
+    (a self-tuner's) and the batch's (its runs' designs, said once for all of them)."""
     from seapup_runs.batch_runner import batch_key, batch_reason, environments_of, fly_batch
     groups: dict[tuple, list[tuple[int, RunSpec]]] = {}
     read: dict = {}
@@ -611,8 +611,9 @@ def _fly_batched(rows: list[dict]) -> dict[int, dict]:
             continue
     out = {}
     for members in groups.values():
-        tuners = any(spec.controller.type != "mfol" for _, spec in members)
-        if len(members) < (MIN_TUNER_BATCH if tuners else 2):
+        if len(members) < MIN_TUNER_BATCH:   # too few for the self-tuners to gain: the MFOL runs batch alone
+            members = [(k, spec) for k, spec in members if spec.controller.type == "mfol"]
+        if len(members) < 2:
             continue
         wall, cpu = time.perf_counter(), time.process_time()
         with run_log() as lines:
@@ -673,10 +674,10 @@ def _fly_mission_row(row: dict) -> dict:
 
 
 def fly_rows(rows: list[dict]) -> list[dict]:
-    """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs of one law
-    (MFOL, fixed-gain or scheduled, or a self-tuner) on one sample grid fly together as a batch
-    (:func:`seapup_runs.batch_runner.fly_batch`, the same results: MFOL's to rounding, the self-tuners' bit for
-    bit), the others one by one."""
+    """Fly each run of a task in this process; one flat row per run (see the module docstring). Runs on one
+    sample grid fly together as a batch (:func:`seapup_runs.batch_runner.fly_batch`, the same results: MFOL's to
+    rounding, the self-tuners' bit for bit): MFOL runs from two, self-tuners with them from
+    :data:`MIN_TUNER_BATCH`; the others one by one."""
     from seapup_runs.runner import run
     plain = [k for k, row in enumerate(rows) if row.get("kind") != "mission"]   # run specs: maybe batched
     batched = {plain[i]: record for i, record in _fly_batched([rows[k] for k in plain]).items()}

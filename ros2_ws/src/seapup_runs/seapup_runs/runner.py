@@ -23,6 +23,7 @@ same designed spec and gives the same :class:`~seapup_runs.result.RunResult`.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import json
 from typing import Callable
 
@@ -189,6 +190,8 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
     simulation = Simulation.from_config(spec.vehicle_config(), spec.environment, seed=spec.seed, dt=spec.physics_step,
                                  control_period=spec.control_period, events=simulation_events(spec),
                                  state=spec.initial_state(), pitch=start_pitch(spec), dynamics=spec.dynamics)
+    if simulation.plant.compiled:   # its kernels loaded before the laws are made: a run's laws then take theirs
+        importlib.import_module("seapup_sim.compiled")   # (compiled_by_default) whatever the process flew before
     timeline = spec.controller_timeline()
     n = spec.samples
     t = np.full(n + 1, np.nan)

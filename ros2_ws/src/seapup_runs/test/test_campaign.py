@@ -313,3 +313,35 @@ def test_a_mission_row_without_its_hierarchy_is_a_failed_row_with_the_reason():
     rows = cp.expand(cp.campaign_from_dict({"name": "m", "base": {"mission": MISSION}, "seeds": [1]}))
     record, = cp.fly_rows(rows)
     assert record["status"] == "error" and "needs the hierarchy's nodes" in record["error"]
+
+
+@pytest.mark.unit
+def test_a_task_batches_its_self_tuners_only_among_enough_runs_and_keeps_each_run_s_log():
+    """_fly_batched: on one sample grid, two MFOL runs batch with or without self-tuners beside them; self-tuners
+    join only a batch of at least MIN_TUNER_BATCH runs (fewer fly one by one, as they gain nothing); in such a
+    batch each tuner's row carries the log lines its own law said -- those of the run flown alone -- beside
+    the batch's shared ones, and its metrics are the run's own."""
+    from seapup_runs.batch_runner import batch_key, batch_reason
+    tuners = [s for s in (random_adaptive_spec(k) for k in range(80)) if batch_reason(s) is None]
+    grid = batch_key(tuners[0])
+    tuners = [s for s in tuners if batch_key(s) == grid][:cp.MIN_TUNER_BATCH]
+    mfol = [RunSpec.from_dict({**tuners[k].to_dict(), "controller": {"type": "mfol"}, "name": f"mfol-{k}"})
+            for k in range(2)]
+
+    def rows(specs):
+        return [{"index": k, "parameters": {"seed": k}, "spec": spec.to_dict()} for k, spec in enumerate(specs)]
+    few = rows([*mfol, *tuners[:3]])
+    assert sorted(cp._fly_batched(few)) == [0, 1]   # the tuners fly one by one
+    many = rows([mfol[0], *tuners])
+    batched = cp._fly_batched(many)
+    assert sorted(batched) == list(range(len(many)))
+    said = 0
+    for k, spec in enumerate(tuners, start=1):
+        with cp.run_log() as lines:
+            alone = run(spec)
+        # its row: the batch's shared lines (all the MFOL row has) and exactly what its law said alone
+        assert batched[k]["log_lines"] == batched[0]["log_lines"] + len(lines)
+        said += len(lines)
+        assert batched[k]["metric.jacket.samples"] == alone.metrics["jacket"]["samples"]
+        assert batched[k]["metric.adaptive.tracking_rms_total"] == alone.metrics["adaptive"]["tracking_rms_total"]
+    assert said > 0   # some law said something (a fallback, a mode change): the filing was tested
