@@ -133,7 +133,7 @@ def fly_batch(specs, threads: int = 1) -> list:
     stacked = [i for i, s in enumerate(specs) if s.controller.type == "mfol"]   # one BatchMFOL
     alone = [i for i, s in enumerate(specs) if s.controller.type != "mfol"]     # each its own law
     law = BatchMFOL([laws[i] for i in stacked]) if stacked else None
-    variances = [sim.sensors._checked()[1] for sim in sims]   # each suite's, as its readings carry them
+    variances = [sim.sensors.reading_variances() for sim in sims]   # as each suite's readings carry them
     estimates: list[dict] = [{} for _ in specs]
     pending = [list(sim.events) for sim in sims]
     next_event = min((e.time for events in pending for e in events), default=np.inf)

@@ -147,10 +147,11 @@ def _through_quaternions(attitudes: list) -> np.ndarray:
     return np.array([frames.euler_through_quaternion(*row) for row in angles.tolist()]).reshape(-1, 3)
 
 
-def _via_quaternion(attitude, round_trip=None) -> np.ndarray:
-    """Euler angles as a message carries them: to a quaternion and back (an IMU's normalised on receipt)."""
+def _via_quaternion(attitude, round_trip) -> np.ndarray:
+    """Euler angles as a message carries them: to a quaternion and back (an IMU's normalised on receipt), by
+    ``round_trip`` (:func:`_round_trip`)."""
     phi, theta, psi = attitude.tolist()
-    return np.array((round_trip or _round_trip())(phi, theta, psi, True))
+    return np.array(round_trip(phi, theta, psi, True))
 
 
 class _Collector(LatestReadings):

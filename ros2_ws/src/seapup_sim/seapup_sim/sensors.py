@@ -156,7 +156,7 @@ def _measurement(t: float, values: dict, variances: CheckedVariances) -> Measure
     return Measurement(t, **readings)
 
 
-#: standard normal draws read from an instrument's stream at a time (:meth:`SensorSuite._normals`)
+#: standard normal draws read from an instrument's stream at a time (:meth:`SensorSuite._draws`)
 NORMALS_BLOCK = 48   # whole readings of 1 and 3 draws, fewer than a batch block (seapup_sim.batch._Draws)
 _EMPTY = ([], 0)
 _ZEROS = {k: [0.0] * k for k in (1, 3)}
@@ -209,10 +209,6 @@ class SensorSuite:
                                     {name: std if any(v > 0 for v in std) else None for name, std in stds.items()})
         return self._profile_arrays
 
-    def _noise(self, instrument: str, size: int) -> np.ndarray:
-        """The instrument's next ``size`` noise values (an array; :meth:`_draws`)."""
-        return np.array(self._draws(self._checked()[2][instrument], instrument, size))
-
     def _draws(self, std, instrument: str, k: int) -> list:
         """``k`` noise values of ``instrument`` whose standard deviations are ``std`` (k floats; None:
         noise-free, no draw, zeros): ``std[i]`` times the stream's next standard normal draws, each product the
@@ -230,14 +226,9 @@ class SensorSuite:
             return [std[0] * buffer[used], std[1] * buffer[used + 1], std[2] * buffer[used + 2]]
         return [a * b for a, b in zip(std, buffer[used:used + k])]
 
-    def _normals(self, instrument: str, k: int) -> np.ndarray:
-        """The instrument stream's next ``k`` standard normal draws (as :meth:`_draws` reads them)."""
-        buffer, used = self._buffered.get(instrument, _EMPTY)
-        if used + k > len(buffer):
-            buffer = buffer[used:] + self.rng[instrument].standard_normal(NORMALS_BLOCK).tolist()
-            used = 0
-        self._buffered[instrument] = (buffer, used + k)
-        return np.array(buffer[used:used + k])
+    def reading_variances(self) -> CheckedVariances:
+        """Each field's variance as the readings carry it (the present profile's, checked)."""
+        return self._checked()[1]
 
     def unused_normals(self, instrument: str) -> np.ndarray:
         """The draws read from the instrument's stream and not yet used (a copy): who takes the stream over
