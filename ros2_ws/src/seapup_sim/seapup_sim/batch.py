@@ -41,6 +41,8 @@ def _rows(name: str, value, n: int, width: int) -> np.ndarray:
         raise ValueError(f"{name} is not numeric") from None
     if array.shape != (n, width):
         raise ValueError(f"{name} needs shape ({n}, {width}) (one row per vehicle), got {array.shape}")
+    if np.isfinite(array).all():   # the usual case in one pass; the rows are named only when one is bad
+        return np.ascontiguousarray(array)
     bad = ~np.isfinite(array).all(axis=1)
     if bad.any():
         shown = ", ".join(str(i) for i in np.flatnonzero(bad)[:8])
@@ -87,7 +89,8 @@ class BatchPlant:
             raise ValueError(f"threads must be a whole number >= 1, got {threads!r}")
         self.n = n
         self.threads = min(int(threads), n)
-        self._pool = ThreadPoolExecutor(self.threads, "batch-plant") if self.threads > 1 else None
+        self._pool = ThreadPoolExecutor(self.threads - 1, "batch-plant") if self.threads > 1 else None
+        self._still = (np.zeros((n, 3)), np.zeros((n, 6)))   # a step's currents and wrenches when given none
         self.dt = float(dt)
         self.steps = 0
         self.state = np.zeros((n, 12)) if states is None else _rows("states", states, n, 12).copy()
@@ -144,28 +147,28 @@ class BatchPlant:
             raise InvalidBladePitchError(str(exc)) from None
         commands = np.clip(commands, -self._limits[:, None], self._limits[:, None])
         use_current, use_external = currents is not None, externals is not None
-        currents = _rows("currents", currents, self.n, 3) if use_current else np.zeros((self.n, 3))
-        externals = _rows("external wrenches", externals, self.n, 6) if use_external else np.zeros((self.n, 6))
-        new, pitch_end = np.empty((self.n, 12)), np.empty((self.n, 4))
+        currents = _rows("currents", currents, self.n, 3) if use_current else self._still[0]
+        externals = _rows("external wrenches", externals, self.n, 6) if use_external else self._still[1]
+        new, pitch_end, status = np.empty((self.n, 12)), np.empty((self.n, 4)), np.empty(self.n, dtype=np.int64)
         args = (self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals, use_external,
-                self.thrusters_on, self.efficiency, *self._packed, self.active, new, pitch_end)
+                self.thrusters_on, self.efficiency, *self._packed, ENVELOPE, self.active, new, pitch_end, status)
         if self._pool is None:
             compiled.rk4_batch(*args)
         else:
             def part(lo, hi):
-                compiled.rk4_batch(*(a[lo:hi] if isinstance(a, np.ndarray) else a for a in args))
+                compiled.rk4_batch(*(a[lo:hi] if isinstance(a, np.ndarray) and a is not ENVELOPE else a
+                                     for a in args))
             bounds = [self.n * k // self.threads for k in range(self.threads + 1)]
-            for future in [self._pool.submit(part, lo, hi) for lo, hi in zip(bounds, bounds[1:])]:
+            others = [self._pool.submit(part, lo, hi) for lo, hi in zip(bounds[1:-1], bounds[2:])]
+            part(bounds[0], bounds[1])   # the first part in this thread: one hand-over fewer
+            for future in others:
                 future.result()
-        stopped = ((~np.isfinite(new) | (np.abs(new) > ENVELOPE)) & self.active[:, None]).any(axis=1)
-        for i in np.flatnonzero(stopped):
+        for i in np.flatnonzero(status >= 0):   # stepped out of the envelope: stopped, its last state kept
             self.errors[i] = divergence(new[i], self.t + self.dt)   # the single integrator's words
-        ok = self.active & ~stopped
-        self.active = ok
-        new[:, 3] = (new[:, 3] + math.pi) % (2 * math.pi) - math.pi   # roll and yaw wrap to [-pi, pi)
-        new[:, 5] = (new[:, 5] + math.pi) % (2 * math.pi) - math.pi
-        self.state[ok] = new[ok]
-        self.pitch[ok] = pitch_end[ok]
+            self.active[i] = False
+            new[i], pitch_end[i] = self.state[i], self.pitch[i]
+        self.state[:] = new   # in place, as before (the kernel wrapped roll and yaw)
+        self.pitch[:] = pitch_end
         self.steps += 1
         return self.state.copy()
 

@@ -24,6 +24,10 @@ Decisions:
   bracket.
 - no ``fastmath``: the operations happen in the reference's order, so the two agree to rounding and
   the mirror symmetries of the model (sway to port and starboard) hold exactly as before.
+- :func:`rhs` is inlined into the step and keeps the reference's small vectors (R, nu_r, the Coriolis terms,
+  each thruster's flow) as scalars, its few arrays as offsets in one scratch array: no array views made per
+  evaluation (each costs numba a reference count), the same operations in the same order -- the same bits
+  as the evaluation it replaced, and about 1.8x faster (issue 42; ``./seapup bench``).
 - kernels are compiled once per machine (``cache=True``: numba's cache beside this file, or its
   user-wide cache where that is read-only). The integrator imports this module (and so numba) on its
   first step, so a process that never steps a plant does not pay for it.
@@ -39,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
+__all__ = ["Packed", "pack", "Flat", "flatten", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
            "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "work_size", "rk4_scratch"]
 
 _JIT = dict(cache=True, nogil=True)
@@ -80,6 +84,47 @@ M_RIGID, M_ADDED, M_INV, POINT_MAP = 0, 6, 12, 18
 KIND_CONTROLLABLE_PITCH, KIND_FIXED_PITCH = 0.0, 1.0
 CURVE_POLYNOMIAL, CURVE_TABLE = 0.0, 1.0
 
+#: The header of a :class:`Flat` model's integers, entry by entry: the number of thrusters, of hydrodynamic terms and
+#: their width (factors per term); where the row starts, the columns, the first term of each axis (7 entries: the
+#: terms grouped by axis, the last the end) and the terms' signed and absolute factor indices (rows of ``width``)
+#: begin in the integers; where the non-zeros, the term coefficients, the thrust
+#: axes (rows of 3), the scalars and the two curve tables begin in the floats, each table with its length.
+(I_THRUSTERS, I_TERMS, I_WIDTH, I_PTR, I_IDX, I_AXIS, I_SIGNED, I_ABSOLUTE, I_VAL, I_COEF, I_DIRECTIONS, I_SCALARS,
+ I_CURVE_X, I_CURVE_X_SIZE, I_CURVE_Y, I_CURVE_Y_SIZE, HEADER) = range(17)
+
+
+class Flat(NamedTuple):
+    """A :class:`Packed` model as the kernels take it: all its integers in one array, its floats in another, placed
+    by the integers' header (:data:`HEADER` entries: ``I_*``). Two arguments where there were eleven: a kernel
+    call's cost is mostly its arguments' unboxing (about 70 ns an array), which the single vehicle pays every
+    step. For a batch, one row per vehicle (each row places its own tables; shorter rows padded at the end)."""
+
+    ints: np.ndarray     # int64
+    floats: np.ndarray   # float64
+
+
+def flatten(packed: Packed) -> Flat:
+    """``packed``'s arrays laid end to end (:class:`Flat`), the same numbers."""
+    terms, width = packed.h_signed.shape
+    # the hydrodynamic terms grouped by axis, in their order within each (a stable sort): each axis's force is then
+    # a running sum of its terms alone, the same additions in the same order as the table's
+    order = np.argsort(packed.h_axis, kind="stable")
+    axis_starts = np.searchsorted(packed.h_axis[order], np.arange(7), side="left")
+    int_parts = [packed.sp_ptr, packed.sp_idx, axis_starts, packed.h_signed[order].reshape(-1),
+                 packed.h_absolute[order].reshape(-1)]
+    float_parts = [packed.sp_val, packed.h_coef[order], packed.directions.reshape(-1), packed.scalars, packed.curve_x,
+                   packed.curve_y]
+    int_starts = HEADER + np.concatenate(([0], np.cumsum([a.size for a in int_parts])))
+    float_starts = np.concatenate(([0], np.cumsum([a.size for a in float_parts])))
+    header = np.zeros(HEADER, dtype=np.int64)
+    header[[I_THRUSTERS, I_TERMS, I_WIDTH]] = packed.directions.shape[0], terms, width
+    header[[I_PTR, I_IDX, I_AXIS, I_SIGNED, I_ABSOLUTE]] = int_starts[:5]
+    header[[I_VAL, I_COEF, I_DIRECTIONS, I_SCALARS, I_CURVE_X, I_CURVE_Y]] = float_starts[:6]
+    header[[I_CURVE_X_SIZE, I_CURVE_Y_SIZE]] = packed.curve_x.size, packed.curve_y.size
+    ints = np.concatenate([header] + [np.asarray(a, dtype=np.int64) for a in int_parts])
+    floats = np.concatenate([np.asarray(a, dtype=np.float64) for a in float_parts])
+    return Flat(np.ascontiguousarray(ints), np.ascontiguousarray(floats))
+
 
 @njit(inline="always", **_JIT)
 def thrust_rows(n):
@@ -90,7 +135,7 @@ def thrust_rows(n):
 @njit(inline="always", **_JIT)
 def work_size(n):
     """Scratch floats :func:`rhs` needs for n thrusters."""
-    return 76 + 7 * n
+    return _W_THRUST + 4 * n
 
 
 @njit(inline="always", **_JIT)
@@ -147,25 +192,6 @@ def pack(model) -> Packed:
 
 
 @njit(inline="always", **_JIT)
-def matvec(a, x, out):
-    for i in range(a.shape[0]):
-        s = 0.0
-        for j in range(a.shape[1]):
-            s += a[i, j] * x[j]
-        out[i] = s
-
-
-@njit(inline="always", **_JIT)
-def spmv(ptr, idx, val, first, rows, x, out):
-    """``out = A x`` for rows ``first`` ... ``first + rows - 1`` of the row-compressed block (:class:`Packed`)."""
-    for i in range(rows):
-        s = 0.0
-        for k in range(ptr[first + i], ptr[first + i + 1]):
-            s += val[k] * x[idx[k]]
-        out[i] = s
-
-
-@njit(inline="always", **_JIT)
 def rotation(phi, theta, psi, rot):
     """R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1; frames.rotation_body_to_ned) into ``rot``."""
     cf, sf = math.cos(phi), math.sin(phi)
@@ -180,21 +206,6 @@ def rotation(phi, theta, psi, rot):
     rot[2, 0] = -st
     rot[2, 1] = ct * sf
     rot[2, 2] = ct * cf
-
-
-@njit(inline="always", **_JIT)
-def kirchhoff(ptr, idx, val, first, nu, out, m):
-    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis), M the block's rows
-    from ``first``; ``m`` (6,) scratch."""
-    spmv(ptr, idx, val, first, 6, nu, m)
-    a, b, c, d, e, f = m[0], m[1], m[2], m[3], m[4], m[5]
-    u, v, w, p, q, r = nu[0], nu[1], nu[2], nu[3], nu[4], nu[5]
-    out[0] = -(q * c - r * b)
-    out[1] = -(r * a - p * c)
-    out[2] = -(p * b - q * a)
-    out[3] = -(q * f - r * e) - (v * c - w * b)
-    out[4] = -(r * d - p * f) - (w * a - u * c)
-    out[5] = -(p * e - q * d) - (u * b - v * a)
 
 
 @njit(inline="always", **_JIT)
@@ -213,104 +224,163 @@ def fixed_pitch_thrust(command, deadband, mode, curve_x, curve_y):
     return value
 
 
-@njit(**_JIT)
-def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency,
-        sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, out,
+@njit(inline="always", **_JIT)
+def row_dot(ints, floats, ptr, idx, val, row, x, offset):
+    """Row ``row`` of the row-compressed block (:class:`Packed`; in ``ints`` and ``floats`` from ``ptr``, ``idx`` and
+    ``val``: :class:`Flat`) times the vector at ``x[offset:]``: its non-zeros in order, the sum begun at +0.0."""
+    s = 0.0
+    for k in range(ints[ptr + row], ints[ptr + row + 1]):
+        s += floats[val + k] * x[offset + ints[idx + k]]
+    return s
+
+
+@njit(inline="always", **_JIT)
+def kirchhoff(ints, floats, ptr, idx, val, first, x, offset, u, v, w, p, q, r):
+    """``-[w x p_v ; w x p_w + v x p_v]`` with p = M nu (vehicle.kirchhoff_coriolis) as six floats, M the block's
+    rows from ``first``, nu = (u, v, w, p, q, r) also at ``x[offset:]``."""
+    a = row_dot(ints, floats, ptr, idx, val, first, x, offset)
+    b = row_dot(ints, floats, ptr, idx, val, first + 1, x, offset)
+    c = row_dot(ints, floats, ptr, idx, val, first + 2, x, offset)
+    d = row_dot(ints, floats, ptr, idx, val, first + 3, x, offset)
+    e = row_dot(ints, floats, ptr, idx, val, first + 4, x, offset)
+    f = row_dot(ints, floats, ptr, idx, val, first + 5, x, offset)
+    return (-(q * c - r * b), -(r * a - p * c), -(p * b - q * a), -(q * f - r * e) - (v * c - w * b),
+            -(r * d - p * f) - (w * a - u * c), -(p * e - q * d) - (u * b - v * a))
+
+
+#: Where :func:`rhs` keeps its vectors in ``work``: nu_r and the constant 1 (the hydrodynamic terms' factors), the
+#: hydrodynamic forces, tau, then the thrusts and the momentum drags (N and 3N)
+_W_EXT, _W_HYDRO, _W_TAU, _W_THRUST = 0, 7, 13, 19
+
+
+@njit(inline="always", **_JIT)
+def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, efficiency, ints, floats, out,
         work):
     """x' (eq. 2.1-2.3) into ``out`` (12,); VehicleModel.derivatives term by term, for N thrusters of either
     kind (``pitch``: the Seapup's blade pitches, or fixed-pitch thrusters' lagged commands). ``work``: at least
-    :func:`work_size` (N) floats of scratch (no allocation in the kernel)."""
-    n = directions.shape[0]
-    phi, theta = x[3], x[4]
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct = math.cos(theta)
-    rot = work[6:15].reshape((3, 3))
-    rotation(phi, theta, x[5], rot)
-    nu = x[6:12]
-    nu_r = work[15:21]
-    nu_r[:] = nu
-    if use_current:
-        for i in range(3):
-            s = 0.0
-            for j in range(3):
-                s += rot[j, i] * current[j]
-            nu_r[i] -= s
-    rigid = work[21:27]
-    kirchhoff(sp_ptr, sp_idx, sp_val, M_RIGID, nu, rigid, work[0:6])
-    added = work[27:33]
-    kirchhoff(sp_ptr, sp_idx, sp_val, M_ADDED, nu_r, added, work[0:6])
-    hydro = work[33:39]
-    hydro[:] = 0.0
-    ext = work[39:46]
-    ext[:6] = nu_r
-    ext[6] = 1.0
-    for k in range(h_coef.shape[0]):
-        signed = 1.0
-        for i in range(h_signed.shape[1]):
-            signed *= ext[h_signed[k, i]]
-        absolute = 1.0
-        for i in range(h_absolute.shape[1]):
-            absolute *= abs(ext[h_absolute[k, i]])
-        hydro[h_axis[k]] += h_coef[k] * signed * absolute
-    dx, dy, dz = rot[2, 0], rot[2, 1], rot[2, 2]
-    net, ax, ay, az = scalars[6], scalars[7], scalars[8], scalars[9]
-    static = work[46:52]
-    static[0] = net * dx
-    static[1] = net * dy
-    static[2] = net * dz
-    static[3] = ay * dz - az * dy
-    static[4] = az * dx - ax * dz
-    static[5] = ax * dy - ay * dx
-    tau = work[52:58]
-    for i in range(6):
-        tau[i] = rigid[i] + added[i] + hydro[i] + static[i]
+    :func:`work_size` (N) floats of scratch (no allocation in the kernel). Scalars where the reference has small
+    vectors, and each product's terms in the reference's order, so the same bits. ``ints``, ``floats``: the model
+    (:func:`flatten`)."""
+    n, width = ints[I_THRUSTERS], ints[I_WIDTH]
+    o_axis, o_signed, o_absolute = ints[I_AXIS], ints[I_SIGNED], ints[I_ABSOLUTE]
+    f_coef, f_dir, f_sc = ints[I_COEF], ints[I_DIRECTIONS], ints[I_SCALARS]
+    ptr, idx, val = ints[I_PTR], ints[I_IDX], ints[I_VAL]
+    cf, sf = math.cos(x[3]), math.sin(x[3])
+    ct, st = math.cos(x[4]), math.sin(x[4])
+    cp, sp = math.cos(x[5]), math.sin(x[5])
+    r00, r01, r02 = cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf   # rotation(): R, v_ned = R v_body
+    r10, r11, r12 = sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf
+    r20, r21, r22 = -st, ct * sf, ct * cf
+    u, v, w, p, q, r = x[6], x[7], x[8], x[9], x[10], x[11]
+    ur, vr, wr = u, v, w
+    if use_current:   # nu_r = nu - R^T v_c
+        c0, c1, c2 = current[0], current[1], current[2]
+        s = 0.0
+        s += r00 * c0
+        s += r10 * c1
+        s += r20 * c2
+        ur -= s
+        s = 0.0
+        s += r01 * c0
+        s += r11 * c1
+        s += r21 * c2
+        vr -= s
+        s = 0.0
+        s += r02 * c0
+        s += r12 * c1
+        s += r22 * c2
+        wr -= s
+    e = _W_EXT
+    work[e], work[e + 1], work[e + 2], work[e + 3], work[e + 4], work[e + 5], work[e + 6] = ur, vr, wr, p, q, r, 1.0
+    # -[w x p_v ; w x p_w + v x p_v], p = M nu, for the rigid body (nu) and the added mass (nu_r)
+    rigid0, rigid1, rigid2, rigid3, rigid4, rigid5 = kirchhoff(ints, floats, ptr, idx, val, M_RIGID, x, 6, u, v, w,
+                                                                p, q, r)
+    added0, added1, added2, added3, added4, added5 = kirchhoff(ints, floats, ptr, idx, val, M_ADDED, work, e, ur, vr,
+                                                               wr, p, q, r)
+    h = _W_HYDRO
+    for axis in range(6):   # each axis's terms (flatten: grouped by axis, in the table's order)
+        force = 0.0
+        for k in range(ints[o_axis + axis], ints[o_axis + axis + 1]):
+            if width == 2:   # the shipped tables' width, unrolled: the same products
+                first, second = o_signed + 2 * k, o_absolute + 2 * k
+                signed = 1.0 * work[e + ints[first]] * work[e + ints[first + 1]]
+                absolute = 1.0 * abs(work[e + ints[second]]) * abs(work[e + ints[second + 1]])
+            else:
+                signed = 1.0
+                for i in range(width):
+                    signed *= work[e + ints[o_signed + k * width + i]]
+                absolute = 1.0
+                for i in range(width):
+                    absolute *= abs(work[e + ints[o_absolute + k * width + i]])
+            force += floats[f_coef + k] * signed * absolute
+        work[h + axis] = force
+    net, ax, ay, az = floats[f_sc + 6], floats[f_sc + 7], floats[f_sc + 8], floats[f_sc + 9]
+    t = _W_TAU   # tau: Coriolis, hydrodynamic, hydrostatic (eq. 2.1-2.3, sec. 2.3.2)
+    work[t] = rigid0 + added0 + work[h] + net * r20
+    work[t + 1] = rigid1 + added1 + work[h + 1] + net * r21
+    work[t + 2] = rigid2 + added2 + work[h + 2] + net * r22
+    work[t + 3] = rigid3 + added3 + work[h + 3] + (ay * r22 - az * r21)
+    work[t + 4] = rigid4 + added4 + work[h + 4] + (az * r20 - ax * r22)
+    work[t + 5] = rigid5 + added5 + work[h + 5] + (ax * r21 - ay * r20)
     thrust_matrix, force_map = thrust_rows(n)
-    vel = work[58:58 + 3 * n]
-    thrust = work[58 + 3 * n:58 + 4 * n]
-    drag = work[58 + 4 * n:58 + 7 * n]
-    wrench = work[58 + 7 * n:64 + 7 * n]
-    moment = work[64 + 7 * n:70 + 7 * n]
-    if thrusters_on and scalars[10] == KIND_FIXED_PITCH:   # FixedPitchThrusters.wrench: B (eff * T(c))
+    th, dr = _W_THRUST, _W_THRUST + n
+    if thrusters_on and floats[f_sc + 10] == KIND_FIXED_PITCH:   # FixedPitchThrusters.wrench: B (eff * T(c))
+        f_x, f_y = ints[I_CURVE_X], ints[I_CURVE_Y]
+        curve_x, curve_y = floats[f_x:f_x + ints[I_CURVE_X_SIZE]], floats[f_y:f_y + ints[I_CURVE_Y_SIZE]]
         for j in range(n):
-            thrust[j] = efficiency[j] * fixed_pitch_thrust(pitch[j], scalars[11], scalars[12], curve_x, curve_y)
-        spmv(sp_ptr, sp_idx, sp_val, thrust_matrix, 6, thrust, wrench)
+            work[th + j] = efficiency[j] * fixed_pitch_thrust(pitch[j], floats[f_sc + 11], floats[f_sc + 12], curve_x,
+                                                              curve_y)
         for i in range(6):
-            tau[i] += wrench[i]
+            work[t + i] += row_dot(ints, floats, ptr, idx, val, thrust_matrix + i, work, th)
     elif thrusters_on:
-        k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (scalars[0], scalars[1], scalars[2], scalars[3],
-                                                            scalars[4], scalars[5])
-        spmv(sp_ptr, sp_idx, sp_val, POINT_MAP, 3 * n, nu_r, vel)
+        k_beta, beta0, thrust_scale, kj_nd, md_scale, eps = (floats[f_sc], floats[f_sc + 1], floats[f_sc + 2],
+                                                            floats[f_sc + 3], floats[f_sc + 4], floats[f_sc + 5])
+        eps2 = eps ** 2
         for j in range(n):
-            v_axial = (vel[3 * j] * directions[j, 0] + vel[3 * j + 1] * directions[j, 1]) \
-                + vel[3 * j + 2] * directions[j, 2]
+            v0 = row_dot(ints, floats, ptr, idx, val, POINT_MAP + 3 * j, work, e)
+            v1 = row_dot(ints, floats, ptr, idx, val, POINT_MAP + 3 * j + 1, work, e)
+            v2 = row_dot(ints, floats, ptr, idx, val, POINT_MAP + 3 * j + 2, work, e)
+            d0, d1, d2 = floats[f_dir + 3 * j], floats[f_dir + 3 * j + 1], floats[f_dir + 3 * j + 2]
+            v_axial = (v0 * d0 + v1 * d1) + v2 * d2
             bollard = k_beta * (pitch[j] - beta0)
-            thrust[j] = efficiency[j] * (thrust_scale * (bollard - kj_nd * v_axial))
-            k0 = math.sqrt(bollard * bollard + eps ** 2)
+            work[th + j] = efficiency[j] * (thrust_scale * (bollard - kj_nd * v_axial))
+            k0 = math.sqrt(bollard * bollard + eps2)
             scale = -md_scale * math.sqrt(k0 / math.pi)
-            for i in range(3):
-                drag[3 * j + i] = scale * (vel[3 * j + i] - v_axial * directions[j, i])
-        spmv(sp_ptr, sp_idx, sp_val, thrust_matrix, 6, thrust, wrench)
-        spmv(sp_ptr, sp_idx, sp_val, force_map, 6, drag, moment)
+            work[dr + 3 * j] = scale * (v0 - v_axial * d0)
+            work[dr + 3 * j + 1] = scale * (v1 - v_axial * d1)
+            work[dr + 3 * j + 2] = scale * (v2 - v_axial * d2)
         for i in range(6):
-            tau[i] += wrench[i] + moment[i]
+            work[t + i] += row_dot(ints, floats, ptr, idx, val, thrust_matrix + i, work, th) \
+                + row_dot(ints, floats, ptr, idx, val, force_map + i, work, dr)
     if use_external:
         for i in range(6):
-            tau[i] += external[i]
-    matvec(rot, nu[:3], out[:3])
-    tt = math.tan(theta)
-    p, q, r = nu[3], nu[4], nu[5]
+            work[t + i] += external[i]
+    s = 0.0   # R nu_v (matvec)
+    s += r00 * u
+    s += r01 * v
+    s += r02 * w
+    out[0] = s
+    s = 0.0
+    s += r10 * u
+    s += r11 * v
+    s += r12 * w
+    out[1] = s
+    s = 0.0
+    s += r20 * u
+    s += r21 * v
+    s += r22 * w
+    out[2] = s
+    tt = math.tan(x[4])
     out[3] = (p + sf * tt * q) + cf * tt * r
     out[4] = (0.0 * p + cf * q) + (-sf) * r
     out[5] = (0.0 * p + sf / ct * q) + cf / ct * r
-    accel = work[70 + 7 * n:76 + 7 * n]
-    spmv(sp_ptr, sp_idx, sp_val, M_INV, 6, tau, accel)
-    out[6:] = accel
+    for i in range(6):
+        out[6 + i] = row_dot(ints, floats, ptr, idx, val, M_INV + i, work, t)
 
 
 @njit(**_JIT)
 def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y,
-              new, pitch_end, buf):
+              efficiency, ints, floats, new, pitch_end, buf):
     """integrator.rk4_step with the lagged pitch at the three stage times, into ``new`` and ``pitch_end``, with its
     scratch ``buf`` (:func:`rk4_scratch` floats) given."""
     n = pitch0.shape[0]
@@ -329,20 +399,16 @@ def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, extern
             ph[j] = command[j] + gap * math.exp(-(0.5 * dt) / tau_actuator)
             p1[j] = command[j] + gap * math.exp(-dt / tau_actuator)
     half = 0.5 * dt
-    rhs(x, p0, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k1, work)
+    rhs(x, p0, current, use_current, external, use_external, thrusters_on, efficiency, ints, floats, k1, work)
     for i in range(12):
         xs[i] = x[i] + half * k1[i]
-    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k2, work)
+    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, ints, floats, k2, work)
     for i in range(12):
         xs[i] = x[i] + half * k2[i]
-    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k3, work)
+    rhs(xs, ph, current, use_current, external, use_external, thrusters_on, efficiency, ints, floats, k3, work)
     for i in range(12):
         xs[i] = x[i] + dt * k3[i]
-    rhs(xs, p1, current, use_current, external, use_external, thrusters_on, efficiency, sp_ptr, sp_idx, sp_val,
-        h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x, curve_y, k4, work)
+    rhs(xs, p1, current, use_current, external, use_external, thrusters_on, efficiency, ints, floats, k4, work)
     sixth = dt / 6.0
     for i in range(12):
         new[i] = x[i] + sixth * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + k4[i])
@@ -353,15 +419,13 @@ def _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, extern
 
 @njit(**_JIT)
 def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-                efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
-                curve_x, curve_y, envelope, new, pitch_end):
+                efficiency, ints, floats, envelope, new, pitch_end):
     """One physics step (:func:`_rk4_into`), then what :meth:`seapup_sim.integrator.VehicleIntegrator.step` does with the new state, in the
     same call: the envelope check (:func:`seapup_sim.integrator.divergence`: a non-finite value, or one beyond
     ``envelope``) and the roll and yaw wrap to [-pi, pi). Returns -1, or the index of the first state out of the
     envelope (``new`` then holds the step unwrapped, for the caller's message)."""
     _rk4_into(x, pitch0, command, tau_actuator, dt, current, use_current, external, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x,
-              curve_y, new, pitch_end, np.empty(rk4_scratch(pitch0.shape[0])))
+              efficiency, ints, floats, new, pitch_end, np.empty(rk4_scratch(pitch0.shape[0])))
     for i in range(12):
         if not math.isfinite(new[i]) or abs(new[i]) > envelope[i]:
             return i
@@ -372,8 +436,7 @@ def rk4_checked(x, pitch0, command, tau_actuator, dt, current, use_current, exte
 
 @njit(**_JIT)
 def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, external, use_external, thrusters_on,
-               efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars,
-               curve_x, curve_y, envelope, states, pitches, accel):
+               efficiency, ints, floats, envelope, states, pitches, accel):
     """A control period in one call: ``len(states)`` physics steps of :func:`rk4_checked` with the command held,
     the current of step i ``currents[i]`` (the Gauss-Markov current is independent of the vehicle: its values
     for the period are known before it), each step from the one before -- bit for bit the steps one call each
@@ -387,8 +450,7 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
         pitch_start = pitch0 if i == 0 else pitches[i - 1]
         new, pitch_end = states[i], pitches[i]
         _rk4_into(start, pitch_start, command, tau_actuator, dt, currents[i], use_current, external, use_external,
-                  thrusters_on, efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions,
-                  scalars, curve_x, curve_y, new, pitch_end, buf)
+                  thrusters_on, efficiency, ints, floats, new, pitch_end, buf)
         for j in range(12):
             if not math.isfinite(new[j]) or abs(new[j]) > envelope[j]:
                 return 12 * i + j
@@ -402,22 +464,30 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
 
 @njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
-              efficiency, sp_ptr, sp_idx, sp_val, h_axis, h_coef, h_signed, h_absolute, directions, scalars, curve_x,
-              curve_y, active, new, pitch_end):
-    """The physics step (:func:`_rk4_into`) for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt`` and the two
-    flags) that is ``active``; the others keep their state and pitch. Vehicle i is stepped by the very kernel
-    a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads may step
-    disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
+              efficiency, ints, floats, envelope, active, new, pitch_end, status):
+    """The physics step for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt``, the two
+    flags and ``envelope``) that is ``active``: :func:`rk4_checked`'s step, check and wrap into ``new[i]`` and
+    ``pitch_end[i]``, ``status[i]`` -1 or the index of its first state out of the envelope (``new[i]`` then holds
+    the step unwrapped). An inactive vehicle keeps its state and pitch (status -1). Vehicle i is stepped by the
+    very kernel a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads
+    may step disjoint parts of a batch at once (:class:`seapup_sim.batch.BatchPlant`)."""
     buf = np.empty(rk4_scratch(pitches.shape[1]))
     for i in range(states.shape[0]):
+        status[i] = -1
         if not active[i]:
             new[i] = states[i]
             pitch_end[i] = pitches[i]
             continue
+        out = new[i]
         _rk4_into(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i],
-                  use_external, thrusters_on[i], efficiency[i], sp_ptr[i], sp_idx[i], sp_val[i], h_axis[i],
-                  h_coef[i], h_signed[i], h_absolute[i], directions[i], scalars[i], curve_x[i], curve_y[i], new[i],
-                  pitch_end[i], buf)
+                  use_external, thrusters_on[i], efficiency[i], ints[i], floats[i], out, pitch_end[i], buf)
+        for j in range(12):
+            if not math.isfinite(out[j]) or abs(out[j]) > envelope[j]:
+                status[i] = j
+                break
+        if status[i] < 0:
+            out[3] = (out[3] + math.pi) % (2 * math.pi) - math.pi
+            out[5] = (out[5] + math.pi) % (2 * math.pi) - math.pi
 
 
 #: :func:`cable_solve`'s outcomes (``out[0]``)
@@ -552,30 +622,19 @@ def cos_product(a, b, out):
         out[i] = math.cos(a[i]) * math.cos(b[i])
 
 
-def pack_batch(models) -> Packed:
-    """:func:`pack` of each model, stacked on a leading axis; hydrodynamic tables of different lengths are
-    padded with terms of coefficient zero on the constant factor (they add exactly 0.0), and the
-    row-compressed non-zeros with entries no row reaches (each vehicle keeps its own row starts)."""
-    packed: dict = {}   # a model shared by several vehicles is packed once
-    packs = [packed[id(m)] if id(m) in packed else packed.setdefault(id(m), pack(m)) for m in models]
-    terms = max(p.h_coef.shape[0] for p in packs)
-    width = max(p.h_signed.shape[1] for p in packs)
-    nnz = max(p.sp_idx.shape[0] for p in packs)
-
-    def padded(p: Packed) -> Packed:
-        n, w = p.h_coef.shape[0], p.h_signed.shape[1]
-        signed = np.full((terms, width), 6, dtype=np.int64)
-        absolute = np.full((terms, width), 6, dtype=np.int64)
-        signed[:n, :w], absolute[:n, :w] = p.h_signed, p.h_absolute
-        axis = np.zeros(terms, dtype=np.int64)
-        axis[:n] = p.h_axis
-        coef = np.zeros(terms)
-        coef[:n] = p.h_coef
-        idx, val = np.zeros(nnz, dtype=np.int64), np.zeros(nnz)
-        idx[:p.sp_idx.shape[0]], val[:p.sp_val.shape[0]] = p.sp_idx, p.sp_val
-        return p._replace(h_axis=axis, h_coef=coef, h_signed=signed, h_absolute=absolute, sp_idx=idx, sp_val=val)
-    packs = [padded(p) for p in packs]
-    return Packed(*(np.ascontiguousarray(np.stack([getattr(p, f) for p in packs])) for f in Packed._fields))
+def pack_batch(models) -> Flat:
+    """:func:`flatten` (:func:`pack`) of each model, one row per vehicle: each row places its own tables (its header),
+    the shorter ones padded with zeros no kernel reads."""
+    flats: dict = {}   # a model shared by several vehicles is packed once
+    rows = [flats[id(m)] if id(m) in flats else flats.setdefault(id(m), flatten(pack(m))) for m in models]
+    out = []
+    for field in Flat._fields:
+        arrays = [getattr(r, field) for r in rows]
+        stacked = np.zeros((len(arrays), max(a.size for a in arrays)), dtype=arrays[0].dtype)
+        for i, a in enumerate(arrays):
+            stacked[i, :a.size] = a
+        out.append(stacked)
+    return Flat(*out)
 
 
 _NONE3 = np.zeros(3)
@@ -590,7 +649,7 @@ def derivatives(packed: Packed, efficiency, state, pitch, current_ned=None, exte
         _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),
         current_ned is not None,
         _NONE6 if external is None else np.ascontiguousarray(external, dtype=np.float64), external is not None,
-        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *packed, out,
+        bool(thrusters_on), np.ascontiguousarray(efficiency, dtype=np.float64), *flatten(packed), out,
         np.empty(work_size(packed.directions.shape[0])))
     return out
 
@@ -602,29 +661,30 @@ def warm() -> None:
     from seapup_sim.vehicle_config import load_vehicle_config
     model = VehicleModel(load_vehicle_config("baseline"))
     packed = pack(model)
+    flat = flatten(packed)
     rk4_checked(np.zeros(12), np.zeros(4), np.zeros(4), 0.05, 0.1, _NONE3, False, _NONE6, False, True,
-                model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
+                model.thrusters.efficiency, *flat, np.ones(12), np.empty(12), np.empty(4))
     derivatives(packed, model.thrusters.efficiency, np.zeros(12), np.zeros(4))
     # and with a read-only command (a law's Command holds its pitches read-only): each is its own numba type
     frozen = np.zeros(4)
     frozen.setflags(write=False)
     for command in (np.zeros(4), frozen):
         rk4_period(np.zeros(12), np.zeros(4), command, 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
-                   model.thrusters.efficiency, *packed, np.ones(12), np.empty((2, 12)), np.empty((2, 4)), np.empty(3))
+                   model.thrusters.efficiency, *flat, np.ones(12), np.empty((2, 12)), np.empty((2, 4)), np.empty(3))
     rk4_checked(np.zeros(12), np.zeros(4), frozen, 0.05, 0.1, _NONE3, False, _NONE6, False, True,
-                model.thrusters.efficiency, *packed, np.ones(12), np.empty(12), np.empty(4))
+                model.thrusters.efficiency, *flat, np.ones(12), np.empty(12), np.empty(4))
     rov = VehicleModel(load_vehicle_config("bluerov2_heavy"))   # fixed-pitch thrusters: the curve's branch
     mixed = rov.inputs.to_actuators(np.zeros(4))   # the mixer's commands: a read-only array
     rk4_checked(np.zeros(12), np.zeros(8), mixed, 0.05, 0.1, _NONE3, False, _NONE6, False, True,
-                rov.thrusters.efficiency, *pack(rov), np.ones(12), np.empty(12), np.empty(8))
+                rov.thrusters.efficiency, *flatten(pack(rov)), np.ones(12), np.empty(12), np.empty(8))
     rk4_period(np.zeros(12), np.zeros(8), mixed, 0.05, 0.1, np.zeros((2, 3)), False, _NONE6, False, True,
-               rov.thrusters.efficiency, *pack(rov), np.ones(12), np.empty((2, 12)), np.empty((2, 8)), np.empty(3))
+               rov.thrusters.efficiency, *flatten(pack(rov)), np.ones(12), np.empty((2, 12)), np.empty((2, 8)), np.empty(3))
     polar_to_ned(np.zeros(2), np.zeros(2), np.zeros((2, 3)))
     cos_product(np.zeros(2), np.zeros(2), np.zeros(2))
     two = pack_batch([model, model])   # BatchPlant.step's calls
     batch = (np.zeros((2, 12)), np.zeros((2, 4)), np.zeros((2, 4)), np.full(2, 0.05), 0.1, np.zeros((2, 3)), True,
-             np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(2, dtype=np.bool_),
-             np.empty((2, 12)), np.empty((2, 4)))
+             np.zeros((2, 6)), False, np.ones(2, dtype=np.bool_), np.ones((2, 4)), *two, np.ones(12),
+             np.ones(2, dtype=np.bool_), np.empty((2, 12)), np.empty((2, 4)), np.empty(2, dtype=np.int64))
     rk4_batch(*batch)
 
 

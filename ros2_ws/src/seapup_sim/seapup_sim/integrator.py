@@ -52,6 +52,15 @@ def default_backend() -> str:
 
 
 _NONE3, _NONE6 = np.zeros(3), np.zeros(6)
+_KERNELS = []   # seapup_sim.compiled once loaded (numba with it): a step does not pay for an import statement
+
+
+def _kernels():
+    """:mod:`seapup_sim.compiled`, imported on the first call."""
+    if not _KERNELS:
+        from seapup_sim import compiled
+        _KERNELS.append(compiled)
+    return _KERNELS[0]
 
 
 @functools.lru_cache(maxsize=8)
@@ -158,8 +167,8 @@ class VehicleIntegrator:
         model = self.model
         key = (model, model.revision)
         if self._packed[0] != key:
-            from seapup_sim import compiled
-            self._packed = (key, compiled.pack(model))
+            compiled = _kernels()
+            self._packed = (key, compiled.flatten(compiled.pack(model)))
         return self._packed[1]
 
     @property
@@ -194,9 +203,8 @@ class VehicleIntegrator:
     def _step_compiled(self, command: np.ndarray, current_ned, external) -> np.ndarray:
         """:meth:`step` by one kernel call (:func:`seapup_sim.compiled.rk4_checked`: the step, its check and the
         angle wrap), the same arithmetic as the reference's step then :meth:`_accept`."""
-        from seapup_sim import compiled
         new, pitch = np.empty(12), np.empty(len(command))
-        bad = compiled.rk4_checked(
+        bad = _kernels().rk4_checked(
             np.ascontiguousarray(self.state, dtype=np.float64), np.ascontiguousarray(self.pitch, dtype=np.float64),
             command, float(self.model.actuator_time_constant), self.dt,
             _NONE3 if current_ned is None else np.ascontiguousarray(current_ned, dtype=np.float64),

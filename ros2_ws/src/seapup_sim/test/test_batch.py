@@ -233,13 +233,14 @@ def test_a_suite_read_alone_then_taken_over_by_a_batch_goes_on_with_its_own_draw
 
 
 @pytest.mark.unit
-def test_a_batch_on_two_threads_is_the_batch_on_one():
+@pytest.mark.parametrize("threads", [2, 3])
+def test_a_batch_on_two_threads_is_the_batch_on_one(threads):
     rng = np.random.default_rng(3)
     n = 40
     configs = _configs(rng, n)
     states = np.zeros((n, 12))
     states[:, 2] = rng.uniform(20, 60, n)
-    one, two = (BatchPlant.from_configs(configs, states=states, threads=k) for k in (1, 2))
+    one, two = (BatchPlant.from_configs(configs, states=states, threads=k) for k in (1, threads))
     for _ in range(50):
         commands, currents = np.radians(rng.uniform(-30, 30, (n, 4))), rng.normal(0, 0.2, (n, 3))
         assert np.array_equal(one.step(commands, currents), two.step(commands, currents))

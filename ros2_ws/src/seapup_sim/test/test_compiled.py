@@ -42,6 +42,44 @@ def test_the_configurations_are_all_flown():
 
 @pytest.mark.unit
 @pytest.mark.parametrize("name", CONFIGS)
+def test_a_flat_model_places_every_table_of_the_packed_one(name):
+    """The kernels' two-array model (Flat) read back through its header: every table of the packed model, the
+    hydrodynamic terms grouped by axis in their order within each (so each axis's sum adds the same terms in the same
+    order); a batch's row is the vehicle's own flat model, padded."""
+    packed = compiled.pack(VehicleModel(load_vehicle_config(name)))
+    ints, floats = compiled.flatten(packed)
+    h = ints[:compiled.HEADER]
+    terms, width = h[compiled.I_TERMS], h[compiled.I_WIDTH]
+    assert (h[compiled.I_THRUSTERS], terms, width) == (packed.directions.shape[0], *packed.h_signed.shape)
+
+    def table(kind, start, size):
+        return (ints if kind == "i" else floats)[h[start]:h[start] + size]
+    assert np.array_equal(table("i", compiled.I_PTR, packed.sp_ptr.size), packed.sp_ptr)
+    assert np.array_equal(table("i", compiled.I_IDX, packed.sp_idx.size), packed.sp_idx)
+    assert np.array_equal(table("f", compiled.I_VAL, packed.sp_val.size), packed.sp_val)
+    assert np.array_equal(table("f", compiled.I_DIRECTIONS, packed.directions.size).reshape(-1, 3), packed.directions)
+    assert np.array_equal(table("f", compiled.I_SCALARS, packed.scalars.size), packed.scalars)
+    assert np.array_equal(table("f", compiled.I_CURVE_X, h[compiled.I_CURVE_X_SIZE]), packed.curve_x)
+    assert np.array_equal(table("f", compiled.I_CURVE_Y, h[compiled.I_CURVE_Y_SIZE]), packed.curve_y)
+    starts = table("i", compiled.I_AXIS, 7)
+    assert starts[0] == 0 and starts[-1] == terms and np.all(np.diff(starts) >= 0)
+    coef = table("f", compiled.I_COEF, terms)
+    signed = table("i", compiled.I_SIGNED, terms * width).reshape(terms, width)
+    absolute = table("i", compiled.I_ABSOLUTE, terms * width).reshape(terms, width)
+    for axis in range(6):   # axis by axis, the packed model's terms of that axis in its order
+        mine = slice(starts[axis], starts[axis + 1])
+        theirs = packed.h_axis == axis
+        assert np.array_equal(coef[mine], packed.h_coef[theirs])
+        assert np.array_equal(signed[mine], packed.h_signed[theirs])
+        assert np.array_equal(absolute[mine], packed.h_absolute[theirs])
+    other = VehicleModel(load_vehicle_config("bluerov2_heavy" if name != "bluerov2_heavy" else "baseline"))
+    rows = compiled.pack_batch([other, VehicleModel(load_vehicle_config(name))])
+    assert np.array_equal(rows.ints[1, :ints.size], ints) and not rows.ints[1, ints.size:].any()
+    assert np.array_equal(rows.floats[1, :floats.size], floats) and not rows.floats[1, floats.size:].any()
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("name", CONFIGS)
 def test_the_compiled_right_hand_side_is_the_reference_s(name):
     rng = np.random.default_rng(abs(hash(name)) % 2**32)
     model = VehicleModel(load_vehicle_config(name))
