@@ -150,14 +150,18 @@ class BatchPlant:
         currents = _rows("currents", currents, self.n, 3) if use_current else self._still[0]
         externals = _rows("external wrenches", externals, self.n, 6) if use_external else self._still[1]
         new, pitch_end, status = np.empty((self.n, 12)), np.empty((self.n, 4)), np.empty(self.n, dtype=np.int64)
-        args = (self.state, self.pitch, commands, self._taus, self.dt, currents, use_current, externals, use_external,
-                self.thrusters_on, self.efficiency, *self._packed, ENVELOPE, self.active, new, pitch_end, status)
+        ints, floats, which = self._packed
+        per_vehicle = (self.state, self.pitch, commands, self._taus, currents, externals, self.thrusters_on,
+                       self.efficiency, which, self.active, new, pitch_end, status)
+
+        def part(lo, hi):
+            (state, pitch, command, tau, current, external, on, efficiency, rows, active, new_, pitch_, status_) = \
+                (a[lo:hi] for a in per_vehicle)
+            compiled.rk4_batch(state, pitch, command, tau, self.dt, current, use_current, external, use_external, on,
+                               efficiency, ints, floats, rows, ENVELOPE, active, new_, pitch_, status_)
         if self._pool is None:
-            compiled.rk4_batch(*args)
+            part(0, self.n)
         else:
-            def part(lo, hi):
-                compiled.rk4_batch(*(a[lo:hi] if isinstance(a, np.ndarray) and a is not ENVELOPE else a
-                                     for a in args))
             bounds = [self.n * k // self.threads for k in range(self.threads + 1)]
             others = [self._pool.submit(part, lo, hi) for lo, hi in zip(bounds[1:-1], bounds[2:])]
             part(bounds[0], bounds[1])   # the first part in this thread: one hand-over fewer

@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["Packed", "pack", "Flat", "flatten", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
+__all__ = ["Packed", "pack", "Flat", "flatten", "BatchFlat", "pack_batch", "derivatives", "rk4_checked", "rk4_batch", "rhs",
            "rotation", "cable_solve", "CABLE_OUT", "polar_to_ned", "cos_product", "warm", "work_size", "rk4_scratch"]
 
 _JIT = dict(cache=True, nogil=True)
@@ -464,9 +464,10 @@ def rk4_period(x, pitch0, command, tau_actuator, dt, currents, use_current, exte
 
 @njit(**_JIT)
 def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, externals, use_external, thrusters_on,
-              efficiency, ints, floats, envelope, active, new, pitch_end, status):
+              efficiency, ints, floats, which, envelope, active, new, pitch_end, status):
     """The physics step for each vehicle ``i`` of a batch (a leading axis on every argument but ``dt``, the two
-    flags and ``envelope``) that is ``active``: :func:`rk4_checked`'s step, check and wrap into ``new[i]`` and
+    flags, the models ``ints`` and ``floats`` -- vehicle i flies row ``which[i]``, :class:`BatchFlat` -- and
+    ``envelope``) that is ``active``: :func:`rk4_checked`'s step, check and wrap into ``new[i]`` and
     ``pitch_end[i]``, ``status[i]`` -1 or the index of its first state out of the envelope (``new[i]`` then holds
     the step unwrapped). An inactive vehicle keeps its state and pitch (status -1). Vehicle i is stepped by the
     very kernel a single vehicle is, so it equals the single-vehicle step bit for bit. Releases the GIL: threads
@@ -480,7 +481,8 @@ def rk4_batch(states, pitches, commands, taus, dt, currents, use_current, extern
             continue
         out = new[i]
         _rk4_into(states[i], pitches[i], commands[i], taus[i], dt, currents[i], use_current, externals[i],
-                  use_external, thrusters_on[i], efficiency[i], ints[i], floats[i], out, pitch_end[i], buf)
+                  use_external, thrusters_on[i], efficiency[i], ints[which[i]], floats[which[i]], out, pitch_end[i],
+                  buf)
         for j in range(12):
             if not math.isfinite(out[j]) or abs(out[j]) > envelope[j]:
                 status[i] = j
@@ -622,19 +624,35 @@ def cos_product(a, b, out):
         out[i] = math.cos(a[i]) * math.cos(b[i])
 
 
-def pack_batch(models) -> Flat:
-    """:func:`flatten` (:func:`pack`) of each model, one row per vehicle: each row places its own tables (its header),
-    the shorter ones padded with zeros no kernel reads."""
-    flats: dict = {}   # a model shared by several vehicles is packed once
-    rows = [flats[id(m)] if id(m) in flats else flats.setdefault(id(m), flatten(pack(m))) for m in models]
+class BatchFlat(NamedTuple):
+    """The models of a batch (:func:`pack_batch`): each distinct model once, a row of ``ints`` and of ``floats``
+    (:class:`Flat`; shorter rows padded with zeros no kernel reads), and ``which`` row each vehicle flies. A
+    campaign's thousands of vehicles share a few models: the kernel reads them from a few rows that stay in the
+    cache, not from a copy per vehicle."""
+
+    ints: np.ndarray     # (models, width) int64
+    floats: np.ndarray   # (models, width) float64
+    which: np.ndarray    # (N,) int64: vehicle i flies row which[i]
+
+
+def pack_batch(models) -> BatchFlat:
+    """:func:`flatten` (:func:`pack`) of each distinct model of ``models`` (one per vehicle; the same object may
+    appear more than once) and which each vehicle flies (:class:`BatchFlat`)."""
+    rows: dict = {}   # id(model) -> its row
+    flats, which = [], []
+    for m in models:
+        if id(m) not in rows:
+            rows[id(m)] = len(flats)
+            flats.append(flatten(pack(m)))
+        which.append(rows[id(m)])
     out = []
     for field in Flat._fields:
-        arrays = [getattr(r, field) for r in rows]
+        arrays = [getattr(f, field) for f in flats]
         stacked = np.zeros((len(arrays), max(a.size for a in arrays)), dtype=arrays[0].dtype)
         for i, a in enumerate(arrays):
             stacked[i, :a.size] = a
         out.append(stacked)
-    return Flat(*out)
+    return BatchFlat(*out, np.array(which, dtype=np.int64))
 
 
 _NONE3 = np.zeros(3)

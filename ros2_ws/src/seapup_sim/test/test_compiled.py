@@ -72,8 +72,10 @@ def test_a_flat_model_places_every_table_of_the_packed_one(name):
         assert np.array_equal(coef[mine], packed.h_coef[theirs])
         assert np.array_equal(signed[mine], packed.h_signed[theirs])
         assert np.array_equal(absolute[mine], packed.h_absolute[theirs])
-    other = VehicleModel(load_vehicle_config("bluerov2_heavy" if name != "bluerov2_heavy" else "baseline"))
-    rows = compiled.pack_batch([other, VehicleModel(load_vehicle_config(name))])
+    other, mine = (VehicleModel(load_vehicle_config(c)) for c in
+                   ("bluerov2_heavy" if name != "bluerov2_heavy" else "baseline", name))
+    rows = compiled.pack_batch([other, mine, other, mine, mine])   # each model once, and which each vehicle flies
+    assert rows.ints.shape[0] == 2 and rows.which.tolist() == [0, 1, 0, 1, 1]
     assert np.array_equal(rows.ints[1, :ints.size], ints) and not rows.ints[1, ints.size:].any()
     assert np.array_equal(rows.floats[1, :floats.size], floats) and not rows.floats[1, floats.size:].any()
 
