@@ -397,6 +397,8 @@ def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) ->
         out[key] = len(flown) / wall
         out[f"wall_s_{workers}"] = wall
         out[f"run_cpu_s_{workers}"] = float(sum(r["cpu_s"] for r in flown))
+        if workers == 1:   # what a task costs beyond its runs' CPU: submit, set-up, gather
+            out["overhead_s_per_task"] = (wall - out["run_cpu_s_1"]) / len(groups)
         out["closed_loop_samples_per_s"] = samples / wall
     first, last = worker_counts[0], worker_counts[-1]
     out["scaling"] = out[f"wall_s_{first}"] / out[f"wall_s_{last}"]
