@@ -510,8 +510,23 @@ def _hash_text(text: str) -> int:
 
 
 def tasks(rows: list[dict], per_task: int) -> list[list[dict]]:
-    """The runs grouped into tasks of ``per_task`` (the last may be shorter)."""
-    return [rows[i:i + per_task] for i in range(0, len(rows), per_task)]
+    """The runs grouped into tasks of ``per_task`` (the last may be shorter), the runs that can fly as one batch side
+    by side (:func:`batch_group`: a task of a randomised campaign would otherwise hold a few runs of each sample
+    grid and law, each group too small to batch), each task's runs in index order."""
+    order = sorted(range(len(rows)), key=lambda k: (batch_group(rows[k]), k))
+    return [[rows[k] for k in sorted(order[i:i + per_task])] for i in range(0, len(order), per_task)]
+
+
+def batch_group(row: dict) -> tuple:
+    """What runs must share to fly in one batch (:func:`seapup_runs.batch_runner.batch_key` and the law), as a
+    sortable tuple; missions and specs that do not read are grouped apart (their errors are said when they fly)."""
+    if row.get("kind") == "mission":
+        return (1,)
+    try:
+        spec = RunSpec.from_dict(row["spec"])
+    except (RunSpecError, KeyError, TypeError, ValueError):
+        return (2,)
+    return (0, float(spec.control_period), float(spec.physics_step), int(spec.samples), str(spec.controller.type))
 
 
 def flatten(value, prefix: str = "", out: dict | None = None) -> dict:

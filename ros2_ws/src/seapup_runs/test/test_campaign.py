@@ -52,7 +52,13 @@ def test_a_campaign_expands_into_every_combination_draw_and_seed_in_order():
     # the draws differ between the points of a grid, and both choices occur
     assert len({r["parameters"]["environment.current.mean_direction"] for r in rows}) == 12
     assert {len(r["parameters"]["events+"]) for r in rows} == {0, 1}
-    assert cp.tasks(rows, 5)[-1] == rows[20:] and len(cp.tasks(rows, 5)) == 5
+    # tasks: every run once, at most five a task, each task in index order, the runs of one sample grid side by side
+    groups = cp.tasks(rows, 5)
+    assert len(groups) == 5 and max(len(g) for g in groups) == 5
+    assert sorted(r["index"] for g in groups for r in g) == list(range(len(rows)))
+    assert all([r["index"] for r in g] == sorted(r["index"] for r in g) for g in groups)
+    keys = [cp.batch_group(r) for g in groups for r in sorted(g, key=cp.batch_group)]
+    assert keys == sorted(keys) and len(set(keys)) > 1   # grouped, and there were several grids to group
 
 
 @pytest.mark.unit
