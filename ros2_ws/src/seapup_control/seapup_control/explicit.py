@@ -122,12 +122,20 @@ class ExplicitSelfTuner(SelfTuner):
         model = self.estimator.model
         return {"Phi": -model.A[0], "Gamma": model.B[0], "d": np.asarray(model.d, dtype=float).reshape(-1)}
 
+    def _blocks(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi, Gamma) = (-A_1, B_1) read straight from Theta, as :meth:`estimate` has them through
+        :meth:`seapup_ident.armax.ArmaxModel.from_theta` (Theta's rows 0-3 are A_1 transposed, 4-7 B_1 transposed):
+        the same numbers, made without the model (a self-tuner reads them every sample)."""
+        theta = self.estimator.theta
+        return -theta[:4].T, theta[4:8].T
+
     def named_estimate(self) -> dict:
         """The estimate's named traces for a run's ``series.estimate``: the diagonal of A_1 and the
         main-port thruster's column of B_1 (per output), and trace P."""
-        est = self.estimate()
-        out = {f"a_{name}": float(-est["Phi"][j, j]) for j, name in enumerate(OUTPUTS)}
-        out.update({f"b_{name}_main_port": float(est["Gamma"][j, 0]) for j, name in enumerate(OUTPUTS)})
+        theta = self.estimator.theta   # A_1[j, j] = Theta[j, j]; B_1[j, 0] = Theta[4, j] (_blocks)
+        a, b = theta[(0, 1, 2, 3), (0, 1, 2, 3)].tolist(), theta[4, :4].tolist()
+        out = {f"a_{name}": value for name, value in zip(OUTPUTS, a)}   # -Phi[j, j]: the same float
+        out.update({f"b_{name}_main_port": value for name, value in zip(OUTPUTS, b)})
         out["trace_P"] = float(self.estimator.trace[0])
         return out
 
@@ -136,17 +144,16 @@ class ExplicitSelfTuner(SelfTuner):
         wound_up = self._wound_up(float(self.estimator.trace[0]))
         if wound_up:
             return None, "fallback_trace", wound_up
-        est = self.estimate()
-        phi, gamma = est["Phi"], est["Gamma"]
-        if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(gamma))):
+        if not np.isfinite(self.estimator.theta[:8]).all():   # A_1 and B_1
             return None, "fallback_insane", "non-finite estimate"
+        phi, gamma = self._blocks()
         radius = float(np.max(np.abs(np.linalg.eigvals(phi))))
         if radius >= self.jacket.max_pole:
             return None, "fallback_insane", f"estimated open-loop pole |z| = {radius:.3f} >= {self.jacket.max_pole:g}"
         if self.kernel is not None:   # the same design compiled; what it cannot make, the reference explains
             k_int, k_err = np.empty((4, 4)), np.empty((4, 4))
             try:
-                code, rcond = self.kernel(np.array(phi, dtype=float), np.array(gamma, dtype=float), *self._poles,
+                code, rcond = self.kernel(np.ascontiguousarray(phi), np.ascontiguousarray(gamma), *self._poles,
                                           float(self.jacket.min_rcond), k_int, k_err)
             except np.linalg.LinAlgError:   # I - Phi exactly singular
                 code, rcond = 2, math.nan

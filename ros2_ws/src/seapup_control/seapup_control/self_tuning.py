@@ -146,7 +146,8 @@ class SelfTuner(ABC):
                        **dict.fromkeys(self.RULES, 0), "commissioning": 0, "adaptive": 0, "fallback": 0,
                        "engagements": 0}
         self.events: list[dict] = []
-        self.last: dict = {}
+        self._last = None
+        self._band = np.asarray(self.jacket.set_point_band, dtype=float)   # the jacket's band, once a start
         self._restart()
         self._trace0 = float(np.max(self.estimator.trace))   # trace P(0) = p0 n
 
@@ -179,7 +180,7 @@ class SelfTuner(ABC):
     def _freeze(self, error: np.ndarray, moved: float) -> bool:
         """Whether estimation sleeps this sample (at the set point, or the input moved less than the
         excitation threshold [rad]); counted. Returns True to estimate."""
-        at_set_point = bool(np.all(np.abs(error) < np.asarray(self.jacket.set_point_band)))
+        at_set_point = bool(np.all(np.abs(error) < self._band))
         self.frozen = "at the set point" if at_set_point else "no excitation" if moved < self.jacket.excitation else ""
         if self.frozen:
             self.counts["frozen_at_set_point" if at_set_point else "frozen_no_excitation"] += 1
@@ -231,8 +232,7 @@ class SelfTuner(ABC):
         self.applied_prev = None
         self.samples += 1
         self.counts["samples"] += 1
-        self.last = {"t": float(t), "error": error.tolist(), "command_unsaturated": np.asarray(raw).tolist(),
-                     "saturated": [bool(s) for s in np.abs(raw) > self.limit]}
+        self._last = (t, error, raw)   # the last sample, as diagnostics() words it (made only when asked)
         return Command(command, stamp=t)
 
     @abstractmethod
@@ -251,8 +251,18 @@ class SelfTuner(ABC):
     def diagnostics(self) -> dict:
         """Mode and reason, whether and why estimation is frozen, the jacket counts and last events, the
         named estimate and the last sample's error and command (empty before the first sample)."""
-        if not self.last:
+        if self._last is None:
             return {}
         return {"mode": self.mode, "reason": self.reason, "frozen": self.frozen, "counts": dict(self.counts),
                 "events": list(self.events[-10:]), "estimate": self.named_estimate(), **self._diagnostics(),
                 **self.last}
+
+    @property
+    def last(self) -> dict:
+        """The last sample's time, error, command before saturation and which inputs saturated (empty before the
+        first sample)."""
+        if self._last is None:
+            return {}
+        t, error, raw = self._last
+        return {"t": float(t), "error": error.tolist(), "command_unsaturated": np.asarray(raw).tolist(),
+                "saturated": [bool(s) for s in np.abs(raw) > self.limit]}

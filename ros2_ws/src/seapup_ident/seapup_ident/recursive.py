@@ -326,7 +326,10 @@ class RecursiveArmax:
             return self.theta.copy(), y_hat
         lam = self.forgetting.next()
         trace = self.trace
-        updated = not np.all(np.abs(error) < np.broadcast_to(self.jacket.dead_zone, error.shape))
+        dead_zone = self.jacket.dead_zone
+        # |e| < dz never holds for a dead zone <= 0 (the default): updated without the arrays
+        updated = True if (isinstance(dead_zone, (int, float)) and dead_zone <= 0.0) else \
+            not np.all(np.abs(error) < np.broadcast_to(dead_zone, error.shape))
         if not updated:
             self.counts["dead_zone"] += 1
         elif self.method == "rpem":
