@@ -136,12 +136,12 @@ class ExplicitSelfTuner(SelfTuner):
         a, b = theta[(0, 1, 2, 3), (0, 1, 2, 3)].tolist(), theta[4, :4].tolist()
         out = {f"a_{name}": value for name, value in zip(OUTPUTS, a)}   # -Phi[j, j]: the same float
         out.update({f"b_{name}_main_port": value for name, value in zip(OUTPUTS, b)})
-        out["trace_P"] = float(self.estimator.trace[0])
+        out["trace_P"] = self.estimator.shared_trace
         return out
 
     def _designed(self) -> tuple[TwoTermGains | None, str, str]:
         """The estimate's design, or None with the jacket rule that refused it and why."""
-        wound_up = self._wound_up(float(self.estimator.trace[0]))
+        wound_up = self._wound_up(self.estimator.shared_trace)
         if wound_up:
             return None, "fallback_trace", wound_up
         if not np.isfinite(self.estimator.theta[:8]).all():   # A_1 and B_1

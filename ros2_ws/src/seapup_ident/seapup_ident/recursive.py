@@ -277,9 +277,17 @@ class RecursiveArmax:
         """trace P per output."""
         if self.method == "rpem":
             return np.trace(self._P, axis1=1, axis2=2)
-        if self._trace is None:   # worked out once per update of U and D (a self-tuner asks thrice a sample)
+        return np.full(self.orders.ny, self.shared_trace)
+
+    @property
+    def shared_trace(self) -> float:
+        """trace P of the one P that LS's and ELS's outputs share (:attr:`trace` gives it per output), worked out
+        once per update of U and D (a self-tuner asks for it thrice a sample)."""
+        if self.method == "rpem":
+            raise ValueError("RPEM keeps a P per output: see trace")
+        if self._trace is None:
             self._trace = float(np.sum(self._D * np.sum(self._U ** 2, axis=0)))
-        return np.full(self.orders.ny, self._trace)
+        return self._trace
 
     @property
     def model(self) -> ArmaxModel:
@@ -325,7 +333,7 @@ class RecursiveArmax:
             self._pending = (y, error)
             return self.theta.copy(), y_hat
         lam = self.forgetting.next()
-        trace = self.trace
+        trace = self.trace if self.method == "rpem" else None   # LS, ELS: the shared trace, asked below
         dead_zone = self.jacket.dead_zone
         # |e| < dz never holds for a dead zone <= 0 (the default): updated without the arrays
         updated = True if (isinstance(dead_zone, (int, float)) and dead_zone <= 0.0) else \
@@ -335,7 +343,7 @@ class RecursiveArmax:
         elif self.method == "rpem":
             self._rpem_update(phi, error, lam, trace)
         else:
-            if trace[0] > self.jacket.max_trace:
+            if self.shared_trace > self.jacket.max_trace:
                 lam = 1.0
                 self.counts["trace_limited"] += 1
             gain = self._ud(self._U, self._D, phi, lam)

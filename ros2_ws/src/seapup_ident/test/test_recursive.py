@@ -220,6 +220,17 @@ def test_jacket_dead_zone_and_trace_limit():
     run(free, np.zeros_like(y)[:200], still[:200])
     run(limited, np.zeros_like(y)[:200], still[:200])
     assert free.trace[0] > 1e6 and limited.trace[0] <= 100.0 / 0.9 + 1e-9
+    # the shared trace is trace P itself, each output's entry of trace; RPEM's outputs have a P each
+    for estimator in (free, limited):
+        assert estimator.shared_trace == pytest.approx(np.trace(estimator.covariance), rel=1e-12)
+        assert np.all(estimator.trace == estimator.shared_trace)
+    with pytest.raises(ValueError, match="per output"):
+        _ = RecursiveArmax(ArmaxOrders(ny=1, nu=1, na=1, nb=1, nc=1), "rpem").shared_trace
+    # a dead zone of zero, scalar or per output, never holds an update back
+    for zone in (0.0, np.zeros(o.ny)):
+        open_zone = RecursiveArmax(o, "ls", p0=10.0, jacket=Jacket(dead_zone=zone))
+        run(open_zone, y[:50], u[:50])
+        assert open_zone.counts["updates"] == 50 and open_zone.counts["dead_zone"] == 0
 
 
 def test_observe_then_input_is_step_for_a_controller_that_chooses_u_after_seeing_y():

@@ -182,8 +182,11 @@ def fly_batch(specs, threads: int = 1) -> list:
                 measurement = Measurement(now, Reading(velocity_i, now, variances[i]["velocity"]),
                                           Reading(rates_i, now, variances[i]["rates"]))
                 out[i] = controller.update(now, measurement, in_force[specs[i].reference]).blade_pitch
+                traces = estimates[i]
                 for name, value in controller.named_estimate().items():
-                    estimates[i].setdefault(name, np.full(samples + 1, np.nan))[k] = value
+                    if name not in traces:   # (not setdefault: its default would be made every sample)
+                        traces[name] = np.full(samples + 1, np.nan)
+                    traces[name][k] = value
             finally:
                 RUN_INDEX.reset(token)
         reference[k], command[k] = ref, out
