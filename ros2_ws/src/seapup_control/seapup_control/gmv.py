@@ -161,7 +161,7 @@ class GMVSelfTuner(SelfTuner):
             self._switch(t, "fallback", wound_up, "fallback_trace")
             return None
         command = -self.G0_inv @ (self.estimator.theta.T @ x) / THESIS_SCALE_U
-        if not np.all(np.isfinite(command)):
+        if not np.isfinite(command).all():
             self._switch(t, "fallback", "non-finite command from the estimate", "fallback_insane")
             return None
         self._switch(t, "adaptive", "eq. 7.4 on the estimate")

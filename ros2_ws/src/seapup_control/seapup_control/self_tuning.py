@@ -167,7 +167,7 @@ class SelfTuner(ABC):
     def applied(self, t: float, command: Command) -> None:
         """The blade pitch the vehicle held over the interval ending at ``t``: the estimator's input."""
         pitch = np.asarray(command.blade_pitch, dtype=float)
-        if pitch.shape == (4,) and np.all(np.isfinite(pitch)):
+        if pitch.shape == (4,) and np.isfinite(pitch).all():
             self.applied_prev = pitch.copy()
 
     # -- jacketing ------------------------------------------------------------------------------------
@@ -180,7 +180,7 @@ class SelfTuner(ABC):
     def _freeze(self, error: np.ndarray, moved: float) -> bool:
         """Whether estimation sleeps this sample (at the set point, or the input moved less than the
         excitation threshold [rad]); counted. Returns True to estimate."""
-        at_set_point = bool(np.all(np.abs(error) < self._band))
+        at_set_point = bool((np.abs(error) < self._band).all())
         self.frozen = "at the set point" if at_set_point else "no excitation" if moved < self.jacket.excitation else ""
         if self.frozen:
             self.counts["frozen_at_set_point" if at_set_point else "frozen_no_excitation"] += 1

@@ -300,7 +300,7 @@ class RecursiveArmax:
         if value.shape != (size,):
             self.counts["rejected"] += 1
             raise DataError(f"sample needs {size} {what}, got {value.size}")
-        if not np.all(np.isfinite(value)):
+        if not np.isfinite(value).all():
             self.counts["rejected"] += 1
             raise DataError(f"non-finite {what} {value.tolist()}: not used")
         return value
@@ -493,7 +493,7 @@ class RecursiveRegression:
         if x.shape != (self.n_params,) or z.shape != (self.n_outputs,):
             raise DataError(f"a sample needs {self.n_params} regressors and {self.n_outputs} outputs, "
                             f"got {x.size} and {z.size}")
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(z))):
+        if not (np.isfinite(x).all() and np.isfinite(z).all()):
             raise DataError("non-finite sample: not used")
         error = z - self.theta.T @ x
         gain = self._ud(self._U, self._D, x, self.forgetting)
