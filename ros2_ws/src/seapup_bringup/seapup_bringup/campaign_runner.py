@@ -25,7 +25,8 @@ from pathlib import Path
 
 from seapup_bringup.output import SIGNALS, progress
 
-__all__ = ["run_campaign", "ship_missions", "attach_hierarchies", "campaign_rates", "mission_campaign_rate"]
+__all__ = ["run_campaign", "ship_missions", "attach_hierarchies", "campaign_rates", "mission_campaign_rate",
+           "tuner_campaign_rate"]
 
 
 def _client(scheduler: str | None, workers: int | None, connect_timeout: float = 30.0):
@@ -414,28 +415,56 @@ def campaign_rates(runs: int = 256, worker_counts=(1, 2), per_task: int = 64) ->
     return out
 
 
-def mission_campaign_rate(missions: int = 8, workers: int = 2) -> dict:
-    """The benchmark of a campaign over missions (``./seapup bench``): the first ``missions`` of the shipped
-    demo-mission-robustness campaign (the demo's whole mission, a fouled thruster and a current drawn) on a
-    LocalCluster of ``workers`` processes, a mission per task; each worker first flies one short mission untimed
-    (imports, compiled kernels). Missions per minute, CPU beside wall."""
-    from seapup_runs.campaign import expand, fly_rows, load_campaign
-    ship_missions()
-    rows = expand(load_campaign("demo-mission-robustness"))[:missions]
-    attach_hierarchies(rows)
+def _timed_tasks(groups: list, warm: list, workers: int, what: str) -> tuple[list, float]:
+    """Fly the tasks ``groups`` on a fresh LocalCluster of ``workers`` processes, each worker first flying ``warm``
+    untimed (imports, compiled kernels); (every row flown, the wall time from submitting to the last result). A
+    failed row is the benchmark's failure, said in one line."""
+    from seapup_runs.campaign import fly_rows
     client, cluster = _client(None, workers)
     try:
-        client.run(lambda: fly_rows(rows[:1]) and None)
+        client.run(lambda: fly_rows(warm) and None)
         t0 = time.perf_counter()
-        flown = [r for task in client.gather([client.submit(fly_rows, [row], pure=False) for row in rows])
-                 for r in task]
+        flown = [r for task in client.gather([client.submit(fly_rows, g, pure=False) for g in groups]) for r in task]
         wall = time.perf_counter() - t0
     finally:
         client.close()
         cluster.close()
     failed = [r for r in flown if r["status"] != "ok"]
     if failed:
-        raise RuntimeError(f"mission campaign benchmark: {len(failed)} missions failed, first: {failed[0]['error']}")
+        raise RuntimeError(f"{what} benchmark: {len(failed)} of {len(flown)} failed, first: {failed[0]['error']}")
+    return flown, wall
+
+
+def mission_campaign_rate(missions: int = 8, workers: int = 2) -> dict:
+    """The benchmark of a campaign over missions (``./seapup bench``): the first ``missions`` of the shipped
+    demo-mission-robustness campaign (the demo's whole mission, a fouled thruster and a current drawn) on a
+    LocalCluster of ``workers`` processes, a mission per task; each worker first flies one short mission untimed
+    (imports, compiled kernels). Missions per minute, CPU beside wall."""
+    from seapup_runs.campaign import expand, load_campaign
+    ship_missions()
+    rows = expand(load_campaign("demo-mission-robustness"))[:missions]
+    attach_hierarchies(rows)
+    flown, wall = _timed_tasks([[row] for row in rows], rows[:1], workers, "mission campaign")
     return {"missions": len(flown), "workers": workers, "wall_s": wall, "missions_per_min": 60.0 * len(flown) / wall,
             "mission_cpu_s": float(sum(r["cpu_s"] for r in flown)),
             "simulated_s": float(sum(r["metric.held_s"] for r in flown))}
+
+
+def tuner_campaign_rate(workers: int = 2) -> dict:
+    """The benchmark of a self-tuner campaign (``./seapup bench``): the shipped adaptive-500 (ch. 7's explicit and
+    GMV cases, randomised) in its tasks on a LocalCluster of ``workers`` processes; each worker first flies two of
+    its runs untimed (imports, compiled kernels). Closed-loop vehicle-samples per second over the tasks' flight,
+    submit to last result, CPU in the runs beside."""
+    from seapup_runs.campaign import expand, load_campaign, tasks
+    from seapup_runs.spec import RunSpec
+    campaign = load_campaign("adaptive-500")
+    rows = expand(campaign)
+    groups = tasks(rows, campaign.runs_per_task)
+    samples = sum(RunSpec.from_dict(r["spec"]).samples for r in rows)
+    flown, wall = _timed_tasks(groups, groups[0][:2], workers, "self-tuner campaign")
+    laws = sorted({RunSpec.from_dict(r["spec"]).controller.type for r in rows})
+    return {"runs": len(flown), "workers": workers, "tasks": len(groups), "samples": samples, "wall_s": wall,
+            "samples_per_s": samples / wall, "run_cpu_s": float(sum(r["cpu_s"] for r in flown)),
+            "workload": f"{campaign.name}: {len(rows)} randomised runs of {' and '.join(laws)} (sec. 7.4-7.6 cases "
+                        f"under random fouling, camera, current and sensors), T = 0.2 s, {campaign.runs_per_task} "
+                        "runs a task"}

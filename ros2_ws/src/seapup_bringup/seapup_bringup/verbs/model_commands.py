@@ -297,6 +297,13 @@ def bench(argv: list[str]) -> int:
         print(f"campaign: {CAMPAIGN_RUNS} fixed-gain runs in tasks of {CAMPAIGN_TASK} on a LocalCluster of 1, then 2 "
               "worker processes...", file=out_text, flush=True)
         out["campaign"] = campaign_rates(CAMPAIGN_RUNS, per_task=CAMPAIGN_TASK)
+        from seapup_bringup.campaign_runner import tuner_campaign_rate
+        print("campaign: adaptive-500's self-tuner runs on a LocalCluster of 2 worker processes...", file=out_text,
+              flush=True)
+        tc = out["tuner_campaign"] = tuner_campaign_rate()
+        print(f"tuner_campaign ({tc['workload']}): {tc['samples_per_s']:.0f} closed-loop vehicle-samples/s on "
+              f"{tc['workers']} workers ({tc['runs']} runs, {tc['samples']} samples in {tc['wall_s']:.1f} s wall, "
+              f"{tc['run_cpu_s']:.1f} s CPU in the runs; target >= 50 000)", file=out_text)
         from seapup_bringup.campaign_runner import mission_campaign_rate
         print("campaign: 8 missions of demo-mission-robustness on a LocalCluster of 2 worker processes...",
               file=out_text, flush=True)
