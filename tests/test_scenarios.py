@@ -314,3 +314,17 @@ def test_the_graph_run_waits_for_the_samples_dds_repairs_and_gives_up_when_nothi
     spins.clear()
     graph_runner._until_heard(sil, spec)                   # returns: nothing new for REPAIR_STALL s
     assert spins and graph_runner._heard(sil, "reference", spec.control_period) == n - 3
+
+    # a topic that goes on after the end (the diagnostics, on a wall-clock timer) is not news of the samples: the
+    # hole still ends the wait (it once kept a graph test spinning until pytest's timeout)
+    clock = {"t": 0.0}
+
+    def diagnosing(predicate, timeout):   # each spin: 10 ms of wall clock and one more diagnostics message
+        clock["t"] += 0.01
+        probe.log.setdefault("diagnostics", []).append(object())
+        assert len(probe.log["diagnostics"]) < 1000, "the wait for the hole never ended"
+        return predicate()
+    monkeypatch.setattr(graph_runner, "time", SimpleNamespace(monotonic=lambda: clock["t"]))
+    sil = SimpleNamespace(log=probe.log, probe=probe, spin_until=diagnosing)
+    graph_runner._until_heard(sil, spec)
+    assert 5 <= len(probe.log["diagnostics"]) <= 10   # REPAIR_STALL (0.05 s) of spins, then the check's turn

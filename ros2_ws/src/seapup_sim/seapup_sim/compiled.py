@@ -97,7 +97,7 @@ class Flat(NamedTuple):
     """A :class:`Packed` model as the kernels take it: all its integers in one array, its floats in another, placed
     by the integers' header (:data:`HEADER` entries: ``I_*``). Two arguments where there were eleven: a kernel
     call's cost is mostly its arguments' unboxing (about 70 ns an array), which the single vehicle pays every
-    step. For a batch, one row per vehicle (each row places its own tables; shorter rows padded at the end)."""
+    step. A batch's models are rows of two such arrays (:class:`BatchFlat`)."""
 
     ints: np.ndarray     # int64
     floats: np.ndarray   # float64
