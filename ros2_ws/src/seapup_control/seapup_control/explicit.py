@@ -129,15 +129,18 @@ class ExplicitSelfTuner(SelfTuner):
         theta = self.estimator.theta
         return -theta[:4].T, theta[4:8].T
 
-    def named_estimate(self) -> dict:
-        """The estimate's named traces for a run's ``series.estimate``: the diagonal of A_1 and the
-        main-port thruster's column of B_1 (per output), and trace P."""
-        theta = self.estimator.theta   # A_1[j, j] = Theta[j, j]; B_1[j, 0] = Theta[4, j] (_blocks)
-        a, b = theta[(0, 1, 2, 3), (0, 1, 2, 3)].tolist(), theta[4, :4].tolist()
-        out = {f"a_{name}": value for name, value in zip(OUTPUTS, a)}   # -Phi[j, j]: the same float
-        out.update({f"b_{name}_main_port": value for name, value in zip(OUTPUTS, b)})
-        out["trace_P"] = self.estimator.shared_trace
-        return out
+    #: the named traces (:meth:`estimate_names`): the diagonal of A_1, the main-port thruster's column of B_1 (per
+    #: output), and trace P
+    ESTIMATE_NAMES = (*(f"a_{name}" for name in OUTPUTS), *(f"b_{name}_main_port" for name in OUTPUTS), "trace_P")
+
+    def estimate_names(self) -> tuple:
+        return self.ESTIMATE_NAMES
+
+    def estimate_values(self) -> list:
+        """The diagonal of A_1, the main-port column of B_1 and trace P (:data:`ESTIMATE_NAMES`), read from Theta:
+        A_1[j, j] = Theta[j, j], B_1[j, 0] = Theta[4, j] (:meth:`_blocks`)."""
+        theta = self.estimator.theta
+        return theta[(0, 1, 2, 3), (0, 1, 2, 3)].tolist() + theta[4, :4].tolist() + [self.estimator.shared_trace]
 
     def _designed(self) -> tuple[TwoTermGains | None, str, str]:
         """The estimate's design, or None with the jacket rule that refused it and why."""

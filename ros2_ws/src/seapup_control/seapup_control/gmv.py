@@ -129,15 +129,18 @@ class GMVSelfTuner(SelfTuner):
             return None
         return np.concatenate([*ys, *us, r, [1.0]])
 
-    def named_estimate(self) -> dict:
-        """Named traces for ``series.estimate``: per output its own F_0 coefficient (the estimate's
-        measure of y(t)'s weight), the main-port row of G_1 (u(t-1)'s coefficients), and trace P."""
+    #: the named traces (:meth:`estimate_names`): per output its own F_0 coefficient (the estimate's measure of
+    #: y(t)'s weight), the main-port row of G_1 (u(t-1)'s coefficients), and trace P
+    ESTIMATE_NAMES = (*(f"f0_{name}" for name in OUTPUTS), *(f"g1_{name}_main_port" for name in OUTPUTS), "trace_P")
+
+    def estimate_names(self) -> tuple:
+        return self.ESTIMATE_NAMES
+
+    def estimate_values(self) -> list:
+        """F_0's diagonal, G_1's main-port row (Theta's row 4 n: u(t-1)'s first) and trace P (:data:`ESTIMATE_NAMES`)."""
         theta = self.estimator.theta
-        out = {f"f0_{name}": float(theta[j, j]) for j, name in enumerate(OUTPUTS)}
-        g1 = theta[4 * self.order: 4 * self.order + 4]           # u(t-1)'s rows
-        out.update({f"g1_{name}_main_port": float(g1[0, j]) for j, name in enumerate(OUTPUTS)})
-        out["trace_P"] = self.estimator.trace
-        return out
+        return (theta[(0, 1, 2, 3), (0, 1, 2, 3)].tolist() + theta[4 * self.order, :4].tolist()
+                + [self.estimator.trace])
 
     def _law(self, t, y_si, r_si, error, u_held):
         """Estimate with phi(t), then eq. 7.4 (thesis units inside)."""

@@ -235,9 +235,19 @@ class SelfTuner(ABC):
         self._last = (t, error, raw)   # the last sample, as diagnostics() words it (made only when asked)
         return Command(command, stamp=t)
 
-    @abstractmethod
     def named_estimate(self) -> dict:
-        """The estimate's named traces for a run's ``series.estimate``."""
+        """The estimate's named traces for a run's ``series.estimate``: :meth:`estimate_names` with
+        :meth:`estimate_values`."""
+        return dict(zip(self.estimate_names(), self.estimate_values()))
+
+    @abstractmethod
+    def estimate_names(self) -> tuple:
+        """The names of the estimate's traces, in :meth:`estimate_values`'s order (the same every sample)."""
+
+    @abstractmethod
+    def estimate_values(self) -> list:
+        """The estimate's traces now, as floats in :meth:`estimate_names`'s order: what a batch of runs stores
+        every sample without making the dict."""
 
     def estimate_matrix(self) -> np.ndarray:
         """The estimator's whole parameter matrix Theta (regressors x outputs, a copy): what a node

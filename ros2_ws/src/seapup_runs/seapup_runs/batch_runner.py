@@ -182,11 +182,10 @@ def fly_batch(specs, threads: int = 1) -> list:
                 measurement = Measurement(now, Reading(velocity_i, now, variances[i]["velocity"]),
                                           Reading(rates_i, now, variances[i]["rates"]))
                 out[i] = controller.update(now, measurement, in_force[specs[i].reference]).blade_pitch
-                traces = estimates[i]
-                for name, value in controller.named_estimate().items():
-                    if name not in traces:   # (not setdefault: its default would be made every sample)
-                        traces[name] = np.full(samples + 1, np.nan)
-                    traces[name][k] = value
+                if not estimates[i]:   # the law's named traces (SelfTuner.estimate_names), a row a sample
+                    names = controller.estimate_names()
+                    estimates[i] = {"names": list(names), "values": np.full((samples + 1, len(names)), np.nan)}
+                estimates[i]["values"][k] = controller.estimate_values()
             finally:
                 RUN_INDEX.reset(token)
         reference[k], command[k] = ref, out
@@ -208,8 +207,7 @@ def fly_batch(specs, threads: int = 1) -> list:
         events = [{"time": e.time, "kind": e.kind, "detail": RunEvent.to_dict(e)["detail"]}
                   for e in spec.plant_events()]
         jacket = _jacket([laws[i]], events) if i in alone else {}   # a self-tuner's mode events and counts
-        estimate = ({"names": list(estimates[i]), "values": np.column_stack(list(estimates[i].values()))}
-                    if estimates[i] else None)
+        estimate = estimates[i] or None
         series = Series.from_states(t, states[:, i], {name: v[:, i] for name, v in measured.items()},
                                     reference[:, i], command[:, i], applied[:, i],
                                     sorted(events, key=lambda e: e["time"]), estimate)

@@ -229,7 +229,9 @@ def run(spec: RunSpec, progress: Callable[[float], None] | None = None, wrap: Ca
         named = getattr(controller, "named_estimate", None)   # an estimating controller's parameters
         if named is not None:
             for name, value in named().items():
-                estimates.setdefault(name, np.full(n + 1, np.nan))[k] = value
+                if name not in estimates:   # (not setdefault: its default would be made every sample)
+                    estimates[name] = np.full(n + 1, np.nan)
+                estimates[name][k] = value
         simulation.advance(out.blade_pitch)
         if progress is not None and (k % 25 == 0 or k == n - 1):
             progress((k + 1) / n)
