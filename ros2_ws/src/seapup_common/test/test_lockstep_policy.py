@@ -189,6 +189,27 @@ def test_with_a_reference_every_sample_each_sample_waits_for_its_own_even_before
     assert policy.decide(200 * MS, now=1.01).action == ANSWER
 
 
+def test_with_a_reference_every_sample_a_first_one_stamped_zero_starts_the_stream():
+    """The reference schedule stamps its first reference 0, which the controller node reads as "no stamp": it is
+    still t = 0's, so sample 0.2 waits for its own (a fresh clone's suite once raced a slow schedule for 28
+    samples); without reference_every_sample an unstamped reference starts no stream."""
+    policy = SamplePolicy(True, WaitSettings(reference_wait=0.2, reference_every_sample=True))
+    policy.activate(heard_applied=True)
+    policy.on_sample(0)
+    policy.on_reference(None)                                 # t = 0's reference, stamp 0
+    assert policy.decide(0, now=0.0).action == ANSWER
+    policy.answered(0)
+    policy.on_sample(200 * MS)
+    assert policy.decide(200 * MS, now=1.0).action == WAIT    # waits for the one stamped 0.2 s
+    assert policy.decide(200 * MS, now=1.25).action == ANSWER  # up to reference_wait, then goes on (late)
+    assert policy.late["references"] == 1
+    loose = SamplePolicy(True, WaitSettings(reference_wait=0.2))
+    loose.activate(heard_applied=True)
+    loose.on_reference(None)
+    loose.on_sample(200 * MS)
+    assert loose.decide(200 * MS, now=1.0).action == ANSWER   # unstamped: in force at once, no stream
+
+
 def test_the_stamp_gate_refuses_a_far_future_stamp_follows_resets_and_resyncs_a_real_jump():
     from seapup_common.lockstep import StampGate
     s = 10**9

@@ -192,6 +192,11 @@ class SamplePolicy:
         first = not self.heard_reference
         self.heard_reference = True
         retry = first and self._first_wait is not None
+        if at is None and self.settings.reference_every_sample and self._newest_reference is None:
+            # one reference a sample: the first, stamped 0 (which a node reads as no stamp), is t = 0's, so the
+            # stream starts with it and the next sample waits for its own (else a slow publisher is raced past
+            # until its next reference is heard)
+            at = 0.0
         if at is not None and (self._newest_reference is None or at > self._newest_reference):
             self._previous_reference, self._newest_reference = self._newest_reference, float(at)
             retry = retry or self._reference_wait is not None
