@@ -119,8 +119,8 @@ class ExplicitSelfTuner(SelfTuner):
     # -- the estimate as the thesis's matrices -----------------------------------------------------------
     def estimate(self) -> dict:
         """The present estimate: Phi = -A_1, Gamma = B_1 and the offset d (SI units, radians)."""
-        model = self.estimator.model
-        return {"Phi": -model.A[0], "Gamma": model.B[0], "d": np.asarray(model.d, dtype=float).reshape(-1)}
+        phi, gamma = self._blocks()
+        return {"Phi": phi, "Gamma": gamma.copy(), "d": self.estimator.theta[8].copy()}   # d: Theta's last row
 
     def _blocks(self) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma) = (-A_1, B_1) read straight from Theta, as :meth:`estimate` has them through

@@ -192,20 +192,31 @@ def pack(model) -> Packed:
 
 
 @njit(inline="always", **_JIT)
+def rotation_entries(cf, sf, ct, st, cp, sp):
+    """R's nine entries by rows, from the cosines and sines of roll, pitch and yaw (eq. 2.1, z-y-x Euler angles;
+    frames.rotation_body_to_ned): v_ned = R v_body."""
+    return (cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf,
+            sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf,
+            -st, ct * sf, ct * cf)
+
+
+@njit(inline="always", **_JIT)
 def rotation(phi, theta, psi, rot):
-    """R with v_ned = R v_body (z-y-x Euler angles, eq. 2.1; frames.rotation_body_to_ned) into ``rot``."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cp, sp = math.cos(psi), math.sin(psi)
-    rot[0, 0] = cp * ct
-    rot[0, 1] = cp * st * sf - sp * cf
-    rot[0, 2] = cp * st * cf + sp * sf
-    rot[1, 0] = sp * ct
-    rot[1, 1] = sp * st * sf + cp * cf
-    rot[1, 2] = sp * st * cf - cp * sf
-    rot[2, 0] = -st
-    rot[2, 1] = ct * sf
-    rot[2, 2] = ct * cf
+    """R with v_ned = R v_body (:func:`rotation_entries`) into ``rot``."""
+    entries = rotation_entries(math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta), math.cos(psi),
+                               math.sin(psi))
+    for k in range(9):
+        rot[k // 3, k % 3] = entries[k]
+
+
+@njit(inline="always", **_JIT)
+def dot3(a0, a1, a2, b0, b1, b2):
+    """a . b as the reference's products sum it: begun at +0.0, term by term."""
+    s = 0.0
+    s += a0 * b0
+    s += a1 * b1
+    s += a2 * b2
+    return s
 
 
 @njit(inline="always", **_JIT)
@@ -268,28 +279,14 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     cf, sf = math.cos(x[3]), math.sin(x[3])
     ct, st = math.cos(x[4]), math.sin(x[4])
     cp, sp = math.cos(x[5]), math.sin(x[5])
-    r00, r01, r02 = cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf   # rotation(): R, v_ned = R v_body
-    r10, r11, r12 = sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf
-    r20, r21, r22 = -st, ct * sf, ct * cf
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_entries(cf, sf, ct, st, cp, sp)
     u, v, w, p, q, r = x[6], x[7], x[8], x[9], x[10], x[11]
     ur, vr, wr = u, v, w
     if use_current:   # nu_r = nu - R^T v_c
         c0, c1, c2 = current[0], current[1], current[2]
-        s = 0.0
-        s += r00 * c0
-        s += r10 * c1
-        s += r20 * c2
-        ur -= s
-        s = 0.0
-        s += r01 * c0
-        s += r11 * c1
-        s += r21 * c2
-        vr -= s
-        s = 0.0
-        s += r02 * c0
-        s += r12 * c1
-        s += r22 * c2
-        wr -= s
+        ur -= dot3(r00, r10, r20, c0, c1, c2)
+        vr -= dot3(r01, r11, r21, c0, c1, c2)
+        wr -= dot3(r02, r12, r22, c0, c1, c2)
     e = _W_EXT
     work[e], work[e + 1], work[e + 2], work[e + 3], work[e + 4], work[e + 5], work[e + 6] = ur, vr, wr, p, q, r, 1.0
     # -[w x p_v ; w x p_w + v x p_v], p = M nu, for the rigid body (nu) and the added mass (nu_r)
@@ -355,21 +352,9 @@ def rhs(x, pitch, current, use_current, external, use_external, thrusters_on, ef
     if use_external:
         for i in range(6):
             work[t + i] += external[i]
-    s = 0.0   # R nu_v (matvec)
-    s += r00 * u
-    s += r01 * v
-    s += r02 * w
-    out[0] = s
-    s = 0.0
-    s += r10 * u
-    s += r11 * v
-    s += r12 * w
-    out[1] = s
-    s = 0.0
-    s += r20 * u
-    s += r21 * v
-    s += r22 * w
-    out[2] = s
+    out[0] = dot3(r00, r01, r02, u, v, w)   # R nu_v
+    out[1] = dot3(r10, r11, r12, u, v, w)
+    out[2] = dot3(r20, r21, r22, u, v, w)
     tt = math.tan(x[4])
     out[3] = (p + sf * tt * q) + cf * tt * r
     out[4] = (0.0 * p + cf * q) + (-sf) * r
